@@ -1,0 +1,34 @@
+#include "render/exact.h"
+
+#include <cassert>
+
+namespace gvd {
+namespace {
+
+template <class... Fs>
+struct Overloaded : Fs... {
+  using Fs::operator()...;
+};
+
+}  // namespace
+
+double ExactDistance(Vec2 q, const Geometry& g) {
+  return std::visit(Overloaded{[&](const PointSite& s) { return Distance(q, s.p); }}, g);
+}
+
+double FarthestWindowDistance(const Window& window, const Geometry& g) {
+  return std::visit(Overloaded{[&](const PointSite& s) { return window.FarthestDistance(s.p); }},
+                    g);
+}
+
+ExactNearest NearestBruteForce(Vec2 q, std::span<const Site> sites) {
+  assert(!sites.empty());
+  ExactNearest best{0, ExactDistance(q, sites[0].geometry)};
+  for (size_t i = 1; i < sites.size(); ++i) {
+    double d = ExactDistance(q, sites[i].geometry);
+    if (d < best.distance) best = {i, d};
+  }
+  return best;
+}
+
+}  // namespace gvd

@@ -1,0 +1,260 @@
+#include "render/raster.h"
+
+#define GL_GLEXT_PROTOTYPES
+#include <GL/glcorearb.h>
+
+#include <chrono>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
+#include "render/exact.h"
+#include "render/mesh.h"
+
+namespace gvd {
+namespace {
+
+// Point cones, instanced: `unit` is a vertex of the unit cone, `instance` = (x, y, rho) with
+// x, y relative to the window's min corner in scene units, `site` = site index + 1.
+// Depth is distance / depth_scale; glClipControl(ZERO_TO_ONE) keeps it unchanged into the
+// depth buffer, with no [-1, 1] remapping to cost precision.
+constexpr const char* kVertexShader = R"(#version 450 core
+layout(location = 0) in vec3 unit;
+layout(location = 1) in vec3 instance;
+layout(location = 2) in uint site;
+uniform vec2 u_scale;
+uniform float u_inv_depth;
+flat out uint v_site;
+void main() {
+  vec2 p = instance.xy + instance.z * unit.xy;
+  gl_Position = vec4(p * u_scale - 1.0, unit.z * instance.z * u_inv_depth, 1.0);
+  v_site = site;
+}
+)";
+
+constexpr const char* kFragmentShader = R"(#version 450 core
+flat in uint v_site;
+layout(location = 0) out uint o_site;
+void main() { o_site = v_site; }
+)";
+
+absl::Status GlError(const char* what) {
+  GLenum e = glGetError();
+  if (e == GL_NO_ERROR) return absl::OkStatus();
+  return absl::InternalError(absl::StrCat(what, ": GL error 0x", absl::Hex(e)));
+}
+
+absl::StatusOr<GLuint> Compile(GLenum kind, const char* source) {
+  GLuint shader = glCreateShader(kind);
+  glShaderSource(shader, 1, &source, nullptr);
+  glCompileShader(shader);
+  GLint ok = 0;
+  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    char log[2048] = {};
+    glGetShaderInfoLog(shader, sizeof log, nullptr, log);
+    glDeleteShader(shader);
+    return absl::InternalError(absl::StrCat("shader compilation failed: ", log));
+  }
+  return shader;
+}
+
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<RenderTarget>> RenderTarget::Create(uint32_t width,
+                                                                   uint32_t height) {
+  GLint max_size = 0;
+  glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_size);
+  if (width == 0 || height == 0 || width > uint32_t(max_size) || height > uint32_t(max_size)) {
+    return absl::ResourceExhaustedError(absl::StrCat("render target ", width, "x", height,
+                                                     " exceeds GL_MAX_RENDERBUFFER_SIZE ",
+                                                     max_size));
+  }
+  std::unique_ptr<RenderTarget> t(new RenderTarget(width, height));
+  glGenFramebuffers(1, &t->fbo_);
+  glGenRenderbuffers(1, &t->ids_);
+  glGenRenderbuffers(1, &t->depth_);
+  glBindRenderbuffer(GL_RENDERBUFFER, t->ids_);
+  glRenderbufferStorage(GL_RENDERBUFFER, GL_R32UI, width, height);
+  glBindRenderbuffer(GL_RENDERBUFFER, t->depth_);
+  glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, width, height);
+  glBindFramebuffer(GL_FRAMEBUFFER, t->fbo_);
+  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, t->ids_);
+  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, t->depth_);
+  GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  if (auto s = GlError("creating the render target"); !s.ok()) return s;
+  if (status != GL_FRAMEBUFFER_COMPLETE) {
+    return absl::InternalError(
+        absl::StrCat("framebuffer incomplete: status 0x", absl::Hex(status)));
+  }
+  return t;
+}
+
+RenderTarget::~RenderTarget() {
+  glDeleteFramebuffers(1, &fbo_);
+  glDeleteRenderbuffers(1, &ids_);
+  glDeleteRenderbuffers(1, &depth_);
+}
+
+absl::StatusOr<std::unique_ptr<Rasterizer>> Rasterizer::Create() {
+  auto vs = Compile(GL_VERTEX_SHADER, kVertexShader);
+  if (!vs.ok()) return vs.status();
+  auto fs = Compile(GL_FRAGMENT_SHADER, kFragmentShader);
+  if (!fs.ok()) {
+    glDeleteShader(*vs);
+    return fs.status();
+  }
+  std::unique_ptr<Rasterizer> r(new Rasterizer());
+  r->program_ = glCreateProgram();
+  glAttachShader(r->program_, *vs);
+  glAttachShader(r->program_, *fs);
+  glLinkProgram(r->program_);
+  glDeleteShader(*vs);
+  glDeleteShader(*fs);
+  GLint ok = 0;
+  glGetProgramiv(r->program_, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    char log[2048] = {};
+    glGetProgramInfoLog(r->program_, sizeof log, nullptr, log);
+    return absl::InternalError(absl::StrCat("shader link failed: ", log));
+  }
+  r->u_scale_ = glGetUniformLocation(r->program_, "u_scale");
+  r->u_inv_depth_ = glGetUniformLocation(r->program_, "u_inv_depth");
+  glGenVertexArrays(1, &r->vao_);
+  glGenBuffers(1, &r->instances_);
+  if (auto s = GlError("creating the rasterizer"); !s.ok()) return s;
+  return r;
+}
+
+Rasterizer::~Rasterizer() {
+  for (auto& [n, cone] : cones_) glDeleteBuffers(1, &cone.buffer);
+  glDeleteBuffers(1, &instances_);
+  glDeleteVertexArrays(1, &vao_);
+  glDeleteProgram(program_);
+}
+
+unsigned Rasterizer::ConeBuffer(uint32_t segments, double* overestimate) {
+  auto it = cones_.find(segments);
+  if (it == cones_.end()) {
+    ConeMesh mesh = BuildUnitCone(segments);
+    GLuint buffer = 0;
+    glGenBuffers(1, &buffer);
+    glBindBuffer(GL_ARRAY_BUFFER, buffer);
+    glBufferData(GL_ARRAY_BUFFER, mesh.vertices.size() * sizeof(float), mesh.vertices.data(),
+                 GL_STATIC_DRAW);
+    it = cones_.emplace(segments, Cone{buffer, mesh.overestimate}).first;
+  }
+  *overestimate = it->second.overestimate;
+  return it->second.buffer;
+}
+
+absl::StatusOr<std::shared_ptr<const Frame>> Rasterizer::Render(
+    const Grid& grid, double eps, uint64_t version, std::shared_ptr<const SiteTable> sites,
+    RenderTarget& target, RenderStats* stats) {
+  if (target.width() != grid.width || target.height() != grid.height) {
+    return absl::InternalError("render target does not match the grid");
+  }
+  if (sites->empty()) return Frame::Empty(grid, version, eps);
+  auto start = std::chrono::steady_clock::now();
+
+  // Each cone must reach the farthest sample of the window from its site.
+  std::vector<double> reach(sites->size());
+  double max_reach = 0;
+  for (size_t i = 0; i < sites->size(); ++i) {
+    reach[i] = FarthestWindowDistance(grid.window, (*sites)[i].geometry);
+    max_reach = std::max(max_reach, reach[i]);
+  }
+  uint32_t segments = ConeSegments(max_reach + eps, eps);
+  double k = 1;
+  GLuint cone = ConeBuffer(segments, &k);
+  // Scaled by rho = reach * k, the fan covers radius `reach`. The factor 1 + 2^-20 absorbs the
+  // rounding of the float ring vertices, which can fall a few ulps inside the unit circle.
+  constexpr double kCoverMargin = 1 + 0x1p-20;
+  double max_rho = max_reach * k * kCoverMargin;
+  double depth_scale = max_rho * (1 + 0x1p-10);  // ring depth stays inside the far plane
+
+  struct Instance {
+    float x, y, rho;
+    uint32_t site;
+  };
+  std::vector<Instance> instances(sites->size());
+  for (size_t i = 0; i < sites->size(); ++i) {
+    const auto& p = std::get<PointSite>((*sites)[i].geometry).p;
+    instances[i] = {static_cast<float>(p.x - grid.window.min_x),
+                    static_cast<float>(p.y - grid.window.min_y),
+                    static_cast<float>(reach[i] * k * kCoverMargin), static_cast<uint32_t>(i + 1)};
+  }
+
+  glBindFramebuffer(GL_FRAMEBUFFER, target.framebuffer());
+  glViewport(0, 0, grid.width, grid.height);
+  glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  glDepthMask(GL_TRUE);
+  glDisable(GL_BLEND);
+  glDisable(GL_CULL_FACE);
+  const GLuint zero_id[4] = {0, 0, 0, 0};
+  glClearBufferuiv(GL_COLOR, 0, zero_id);
+  glClearBufferfi(GL_DEPTH_STENCIL, 0, 1.0f, 0);
+
+  glUseProgram(program_);
+  glUniform2f(u_scale_, static_cast<float>(2 / grid.window.width()),
+              static_cast<float>(2 / grid.window.height()));
+  glUniform1f(u_inv_depth_, static_cast<float>(1 / depth_scale));
+  glBindVertexArray(vao_);
+  glBindBuffer(GL_ARRAY_BUFFER, cone);
+  glEnableVertexAttribArray(0);
+  glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), nullptr);
+  glVertexAttribDivisor(0, 0);
+  glBindBuffer(GL_ARRAY_BUFFER, instances_);
+  glBufferData(GL_ARRAY_BUFFER, instances.size() * sizeof(Instance), instances.data(),
+               GL_STREAM_DRAW);
+  glEnableVertexAttribArray(1);
+  glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, sizeof(Instance), nullptr);
+  glVertexAttribDivisor(1, 1);
+  glEnableVertexAttribArray(2);
+  glVertexAttribIPointer(2, 1, GL_UNSIGNED_INT, sizeof(Instance),
+                         reinterpret_cast<void*>(offsetof(Instance, site)));
+  glVertexAttribDivisor(2, 1);
+  glDrawArraysInstanced(GL_TRIANGLES, 0, static_cast<GLsizei>(segments * 3),
+                        static_cast<GLsizei>(instances.size()));
+  glFinish();
+  double draw_seconds = Seconds(start);
+  if (auto s = GlError("drawing distance meshes"); !s.ok()) return s;
+
+  auto read_start = std::chrono::steady_clock::now();
+  std::vector<uint32_t> ids(grid.pixel_count());
+  std::vector<float> distances(grid.pixel_count());
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  glReadBuffer(GL_COLOR_ATTACHMENT0);
+  glReadPixels(0, 0, grid.width, grid.height, GL_RED_INTEGER, GL_UNSIGNED_INT, ids.data());
+  glReadPixels(0, 0, grid.width, grid.height, GL_DEPTH_COMPONENT, GL_FLOAT, distances.data());
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  if (auto s = GlError("reading back the frame"); !s.ok()) return s;
+  for (float& d : distances) d = static_cast<float>(d * depth_scale);
+
+  // Arithmetic slack, on top of the mesh's overestimate (see ErrorModel): vertices snap to
+  // 1/256 pixel (GL_SUBPIXEL_BITS = 8 on llvmpipe and NVIDIA), which moves a cone's surface by
+  // at most 1/256 pixel diagonal, as the surface's slope is at most k ~ 1; we allow 1/64.
+  // Float interpolation and depth storage err by a few ulps of the depth range and of D.
+  ErrorModel error;
+  error.overestimate = k;
+  error.absolute_slack = grid.pixel_diagonal() / 64 + depth_scale * 0x1p-18;
+  error.relative_slack = 0x1p-18;
+  if (stats) {
+    stats->cone_segments = segments;
+    stats->draw_seconds = draw_seconds;
+    stats->readback_seconds = Seconds(read_start);
+  }
+  return std::make_shared<const Frame>(grid, version, eps, error, std::move(ids),
+                                       std::move(distances), std::move(sites));
+}
+
+}  // namespace gvd

@@ -1,0 +1,73 @@
+// Draws a scene's distance meshes into an id + depth framebuffer and reads it back as a Frame.
+// Everything here needs the thread's current GL context (see GlContext).
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+
+#include "absl/status/statusor.h"
+#include "render/frame.h"
+#include "render/geometry.h"
+#include "render/site.h"
+
+namespace gvd {
+
+// A framebuffer object with an R32UI id attachment (0 = no site, else site index + 1) and a
+// 32-bit float depth attachment, at one resolution. Rendering always targets an FBO, never a
+// window surface. Not thread-safe; the context that made it must be current.
+class RenderTarget {
+ public:
+  static absl::StatusOr<std::unique_ptr<RenderTarget>> Create(uint32_t width, uint32_t height);
+  ~RenderTarget();
+  RenderTarget(const RenderTarget&) = delete;
+  RenderTarget& operator=(const RenderTarget&) = delete;
+
+  uint32_t width() const { return width_; }
+  uint32_t height() const { return height_; }
+  unsigned framebuffer() const { return fbo_; }
+
+ private:
+  RenderTarget(uint32_t width, uint32_t height) : width_(width), height_(height) {}
+  uint32_t width_, height_;
+  unsigned fbo_ = 0, ids_ = 0, depth_ = 0;
+};
+
+struct RenderStats {
+  uint32_t cone_segments = 0;  // triangles per point cone in this render
+  double draw_seconds = 0;     // until the GPU finished drawing
+  double readback_seconds = 0;
+};
+
+// Compiled shaders and mesh buffers. Not thread-safe; use on the context's thread.
+class Rasterizer {
+ public:
+  static absl::StatusOr<std::unique_ptr<Rasterizer>> Create();
+  ~Rasterizer();
+  Rasterizer(const Rasterizer&) = delete;
+  Rasterizer& operator=(const Rasterizer&) = delete;
+
+  // Renders the discrete Voronoi diagram of `sites` on `grid`, every distance mesh within
+  // `eps` (scene units) of the truth, into `target`, and reads it back as a frame.
+  // CONTRACT: target matches the grid's size; eps > 0; sites' coordinates are finite.
+  absl::StatusOr<std::shared_ptr<const Frame>> Render(const Grid& grid, double eps,
+                                                      uint64_t version,
+                                                      std::shared_ptr<const SiteTable> sites,
+                                                      RenderTarget& target,
+                                                      RenderStats* stats = nullptr);
+
+ private:
+  Rasterizer() = default;
+  // The vertex buffer of the unit cone with `segments` triangles, made on first use.
+  unsigned ConeBuffer(uint32_t segments, double* overestimate);
+
+  unsigned program_ = 0, vao_ = 0, instances_ = 0;
+  int u_scale_ = -1, u_inv_depth_ = -1;
+  struct Cone {
+    unsigned buffer;
+    double overestimate;
+  };
+  std::map<uint32_t, Cone> cones_;
+};
+
+}  // namespace gvd
