@@ -1,0 +1,97 @@
+#include "gvd/client.h"
+
+#include <grpcpp/create_channel.h>
+#include <grpcpp/security/credentials.h>
+
+namespace gvd {
+
+std::unique_ptr<Client> Client::Connect(const std::string& target, ClientOptions options) {
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(options.max_message_bytes);
+  args.SetMaxSendMessageSize(options.max_message_bytes);
+  auto channel =
+      grpc::CreateCustomChannel(target, grpc::InsecureChannelCredentials(), args);
+  return std::make_unique<Client>(std::move(channel), options);
+}
+
+Client::Client(std::shared_ptr<grpc::Channel> channel, ClientOptions options)
+    : channel_(std::move(channel)), stub_(v1::Voronoi::NewStub(channel_)), options_(options) {}
+
+std::unique_ptr<grpc::ClientContext> Client::Context() const {
+  auto ctx = std::make_unique<grpc::ClientContext>();
+  ctx->set_deadline(std::chrono::system_clock::now() + options_.timeout);
+  return ctx;
+}
+
+grpc::Status Client::CreateScene(const v1::CreateSceneRequest& request, v1::Scene* scene) {
+  return stub_->CreateScene(Context().get(), request, scene);
+}
+
+grpc::Status Client::GetScene(const std::string& scene_id, v1::Scene* scene) {
+  v1::GetSceneRequest request;
+  request.set_scene_id(scene_id);
+  return stub_->GetScene(Context().get(), request, scene);
+}
+
+grpc::Status Client::ListScenes(std::vector<v1::Scene>* scenes) {
+  v1::ListScenesResponse response;
+  grpc::Status s = stub_->ListScenes(Context().get(), v1::ListScenesRequest(), &response);
+  if (s.ok()) scenes->assign(response.scenes().begin(), response.scenes().end());
+  return s;
+}
+
+grpc::Status Client::DeleteScene(const std::string& scene_id) {
+  v1::DeleteSceneRequest request;
+  request.set_scene_id(scene_id);
+  v1::DeleteSceneResponse response;
+  return stub_->DeleteScene(Context().get(), request, &response);
+}
+
+grpc::Status Client::UpsertSites(const v1::UpsertSitesRequest& request, uint64_t* version) {
+  v1::UpsertSitesResponse response;
+  grpc::Status s = stub_->UpsertSites(Context().get(), request, &response);
+  if (s.ok() && version) *version = response.version();
+  return s;
+}
+
+grpc::Status Client::DeleteSites(const std::string& scene_id, const std::vector<std::string>& ids,
+                                 uint64_t* version) {
+  v1::DeleteSitesRequest request;
+  request.set_scene_id(scene_id);
+  for (const auto& id : ids) request.add_ids(id);
+  v1::DeleteSitesResponse response;
+  grpc::Status s = stub_->DeleteSites(Context().get(), request, &response);
+  if (s.ok() && version) *version = response.version();
+  return s;
+}
+
+grpc::Status Client::ListSites(const v1::ListSitesRequest& request,
+                               v1::ListSitesResponse* response) {
+  return stub_->ListSites(Context().get(), request, response);
+}
+
+grpc::Status Client::ListAllSites(const std::string& scene_id, std::vector<v1::Site>* sites) {
+  sites->clear();
+  v1::ListSitesRequest request;
+  request.set_scene_id(scene_id);
+  request.set_page_size(10'000);
+  while (true) {
+    v1::ListSitesResponse page;
+    grpc::Status s = ListSites(request, &page);
+    if (!s.ok()) return s;
+    sites->insert(sites->end(), page.sites().begin(), page.sites().end());
+    if (page.next_page_token().empty()) return s;
+    request.set_page_token(page.next_page_token());
+  }
+}
+
+grpc::Status Client::FindNearest(const v1::FindNearestRequest& request,
+                                 v1::FindNearestResponse* response) {
+  return stub_->FindNearest(Context().get(), request, response);
+}
+
+bool Client::WaitForConnected(std::chrono::milliseconds timeout) {
+  return channel_->WaitForConnected(std::chrono::system_clock::now() + timeout);
+}
+
+}  // namespace gvd

@@ -1,0 +1,55 @@
+// The C++ client of gvd-server. One method per RPC, plus conveniences; every call returns
+// the server's grpc::Status. Thread-safe: calls may be made from many threads at once.
+#pragma once
+
+#include <chrono>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <grpcpp/channel.h>
+#include <grpcpp/support/status.h>
+
+#include "gvd/v1/voronoi.grpc.pb.h"
+
+namespace gvd {
+
+struct ClientOptions {
+  // Deadline of each call; a FindNearest with min_version waits at most this long.
+  std::chrono::milliseconds timeout{30'000};
+  int max_message_bytes = 256 << 20;
+};
+
+class Client {
+ public:
+  // A client over an insecure channel to `target` (e.g. "127.0.0.1:50051").
+  static std::unique_ptr<Client> Connect(const std::string& target, ClientOptions options = {});
+  Client(std::shared_ptr<grpc::Channel> channel, ClientOptions options);
+
+  grpc::Status CreateScene(const v1::CreateSceneRequest& request, v1::Scene* scene);
+  grpc::Status GetScene(const std::string& scene_id, v1::Scene* scene);
+  grpc::Status ListScenes(std::vector<v1::Scene>* scenes);
+  grpc::Status DeleteScene(const std::string& scene_id);
+
+  grpc::Status UpsertSites(const v1::UpsertSitesRequest& request, uint64_t* version);
+  grpc::Status DeleteSites(const std::string& scene_id, const std::vector<std::string>& ids,
+                           uint64_t* version);
+  grpc::Status ListSites(const v1::ListSitesRequest& request, v1::ListSitesResponse* response);
+  // Every site of the scene, following page tokens.
+  grpc::Status ListAllSites(const std::string& scene_id, std::vector<v1::Site>* sites);
+
+  grpc::Status FindNearest(const v1::FindNearestRequest& request,
+                           v1::FindNearestResponse* response);
+
+  // Waits until the server answers or `timeout` passes; true when connected.
+  bool WaitForConnected(std::chrono::milliseconds timeout);
+
+ private:
+  std::unique_ptr<grpc::ClientContext> Context() const;
+
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<v1::Voronoi::Stub> stub_;
+  ClientOptions options_;
+};
+
+}  // namespace gvd

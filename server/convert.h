@@ -1,0 +1,46 @@
+// Proto messages to render types, with validation. Every refusal is a gRPC status whose
+// message names the field (with its index) and the offending value; nothing here mutates.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <grpcpp/support/status.h>
+
+#include "gvd/v1/voronoi.pb.h"
+#include "render/geometry.h"
+#include "render/site.h"
+#include "server/limits.h"
+#include "server/scene.h"
+
+namespace gvd {
+
+// The proto coordinate as written in messages: up to 17 significant digits, nan, inf.
+std::string FormatNumber(double v);
+
+grpc::Status ValidateSceneId(const std::string& id, const ServerLimits& limits,
+                             const char* field = "scene_id");
+
+// Checks a CreateSceneRequest and derives the scene's settings (eps = one pixel for 0).
+grpc::Status ToSceneSettings(const v1::CreateSceneRequest& request, const ServerLimits& limits,
+                             SceneSettings* settings);
+
+// Checks every site (ids non-empty, short, distinct; geometry set; coordinates finite).
+grpc::Status ToSites(const v1::UpsertSitesRequest& request, const ServerLimits& limits,
+                     std::vector<Site>* sites);
+
+// Checks ids non-empty and distinct.
+grpc::Status ToSiteIds(const v1::DeleteSitesRequest& request, const ServerLimits& limits,
+                       std::vector<std::string>* ids);
+
+// Checks the query points: count within the limit, finite, inside the scene's window.
+grpc::Status ToQueryPoints(const v1::FindNearestRequest& request, const Window& window,
+                           const ServerLimits& limits, std::vector<Vec2>* points);
+
+void ToProto(const Site& site, v1::Site* out);
+void ToProto(const Scene& scene, v1::Scene* out);
+
+// absl::Status from the render and scene layers to a gRPC status with the same code.
+grpc::Status ToGrpc(const absl::Status& status);
+
+}  // namespace gvd

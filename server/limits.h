@@ -1,0 +1,22 @@
+// Limits that keep one request or scene from exhausting the server. Each has a flag.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+namespace gvd {
+
+struct ServerLimits {
+  uint32_t max_side_px = 8192;               // width_px and height_px
+  uint64_t max_scene_pixels = 8192ull * 8192; // width_px * height_px
+  size_t max_scenes = 1000;
+  size_t max_sites_per_scene = 1'000'000;
+  size_t max_sites_per_request = 100'000;
+  size_t max_points_per_query = 1'000'000;
+  size_t max_site_id_bytes = 256;
+  size_t max_scene_id_chars = 128;
+  uint32_t max_page_size = 10'000;
+  int max_message_bytes = 256 << 20;         // gRPC receive and send
+};
+
+}  // namespace gvd

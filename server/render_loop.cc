@@ -1,0 +1,153 @@
+#include "server/render_loop.h"
+
+#include <chrono>
+#include <map>
+
+#include "absl/strings/str_cat.h"
+#include "render/raster.h"
+#include "server/log.h"
+
+namespace gvd {
+
+RenderLoop::~RenderLoop() { Stop(); }
+
+absl::Status RenderLoop::Start(DevicePreference preference) {
+  thread_ = std::thread([this, preference] { Run(preference); });
+  std::unique_lock<std::mutex> lock(mu_);
+  cv_.wait(lock, [this] { return started_; });
+  if (!start_status_.ok()) {
+    lock.unlock();
+    thread_.join();
+  }
+  return start_status_;
+}
+
+void RenderLoop::Stop() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stopping_ = true;
+  }
+  cv_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+void RenderLoop::MarkDirty(std::shared_ptr<Scene> scene) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (stopping_ || !queued_.insert(scene.get()).second) return;
+    queue_.push_back(std::move(scene));
+  }
+  cv_.notify_all();
+}
+
+RenderLoopStats RenderLoop::stats() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return stats_;
+}
+
+void RenderLoop::Run(DevicePreference preference) {
+  std::unique_ptr<GlContext> context;
+  std::unique_ptr<Rasterizer> rasterizer;
+  {
+    absl::Status status;
+    auto ctx = GlContext::Create(preference);
+    if (ctx.ok()) {
+      context = std::move(*ctx);
+      auto r = Rasterizer::Create();
+      if (r.ok()) {
+        rasterizer = std::move(*r);
+      } else {
+        status = r.status();
+      }
+    } else {
+      status = ctx.status();
+    }
+    std::lock_guard<std::mutex> lock(mu_);
+    if (context) device_ = context->info();
+    start_status_ = status;
+    started_ = true;
+    cv_.notify_all();
+    if (!status.ok()) return;
+  }
+
+  // One render target per scene, kept between renders (later renders may reuse its
+  // contents); released when the scene is deleted.
+  std::map<const Scene*, std::pair<std::weak_ptr<Scene>, std::unique_ptr<RenderTarget>>> targets;
+  while (true) {
+    std::shared_ptr<Scene> scene;
+    {
+      std::unique_lock<std::mutex> lock(mu_);
+      cv_.wait(lock, [this] { return stopping_ || !queue_.empty(); });
+      if (stopping_) break;
+      scene = std::move(queue_.front());
+      queue_.pop_front();
+      queued_.erase(scene.get());
+    }
+    // Drop the targets of scenes that are gone.
+    for (auto it = targets.begin(); it != targets.end();) {
+      auto owner = it->second.first.lock();
+      it = (!owner || owner->deleted()) ? targets.erase(it) : std::next(it);
+    }
+    if (scene->deleted()) continue;
+
+    Scene::Snapshot snapshot = scene->TakeSnapshot();
+    if (snapshot.version <= scene->frame()->version()) continue;
+    const SceneSettings& settings = scene->settings();
+    auto start = std::chrono::steady_clock::now();
+    auto& slot = targets[scene.get()];
+    absl::StatusOr<std::shared_ptr<const Frame>> frame;
+    if (!slot.second) {
+      auto target = RenderTarget::Create(settings.grid.width, settings.grid.height);
+      if (target.ok()) {
+        slot = {scene, std::move(*target)};
+      } else {
+        frame = target.status();
+      }
+    }
+    RenderStats render_stats;
+    if (slot.second) {
+      frame = rasterizer->Render(settings.grid, settings.eps, snapshot.version,
+                                 std::move(snapshot.sites), *slot.second, &render_stats);
+    }
+    double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (!frame.ok()) {
+      Log(LogLevel::kError, "render_failed",
+          {{"scene", scene->id()}, {"version", absl::StrCat(snapshot.version)},
+           {"error", frame.status().ToString()}});
+      {
+        std::lock_guard<std::mutex> lock(mu_);
+        ++stats_.failures;
+      }
+      scene->FailWaiters(absl::UnavailableError(
+          absl::StrCat("rendering scene \"", scene->id(), "\" failed: ", frame.status().message())));
+      continue;
+    }
+    scene->Publish(*frame);
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      ++stats_.renders;
+      stats_.last_render_seconds = seconds;
+    }
+    Log(LogLevel::kDebug, "rendered",
+        {{"scene", scene->id()}, {"version", absl::StrCat(snapshot.version)},
+         {"sites", absl::StrCat((*frame)->sites().size())},
+         {"cone_triangles", absl::StrCat(render_stats.cone_segments)},
+         {"draw_ms", absl::StrCat(render_stats.draw_seconds * 1e3)},
+         {"readback_ms", absl::StrCat(render_stats.readback_seconds * 1e3)},
+         {"total_ms", absl::StrCat(seconds * 1e3)}});
+  }
+
+  // Whatever is still queued will not be rendered: release its waiters.
+  std::deque<std::shared_ptr<Scene>> left;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    left.swap(queue_);
+    queued_.clear();
+  }
+  for (auto& s : left) s->FailWaiters(absl::UnavailableError("the server is shutting down"));
+  targets.clear();
+  rasterizer.reset();
+  context.reset();
+}
+
+}  // namespace gvd

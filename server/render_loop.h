@@ -1,0 +1,63 @@
+// The render thread: it alone owns the GL context. It drains a queue of scenes marked dirty
+// by updates, renders each at its latest version, and publishes the frame. Bursts of updates
+// to one scene coalesce into one render.
+#pragma once
+
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include "absl/status/status.h"
+#include "render/context.h"
+#include "server/scene.h"
+
+namespace gvd {
+
+struct RenderLoopStats {
+  uint64_t renders = 0;
+  uint64_t failures = 0;
+  double last_render_seconds = 0;
+};
+
+class RenderLoop {
+ public:
+  RenderLoop() = default;
+  ~RenderLoop();  // stops the thread
+  RenderLoop(const RenderLoop&) = delete;
+  RenderLoop& operator=(const RenderLoop&) = delete;
+
+  // Starts the thread and waits until it has a GL context and compiled shaders; returns why
+  // it could not. Call once.
+  absl::Status Start(DevicePreference preference);
+  // Finishes the render in progress, fails the scenes still queued, and joins the thread.
+  void Stop();
+
+  // The device the context runs on. Valid after Start succeeded.
+  const DeviceInfo& device() const { return device_; }
+
+  // Queues a render of the scene at its latest version. Thread-safe; never blocks on a render.
+  void MarkDirty(std::shared_ptr<Scene> scene);
+
+  RenderLoopStats stats() const;
+
+ private:
+  void Run(DevicePreference preference);
+
+  std::thread thread_;
+  DeviceInfo device_;
+
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  bool started_ = false;
+  bool stopping_ = false;
+  absl::Status start_status_;
+  std::deque<std::shared_ptr<Scene>> queue_;
+  std::set<const Scene*> queued_;
+  RenderLoopStats stats_;
+};
+
+}  // namespace gvd

@@ -1,0 +1,102 @@
+// A scene: its grid, its sites, its version counter and the latest frame rendered from them.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "render/frame.h"
+#include "render/geometry.h"
+#include "render/site.h"
+
+namespace gvd {
+
+struct SceneSettings {
+  std::string id;
+  Grid grid;
+  double eps = 0;        // the distance meshes' error bound, scene units (never 0)
+  uint32_t cone_triangles = 0;  // for sites inside the window
+};
+
+// Called exactly once: with a frame of at least the awaited version, or with the reason
+// there will be none (scene deleted, render failed, call cancelled).
+using FrameCallback = std::function<void(absl::StatusOr<std::shared_ptr<const Frame>>)>;
+
+// Thread-safe. Handlers mutate sites and read frames; the render thread snapshots sites and
+// publishes frames. Readers of frame() never wait for a render.
+class Scene {
+ public:
+  // A new scene at version 1 with no sites and an empty frame.
+  explicit Scene(SceneSettings settings);
+
+  const SceneSettings& settings() const { return settings_; }
+  const std::string& id() const { return settings_.id; }
+
+  // Inserts or replaces sites, atomically; returns the new version. If the scene would then
+  // hold more than max_sites sites, changes nothing and returns ResourceExhausted.
+  // CONTRACT: sites are valid and their ids distinct.
+  absl::StatusOr<uint64_t> Upsert(std::vector<Site> sites, size_t max_sites);
+  // Removes the sites, atomically. If ids[i] is unknown, removes nothing and returns
+  // NotFound naming ids[i]. CONTRACT: ids are distinct.
+  absl::StatusOr<uint64_t> Delete(const std::vector<std::string>& ids);
+
+  uint64_t version() const;
+  size_t site_count() const;
+
+  struct SitePage {
+    std::vector<Site> sites;
+    std::string last_id;  // id of the last site returned, when there are more
+    uint64_t version = 0;
+  };
+  // Up to `limit` sites with ids greater than `after`, in id order.
+  SitePage ListSites(std::string_view after, size_t limit) const;
+
+  // The sites at the current version, for the render thread.
+  struct Snapshot {
+    uint64_t version = 0;
+    std::shared_ptr<const SiteTable> sites;
+  };
+  Snapshot TakeSnapshot() const;
+
+  // The latest published frame. Lock-free for readers.
+  std::shared_ptr<const Frame> frame() const { return frame_.load(); }
+  // Publishes a newer frame and hands it to the waiters it satisfies.
+  void Publish(std::shared_ptr<const Frame> frame);
+  // Fails every waiter (the render failed, or the scene is being deleted).
+  void FailWaiters(const absl::Status& status);
+
+  // Calls `done` with a frame of version >= min_version: at once, on this thread, when the
+  // latest frame is new enough; else from the thread that publishes one. Returns a token for
+  // Cancel(). CONTRACT: min_version <= version().
+  uint64_t WhenRendered(uint64_t min_version, FrameCallback done);
+  // If the waiter is still pending, removes it and calls it with `why`.
+  void Cancel(uint64_t token, const absl::Status& why);
+
+  void MarkDeleted() { deleted_ = true; }
+  bool deleted() const { return deleted_; }
+
+ private:
+  struct Waiter {
+    uint64_t min_version;
+    FrameCallback done;
+  };
+
+  const SceneSettings settings_;
+  std::atomic<bool> deleted_{false};
+  std::atomic<std::shared_ptr<const Frame>> frame_;
+
+  mutable std::mutex mu_;  // guards everything below
+  uint64_t version_ = 1;
+  std::map<std::string, Geometry, std::less<>> sites_;
+  uint64_t next_token_ = 1;
+  std::map<uint64_t, Waiter> waiters_;
+};
+
+}  // namespace gvd

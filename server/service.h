@@ -1,0 +1,58 @@
+// The gvd.v1.Voronoi service on gRPC's callback API. Handlers validate, mutate scenes and
+// answer queries from published frames; they never touch GL and never wait for a render
+// (a query that asks for a newer version parks until the render thread publishes it).
+#pragma once
+
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include "gvd/v1/voronoi.grpc.pb.h"
+#include "server/limits.h"
+#include "server/render_loop.h"
+#include "server/scene.h"
+
+namespace gvd {
+
+class VoronoiService final : public v1::Voronoi::CallbackService {
+ public:
+  // `renderer` must outlive the service.
+  VoronoiService(RenderLoop* renderer, ServerLimits limits);
+
+  grpc::ServerUnaryReactor* CreateScene(grpc::CallbackServerContext* ctx,
+                                        const v1::CreateSceneRequest* request,
+                                        v1::Scene* response) override;
+  grpc::ServerUnaryReactor* GetScene(grpc::CallbackServerContext* ctx,
+                                     const v1::GetSceneRequest* request,
+                                     v1::Scene* response) override;
+  grpc::ServerUnaryReactor* ListScenes(grpc::CallbackServerContext* ctx,
+                                       const v1::ListScenesRequest* request,
+                                       v1::ListScenesResponse* response) override;
+  grpc::ServerUnaryReactor* DeleteScene(grpc::CallbackServerContext* ctx,
+                                        const v1::DeleteSceneRequest* request,
+                                        v1::DeleteSceneResponse* response) override;
+  grpc::ServerUnaryReactor* UpsertSites(grpc::CallbackServerContext* ctx,
+                                        const v1::UpsertSitesRequest* request,
+                                        v1::UpsertSitesResponse* response) override;
+  grpc::ServerUnaryReactor* DeleteSites(grpc::CallbackServerContext* ctx,
+                                        const v1::DeleteSitesRequest* request,
+                                        v1::DeleteSitesResponse* response) override;
+  grpc::ServerUnaryReactor* ListSites(grpc::CallbackServerContext* ctx,
+                                      const v1::ListSitesRequest* request,
+                                      v1::ListSitesResponse* response) override;
+  grpc::ServerUnaryReactor* FindNearest(grpc::CallbackServerContext* ctx,
+                                        const v1::FindNearestRequest* request,
+                                        v1::FindNearestResponse* response) override;
+
+ private:
+  // The scene, or NOT_FOUND naming it (after validating the id).
+  grpc::Status Lookup(const std::string& scene_id, std::shared_ptr<Scene>* scene) const;
+
+  RenderLoop* const renderer_;
+  const ServerLimits limits_;
+  mutable std::mutex mu_;  // guards scenes_
+  std::map<std::string, std::shared_ptr<Scene>> scenes_;
+};
+
+}  // namespace gvd
