@@ -254,7 +254,6 @@ int Run(const Args& a) {
     const std::string& verb = w[1];
     if (verb == "add") {
       gvd::v1::UpsertSitesRequest r;
-      r.set_scene_id(a.scene);
       if (const std::string* file = option("--file")) {
         std::string error;
         if (!ReadSites(*file, &r, &error)) {
@@ -262,6 +261,7 @@ int Run(const Args& a) {
           return 2;
         }
       }
+      r.set_scene_id(a.scene);  // after ReadSites: parsing JSON resets the message
       if ((w.size() - 2) % 3 != 0) Usage("sites add takes triples ID X Y");
       for (size_t i = 2; i + 2 < w.size(); i += 3) {
         auto* site = r.add_sites();

@@ -1,0 +1,145 @@
+// The gvd command-line tool against the real server: the README's tour, files, errors.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "render/exact.h"
+#include "server_process.h"
+
+namespace gvd {
+namespace {
+
+struct Result {
+  int exit_code;
+  std::string out;  // stdout and stderr together
+};
+
+class CliTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    server_ = new testing::ServerProcess(GVD_SERVER_PATH);
+    ASSERT_TRUE(server_->error().empty()) << server_->error();
+  }
+  static void TearDownTestSuite() { delete server_; }
+
+  static Result Gvd(const std::string& args) {
+    std::string command = std::string(GVD_CLI_PATH) + " --server " + server_->address() + " " +
+                          args + " 2>&1";
+    FILE* p = popen(command.c_str(), "r");
+    std::string out;
+    char buf[4096];
+    size_t n;
+    while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+    int status = pclose(p);
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+  }
+
+  static std::string WriteFile(const std::string& name, const std::string& text) {
+    std::string path = server_->dir() + "/" + name;
+    std::ofstream(path) << text;
+    return path;
+  }
+
+  static inline testing::ServerProcess* server_ = nullptr;
+};
+
+TEST_F(CliTest, TourFromTheReadme) {
+  Result r = Gvd("scene create demo --window 0,0,100,100 --size 512x512");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("scene demo: window [0, 100] x [0, 100], 512x512 px"), std::string::npos)
+      << r.out;
+  r = Gvd("--scene demo sites add a 10 10 b 80 20 c 50 90");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("upserted 3 sites; scene demo is at version 2"), std::string::npos) << r.out;
+  r = Gvd("--scene demo nearest 12 11 70 25 --min-version 2");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  std::istringstream lines(r.out);
+  std::string header, line;
+  std::getline(lines, header);
+  EXPECT_EQ(header, "x\ty\tsite\tdistance\terror_bound");
+  struct Expect {
+    double x, y;
+    const char* site;
+    Vec2 at;
+  };
+  for (Expect e : {Expect{12, 11, "a", {10, 10}}, Expect{70, 25, "b", {80, 20}}}) {
+    ASSERT_TRUE(std::getline(lines, line)) << r.out;
+    std::istringstream f(line);
+    double x, y, distance, bound;
+    std::string site;
+    f >> x >> y >> site >> distance >> bound;
+    EXPECT_EQ(x, e.x);
+    EXPECT_EQ(y, e.y);
+    EXPECT_EQ(site, e.site);
+    EXPECT_DOUBLE_EQ(distance, Distance({x, y}, e.at));
+    EXPECT_GE(bound, 0);
+    EXPECT_LT(bound, 1);
+  }
+  r = Gvd("scene ls");
+  EXPECT_NE(r.out.find("scene demo:"), std::string::npos) << r.out;
+  r = Gvd("--scene demo sites ls");
+  EXPECT_EQ(r.out, "a\t10\t10\nb\t80\t20\nc\t50\t90\n");
+  r = Gvd("--scene demo sites rm b");
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  r = Gvd("--scene demo nearest 70 25 --min-version 3 --json");
+  EXPECT_NE(r.out.find("\"site_id\": \"a\""), std::string::npos) << r.out;
+  r = Gvd("scene rm demo");
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  r = Gvd("scene get demo");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("gvd: NOT_FOUND: scene \"demo\" does not exist"), std::string::npos) << r.out;
+}
+
+TEST_F(CliTest, SitesFromJsonAndTextFiles) {
+  ASSERT_EQ(Gvd("scene create files --window -1,-1,1,1 --size 64x64").exit_code, 0);
+  std::string json = WriteFile("sites.json", R"([
+    {"id": "left", "point": {"x": -0.5, "y": 0}},
+    {"id": "right", "point": {"x": 0.5, "y": 0}}
+  ])");
+  Result r = Gvd("--scene files sites add --file " + json);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  std::string text = WriteFile("sites.txt", "# id x y\nup 0 0.75\ndown 0 -0.75\n");
+  r = Gvd("--scene files sites add --file " + text);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("version 3"), std::string::npos) << r.out;
+  r = Gvd("--scene files sites ls");
+  EXPECT_EQ(r.out, "down\t0\t-0.75\nleft\t-0.5\t0\nright\t0.5\t0\nup\t0\t0.75\n");
+  r = Gvd("--scene files nearest -0.9 0.1 0 0.9 --min-version 3");
+  EXPECT_NE(r.out.find("\tleft\t"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\tup\t"), std::string::npos) << r.out;
+
+  std::string bad = WriteFile("bad.txt", "a 1\n");
+  r = Gvd("--scene files sites add --file " + bad);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.out.find("bad.txt:1: expected \"ID X Y\""), std::string::npos) << r.out;
+}
+
+TEST_F(CliTest, ErrorsAreReportedWithTheirStatus) {
+  Result r = Gvd("scene create x --window 0,0,1,1 --size 0x10");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("gvd: INVALID_ARGUMENT: width_px is 0"), std::string::npos) << r.out;
+  r = Gvd("--scene nowhere nearest 1 1");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("NOT_FOUND"), std::string::npos) << r.out;
+  r = Gvd("nearest 1");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.out.find("usage"), std::string::npos) << r.out;
+  r = Gvd("frobnicate");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.out.find("unknown command"), std::string::npos) << r.out;
+}
+
+TEST_F(CliTest, UnreachableServerIsAClearError) {
+  std::string command = std::string(GVD_CLI_PATH) + " --server 127.0.0.1:1 --timeout 2 scene ls 2>&1";
+  FILE* p = popen(command.c_str(), "r");
+  char buf[512] = {};
+  size_t n = fread(buf, 1, sizeof buf - 1, p);
+  int status = pclose(p);
+  EXPECT_EQ(WEXITSTATUS(status), 1);
+  EXPECT_NE(std::string(buf, n).find("UNAVAILABLE"), std::string::npos) << buf;
+}
+
+}  // namespace
+}  // namespace gvd

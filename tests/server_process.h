@@ -1,0 +1,86 @@
+// Starts the real gvd-server binary on a loopback port chosen by the kernel, for
+// integration tests; stops it with SIGTERM.
+#pragma once
+
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace gvd::testing {
+
+class ServerProcess {
+ public:
+  // Starts `binary` with --listen 127.0.0.1:0 and the extra flags; waits until it has
+  // written its port. On failure, error() says why.
+  ServerProcess(const std::string& binary, std::vector<std::string> flags = {}) {
+    char dir_template[] = "/tmp/gvd-test-XXXXXX";
+    dir_ = mkdtemp(dir_template);
+    std::string port_file = dir_ + "/port";
+    log_ = dir_ + "/server.log";
+    std::vector<std::string> args = {binary, "--listen", "127.0.0.1:0", "--port-file", port_file};
+    args.insert(args.end(), flags.begin(), flags.end());
+    pid_ = fork();
+    if (pid_ == 0) {
+      FILE* log = std::fopen(log_.c_str(), "w");
+      dup2(fileno(log), STDERR_FILENO);
+      std::vector<char*> argv;
+      for (auto& a : args) argv.push_back(a.data());
+      argv.push_back(nullptr);
+      execv(argv[0], argv.data());
+      _exit(127);
+    }
+    auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    while (std::chrono::steady_clock::now() < deadline) {
+      std::ifstream in(port_file);
+      if (in >> port_) return;
+      int status;
+      if (waitpid(pid_, &status, WNOHANG) == pid_) {
+        pid_ = -1;
+        error_ = "gvd-server exited at start: " + log();
+        return;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    error_ = "gvd-server wrote no port within 60 s: " + log();
+  }
+
+  ~ServerProcess() {
+    if (pid_ > 0) Stop();
+    std::system(("rm -rf " + dir_).c_str());
+  }
+
+  // Sends SIGTERM and waits; returns the exit status as waitpid reports it.
+  int Stop() {
+    if (pid_ <= 0) return -1;
+    kill(pid_, SIGTERM);
+    int status = 0;
+    waitpid(pid_, &status, 0);
+    pid_ = -1;
+    return status;
+  }
+
+  const std::string& error() const { return error_; }
+  std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
+  const std::string& dir() const { return dir_; }
+  std::string log() const {
+    std::ifstream in(log_);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+  }
+
+ private:
+  std::string dir_, log_, error_;
+  pid_t pid_ = -1;
+  int port_ = 0;
+};
+
+}  // namespace gvd::testing

@@ -1,0 +1,522 @@
+// Integration tests: the real gvd-server on a loopback port, driven through the client
+// library, answers checked against the exact oracle.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <map>
+#include <mutex>
+#include <random>
+#include <thread>
+
+#include <grpcpp/create_channel.h>
+#include <grpcpp/security/credentials.h>
+
+#include "grpc/health/v1/health.grpc.pb.h"
+#include "gvd/client.h"
+#include "render/exact.h"
+#include "server_process.h"
+
+namespace gvd {
+namespace {
+
+using grpc::StatusCode;
+
+class ServerTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    server_ = new testing::ServerProcess(GVD_SERVER_PATH);
+    ASSERT_TRUE(server_->error().empty()) << server_->error();
+    client_ = Client::Connect(server_->address()).release();
+    ASSERT_TRUE(client_->WaitForConnected(std::chrono::seconds(10)));
+  }
+  static void TearDownTestSuite() {
+    delete client_;
+    // SIGTERM is a clean shutdown: exit status 0.
+    int status = server_->Stop();
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << server_->log();
+    delete server_;
+  }
+
+  static v1::Scene Create(const std::string& id, Window w, uint32_t width, uint32_t height,
+                          double max_error = 0) {
+    v1::CreateSceneRequest r;
+    r.set_scene_id(id);
+    r.mutable_window()->set_min_x(w.min_x);
+    r.mutable_window()->set_min_y(w.min_y);
+    r.mutable_window()->set_max_x(w.max_x);
+    r.mutable_window()->set_max_y(w.max_y);
+    r.set_width_px(width);
+    r.set_height_px(height);
+    r.set_max_error(max_error);
+    v1::Scene scene;
+    grpc::Status s = client_->CreateScene(r, &scene);
+    EXPECT_TRUE(s.ok()) << s.error_message();
+    return scene;
+  }
+
+  static uint64_t Upsert(const std::string& scene, const std::vector<Site>& sites) {
+    v1::UpsertSitesRequest r;
+    r.set_scene_id(scene);
+    for (const Site& s : sites) {
+      auto* site = r.add_sites();
+      site->set_id(s.id);
+      const Vec2& p = std::get<PointSite>(s.geometry).p;
+      site->mutable_point()->set_x(p.x);
+      site->mutable_point()->set_y(p.y);
+    }
+    uint64_t version = 0;
+    grpc::Status s = client_->UpsertSites(r, &version);
+    EXPECT_TRUE(s.ok()) << s.error_message();
+    return version;
+  }
+
+  static v1::FindNearestResponse Nearest(const std::string& scene, const std::vector<Vec2>& points,
+                                         uint64_t min_version) {
+    v1::FindNearestRequest r;
+    r.set_scene_id(scene);
+    r.set_min_version(min_version);
+    for (Vec2 p : points) {
+      auto* q = r.add_points();
+      q->set_x(p.x);
+      q->set_y(p.y);
+    }
+    v1::FindNearestResponse response;
+    grpc::Status s = client_->FindNearest(r, &response);
+    EXPECT_TRUE(s.ok()) << s.error_message();
+    return response;
+  }
+
+  // The API's contract for one answer, against the oracle over `sites`.
+  static void ExpectContract(const std::vector<Site>& sites, Vec2 q, const v1::NearestSite& n) {
+    auto it = std::find_if(sites.begin(), sites.end(), [&](const Site& s) { return s.id == n.site_id(); });
+    ASSERT_NE(it, sites.end()) << "unknown site " << n.site_id();
+    EXPECT_EQ(n.distance(), ExactDistance(q, it->geometry)) << n.site_id();
+    ExactNearest truth = NearestBruteForce(q, sites);
+    EXPECT_GE(truth.distance, n.distance() - n.error_bound())
+        << "q=(" << q.x << "," << q.y << ") got " << n.site_id() << " truth "
+        << sites[truth.index].id;
+    EXPECT_GE(n.error_bound(), 0);
+  }
+
+  static std::vector<Site> RandomSites(size_t n, const Window& w, uint64_t seed,
+                                       const std::string& prefix = "s") {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> ux(w.min_x, w.max_x), uy(w.min_y, w.max_y);
+    std::vector<Site> sites;
+    for (size_t i = 0; i < n; ++i) {
+      sites.push_back({prefix + std::to_string(i), PointSite{{ux(rng), uy(rng)}}});
+    }
+    return sites;
+  }
+
+  static inline testing::ServerProcess* server_ = nullptr;
+  static inline Client* client_ = nullptr;
+};
+
+TEST_F(ServerTest, SceneLifecycle) {
+  v1::Scene s = Create("life", {0, 0, 100, 50}, 1024, 512);
+  EXPECT_EQ(s.scene_id(), "life");
+  EXPECT_EQ(s.window().max_x(), 100);
+  EXPECT_EQ(s.width_px(), 1024u);
+  EXPECT_EQ(s.height_px(), 512u);
+  EXPECT_DOUBLE_EQ(s.max_error(), 100.0 / 1024);  // 0 means one pixel
+  EXPECT_EQ(s.version(), 1u);
+  EXPECT_EQ(s.site_count(), 0u);
+  // Square pixels on a 1024-wide grid whose diagonal is shorter than 1024 x 1024's: at most 85.
+  EXPECT_LE(s.cone_triangles(), 85u);
+
+  v1::Scene got;
+  ASSERT_TRUE(client_->GetScene("life", &got).ok());
+  EXPECT_EQ(got.SerializeAsString(), s.SerializeAsString());
+  std::vector<v1::Scene> all;
+  ASSERT_TRUE(client_->ListScenes(&all).ok());
+  EXPECT_TRUE(std::any_of(all.begin(), all.end(), [](auto& x) { return x.scene_id() == "life"; }));
+
+  ASSERT_TRUE(client_->DeleteScene("life").ok());
+  EXPECT_EQ(client_->GetScene("life", &got).error_code(), StatusCode::NOT_FOUND);
+  EXPECT_EQ(client_->DeleteScene("life").error_code(), StatusCode::NOT_FOUND);
+}
+
+TEST_F(ServerTest, TenThousandRandomSitesAnswerWithinTheirBound) {
+  Window w{-50, 20, 150, 220};
+  v1::Scene scene = Create("random10k", w, 384, 384);
+  auto sites = RandomSites(10000, w, 42);
+  // In two requests, so the second upsert also exercises replacement-free growth.
+  uint64_t v1 = Upsert("random10k", {sites.begin(), sites.begin() + 5000});
+  uint64_t v2 = Upsert("random10k", {sites.begin() + 5000, sites.end()});
+  EXPECT_EQ(v2, v1 + 1);
+
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> ux(w.min_x, w.max_x), uy(w.min_y, w.max_y);
+  std::vector<Vec2> queries;
+  for (int i = 0; i < 10000; ++i) queries.push_back({ux(rng), uy(rng)});
+  queries.push_back({w.min_x, w.min_y});  // the window's corners are inside it
+  queries.push_back({w.max_x, w.max_y});
+  auto response = Nearest("random10k", queries, v2);
+  ASSERT_EQ(response.results_size(), int(queries.size()));
+  EXPECT_GE(response.version(), v2);
+  double pixel_diagonal = std::hypot(200.0 / 384, 200.0 / 384);
+  double worst = 0;
+  for (size_t i = 0; i < queries.size(); ++i) {
+    ExpectContract(sites, queries[i], response.results(i));
+    worst = std::max(worst, response.results(i).error_bound());
+  }
+  // The bound stays near the sampling resolution: a pixel diagonal plus twice the meshes' eps.
+  EXPECT_LE(worst, pixel_diagonal + 2 * scene.max_error());
+}
+
+TEST_F(ServerTest, TiesAndCoincidentSites) {
+  // Sites: four corners of a square around (50, 50), and two sites at one point.
+  Window w{0, 0, 100, 100};
+  Create("ties", w, 200, 200);
+  std::vector<Site> sites = {{"a", PointSite{{40, 40}}}, {"b", PointSite{{60, 40}}},
+                             {"c", PointSite{{40, 60}}}, {"d", PointSite{{60, 60}}},
+                             {"e", PointSite{{10, 90}}}, {"f", PointSite{{10, 90}}}};
+  uint64_t v = Upsert("ties", sites);
+  std::vector<Vec2> q = {{50, 50}, {50, 40}, {10, 90}, {10.2, 89.9}, {0, 100}};
+  auto r = Nearest("ties", q, v);
+  for (size_t i = 0; i < q.size(); ++i) ExpectContract(sites, q[i], r.results(i));
+  // At the centre all four are at distance sqrt(200); whichever is named, it is exact.
+  EXPECT_DOUBLE_EQ(r.results(0).distance(), std::sqrt(200.0));
+  EXPECT_TRUE(r.results(2).site_id() == "e" || r.results(2).site_id() == "f");
+  EXPECT_EQ(r.results(2).distance(), 0);
+}
+
+TEST_F(ServerTest, UpsertReplacesAndDeleteRemoves) {
+  Window w{0, 0, 10, 10};
+  Create("moves", w, 128, 128);
+  uint64_t v = Upsert("moves", {{"a", PointSite{{1, 1}}}, {"b", PointSite{{9, 9}}}});
+  // (2, 6) is 5.10 from a and 7.62 from b; once a moves to (9.5, 0.5) it is 9.30 from a.
+  EXPECT_EQ(Nearest("moves", {{2, 6}}, v).results(0).site_id(), "a");
+  v = Upsert("moves", {{"a", PointSite{{9.5, 0.5}}}});
+  auto r = Nearest("moves", {{2, 6}, {9, 1}}, v);
+  EXPECT_EQ(r.results(0).site_id(), "b");
+  EXPECT_EQ(r.results(1).site_id(), "a");
+  EXPECT_DOUBLE_EQ(r.results(1).distance(), std::hypot(0.5, 0.5));
+  v1::Scene s;
+  ASSERT_TRUE(client_->GetScene("moves", &s).ok());
+  EXPECT_EQ(s.site_count(), 2u);
+
+  ASSERT_TRUE(client_->DeleteSites("moves", {"b"}, &v).ok());
+  r = Nearest("moves", {{2, 2}}, v);
+  EXPECT_EQ(r.results(0).site_id(), "a");
+  std::vector<v1::Site> listed;
+  ASSERT_TRUE(client_->ListAllSites("moves", &listed).ok());
+  ASSERT_EQ(listed.size(), 1u);
+  EXPECT_EQ(listed[0].id(), "a");
+  EXPECT_EQ(listed[0].point().x(), 9.5);
+
+  // Deleting every site leaves a scene that refuses queries until it has sites again.
+  ASSERT_TRUE(client_->DeleteSites("moves", {"a"}, &v).ok());
+  v1::FindNearestRequest q;
+  q.set_scene_id("moves");
+  q.set_min_version(v);
+  q.add_points()->set_x(1);
+  v1::FindNearestResponse response;
+  EXPECT_EQ(client_->FindNearest(q, &response).error_code(), StatusCode::FAILED_PRECONDITION);
+}
+
+TEST_F(ServerTest, ListSitesPagesInIdOrder) {
+  Create("pages", {0, 0, 1, 1}, 16, 16);
+  auto sites = RandomSites(25, {0, 0, 1, 1}, 3, "id");
+  Upsert("pages", sites);
+  v1::ListSitesRequest r;
+  r.set_scene_id("pages");
+  r.set_page_size(10);
+  std::vector<std::string> ids;
+  int pages = 0;
+  while (true) {
+    v1::ListSitesResponse page;
+    ASSERT_TRUE(client_->ListSites(r, &page).ok());
+    ++pages;
+    for (auto& s : page.sites()) ids.push_back(s.id());
+    if (page.next_page_token().empty()) break;
+    r.set_page_token(page.next_page_token());
+  }
+  EXPECT_EQ(pages, 3);
+  ASSERT_EQ(ids.size(), 25u);
+  EXPECT_TRUE(std::is_sorted(ids.begin(), ids.end()));
+  EXPECT_EQ(std::set<std::string>(ids.begin(), ids.end()).size(), 25u);
+}
+
+// Each bad input is refused with its code and a message naming the field and the value,
+// and changes nothing.
+TEST_F(ServerTest, BadInputIsRefusedAndChangesNothing) {
+  Create("guarded", {0, 0, 10, 10}, 64, 64);
+  uint64_t v = Upsert("guarded", {{"keep", PointSite{{5, 5}}}});
+  auto state = [] {
+    v1::Scene s;
+    EXPECT_TRUE(client_->GetScene("guarded", &s).ok());
+    std::vector<v1::Site> sites;
+    EXPECT_TRUE(client_->ListAllSites("guarded", &sites).ok());
+    std::string all = std::to_string(s.version()) + "/" + std::to_string(s.site_count());
+    for (auto& site : sites) all += "/" + site.SerializeAsString();
+    return all;
+  };
+  const std::string before = state();
+
+  auto create = [](std::function<void(v1::CreateSceneRequest&)> edit) {
+    v1::CreateSceneRequest r;
+    r.set_scene_id("fresh");
+    r.mutable_window()->set_max_x(1);
+    r.mutable_window()->set_max_y(1);
+    r.set_width_px(8);
+    r.set_height_px(8);
+    edit(r);
+    v1::Scene s;
+    return client_->CreateScene(r, &s);
+  };
+  auto upsert = [](std::function<void(v1::UpsertSitesRequest&)> edit) {
+    v1::UpsertSitesRequest r;
+    r.set_scene_id("guarded");
+    auto* ok = r.add_sites();  // a valid first site: a refusal must not half-apply it
+    ok->set_id("new");
+    ok->mutable_point()->set_x(1);
+    edit(r);
+    uint64_t version;
+    return client_->UpsertSites(r, &version);
+  };
+  auto nearest = [](std::function<void(v1::FindNearestRequest&)> edit) {
+    v1::FindNearestRequest r;
+    r.set_scene_id("guarded");
+    edit(r);
+    v1::FindNearestResponse response;
+    return client_->FindNearest(r, &response);
+  };
+  const double nan = std::nan(""), inf = INFINITY;
+  struct Case {
+    const char* name;
+    grpc::Status status;
+    StatusCode code;
+    std::string message;  // a substring the message must hold
+  };
+  std::vector<Case> cases = {
+      {"empty scene id", create([](auto& r) { r.set_scene_id(""); }), StatusCode::INVALID_ARGUMENT,
+       "scene_id is empty"},
+      {"scene id with a slash", create([](auto& r) { r.set_scene_id("a/b"); }),
+       StatusCode::INVALID_ARGUMENT, "scene_id \"a/b\""},
+      {"oversize scene id", create([](auto& r) { r.set_scene_id(std::string(129, 'x')); }),
+       StatusCode::INVALID_ARGUMENT, "129 characters"},
+      {"no window", create([](auto& r) { r.clear_window(); }), StatusCode::INVALID_ARGUMENT,
+       "window is not set"},
+      {"NaN window", create([&](auto& r) { r.mutable_window()->set_min_y(nan); }),
+       StatusCode::INVALID_ARGUMENT, "window.min_y is NaN"},
+      {"infinite window", create([&](auto& r) { r.mutable_window()->set_max_x(inf); }),
+       StatusCode::INVALID_ARGUMENT, "window.max_x is inf"},
+      {"inverted window", create([](auto& r) { r.mutable_window()->set_min_x(2); }),
+       StatusCode::INVALID_ARGUMENT, "window.min_x 2 must be less than window.max_x 1"},
+      {"empty window", create([](auto& r) { r.mutable_window()->set_max_y(0); }),
+       StatusCode::INVALID_ARGUMENT, "window.min_y 0 must be less than window.max_y 0"},
+      {"zero width", create([](auto& r) { r.set_width_px(0); }), StatusCode::INVALID_ARGUMENT,
+       "width_px is 0"},
+      {"oversize height", create([](auto& r) { r.set_height_px(100000); }),
+       StatusCode::INVALID_ARGUMENT, "height_px is 100000; it must be 1 to 8192"},
+      {"negative max_error", create([](auto& r) { r.set_max_error(-1); }),
+       StatusCode::INVALID_ARGUMENT, "max_error is -1"},
+      {"tiny max_error", create([](auto& r) { r.set_max_error(1e-9); }),
+       StatusCode::INVALID_ARGUMENT, "max_error 1e-09 is below 1/64 pixel"},
+      {"existing scene", create([](auto& r) { r.set_scene_id("guarded"); }),
+       StatusCode::ALREADY_EXISTS, "scene \"guarded\" already exists"},
+
+      {"upsert to unknown scene", upsert([](auto& r) { r.set_scene_id("nope"); }),
+       StatusCode::NOT_FOUND, "scene \"nope\" does not exist"},
+      {"empty site id", upsert([](auto& r) { r.add_sites()->mutable_point(); }),
+       StatusCode::INVALID_ARGUMENT, "sites[1].id is empty"},
+      {"oversize site id",
+       upsert([](auto& r) {
+         auto* s = r.add_sites();
+         s->set_id(std::string(300, 'q'));
+         s->mutable_point();
+       }),
+       StatusCode::INVALID_ARGUMENT, "sites[1].id \"qqqq"},
+      {"duplicate site ids",
+       upsert([](auto& r) {
+         auto* s = r.add_sites();
+         s->set_id("new");
+         s->mutable_point();
+       }),
+       StatusCode::INVALID_ARGUMENT, "sites[1].id \"new\" repeats sites[0].id"},
+      {"site without geometry", upsert([](auto& r) { r.add_sites()->set_id("bare"); }),
+       StatusCode::INVALID_ARGUMENT, "sites[1].geometry is not set"},
+      {"NaN coordinate",
+       upsert([&](auto& r) {
+         auto* s = r.add_sites();
+         s->set_id("n");
+         s->mutable_point()->set_x(nan);
+       }),
+       StatusCode::INVALID_ARGUMENT, "sites[1].point.x is NaN"},
+      {"infinite coordinate",
+       upsert([&](auto& r) {
+         auto* s = r.add_sites();
+         s->set_id("i");
+         s->mutable_point()->set_y(-inf);
+       }),
+       StatusCode::INVALID_ARGUMENT, "sites[1].point.y is -inf"},
+      {"no sites", upsert([](auto& r) { r.clear_sites(); }), StatusCode::INVALID_ARGUMENT,
+       "sites is empty"},
+
+      {"query with no points", nearest([](auto&) {}), StatusCode::INVALID_ARGUMENT,
+       "points is empty"},
+      {"query point NaN",
+       nearest([&](auto& r) {
+         r.add_points();
+         r.add_points()->set_x(nan);
+       }),
+       StatusCode::INVALID_ARGUMENT, "points[1].x is NaN"},
+      {"query point outside the window",
+       nearest([](auto& r) {
+         auto* p = r.add_points();
+         p->set_x(10.5);
+         p->set_y(3);
+       }),
+       StatusCode::OUT_OF_RANGE, "points[0] (10.5, 3) is outside the scene window [0, 10] x [0, 10]"},
+      {"query ahead of the scene",
+       nearest([&](auto& r) {
+         r.add_points();
+         r.set_min_version(v + 100);
+       }),
+       StatusCode::OUT_OF_RANGE, "min_version " + std::to_string(v + 100) + " is ahead"},
+      {"query on unknown scene",
+       nearest([](auto& r) {
+         r.set_scene_id("nope");
+         r.add_points();
+       }),
+       StatusCode::NOT_FOUND, "scene \"nope\" does not exist"},
+  };
+  uint64_t version;
+  cases.push_back({"delete unknown site", client_->DeleteSites("guarded", {"keep", "ghost"}, &version),
+                   StatusCode::NOT_FOUND, "ids[1] \"ghost\" is not a site of scene \"guarded\""});
+  cases.push_back({"delete duplicate ids", client_->DeleteSites("guarded", {"keep", "keep"}, &version),
+                   StatusCode::INVALID_ARGUMENT, "ids[1] \"keep\" repeats ids[0]"});
+  cases.push_back({"delete empty id", client_->DeleteSites("guarded", {""}, &version),
+                   StatusCode::INVALID_ARGUMENT, "ids[0] is empty"});
+  v1::ListSitesRequest big_page;
+  big_page.set_scene_id("guarded");
+  big_page.set_page_size(1'000'000);
+  v1::ListSitesResponse page;
+  cases.push_back({"oversize page", client_->ListSites(big_page, &page),
+                   StatusCode::INVALID_ARGUMENT, "page_size is 1000000"});
+
+  for (const Case& c : cases) {
+    EXPECT_EQ(c.status.error_code(), c.code) << c.name << ": " << c.status.error_message();
+    EXPECT_NE(c.status.error_message().find(c.message), std::string::npos)
+        << c.name << ": \"" << c.status.error_message() << "\" lacks \"" << c.message << "\"";
+  }
+  EXPECT_EQ(state(), before);
+  v1::Scene fresh;
+  EXPECT_EQ(client_->GetScene("fresh", &fresh).error_code(), StatusCode::NOT_FOUND);
+
+  // A scene with no sites refuses queries.
+  Create("bare", {0, 0, 1, 1}, 8, 8);
+  v1::FindNearestRequest r;
+  r.set_scene_id("bare");
+  r.add_points();
+  v1::FindNearestResponse response;
+  grpc::Status s = client_->FindNearest(r, &response);
+  EXPECT_EQ(s.error_code(), StatusCode::FAILED_PRECONDITION);
+  EXPECT_NE(s.error_message().find("scene \"bare\" has no sites"), std::string::npos);
+}
+
+// Readers run while a writer moves sites; every answer is checked against the oracle of
+// the version it says it was served from.
+TEST_F(ServerTest, ConcurrentQueriesSeeConsistentVersions) {
+  Window w{0, 0, 1, 1};
+  Create("busy", w, 96, 96);
+  std::mutex mu;
+  std::map<uint64_t, std::vector<Site>> at_version;
+  std::vector<Site> sites = RandomSites(200, w, 1);
+  uint64_t first = Upsert("busy", sites);
+  at_version[first] = sites;
+
+  std::atomic<bool> writing{true};
+  std::thread writer([&] {
+    std::mt19937_64 rng(99);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::uniform_int_distribution<size_t> pick(0, sites.size() - 1);
+    for (int step = 0; step < 40; ++step) {
+      std::vector<Site> moved;
+      for (int k = 0; k < 10; ++k) {
+        Site s = sites[pick(rng)];
+        s.geometry = PointSite{{u(rng), u(rng)}};
+        moved.push_back(s);
+      }
+      std::sort(moved.begin(), moved.end(), [](auto& a, auto& b) { return a.id < b.id; });
+      moved.erase(std::unique(moved.begin(), moved.end(), [](auto& a, auto& b) { return a.id == b.id; }),
+                  moved.end());
+      // The oracle must know a version before any reader can be served from it.
+      std::lock_guard<std::mutex> lock(mu);
+      for (const Site& m : moved) {
+        for (Site& s : sites) {
+          if (s.id == m.id) s = m;
+        }
+      }
+      uint64_t v = Upsert("busy", moved);
+      at_version[v] = sites;
+    }
+    writing = false;
+  });
+
+  std::atomic<int> checked{0};
+  auto reader = [&](uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0, 1);
+    while (writing || checked < 200) {
+      std::vector<Vec2> q = {{u(rng), u(rng)}, {u(rng), u(rng)}};
+      auto r = Nearest("busy", q, 0);
+      std::vector<Site> oracle;
+      {
+        std::lock_guard<std::mutex> lock(mu);
+        auto it = at_version.find(r.version());
+        ASSERT_NE(it, at_version.end()) << "served from unknown version " << r.version();
+        oracle = it->second;
+      }
+      for (size_t i = 0; i < q.size(); ++i) ExpectContract(oracle, q[i], r.results(i));
+      ++checked;
+    }
+  };
+  std::thread r1(reader, 1), r2(reader, 2);
+  writer.join();
+  r1.join();
+  r2.join();
+  EXPECT_GE(checked, 200);
+}
+
+TEST_F(ServerTest, MinVersionWaitsAndHonoursTheDeadline) {
+  // A render long enough to outlast a short deadline: 4,000 cones over 1024 x 1024.
+  Window w{0, 0, 1, 1};
+  Create("slow", w, 1024, 1024);
+  uint64_t v = Upsert("slow", RandomSites(4000, w, 5));
+  ClientOptions quick;
+  quick.timeout = std::chrono::milliseconds(100);
+  auto impatient = Client::Connect(server_->address(), quick);
+  v1::FindNearestRequest r;
+  r.set_scene_id("slow");
+  r.set_min_version(v);
+  r.add_points()->set_x(0.5);
+  v1::FindNearestResponse response;
+  grpc::Status s = impatient->FindNearest(r, &response);
+  EXPECT_EQ(s.error_code(), StatusCode::DEADLINE_EXCEEDED) << s.error_message();
+  // A patient query gets the version it asked for.
+  ASSERT_TRUE(client_->FindNearest(r, &response).ok());
+  EXPECT_GE(response.version(), v);
+}
+
+TEST_F(ServerTest, HealthServiceSaysServing) {
+  auto channel = grpc::CreateChannel(server_->address(), grpc::InsecureChannelCredentials());
+  auto health = grpc::health::v1::Health::NewStub(channel);
+  grpc::ClientContext ctx;
+  ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+  grpc::health::v1::HealthCheckRequest request;
+  grpc::health::v1::HealthCheckResponse response;
+  ASSERT_TRUE(health->Check(&ctx, request, &response).ok());
+  EXPECT_EQ(response.status(), grpc::health::v1::HealthCheckResponse::SERVING);
+}
+
+TEST_F(ServerTest, LogNamesTheRenderDevice) {
+  std::string log = server_->log();
+  EXPECT_NE(log.find("event=render_context"), std::string::npos) << log;
+  EXPECT_NE(log.find("gl_renderer="), std::string::npos) << log;
+}
+
+}  // namespace
+}  // namespace gvd
