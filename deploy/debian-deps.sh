@@ -2,7 +2,7 @@
 # Usage: gvd_install_packages GROUP...   (groups: build, test)
 
 GVD_PACKAGES_build="cmake ninja-build g++ pkgconf ccache
-  libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler libabsl-dev
+  libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler libabsl-dev libboost-dev
   libegl-dev libopengl-dev libegl1 libopengl0 libegl-mesa0 libgl1-mesa-dri"
 GVD_PACKAGES_test="libgtest-dev libgmock-dev libbenchmark-dev"
 

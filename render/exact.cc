@@ -16,9 +16,14 @@ double ExactDistance(Vec2 q, const Geometry& g) {
   return std::visit(Overloaded{[&](const PointSite& s) { return Distance(q, s.p); }}, g);
 }
 
-double FarthestWindowDistance(const Window& window, const Geometry& g) {
-  return std::visit(Overloaded{[&](const PointSite& s) { return window.FarthestDistance(s.p); }},
+Window BoundingBox(const Geometry& g) {
+  return std::visit(Overloaded{[](const PointSite& s) { return Window{s.p.x, s.p.y, s.p.x, s.p.y}; }},
                     g);
+}
+
+double FarthestDistance(const Window& rect, const Geometry& g) {
+  // For a point the distance is convex in p, so its maximum over the rectangle is at a corner.
+  return std::visit(Overloaded{[&](const PointSite& s) { return rect.FarthestDistance(s.p); }}, g);
 }
 
 ExactNearest NearestBruteForce(Vec2 q, std::span<const Site> sites) {

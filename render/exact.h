@@ -12,9 +12,12 @@ namespace gvd {
 // Euclidean distance from q to the nearest point of the geometry.
 double ExactDistance(Vec2 q, const Geometry& g);
 
-// Distance from q to the farthest point of the window that a site's distance function
-// must cover: an upper bound on the distance from the site to any sample of the window.
-double FarthestWindowDistance(const Window& window, const Geometry& g);
+// The smallest axis-aligned rectangle holding the geometry.
+Window BoundingBox(const Geometry& g);
+
+// The largest distance from the geometry's nearest point to any point of the rectangle:
+// max over p in rect of ExactDistance(p, g).
+double FarthestDistance(const Window& rect, const Geometry& g);
 
 struct ExactNearest {
   size_t index = 0;  // into the span; meaningless when the span is empty

@@ -2,6 +2,7 @@
 // nearest site (by index into the frame's site table) and the distance to it.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -12,21 +13,24 @@
 
 namespace gvd {
 
-// How far a frame's stored distances can be from the truth. For any site B and pixel centre
-// p, the mesh height h_B(p) satisfies dist(p, B) <= h_B(p) <= overestimate * dist(p, B)
-// (the fan's spokes lie on the cone; sec. 4.1.1), and the stored value D(p) is the smallest
-// h_B(p) up to the rasterizer's arithmetic, which is bounded by
-// slack(D) = absolute_slack + relative_slack * D.
+// How far a frame's stored distances can be from the truth. Wherever a site B's mesh is
+// drawn over a pixel centre p, its height satisfies
+//   dist(p, B) <= h_B(p) <= min(overestimate * dist(p, B), dist(p, B) + max_excess)
+// (the fan's spokes lie on the cone; sec. 4.1.1), and each pixel centre is covered by the
+// mesh of its nearest site (render/coverage.h). The stored value D(p) is the smallest height
+// drawn there, up to the rasterizer's arithmetic: slack(D) = absolute_slack + relative_slack * D.
 struct ErrorModel {
   double overestimate = 1;    // k >= 1
+  double max_excess = 0;      // eps, scene units
   double absolute_slack = 0;  // scene units: sub-pixel vertex snapping and interpolation
   double relative_slack = 0;  // float depth and interpolation rounding, relative to D
 
   double Slack(double d) const { return absolute_slack + relative_slack * d; }
-  // A lower bound on dist(p, B) for every site B, given the stored distance D at p.
-  double LowerBound(double d) const { return d / overestimate - Slack(d); }
-  // The largest error of a stored distance D against the stored site's true distance.
-  double MaxDistanceError(double d) const { return d * (1 - 1 / overestimate) + Slack(d); }
+  // A lower bound on dist(p, B) for every site B, given the stored distance D at p: the
+  // nearest site's height at p is at least D.
+  double LowerBound(double d) const {
+    return std::max(d / overestimate, d - max_excess) - Slack(d);
+  }
 };
 
 // The answer to a nearest-site query at a point.

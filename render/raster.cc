@@ -5,12 +5,14 @@
 
 #include <chrono>
 #include <cmath>
+#include <numbers>
 #include <string>
 #include <vector>
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "render/exact.h"
+#include "render/coverage.h"
 #include "render/mesh.h"
 
 namespace gvd {
@@ -134,13 +136,13 @@ absl::StatusOr<std::unique_ptr<Rasterizer>> Rasterizer::Create() {
 }
 
 Rasterizer::~Rasterizer() {
-  for (auto& [n, cone] : cones_) glDeleteBuffers(1, &cone.buffer);
+  for (auto& [n, buffer] : cones_) glDeleteBuffers(1, &buffer);
   glDeleteBuffers(1, &instances_);
   glDeleteVertexArrays(1, &vao_);
   glDeleteProgram(program_);
 }
 
-unsigned Rasterizer::ConeBuffer(uint32_t segments, double* overestimate) {
+unsigned Rasterizer::ConeBuffer(uint32_t segments) {
   auto it = cones_.find(segments);
   if (it == cones_.end()) {
     ConeMesh mesh = BuildUnitCone(segments);
@@ -149,48 +151,76 @@ unsigned Rasterizer::ConeBuffer(uint32_t segments, double* overestimate) {
     glBindBuffer(GL_ARRAY_BUFFER, buffer);
     glBufferData(GL_ARRAY_BUFFER, mesh.vertices.size() * sizeof(float), mesh.vertices.data(),
                  GL_STATIC_DRAW);
-    it = cones_.emplace(segments, Cone{buffer, mesh.overestimate}).first;
+    it = cones_.emplace(segments, buffer).first;
   }
-  *overestimate = it->second.overestimate;
-  return it->second.buffer;
+  return it->second;
 }
+
+namespace {
+
+// Fans are drawn with one of these triangle counts (or a multiple of 4096 beyond): the next
+// one up from what a site needs, so that sites share a few instanced draws. More triangles
+// than needed only lower the error.
+uint32_t SegmentBucket(uint32_t needed) {
+  static constexpr uint32_t kBuckets[] = {3,   4,   6,   8,   12,   16,   24,   32,   48,  64,
+                                          96,  128, 192, 256, 384,  512,  768,  1024, 1536,
+                                          2048, 3072, 4096};
+  for (uint32_t b : kBuckets) {
+    if (needed <= b) return b;
+  }
+  return std::min(kMaxConeSegments, (needed + 4095) / 4096 * 4096);
+}
+
+}  // namespace
 
 absl::StatusOr<std::shared_ptr<const Frame>> Rasterizer::Render(
     const Grid& grid, double eps, uint64_t version, std::shared_ptr<const SiteTable> sites,
-    RenderTarget& target, RenderStats* stats) {
+    const SiteIndex* index, RenderTarget& target, RenderStats* stats) {
   if (target.width() != grid.width || target.height() != grid.height) {
     return absl::InternalError("render target does not match the grid");
   }
   if (sites->empty()) return Frame::Empty(grid, version, eps);
   auto start = std::chrono::steady_clock::now();
 
-  // Each cone must reach the farthest sample of the window from its site.
-  std::vector<double> reach(sites->size());
-  double max_reach = 0;
-  for (size_t i = 0; i < sites->size(); ++i) {
-    reach[i] = FarthestWindowDistance(grid.window, (*sites)[i].geometry);
-    max_reach = std::max(max_reach, reach[i]);
+  SiteIndex built;
+  if (index == nullptr) {
+    built = SiteIndex::Build(*sites);
+    index = &built;
   }
-  uint32_t segments = ConeSegments(max_reach + eps, eps);
-  double k = 1;
-  GLuint cone = ConeBuffer(segments, &k);
-  // Scaled by rho = reach * k, the fan covers radius `reach`. The factor 1 + 2^-20 absorbs the
-  // rounding of the float ring vertices, which can fall a few ulps inside the unit circle.
-  constexpr double kCoverMargin = 1 + 0x1p-20;
-  double max_rho = max_reach * k * kCoverMargin;
-  double depth_scale = max_rho * (1 + 0x1p-10);  // ring depth stays inside the far plane
+  Coverage cov = ComputeCoverage(grid, *sites, *index, {0, 0, grid.width, grid.height});
+  double coverage_seconds = Seconds(start);
 
+  // Each drawn site: its fan's triangle count, and the radius its polygon must cover. A
+  // sixteenth of a pixel beyond the proven radius keeps centres on the edge inside, whatever
+  // the rasterizer's snapping (1/256 pixel).
   struct Instance {
     float x, y, rho;
     uint32_t site;
   };
-  std::vector<Instance> instances(sites->size());
+  std::map<uint32_t, std::vector<Instance>> buckets;
+  const double margin = grid.pixel_size() / 16;
+  // Scaled by rho = r * k, the fan covers radius r; the factor 1 + 2^-20 absorbs the rounding
+  // of the float ring vertices, which can fall a few ulps inside the unit circle.
+  constexpr double kCoverMargin = 1 + 0x1p-20;
+  double max_rho = 0, k_max = 1, area = 0;
+  uint64_t drawn = 0, triangles = 0;
   for (size_t i = 0; i < sites->size(); ++i) {
+    if (cov.radius[i] < 0) continue;
+    double r = cov.radius[i] + margin;
+    uint32_t n = SegmentBucket(ConeSegments(r + eps, eps));
+    double k = 1 / std::cos(std::numbers::pi / n);
+    double rho = r * k * kCoverMargin;
     const auto& p = std::get<PointSite>((*sites)[i].geometry).p;
-    instances[i] = {static_cast<float>(p.x - grid.window.min_x),
-                    static_cast<float>(p.y - grid.window.min_y),
-                    static_cast<float>(reach[i] * k * kCoverMargin), static_cast<uint32_t>(i + 1)};
+    buckets[n].push_back({static_cast<float>(p.x - grid.window.min_x),
+                          static_cast<float>(p.y - grid.window.min_y), static_cast<float>(rho),
+                          static_cast<uint32_t>(i + 1)});
+    max_rho = std::max(max_rho, rho);
+    k_max = std::max(k_max, k);
+    area += std::numbers::pi * r * r;
+    ++drawn;
+    triangles += n;
   }
+  double depth_scale = max_rho * (1 + 0x1p-10);  // ring depth stays inside the far plane
 
   glBindFramebuffer(GL_FRAMEBUFFER, target.framebuffer());
   glViewport(0, 0, grid.width, grid.height);
@@ -209,24 +239,26 @@ absl::StatusOr<std::shared_ptr<const Frame>> Rasterizer::Render(
               static_cast<float>(2 / grid.window.height()));
   glUniform1f(u_inv_depth_, static_cast<float>(1 / depth_scale));
   glBindVertexArray(vao_);
-  glBindBuffer(GL_ARRAY_BUFFER, cone);
-  glEnableVertexAttribArray(0);
-  glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), nullptr);
-  glVertexAttribDivisor(0, 0);
-  glBindBuffer(GL_ARRAY_BUFFER, instances_);
-  glBufferData(GL_ARRAY_BUFFER, instances.size() * sizeof(Instance), instances.data(),
-               GL_STREAM_DRAW);
-  glEnableVertexAttribArray(1);
-  glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, sizeof(Instance), nullptr);
-  glVertexAttribDivisor(1, 1);
-  glEnableVertexAttribArray(2);
-  glVertexAttribIPointer(2, 1, GL_UNSIGNED_INT, sizeof(Instance),
-                         reinterpret_cast<void*>(offsetof(Instance, site)));
-  glVertexAttribDivisor(2, 1);
-  glDrawArraysInstanced(GL_TRIANGLES, 0, static_cast<GLsizei>(segments * 3),
-                        static_cast<GLsizei>(instances.size()));
+  for (const auto& [segments, instances] : buckets) {
+    glBindBuffer(GL_ARRAY_BUFFER, ConeBuffer(segments));
+    glEnableVertexAttribArray(0);
+    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), nullptr);
+    glVertexAttribDivisor(0, 0);
+    glBindBuffer(GL_ARRAY_BUFFER, instances_);
+    glBufferData(GL_ARRAY_BUFFER, instances.size() * sizeof(Instance), instances.data(),
+                 GL_STREAM_DRAW);
+    glEnableVertexAttribArray(1);
+    glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, sizeof(Instance), nullptr);
+    glVertexAttribDivisor(1, 1);
+    glEnableVertexAttribArray(2);
+    glVertexAttribIPointer(2, 1, GL_UNSIGNED_INT, sizeof(Instance),
+                           reinterpret_cast<void*>(offsetof(Instance, site)));
+    glVertexAttribDivisor(2, 1);
+    glDrawArraysInstanced(GL_TRIANGLES, 0, static_cast<GLsizei>(segments * 3),
+                          static_cast<GLsizei>(instances.size()));
+  }
   glFinish();
-  double draw_seconds = Seconds(start);
+  double draw_seconds = Seconds(start) - coverage_seconds;
   if (auto s = GlError("drawing distance meshes"); !s.ok()) return s;
 
   auto read_start = std::chrono::steady_clock::now();
@@ -240,16 +272,22 @@ absl::StatusOr<std::shared_ptr<const Frame>> Rasterizer::Render(
   if (auto s = GlError("reading back the frame"); !s.ok()) return s;
   for (float& d : distances) d = static_cast<float>(d * depth_scale);
 
-  // Arithmetic slack, on top of the mesh's overestimate (see ErrorModel): vertices snap to
-  // 1/256 pixel (GL_SUBPIXEL_BITS = 8 on llvmpipe and NVIDIA), which moves a cone's surface by
-  // at most 1/256 pixel diagonal, as the surface's slope is at most k ~ 1; we allow 1/64.
+  // Arithmetic slack, on top of the mesh's error (see ErrorModel): vertices snap to 1/256
+  // pixel (GL_SUBPIXEL_BITS = 8 on llvmpipe and NVIDIA), which moves a cone's surface by at
+  // most 1/256 pixel diagonal, as the surface's slope is at most k ~ 1; we allow 1/64.
   // Float interpolation and depth storage err by a few ulps of the depth range and of D.
   ErrorModel error;
-  error.overestimate = k;
+  error.overestimate = k_max;
+  error.max_excess = eps;
   error.absolute_slack = grid.pixel_diagonal() / 64 + depth_scale * 0x1p-18;
   error.relative_slack = 0x1p-18;
   if (stats) {
-    stats->cone_segments = segments;
+    stats->cone_segments = buckets.empty() ? 0 : buckets.rbegin()->first;
+    stats->sites_drawn = drawn;
+    stats->triangles = triangles;
+    stats->fill_ratio = area / (grid.window.width() * grid.window.height());
+    stats->tile_px = cov.tile_px;
+    stats->coverage_seconds = coverage_seconds;
     stats->draw_seconds = draw_seconds;
     stats->readback_seconds = Seconds(read_start);
   }

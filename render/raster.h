@@ -10,6 +10,7 @@
 #include "render/frame.h"
 #include "render/geometry.h"
 #include "render/site.h"
+#include "render/site_index.h"
 
 namespace gvd {
 
@@ -34,7 +35,12 @@ class RenderTarget {
 };
 
 struct RenderStats {
-  uint32_t cone_segments = 0;  // triangles per point cone in this render
+  uint32_t cone_segments = 0;  // triangles in the largest point cone of this render
+  uint64_t sites_drawn = 0;    // sites nearest to some pixel centre
+  uint64_t triangles = 0;
+  double fill_ratio = 0;       // total area of the drawn meshes / area of the window
+  uint32_t tile_px = 0;        // tile side of the coverage pass
+  double coverage_seconds = 0; // spatial index and coverage radii
   double draw_seconds = 0;     // until the GPU finished drawing
   double readback_seconds = 0;
 };
@@ -48,26 +54,25 @@ class Rasterizer {
   Rasterizer& operator=(const Rasterizer&) = delete;
 
   // Renders the discrete Voronoi diagram of `sites` on `grid`, every distance mesh within
-  // `eps` (scene units) of the truth, into `target`, and reads it back as a frame.
+  // `eps` (scene units) of the truth, into `target`, and reads it back as a frame. Each
+  // site's mesh reaches only as far as ComputeCoverage proves it must. `index` indexes the
+  // sites by slot; null builds one.
   // CONTRACT: target matches the grid's size; eps > 0; sites' coordinates are finite.
   absl::StatusOr<std::shared_ptr<const Frame>> Render(const Grid& grid, double eps,
                                                       uint64_t version,
                                                       std::shared_ptr<const SiteTable> sites,
+                                                      const SiteIndex* index,
                                                       RenderTarget& target,
                                                       RenderStats* stats = nullptr);
 
  private:
   Rasterizer() = default;
   // The vertex buffer of the unit cone with `segments` triangles, made on first use.
-  unsigned ConeBuffer(uint32_t segments, double* overestimate);
+  unsigned ConeBuffer(uint32_t segments);
 
   unsigned program_ = 0, vao_ = 0, instances_ = 0;
   int u_scale_ = -1, u_inv_depth_ = -1;
-  struct Cone {
-    unsigned buffer;
-    double overestimate;
-  };
-  std::map<uint32_t, Cone> cones_;
+  std::map<uint32_t, unsigned> cones_;  // segments -> vertex buffer
 };
 
 }  // namespace gvd

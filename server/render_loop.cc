@@ -107,7 +107,7 @@ void RenderLoop::Run(DevicePreference preference) {
     RenderStats render_stats;
     if (slot.second) {
       frame = rasterizer->Render(settings.grid, settings.eps, snapshot.version,
-                                 std::move(snapshot.sites), *slot.second, &render_stats);
+                                 std::move(snapshot.sites), nullptr, *slot.second, &render_stats);
     }
     double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (!frame.ok()) {

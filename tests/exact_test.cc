@@ -16,11 +16,11 @@ TEST(ExactDistance, Point) {
   EXPECT_DOUBLE_EQ(ExactDistance({3e300, 4e300}, PointSite{{0, 0}}), 5e300);
 }
 
-TEST(FarthestWindowDistance, InsideAndOutside) {
+TEST(FarthestDistance, InsideAndOutside) {
   Window w{0, 0, 4, 3};
-  EXPECT_DOUBLE_EQ(FarthestWindowDistance(w, PointSite{{0, 0}}), 5);
-  EXPECT_DOUBLE_EQ(FarthestWindowDistance(w, PointSite{{2, 1.5}}), 2.5);
-  EXPECT_DOUBLE_EQ(FarthestWindowDistance(w, PointSite{{-4, 0}}), std::hypot(8, 3));
+  EXPECT_DOUBLE_EQ(FarthestDistance(w, PointSite{{0, 0}}), 5);
+  EXPECT_DOUBLE_EQ(FarthestDistance(w, PointSite{{2, 1.5}}), 2.5);
+  EXPECT_DOUBLE_EQ(FarthestDistance(w, PointSite{{-4, 0}}), std::hypot(8, 3));
 }
 
 TEST(NearestBruteForce, TiesGoToLowestIndex) {

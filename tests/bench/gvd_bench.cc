@@ -53,7 +53,7 @@ void BM_Render(benchmark::State& state) {
   auto target = std::move(*RenderTarget::Create(size, size));
   RenderStats stats;
   for (auto _ : state) {
-    auto frame = gl.rasterizer->Render(grid, grid.pixel_size(), 1, sites, *target, &stats);
+    auto frame = gl.rasterizer->Render(grid, grid.pixel_size(), 1, sites, nullptr, *target, &stats);
     benchmark::DoNotOptimize(frame);
   }
   state.counters["draw_ms"] = stats.draw_seconds * 1e3;
@@ -80,7 +80,7 @@ void BM_FrameNearest(benchmark::State& state) {
   static std::shared_ptr<const Frame> frame = [&] {
     auto target = std::move(*RenderTarget::Create(1024, 1024));
     return *gl.rasterizer->Render(grid, grid.pixel_size(), 1, RandomSites(10000, grid.window, 2),
-                                  *target);
+                                  nullptr, *target);
   }();
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> u(0, 1);

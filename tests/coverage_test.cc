@@ -1,0 +1,116 @@
+// The coverage radii against the oracle, pixel by pixel: every pixel centre lies within the
+// radius of each of its exact nearest sites (render/coverage.h states the proof).
+#include "render/coverage.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "render/exact.h"
+
+namespace gvd {
+namespace {
+
+void ExpectCovered(const Grid& grid, const SiteTable& sites, uint32_t tile_px = 0) {
+  SiteIndex index = SiteIndex::Build(sites);
+  Coverage cov = ComputeCoverage(grid, sites, index, {0, 0, grid.width, grid.height}, tile_px);
+  int failures = 0;
+  for (uint32_t j = 0; j < grid.height && failures < 5; ++j) {
+    for (uint32_t i = 0; i < grid.width && failures < 5; ++i) {
+      Vec2 p = grid.Center(i, j);
+      double best = NearestBruteForce(p, sites).distance;
+      for (size_t s = 0; s < sites.size(); ++s) {
+        double d = ExactDistance(p, sites[s].geometry);
+        if (d == best && !(d <= cov.radius[s])) {
+          ++failures;
+          ADD_FAILURE() << "pixel " << i << "," << j << ": nearest site " << s << " at " << d
+                        << " but radius " << cov.radius[s] << " (tile " << cov.tile_px << ")";
+        }
+      }
+    }
+  }
+}
+
+SiteTable RandomPoints(size_t n, const Window& w, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> ux(w.min_x, w.max_x), uy(w.min_y, w.max_y);
+  SiteTable sites;
+  for (size_t i = 0; i < n; ++i) sites.push_back({std::to_string(i), PointSite{{ux(rng), uy(rng)}}});
+  return sites;
+}
+
+TEST(Coverage, RandomScenesAndTileSizes) {
+  Window w{-3, 1, 5, 4};
+  Grid grid{w, 160, 90};
+  for (size_t n : {1, 2, 10, 300}) {
+    for (uint32_t tile : {0u, 1u, 4u, 13u, 64u}) ExpectCovered(grid, RandomPoints(n, w, n), tile);
+  }
+  ExpectCovered(grid, RandomPoints(3000, w, 3), 0);
+}
+
+TEST(Coverage, LatticeTiesAndCoincidentSites) {
+  // Sites on the pixel-centre lattice and at tile corners: many exact ties.
+  Grid grid{{0, 0, 64, 64}, 64, 64};
+  SiteTable sites;
+  for (int y = 0; y <= 64; y += 8) {
+    for (int x = 0; x <= 64; x += 8) sites.push_back({"", PointSite{{x + 0.5, y + 0.5}}});
+  }
+  sites.push_back({"", PointSite{{20.5, 20.5}}});
+  sites.push_back({"", PointSite{{20.5, 20.5}}});
+  for (uint32_t tile : {0u, 3u, 8u, 16u}) ExpectCovered(grid, sites, tile);
+}
+
+TEST(Coverage, SitesOutsideTheWindowAndSitesThatOwnNothing) {
+  Grid grid{{0, 0, 1, 1}, 50, 50};
+  SiteTable sites = {{"", PointSite{{-0.5, 0.5}}}, {"", PointSite{{30, -40}}},
+                     {"", PointSite{{1.2, 1.3}}},  {"", PointSite{{0.7, 0.2}}},
+                     {"", PointSite{{-5, 0.5}}}};  // hidden behind (-0.5, 0.5)
+  ExpectCovered(grid, sites);
+  SiteIndex index = SiteIndex::Build(sites);
+  Coverage cov = ComputeCoverage(grid, sites, index, {0, 0, 50, 50});
+  EXPECT_LT(cov.radius[4], 0) << "a site nearest to no pixel centre needs no mesh";
+  EXPECT_LT(cov.radius[1], 0);
+}
+
+// Dense random points: the radii stay near the cells' size, so the meshes fill a small
+// multiple of the window (the point of the exercise), not sites x window.
+TEST(Coverage, FillIsASmallMultipleOfTheGrid) {
+  Window w{0, 0, 1, 1};
+  Grid grid{w, 512, 512};
+  SiteTable sites = RandomPoints(20000, w, 5);
+  SiteIndex index = SiteIndex::Build(sites);
+  Coverage cov = ComputeCoverage(grid, sites, index, {0, 0, 512, 512});
+  double area = 0;
+  for (double r : cov.radius) area += r > 0 ? M_PI * r * r : 0;
+  EXPECT_LT(area, 40.0);  // against 20,000 for full cones
+}
+
+TEST(SiteIndex, NearestAndWithinAgreeWithBruteForce) {
+  Window w{0, 0, 10, 10};
+  SiteTable sites = RandomPoints(500, w, 8);
+  SiteIndex index = SiteIndex::Build(sites);
+  std::mt19937_64 rng(1);
+  std::uniform_real_distribution<double> u(-2, 12);
+  for (int t = 0; t < 300; ++t) {
+    Vec2 q{u(rng), u(rng)};
+    EXPECT_EQ(index.Nearest(q, sites).distance, NearestBruteForce(q, sites).distance);
+    std::vector<uint32_t> within;
+    index.Within(q, 1.5, &within);
+    for (size_t s = 0; s < sites.size(); ++s) {
+      bool inside = ExactDistance(q, sites[s].geometry) <= 1.5;
+      bool found = std::find(within.begin(), within.end(), s) != within.end();
+      if (inside) {
+        EXPECT_TRUE(found) << s;
+      }
+    }
+  }
+  // Removal and insertion keep it exact.
+  index.Remove(0, sites[0].geometry);
+  sites[0].geometry = PointSite{{5, 5}};
+  index.Insert(0, sites[0].geometry);
+  EXPECT_EQ(index.Nearest({5, 5}, sites).distance, 0);
+  EXPECT_EQ(index.size(), 500u);
+}
+
+}  // namespace
+}  // namespace gvd
