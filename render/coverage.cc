@@ -26,11 +26,11 @@ uint32_t DefaultTilePx(const Grid& grid, size_t n) {
   return static_cast<uint32_t>(std::clamp(2 * spacing, 4.0, 64.0));
 }
 
-Coverage ComputeCoverage(const Grid& grid, const SiteTable& sites, const SiteIndex& index,
+Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
                          PixelRect region, uint32_t tile_px) {
   Coverage cov;
   cov.radius.assign(sites.size(), -1);
-  cov.tile_px = tile_px ? tile_px : DefaultTilePx(grid, sites.size());
+  cov.tile_px = tile_px ? tile_px : DefaultTilePx(grid, index.size());
   std::vector<uint32_t> candidates;
   for (uint32_t ty = region.y0; ty < region.y1; ty += cov.tile_px) {
     for (uint32_t tx = region.x0; tx < region.x1; tx += cov.tile_px) {
@@ -45,9 +45,9 @@ Coverage ComputeCoverage(const Grid& grid, const SiteTable& sites, const SiteInd
       double reach = (s1.distance + 2 * h) * (1 + 1e-12);
       candidates.clear();
       index.Within(c, reach, &candidates);
-      const auto* p1 = std::get_if<PointSite>(&sites[s1.index].geometry);
+      const auto* p1 = std::get_if<PointSite>(&sites.get(s1.index)->geometry);
       for (uint32_t s : candidates) {
-        const Geometry& g = sites[s].geometry;
+        const Geometry& g = sites.get(s)->geometry;
         if (ExactDistance(c, g) > reach) continue;
         const auto* p = std::get_if<PointSite>(&g);
         if (p && p1 && s != s1.index && !BeatsSomewhere(p->p, p1->p, cell)) continue;

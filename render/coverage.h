@@ -12,17 +12,10 @@
 
 namespace gvd {
 
-// A rectangle of pixels [x0, x1) x [y0, y1).
-struct PixelRect {
-  uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
-  bool empty() const { return x0 >= x1 || y0 >= y1; }
-  uint64_t area() const { return empty() ? 0 : uint64_t{x1 - x0} * (y1 - y0); }
-};
-
 struct Coverage {
-  // radius[s] >= the distance from site s to every pixel centre of the region whose exact
-  // nearest site is s (ties included); negative when s is nearest to none of them, so its
-  // mesh need not be drawn.
+  // radius[s] >= the distance from the site in slot s to every pixel centre of the region
+  // whose exact nearest site it is (ties included); negative when it is nearest to none of
+  // them (or the slot is free), so its mesh need not be drawn there.
   std::vector<double> radius;
   uint32_t tile_px = 0;  // side of the tiles used
   uint64_t pairs = 0;    // (tile, candidate site) pairs examined
@@ -45,8 +38,8 @@ uint32_t DefaultTilePx(const Grid& grid, size_t n);
 // gets radius >= max over C of d(., s) >= d(p, s) for every p of C. Hence every pixel centre
 // lies within the radius of each of its nearest sites. tests/coverage_test.cc checks this
 // pixel by pixel against the oracle.
-// CONTRACT: index holds exactly the sites of the table; the table is not empty.
-Coverage ComputeCoverage(const Grid& grid, const SiteTable& sites, const SiteIndex& index,
+// CONTRACT: index holds exactly the live slots of the table, at least one.
+Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
                          PixelRect region, uint32_t tile_px = 0);
 
 }  // namespace gvd

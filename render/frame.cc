@@ -19,22 +19,64 @@ uint32_t FloorCenter(double c, uint32_t n) {
 
 }  // namespace
 
-Frame::Frame(Grid grid, uint64_t version, double eps, ErrorModel error, std::vector<uint32_t> ids,
-             std::vector<float> distances, std::shared_ptr<const SiteTable> sites)
-    : grid_(grid),
-      version_(version),
-      eps_(eps),
-      error_(error),
-      ids_(std::move(ids)),
-      distances_(std::move(distances)),
-      sites_(std::move(sites)) {
-  assert(sites_->empty() || ids_.size() == grid_.pixel_count());
-  assert(ids_.size() == distances_.size());
+Frame::Frame(Grid grid, uint64_t version, double eps, ErrorModel error, const uint32_t* ids,
+             const float* distances, SlotTable sites, size_t site_count)
+    : Frame(grid, version, eps) {
+  error_ = error;
+  sites_ = std::move(sites);
+  site_count_ = site_count;
+  tiles_.resize(size_t{tiles_x()} * tiles_y());
+  for (uint32_t ty = 0; ty < tiles_y(); ++ty) {
+    for (uint32_t tx = 0; tx < tiles_x(); ++tx) {
+      auto t = std::make_shared<Tile>();
+      Fill(*t, tx, ty, grid.all(), ids, distances, grid.width);
+      tiles_[ty * tiles_x() + tx] = std::move(t);
+    }
+  }
+}
+
+Frame::Frame(const Frame& base, uint64_t version, ErrorModel error, PixelRect rect,
+             const uint32_t* ids, const float* distances, SlotTable sites, size_t site_count)
+    : Frame(base.grid_, version, base.eps_) {
+  error_ = error;
+  sites_ = std::move(sites);
+  site_count_ = site_count;
+  tiles_ = base.tiles_;
+  if (rect.empty()) return;
+  if (tiles_.empty()) tiles_.resize(size_t{tiles_x()} * tiles_y());
+  for (uint32_t ty = rect.y0 / kTile; ty <= (rect.y1 - 1) / kTile; ++ty) {
+    for (uint32_t tx = rect.x0 / kTile; tx <= (rect.x1 - 1) / kTile; ++tx) {
+      auto& slot = tiles_[ty * tiles_x() + tx];
+      auto t = slot ? std::make_shared<Tile>(*slot) : std::make_shared<Tile>();
+      // Shift the buffer so that Fill can index it by grid coordinates.
+      Fill(*t, tx, ty, rect, ids - (size_t{rect.y0} * rect.width() + rect.x0),
+           distances - (size_t{rect.y0} * rect.width() + rect.x0), rect.width());
+      slot = std::move(t);
+    }
+  }
+}
+
+void Frame::Fill(Tile& t, uint32_t tx, uint32_t ty, PixelRect rect, const uint32_t* ids,
+                 const float* distances, uint32_t stride) const {
+  uint32_t x0 = std::max(tx * kTile, rect.x0), x1 = std::min((tx + 1) * kTile, rect.x1);
+  uint32_t y0 = std::max(ty * kTile, rect.y0), y1 = std::min((ty + 1) * kTile, rect.y1);
+  for (uint32_t j = y0; j < y1; ++j) {
+    const size_t row = size_t{j} * stride;
+    for (uint32_t i = x0; i < x1; ++i) {
+      t.ids[(j % kTile) * kTile + i % kTile] = ids[row + i];
+      t.distances[(j % kTile) * kTile + i % kTile] = distances[row + i];
+    }
+  }
+  float m = 0;
+  uint32_t w = std::min(kTile, grid_.width - tx * kTile), h = std::min(kTile, grid_.height - ty * kTile);
+  for (uint32_t j = 0; j < h; ++j) {
+    for (uint32_t i = 0; i < w; ++i) m = std::max(m, t.distances[j * kTile + i]);
+  }
+  t.max_distance = m;
 }
 
 std::shared_ptr<const Frame> Frame::Empty(Grid grid, uint64_t version, double eps) {
-  return std::make_shared<const Frame>(grid, version, eps, ErrorModel{}, std::vector<uint32_t>{},
-                                       std::vector<float>{}, std::make_shared<const SiteTable>());
+  return std::shared_ptr<const Frame>(new Frame(grid, version, eps));
 }
 
 void Frame::PixelOf(Vec2 p, uint32_t* i, uint32_t* j) const {
@@ -70,7 +112,7 @@ std::optional<NearestAnswer> Frame::Nearest(Vec2 q) const {
       lower = std::max(lower, error_.LowerBound(d) - Distance(q, grid_.Center(i, j)));
       uint32_t index = id - 1;
       if (found && index == best.site_index) continue;
-      double exact = ExactDistance(q, (*sites_)[index].geometry);
+      double exact = ExactDistance(q, sites_.get(index)->geometry);
       if (!found || exact < best.distance || (exact == best.distance && index < best.site_index)) {
         best = {index, exact, 0};
         found = true;

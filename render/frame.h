@@ -35,36 +35,56 @@ struct ErrorModel {
 
 // The answer to a nearest-site query at a point.
 struct NearestAnswer {
-  uint32_t site_index = 0;  // into Frame::sites()
+  uint32_t site_index = 0;  // a slot of Frame::sites()
   double distance = 0;      // exact distance from the query point to that site
   double error_bound = 0;   // no site is closer than distance - error_bound
 };
 
+// Immutable once made; shared between threads by shared_ptr. Pixels live in square tiles
+// that later frames share, so a frame that changes a small window copies only its tiles.
 class Frame {
  public:
-  // Takes ownership of the buffers. CONTRACT: ids and distances hold grid.pixel_count() values,
-  // row-major from row 0 (min_y); ids are 0 (no site) or 1 + an index into *sites.
-  Frame(Grid grid, uint64_t version, double eps, ErrorModel error, std::vector<uint32_t> ids,
-        std::vector<float> distances, std::shared_ptr<const SiteTable> sites);
+  static constexpr uint32_t kTile = 32;
+  struct Tile {
+    uint32_t ids[kTile * kTile];
+    float distances[kTile * kTile];
+    float max_distance;  // over the tile's pixels inside the grid
+  };
 
-  // An empty frame: no sites, no pixels read back.
+  // A frame from whole-grid buffers, row-major from row 0 (min_y). ids are 0 (no site) or
+  // 1 + a slot of `sites`.
+  Frame(Grid grid, uint64_t version, double eps, ErrorModel error, const uint32_t* ids,
+        const float* distances, SlotTable sites, size_t site_count);
+  // A frame equal to `base` outside `rect`; inside it, the values come from row-major
+  // buffers of rect.width() x rect.height().
+  Frame(const Frame& base, uint64_t version, ErrorModel error, PixelRect rect, const uint32_t* ids,
+        const float* distances, SlotTable sites, size_t site_count);
+
+  // A frame with no sites and no pixels.
   static std::shared_ptr<const Frame> Empty(Grid grid, uint64_t version, double eps);
 
   const Grid& grid() const { return grid_; }
   uint64_t version() const { return version_; }
   double eps() const { return eps_; }
   const ErrorModel& error() const { return error_; }
-  const SiteTable& sites() const { return *sites_; }
-  const std::shared_ptr<const SiteTable>& shared_sites() const { return sites_; }
-  bool empty() const { return sites_->empty(); }
+  const SlotTable& sites() const { return sites_; }
+  size_t site_count() const { return site_count_; }
+  bool empty() const { return site_count_ == 0; }
 
-  // Raw pixel access. CONTRACT: i < width, j < height, and the frame is not empty.
-  uint32_t id_at(uint32_t i, uint32_t j) const { return ids_[size_t{j} * grid_.width + i]; }
-  float distance_at(uint32_t i, uint32_t j) const {
-    return distances_[size_t{j} * grid_.width + i];
+  // Pixel access. CONTRACT: i < width, j < height, and the frame is not empty.
+  uint32_t id_at(uint32_t i, uint32_t j) const {
+    return tile(i, j).ids[(j % kTile) * kTile + i % kTile];
   }
-  const std::vector<uint32_t>& ids() const { return ids_; }
-  const std::vector<float>& distances() const { return distances_; }
+  float distance_at(uint32_t i, uint32_t j) const {
+    return tile(i, j).distances[(j % kTile) * kTile + i % kTile];
+  }
+  uint32_t tiles_x() const { return (grid_.width + kTile - 1) / kTile; }
+  uint32_t tiles_y() const { return (grid_.height + kTile - 1) / kTile; }
+  const Tile& tile_at(uint32_t tx, uint32_t ty) const { return *tiles_[ty * tiles_x() + tx]; }
+  // Whether two frames share the storage of a tile (for tests of copy-on-write).
+  bool SharesTile(const Frame& other, uint32_t tx, uint32_t ty) const {
+    return tiles_[ty * tiles_x() + tx] == other.tiles_[ty * tiles_x() + tx];
+  }
 
   // The pixel whose centre is nearest to p (clamped to the grid).
   void PixelOf(Vec2 p, uint32_t* i, uint32_t* j) const;
@@ -77,13 +97,22 @@ class Frame {
   std::optional<NearestAnswer> Nearest(Vec2 q) const;
 
  private:
+  Frame(Grid grid, uint64_t version, double eps) : grid_(grid), version_(version), eps_(eps) {}
+  const Tile& tile(uint32_t i, uint32_t j) const {
+    return *tiles_[(j / kTile) * tiles_x() + i / kTile];
+  }
+  // Copies the part of a row-major buffer (origin ox, oy; row length stride) that falls in
+  // tile (tx, ty) and `rect` into `t`, then recomputes its max distance.
+  void Fill(Tile& t, uint32_t tx, uint32_t ty, PixelRect rect, const uint32_t* ids,
+            const float* distances, uint32_t stride) const;
+
   Grid grid_;
   uint64_t version_;
   double eps_;
   ErrorModel error_;
-  std::vector<uint32_t> ids_;
-  std::vector<float> distances_;
-  std::shared_ptr<const SiteTable> sites_;
+  std::vector<std::shared_ptr<const Tile>> tiles_;
+  SlotTable sites_;
+  size_t site_count_ = 0;
 };
 
 }  // namespace gvd

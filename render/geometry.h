@@ -41,6 +41,25 @@ struct Window {
   }
 };
 
+// A rectangle of pixels [x0, x1) x [y0, y1).
+struct PixelRect {
+  uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  bool empty() const { return x0 >= x1 || y0 >= y1; }
+  uint32_t width() const { return empty() ? 0 : x1 - x0; }
+  uint32_t height() const { return empty() ? 0 : y1 - y0; }
+  uint64_t area() const { return uint64_t{width()} * height(); }
+  bool operator==(const PixelRect&) const = default;
+  bool Intersects(const PixelRect& o) const {
+    return !empty() && !o.empty() && x0 < o.x1 && o.x0 < x1 && y0 < o.y1 && o.y0 < y1;
+  }
+  // The smallest rectangle holding both.
+  PixelRect Union(const PixelRect& o) const {
+    if (empty()) return o;
+    if (o.empty()) return *this;
+    return {std::min(x0, o.x0), std::min(y0, o.y0), std::max(x1, o.x1), std::max(y1, o.y1)};
+  }
+};
+
 // A window sampled at the centres of width x height pixels. Pixel (i, j) covers
 // [min_x + i*pw, min_x + (i+1)*pw) x [min_y + j*ph, ...); row j = 0 is at min_y.
 struct Grid {
@@ -61,6 +80,20 @@ struct Grid {
   // Continuous pixel coordinates of p: pixel centres sit at integer + 0.5.
   Vec2 ToPixel(Vec2 p) const {
     return {(p.x - window.min_x) / pixel_width(), (p.y - window.min_y) / pixel_height()};
+  }
+  PixelRect all() const { return {0, 0, width, height}; }
+  // The pixels whose centres lie within the axis-aligned box [lo, hi].
+  PixelRect CentresIn(Vec2 lo, Vec2 hi) const {
+    Vec2 a = ToPixel(lo), b = ToPixel(hi);
+    auto first = [](double v, uint32_t n) {  // smallest i with i + 0.5 >= v
+      double f = std::ceil(v - 0.5);
+      return f <= 0 ? 0u : f >= n ? n : static_cast<uint32_t>(f);
+    };
+    auto past = [](double v, uint32_t n) {  // 1 + largest i with i + 0.5 <= v
+      double f = std::floor(v - 0.5) + 1;
+      return f <= 0 ? 0u : f >= n ? n : static_cast<uint32_t>(f);
+    };
+    return {first(a.x, width), first(a.y, height), past(b.x, width), past(b.y, height)};
   }
 };
 

@@ -12,7 +12,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "render/exact.h"
-#include "render/coverage.h"
+#include "render/scene_raster.h"
 #include "render/mesh.h"
 
 namespace gvd {
@@ -61,10 +61,6 @@ absl::StatusOr<GLuint> Compile(GLenum kind, const char* source) {
     return absl::InternalError(absl::StrCat("shader compilation failed: ", log));
   }
   return shader;
-}
-
-double Seconds(std::chrono::steady_clock::time_point since) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
 }
 
 }  // namespace
@@ -173,67 +169,50 @@ uint32_t SegmentBucket(uint32_t needed) {
 
 }  // namespace
 
-absl::StatusOr<std::shared_ptr<const Frame>> Rasterizer::Render(
-    const Grid& grid, double eps, uint64_t version, std::shared_ptr<const SiteTable> sites,
-    const SiteIndex* index, RenderTarget& target, RenderStats* stats) {
+Rasterizer::ConeShape Rasterizer::Shape(const Grid& grid, double radius, double eps) const {
+  // A sixteenth of a pixel beyond the proven radius keeps centres on the edge inside,
+  // whatever the rasterizer's snapping (1/256 pixel). Scaled by extent = r * k, the fan
+  // covers radius r; the factor 1 + 2^-20 absorbs the rounding of the float ring vertices,
+  // which can fall a few ulps inside the unit circle.
+  double r = radius + grid.pixel_size() / 16;
+  uint32_t n = SegmentBucket(ConeSegments(r + eps, eps));
+  double k = 1 / std::cos(std::numbers::pi / n);
+  return {n, k, r * k * (1 + 0x1p-20)};
+}
+
+absl::Status Rasterizer::Draw(const Grid& grid, double eps, double depth_scale, PixelRect scissor,
+                              bool clear, const std::vector<ConeDraw>& cones,
+                              RenderTarget& target) {
   if (target.width() != grid.width || target.height() != grid.height) {
     return absl::InternalError("render target does not match the grid");
   }
-  if (sites->empty()) return Frame::Empty(grid, version, eps);
-  auto start = std::chrono::steady_clock::now();
-
-  SiteIndex built;
-  if (index == nullptr) {
-    built = SiteIndex::Build(*sites);
-    index = &built;
-  }
-  Coverage cov = ComputeCoverage(grid, *sites, *index, {0, 0, grid.width, grid.height});
-  double coverage_seconds = Seconds(start);
-
-  // Each drawn site: its fan's triangle count, and the radius its polygon must cover. A
-  // sixteenth of a pixel beyond the proven radius keeps centres on the edge inside, whatever
-  // the rasterizer's snapping (1/256 pixel).
+  if (scissor.empty()) return absl::OkStatus();
   struct Instance {
     float x, y, rho;
     uint32_t site;
   };
   std::map<uint32_t, std::vector<Instance>> buckets;
-  const double margin = grid.pixel_size() / 16;
-  // Scaled by rho = r * k, the fan covers radius r; the factor 1 + 2^-20 absorbs the rounding
-  // of the float ring vertices, which can fall a few ulps inside the unit circle.
-  constexpr double kCoverMargin = 1 + 0x1p-20;
-  double max_rho = 0, k_max = 1, area = 0;
-  uint64_t drawn = 0, triangles = 0;
-  for (size_t i = 0; i < sites->size(); ++i) {
-    if (cov.radius[i] < 0) continue;
-    double r = cov.radius[i] + margin;
-    uint32_t n = SegmentBucket(ConeSegments(r + eps, eps));
-    double k = 1 / std::cos(std::numbers::pi / n);
-    double rho = r * k * kCoverMargin;
-    const auto& p = std::get<PointSite>((*sites)[i].geometry).p;
-    buckets[n].push_back({static_cast<float>(p.x - grid.window.min_x),
-                          static_cast<float>(p.y - grid.window.min_y), static_cast<float>(rho),
-                          static_cast<uint32_t>(i + 1)});
-    max_rho = std::max(max_rho, rho);
-    k_max = std::max(k_max, k);
-    area += std::numbers::pi * r * r;
-    ++drawn;
-    triangles += n;
+  for (const ConeDraw& c : cones) {
+    ConeShape shape = Shape(grid, c.radius, eps);
+    buckets[shape.segments].push_back({static_cast<float>(c.site.x - grid.window.min_x),
+                                       static_cast<float>(c.site.y - grid.window.min_y),
+                                       static_cast<float>(shape.extent), c.slot + 1});
   }
-  double depth_scale = max_rho * (1 + 0x1p-10);  // ring depth stays inside the far plane
-
   glBindFramebuffer(GL_FRAMEBUFFER, target.framebuffer());
   glViewport(0, 0, grid.width, grid.height);
+  glEnable(GL_SCISSOR_TEST);
+  glScissor(scissor.x0, scissor.y0, scissor.width(), scissor.height());
   glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
   glDepthMask(GL_TRUE);
   glDisable(GL_BLEND);
   glDisable(GL_CULL_FACE);
-  const GLuint zero_id[4] = {0, 0, 0, 0};
-  glClearBufferuiv(GL_COLOR, 0, zero_id);
-  glClearBufferfi(GL_DEPTH_STENCIL, 0, 1.0f, 0);
-
+  if (clear) {
+    const GLuint zero_id[4] = {0, 0, 0, 0};
+    glClearBufferuiv(GL_COLOR, 0, zero_id);
+    glClearBufferfi(GL_DEPTH_STENCIL, 0, 1.0f, 0);
+  }
   glUseProgram(program_);
   glUniform2f(u_scale_, static_cast<float>(2 / grid.window.width()),
               static_cast<float>(2 / grid.window.height()));
@@ -257,42 +236,38 @@ absl::StatusOr<std::shared_ptr<const Frame>> Rasterizer::Render(
     glDrawArraysInstanced(GL_TRIANGLES, 0, static_cast<GLsizei>(segments * 3),
                           static_cast<GLsizei>(instances.size()));
   }
-  glFinish();
-  double draw_seconds = Seconds(start) - coverage_seconds;
-  if (auto s = GlError("drawing distance meshes"); !s.ok()) return s;
+  glDisable(GL_SCISSOR_TEST);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  return GlError("drawing distance meshes");
+}
 
-  auto read_start = std::chrono::steady_clock::now();
-  std::vector<uint32_t> ids(grid.pixel_count());
-  std::vector<float> distances(grid.pixel_count());
+absl::Status Rasterizer::ReadBack(RenderTarget& target, PixelRect rect, double depth_scale,
+                                  std::vector<uint32_t>* ids, std::vector<float>* distances) {
+  ids->resize(rect.area());
+  distances->resize(rect.area());
+  if (rect.empty()) return absl::OkStatus();
+  glBindFramebuffer(GL_FRAMEBUFFER, target.framebuffer());
   glPixelStorei(GL_PACK_ALIGNMENT, 4);
   glReadBuffer(GL_COLOR_ATTACHMENT0);
-  glReadPixels(0, 0, grid.width, grid.height, GL_RED_INTEGER, GL_UNSIGNED_INT, ids.data());
-  glReadPixels(0, 0, grid.width, grid.height, GL_DEPTH_COMPONENT, GL_FLOAT, distances.data());
+  glReadPixels(rect.x0, rect.y0, rect.width(), rect.height(), GL_RED_INTEGER, GL_UNSIGNED_INT,
+               ids->data());
+  glReadPixels(rect.x0, rect.y0, rect.width(), rect.height(), GL_DEPTH_COMPONENT, GL_FLOAT,
+               distances->data());
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
-  if (auto s = GlError("reading back the frame"); !s.ok()) return s;
-  for (float& d : distances) d = static_cast<float>(d * depth_scale);
+  for (float& d : *distances) d = static_cast<float>(d * depth_scale);
+  return GlError("reading back the frame");
+}
 
-  // Arithmetic slack, on top of the mesh's error (see ErrorModel): vertices snap to 1/256
-  // pixel (GL_SUBPIXEL_BITS = 8 on llvmpipe and NVIDIA), which moves a cone's surface by at
-  // most 1/256 pixel diagonal, as the surface's slope is at most k ~ 1; we allow 1/64.
-  // Float interpolation and depth storage err by a few ulps of the depth range and of D.
-  ErrorModel error;
-  error.overestimate = k_max;
-  error.max_excess = eps;
-  error.absolute_slack = grid.pixel_diagonal() / 64 + depth_scale * 0x1p-18;
-  error.relative_slack = 0x1p-18;
-  if (stats) {
-    stats->cone_segments = buckets.empty() ? 0 : buckets.rbegin()->first;
-    stats->sites_drawn = drawn;
-    stats->triangles = triangles;
-    stats->fill_ratio = area / (grid.window.width() * grid.window.height());
-    stats->tile_px = cov.tile_px;
-    stats->coverage_seconds = coverage_seconds;
-    stats->draw_seconds = draw_seconds;
-    stats->readback_seconds = Seconds(read_start);
-  }
-  return std::make_shared<const Frame>(grid, version, eps, error, std::move(ids),
-                                       std::move(distances), std::move(sites));
+absl::StatusOr<std::shared_ptr<const Frame>> Rasterizer::Render(const Grid& grid, double eps,
+                                                                uint64_t version,
+                                                                const SiteTable& sites,
+                                                                RenderStats* stats) {
+  auto scene = SceneRaster::Create(grid, eps);
+  if (!scene.ok()) return scene.status();
+  std::vector<SiteChange> changes;
+  changes.reserve(sites.size());
+  for (const Site& s : sites) changes.push_back({s.id, s.geometry});
+  return (*scene)->Apply(*this, version, std::move(changes), stats);
 }
 
 }  // namespace gvd

@@ -10,7 +10,6 @@
 #include "render/frame.h"
 #include "render/geometry.h"
 #include "render/site.h"
-#include "render/site_index.h"
 
 namespace gvd {
 
@@ -37,12 +36,22 @@ class RenderTarget {
 struct RenderStats {
   uint32_t cone_segments = 0;  // triangles in the largest point cone of this render
   uint64_t sites_drawn = 0;    // sites nearest to some pixel centre
-  uint64_t triangles = 0;
   double fill_ratio = 0;       // total area of the drawn meshes / area of the window
   uint32_t tile_px = 0;        // tile side of the coverage pass
   double coverage_seconds = 0; // spatial index and coverage radii
   double draw_seconds = 0;     // until the GPU finished drawing
   double readback_seconds = 0;
+  PixelRect window;            // bounds the pixels redrawn and read back
+  size_t windows = 0;          // separate windows redrawn
+  uint64_t pixels = 0;         // pixels redrawn and read back
+  bool full = false;           // a render from scratch
+};
+
+// A point site's distance cone to draw: it must cover every pixel centre within `radius`.
+struct ConeDraw {
+  Vec2 site;
+  double radius = 0;
+  uint32_t slot = 0;
 };
 
 // Compiled shaders and mesh buffers. Not thread-safe; use on the context's thread.
@@ -53,16 +62,28 @@ class Rasterizer {
   Rasterizer(const Rasterizer&) = delete;
   Rasterizer& operator=(const Rasterizer&) = delete;
 
-  // Renders the discrete Voronoi diagram of `sites` on `grid`, every distance mesh within
-  // `eps` (scene units) of the truth, into `target`, and reads it back as a frame. Each
-  // site's mesh reaches only as far as ComputeCoverage proves it must. `index` indexes the
-  // sites by slot; null builds one.
-  // CONTRACT: target matches the grid's size; eps > 0; sites' coordinates are finite.
+  // The triangles and the extent (how far from the site the fan reaches, >= radius) of the
+  // cone drawn for a radius: its fan has within-eps error up to the radius.
+  struct ConeShape {
+    uint32_t segments;
+    double overestimate;  // k of the fan
+    double extent;
+  };
+  ConeShape Shape(const Grid& grid, double radius, double eps) const;
+
+  // Draws the cones into `target` inside `scissor` (clearing it first when `clear`), with
+  // depth = distance / depth_scale. CONTRACT: every cone's extent <= depth_scale.
+  absl::Status Draw(const Grid& grid, double eps, double depth_scale, PixelRect scissor,
+                    bool clear, const std::vector<ConeDraw>& cones, RenderTarget& target);
+
+  // Reads `rect` of the target: ids, and distances (depth * depth_scale), row-major.
+  absl::Status ReadBack(RenderTarget& target, PixelRect rect, double depth_scale,
+                        std::vector<uint32_t>* ids, std::vector<float>* distances);
+
+  // A whole render from scratch, for tests and benchmarks: the same path as a scene's first
+  // render (SceneRaster).
   absl::StatusOr<std::shared_ptr<const Frame>> Render(const Grid& grid, double eps,
-                                                      uint64_t version,
-                                                      std::shared_ptr<const SiteTable> sites,
-                                                      const SiteIndex* index,
-                                                      RenderTarget& target,
+                                                      uint64_t version, const SiteTable& sites,
                                                       RenderStats* stats = nullptr);
 
  private:

@@ -29,11 +29,11 @@ SiteIndex::~SiteIndex() = default;
 SiteIndex::SiteIndex(SiteIndex&&) noexcept = default;
 SiteIndex& SiteIndex::operator=(SiteIndex&&) noexcept = default;
 
-SiteIndex SiteIndex::Build(const SiteTable& sites) {
+SiteIndex SiteIndex::Build(const SlotTable& sites) {
   std::vector<Entry> entries;
   entries.reserve(sites.size());
-  for (size_t i = 0; i < sites.size(); ++i) {
-    entries.emplace_back(BoxOf(sites[i].geometry), static_cast<uint32_t>(i));
+  for (uint32_t i = 0; i < sites.size(); ++i) {
+    if (const Site* s = sites.get(i)) entries.emplace_back(BoxOf(s->geometry), i);
   }
   SiteIndex index;
   index.tree_->rtree = bgi::rtree<Entry, bgi::rstar<16>>(entries);  // packing bulk load
@@ -46,12 +46,12 @@ void SiteIndex::Remove(uint32_t slot, const Geometry& g) { tree_->rtree.remove({
 
 size_t SiteIndex::size() const { return tree_->rtree.size(); }
 
-ExactNearest SiteIndex::Nearest(Vec2 q, const SiteTable& sites) const {
+ExactNearest SiteIndex::Nearest(Vec2 q, const SlotTable& sites) const {
   const BPoint p(q.x, q.y);
   ExactNearest best{0, INFINITY};
   double box_distance = 0;
   tree_->rtree.query(bgi::nearest(p, 1), boost::make_function_output_iterator([&](const Entry& e) {
-                       best = {e.second, ExactDistance(q, sites[e.second].geometry)};
+                       best = {e.second, ExactDistance(q, sites.get(e.second)->geometry)};
                        box_distance = bg::distance(e.first, p);
                      }));
   // Boxes bound distances from below: when the nearest box's site is as near as its box (a
@@ -61,7 +61,7 @@ ExactNearest SiteIndex::Nearest(Vec2 q, const SiteTable& sites) const {
   std::vector<uint32_t> nearer;
   Within(q, best.distance, &nearer);
   for (uint32_t s : nearer) {
-    double d = ExactDistance(q, sites[s].geometry);
+    double d = ExactDistance(q, sites.get(s)->geometry);
     if (d < best.distance) best = {s, d};
   }
   return best;

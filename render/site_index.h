@@ -20,17 +20,17 @@ class SiteIndex {
   SiteIndex(SiteIndex&&) noexcept;
   SiteIndex& operator=(SiteIndex&&) noexcept;
 
-  // An index of every site of the table; entry i is slot i. O(n log n), bulk loaded.
-  static SiteIndex Build(const SiteTable& sites);
+  // An index of every live slot of the table. O(n log n), bulk loaded.
+  static SiteIndex Build(const SlotTable& sites);
 
   void Insert(uint32_t slot, const Geometry& geometry);
   // CONTRACT: (slot, geometry) was inserted and not removed since.
   void Remove(uint32_t slot, const Geometry& geometry);
   size_t size() const;
 
-  // The exact nearest site to q (ties: the one met first). `sites` is the table the slots
-  // index. CONTRACT: the index is not empty.
-  ExactNearest Nearest(Vec2 q, const SiteTable& sites) const;
+  // The exact nearest site to q (ties: the one met first); `index` is its slot. `sites` is
+  // the table the slots index. CONTRACT: the index is not empty.
+  ExactNearest Nearest(Vec2 q, const SlotTable& sites) const;
 
   // Appends the slots of the sites whose bounding boxes come within r of q: a superset of
   // the sites within r of q.

@@ -70,9 +70,9 @@ void RenderLoop::Run(DevicePreference preference) {
     if (!status.ok()) return;
   }
 
-  // One render target per scene, kept between renders (later renders may reuse its
-  // contents); released when the scene is deleted.
-  std::map<const Scene*, std::pair<std::weak_ptr<Scene>, std::unique_ptr<RenderTarget>>> targets;
+  // One SceneRaster (GPU buffers and incremental state) per scene, kept between renders;
+  // released when the scene is deleted or a render fails.
+  std::map<const Scene*, std::pair<std::weak_ptr<Scene>, std::unique_ptr<SceneRaster>>> rasters;
   while (true) {
     std::shared_ptr<Scene> scene;
     {
@@ -83,36 +83,40 @@ void RenderLoop::Run(DevicePreference preference) {
       queue_.pop_front();
       queued_.erase(scene.get());
     }
-    // Drop the targets of scenes that are gone.
-    for (auto it = targets.begin(); it != targets.end();) {
+    // Drop the state of scenes that are gone.
+    for (auto it = rasters.begin(); it != rasters.end();) {
       auto owner = it->second.first.lock();
-      it = (!owner || owner->deleted()) ? targets.erase(it) : std::next(it);
+      it = (!owner || owner->deleted()) ? rasters.erase(it) : std::next(it);
     }
     if (scene->deleted()) continue;
 
-    Scene::Snapshot snapshot = scene->TakeSnapshot();
-    if (snapshot.version <= scene->frame()->version()) continue;
     const SceneSettings& settings = scene->settings();
     auto start = std::chrono::steady_clock::now();
-    auto& slot = targets[scene.get()];
+    auto& slot = rasters[scene.get()];
     absl::StatusOr<std::shared_ptr<const Frame>> frame;
+    Scene::Changes changes;
     if (!slot.second) {
-      auto target = RenderTarget::Create(settings.grid.width, settings.grid.height);
-      if (target.ok()) {
-        slot = {scene, std::move(*target)};
+      auto raster = SceneRaster::Create(settings.grid, settings.eps);
+      if (raster.ok()) {
+        slot = {scene, std::move(*raster)};
+        changes = scene->TakeChanges(/*all=*/true);
       } else {
-        frame = target.status();
+        frame = raster.status();
       }
+    } else {
+      changes = scene->TakeChanges(/*all=*/false);
     }
+    if (slot.second && changes.version <= scene->frame()->version()) continue;
     RenderStats render_stats;
     if (slot.second) {
-      frame = rasterizer->Render(settings.grid, settings.eps, snapshot.version,
-                                 std::move(snapshot.sites), nullptr, *slot.second, &render_stats);
+      frame = slot.second->Apply(*rasterizer, changes.version, std::move(changes.changes),
+                                 &render_stats);
     }
     double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (!frame.ok()) {
+      rasters.erase(scene.get());  // the next render starts from scratch
       Log(LogLevel::kError, "render_failed",
-          {{"scene", scene->id()}, {"version", absl::StrCat(snapshot.version)},
+          {{"scene", scene->id()}, {"version", absl::StrCat(changes.version)},
            {"error", frame.status().ToString()}});
       {
         std::lock_guard<std::mutex> lock(mu_);
@@ -128,10 +132,14 @@ void RenderLoop::Run(DevicePreference preference) {
       ++stats_.renders;
       stats_.last_render_seconds = seconds;
     }
+    const PixelRect& w = render_stats.window;
     Log(LogLevel::kDebug, "rendered",
-        {{"scene", scene->id()}, {"version", absl::StrCat(snapshot.version)},
-         {"sites", absl::StrCat((*frame)->sites().size())},
-         {"cone_triangles", absl::StrCat(render_stats.cone_segments)},
+        {{"scene", scene->id()}, {"version", absl::StrCat(changes.version)},
+         {"sites", absl::StrCat((*frame)->site_count())},
+         {"full", render_stats.full ? "true" : "false"},
+         {"window", absl::StrCat(w.x0, ",", w.y0, ",", w.x1, ",", w.y1)},
+         {"sites_drawn", absl::StrCat(render_stats.sites_drawn)},
+         {"coverage_ms", absl::StrCat(render_stats.coverage_seconds * 1e3)},
          {"draw_ms", absl::StrCat(render_stats.draw_seconds * 1e3)},
          {"readback_ms", absl::StrCat(render_stats.readback_seconds * 1e3)},
          {"total_ms", absl::StrCat(seconds * 1e3)}});
@@ -145,7 +153,7 @@ void RenderLoop::Run(DevicePreference preference) {
     queued_.clear();
   }
   for (auto& s : left) s->FailWaiters(absl::UnavailableError("the server is shutting down"));
-  targets.clear();
+  rasters.clear();
   rasterizer.reset();
   context.reset();
 }

@@ -18,7 +18,10 @@ absl::StatusOr<uint64_t> Scene::Upsert(std::vector<Site> sites, size_t max_sites
         absl::StrCat("scene \"", id(), "\" would hold ", sites_.size() + added,
                      " sites; the limit per scene is ", max_sites));
   }
-  for (Site& s : sites) sites_.insert_or_assign(std::move(s.id), std::move(s.geometry));
+  for (Site& s : sites) {
+    changed_.insert(s.id);
+    sites_.insert_or_assign(std::move(s.id), std::move(s.geometry));
+  }
   return ++version_;
 }
 
@@ -30,7 +33,10 @@ absl::StatusOr<uint64_t> Scene::Delete(const std::vector<std::string>& ids) {
                                               "\" is not a site of scene \"", id(), "\""));
     }
   }
-  for (const auto& i : ids) sites_.erase(i);
+  for (const auto& i : ids) {
+    sites_.erase(i);
+    changed_.insert(i);
+  }
   return ++version_;
 }
 
@@ -56,12 +62,23 @@ Scene::SitePage Scene::ListSites(std::string_view after, size_t limit) const {
   return page;
 }
 
-Scene::Snapshot Scene::TakeSnapshot() const {
+Scene::Changes Scene::TakeChanges(bool all) {
   std::lock_guard<std::mutex> lock(mu_);
-  auto table = std::make_shared<SiteTable>();
-  table->reserve(sites_.size());
-  for (const auto& [id, geometry] : sites_) table->push_back({id, geometry});
-  return {version_, std::move(table)};
+  Changes out;
+  out.version = version_;
+  if (all) {
+    out.changes.reserve(sites_.size());
+    for (const auto& [id, geometry] : sites_) out.changes.push_back({id, geometry});
+  } else {
+    out.changes.reserve(changed_.size());
+    for (const auto& id : changed_) {
+      auto it = sites_.find(id);
+      out.changes.push_back(
+          {id, it == sites_.end() ? std::nullopt : std::optional<Geometry>(it->second)});
+    }
+  }
+  changed_.clear();
+  return out;
 }
 
 void Scene::Publish(std::shared_ptr<const Frame> frame) {

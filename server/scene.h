@@ -7,6 +7,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -14,6 +15,7 @@
 #include "absl/status/statusor.h"
 #include "render/frame.h"
 #include "render/geometry.h"
+#include "render/scene_raster.h"
 #include "render/site.h"
 
 namespace gvd {
@@ -58,12 +60,14 @@ class Scene {
   // Up to `limit` sites with ids greater than `after`, in id order.
   SitePage ListSites(std::string_view after, size_t limit) const;
 
-  // The sites at the current version, for the render thread.
-  struct Snapshot {
+  // For the render thread: the sites changed since the last call, each once with its current
+  // geometry (none if deleted), and the version they bring the scene to. With `all`, every
+  // site as an upsert (for a render from scratch), and the changed set is cleared as well.
+  struct Changes {
     uint64_t version = 0;
-    std::shared_ptr<const SiteTable> sites;
+    std::vector<SiteChange> changes;
   };
-  Snapshot TakeSnapshot() const;
+  Changes TakeChanges(bool all);
 
   // The latest published frame. Lock-free for readers.
   std::shared_ptr<const Frame> frame() const { return frame_.load(); }
@@ -95,6 +99,7 @@ class Scene {
   mutable std::mutex mu_;  // guards everything below
   uint64_t version_ = 1;
   std::map<std::string, Geometry, std::less<>> sites_;
+  std::set<std::string> changed_;  // since the last TakeChanges
   uint64_t next_token_ = 1;
   std::map<uint64_t, Waiter> waiters_;
 };

@@ -26,7 +26,7 @@ Status Answer(const Frame& frame, const std::vector<Vec2>& points,
     auto answer = frame.Nearest(q);
     if (!answer) return Status(StatusCode::INTERNAL, "frame has no site at a query point");
     v1::NearestSite* r = results->Add();
-    r->set_site_id(frame.sites()[answer->site_index].id);
+    r->set_site_id(frame.sites().get(answer->site_index)->id);
     r->set_distance(answer->distance);
     r->set_error_bound(answer->error_bound);
   }

@@ -12,8 +12,9 @@ namespace gvd {
 namespace {
 
 void ExpectCovered(const Grid& grid, const SiteTable& sites, uint32_t tile_px = 0) {
-  SiteIndex index = SiteIndex::Build(sites);
-  Coverage cov = ComputeCoverage(grid, sites, index, {0, 0, grid.width, grid.height}, tile_px);
+  SlotTable slots(sites);
+  SiteIndex index = SiteIndex::Build(slots);
+  Coverage cov = ComputeCoverage(grid, slots, index, {0, 0, grid.width, grid.height}, tile_px);
   int failures = 0;
   for (uint32_t j = 0; j < grid.height && failures < 5; ++j) {
     for (uint32_t i = 0; i < grid.width && failures < 5; ++i) {
@@ -66,8 +67,9 @@ TEST(Coverage, SitesOutsideTheWindowAndSitesThatOwnNothing) {
                      {"", PointSite{{1.2, 1.3}}},  {"", PointSite{{0.7, 0.2}}},
                      {"", PointSite{{-5, 0.5}}}};  // hidden behind (-0.5, 0.5)
   ExpectCovered(grid, sites);
-  SiteIndex index = SiteIndex::Build(sites);
-  Coverage cov = ComputeCoverage(grid, sites, index, {0, 0, 50, 50});
+  SlotTable slots(sites);
+  SiteIndex index = SiteIndex::Build(slots);
+  Coverage cov = ComputeCoverage(grid, slots, index, {0, 0, 50, 50});
   EXPECT_LT(cov.radius[4], 0) << "a site nearest to no pixel centre needs no mesh";
   EXPECT_LT(cov.radius[1], 0);
 }
@@ -77,9 +79,9 @@ TEST(Coverage, SitesOutsideTheWindowAndSitesThatOwnNothing) {
 TEST(Coverage, FillIsASmallMultipleOfTheGrid) {
   Window w{0, 0, 1, 1};
   Grid grid{w, 512, 512};
-  SiteTable sites = RandomPoints(20000, w, 5);
-  SiteIndex index = SiteIndex::Build(sites);
-  Coverage cov = ComputeCoverage(grid, sites, index, {0, 0, 512, 512});
+  SlotTable slots(RandomPoints(20000, w, 5));
+  SiteIndex index = SiteIndex::Build(slots);
+  Coverage cov = ComputeCoverage(grid, slots, index, {0, 0, 512, 512});
   double area = 0;
   for (double r : cov.radius) area += r > 0 ? M_PI * r * r : 0;
   EXPECT_LT(area, 40.0);  // against 20,000 for full cones
@@ -88,12 +90,13 @@ TEST(Coverage, FillIsASmallMultipleOfTheGrid) {
 TEST(SiteIndex, NearestAndWithinAgreeWithBruteForce) {
   Window w{0, 0, 10, 10};
   SiteTable sites = RandomPoints(500, w, 8);
-  SiteIndex index = SiteIndex::Build(sites);
+  SlotTable slots(sites);
+  SiteIndex index = SiteIndex::Build(slots);
   std::mt19937_64 rng(1);
   std::uniform_real_distribution<double> u(-2, 12);
   for (int t = 0; t < 300; ++t) {
     Vec2 q{u(rng), u(rng)};
-    EXPECT_EQ(index.Nearest(q, sites).distance, NearestBruteForce(q, sites).distance);
+    EXPECT_EQ(index.Nearest(q, slots).distance, NearestBruteForce(q, sites).distance);
     std::vector<uint32_t> within;
     index.Within(q, 1.5, &within);
     for (size_t s = 0; s < sites.size(); ++s) {
@@ -107,8 +110,9 @@ TEST(SiteIndex, NearestAndWithinAgreeWithBruteForce) {
   // Removal and insertion keep it exact.
   index.Remove(0, sites[0].geometry);
   sites[0].geometry = PointSite{{5, 5}};
+  slots.Set(0, sites[0]);
   index.Insert(0, sites[0].geometry);
-  EXPECT_EQ(index.Nearest({5, 5}, sites).distance, 0);
+  EXPECT_EQ(index.Nearest({5, 5}, slots).distance, 0);
   EXPECT_EQ(index.size(), 500u);
 }
 

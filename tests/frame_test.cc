@@ -33,16 +33,16 @@ std::shared_ptr<const Frame> EmulatedFrame(const Grid& grid, std::vector<Site> s
     }
   }
   ErrorModel error{k, INFINITY, 0, 0x1p-22};  // float storage of D
-  return std::make_shared<const Frame>(grid, 1, 1, error, std::move(ids), std::move(dist),
-                                       std::make_shared<const SiteTable>(std::move(sites)));
+  return std::make_shared<const Frame>(grid, 1, 1, error, ids.data(), dist.data(),
+                                       SlotTable(sites), sites.size());
 }
 
-void ExpectContract(const Frame& frame, Vec2 q) {
+void ExpectContract(const Frame& frame, const SiteTable& sites, Vec2 q) {
   auto answer = frame.Nearest(q);
   ASSERT_TRUE(answer.has_value());
-  const Site& site = frame.sites()[answer->site_index];
+  const Site& site = sites[answer->site_index];
   EXPECT_EQ(answer->distance, ExactDistance(q, site.geometry));
-  ExactNearest truth = NearestBruteForce(q, frame.sites());
+  ExactNearest truth = NearestBruteForce(q, sites);
   EXPECT_GE(truth.distance, answer->distance - answer->error_bound)
       << "q=(" << q.x << "," << q.y << ") site " << site.id;
   EXPECT_GE(answer->error_bound, 0);
@@ -84,7 +84,7 @@ TEST(Frame, ExactFrameBoundIsAtMostAPixelDiagonal) {
   auto f = EmulatedFrame(grid, sites, 1, 2);
   for (int t = 0; t < 5000; ++t) {
     Vec2 q{u(rng), u(rng)};
-    ExpectContract(*f, q);
+    ExpectContract(*f, sites, q);
     EXPECT_LE(f->Nearest(q)->error_bound, grid.pixel_diagonal() * (1 + 1e-6));
   }
 }
@@ -99,19 +99,20 @@ TEST(Frame, ContractHoldsWithOverestimatingMeshes) {
     sites.push_back({"dup", std::get<PointSite>(sites[0].geometry)});  // coincident sites
     auto f = EmulatedFrame(grid, sites, k, 3);
     std::uniform_real_distribution<double> qx(-3, 5), qy(2, 4);
-    for (int t = 0; t < 5000; ++t) ExpectContract(*f, {qx(rng), qy(rng)});
+    for (int t = 0; t < 5000; ++t) ExpectContract(*f, sites, {qx(rng), qy(rng)});
     // Corners and edges of the window.
     for (Vec2 q : {Vec2{-3, 2}, Vec2{5, 4}, Vec2{-3, 4}, Vec2{5, 2}, Vec2{1, 2}}) {
-      ExpectContract(*f, q);
+      ExpectContract(*f, sites, q);
     }
   }
 }
 
 TEST(Frame, QueryOutsideTheWindowStillHonoursTheContract) {
   Grid grid{{0, 0, 1, 1}, 16, 16};
-  auto f = EmulatedFrame(grid, {{"a", PointSite{{0.2, 0.2}}}, {"b", PointSite{{3, 3}}}}, 1.01, 4);
-  ExpectContract(*f, {2.9, 2.9});
-  ExpectContract(*f, {-10, 0.5});
+  SiteTable sites = {{"a", PointSite{{0.2, 0.2}}}, {"b", PointSite{{3, 3}}}};
+  auto f = EmulatedFrame(grid, sites, 1.01, 4);
+  ExpectContract(*f, sites, {2.9, 2.9});
+  ExpectContract(*f, sites, {-10, 0.5});
 }
 
 }  // namespace

@@ -38,13 +38,12 @@ class RenderGLTest : public ::testing::Test {
     if (context_ == nullptr) GTEST_SKIP() << "no EGL context: " << *skip_reason_;
   }
 
-  std::shared_ptr<const Frame> Render(const Grid& grid, double eps, std::vector<Site> sites,
+  // Renders from scratch; the frame's slot i holds sites[i] (ids are distinct).
+  std::shared_ptr<const Frame> Render(const Grid& grid, double eps, const std::vector<Site>& sites,
                                       RenderStats* stats = nullptr) {
-    auto target = RenderTarget::Create(grid.width, grid.height);
-    EXPECT_TRUE(target.ok()) << target.status();
-    auto table = std::make_shared<const SiteTable>(std::move(sites));
-    auto frame = rasterizer_->Render(grid, eps, 1, table, nullptr, **target, stats);
+    auto frame = rasterizer_->Render(grid, eps, 1, sites, stats);
     EXPECT_TRUE(frame.ok()) << frame.status();
+    for (uint32_t i = 0; i < sites.size(); ++i) EXPECT_EQ((*frame)->sites().get(i)->id, sites[i].id);
     return *frame;
   }
 
@@ -54,7 +53,7 @@ class RenderGLTest : public ::testing::Test {
   //  - the stored site is within 2 eps of the exact nearest (paper sec. 6.3), and
   //  - the frame's lower bound holds for the exact nearest distance (what queries rely on).
   // Returns the largest |stored - exact| seen, in pixels.
-  static double CheckEveryPixel(const Frame& f) {
+  static double CheckEveryPixel(const Frame& f, const SiteTable& sites) {
     const Grid& g = f.grid();
     const double eps = f.eps();
     const ErrorModel& e = f.error();
@@ -64,14 +63,14 @@ class RenderGLTest : public ::testing::Test {
       for (uint32_t i = 0; i < g.width && failures < 5; ++i) {
         Vec2 p = g.Center(i, j);
         uint32_t id = f.id_at(i, j);
-        if (id == 0 || id > f.sites().size()) {
+        if (id == 0 || id > sites.size()) {
           ADD_FAILURE() << "pixel " << i << "," << j << " has id " << id;
           ++failures;
           continue;
         }
         double stored = f.distance_at(i, j);
-        double to_stored = ExactDistance(p, f.sites()[id - 1].geometry);
-        ExactNearest truth = NearestBruteForce(p, f.sites());
+        double to_stored = ExactDistance(p, sites[id - 1].geometry);
+        ExactNearest truth = NearestBruteForce(p, sites);
         double slack = e.Slack(stored);
         worst = std::max(worst, std::abs(stored - to_stored) / g.pixel_size());
         bool ok = stored <= to_stored + eps + slack && stored >= to_stored - slack &&
@@ -110,8 +109,8 @@ TEST_F(RenderGLTest, ContextReportsItsDevice) {
 TEST_F(RenderGLTest, SinglePointIsItsOwnCone) {
   // Sites: (0.3, 0.6) in the unit square at 64 x 64.
   Grid grid{{0, 0, 1, 1}, 64, 64};
-  auto f = Render(grid, grid.pixel_size(), {{"a", PointSite{{0.3, 0.6}}}});
-  CheckEveryPixel(*f);
+  SiteTable sites = {{"a", PointSite{{0.3, 0.6}}}};
+  CheckEveryPixel(*Render(grid, grid.pixel_size(), sites), sites);
 }
 
 TEST_F(RenderGLTest, RandomScenesAtSeveralResolutions) {
@@ -124,8 +123,8 @@ TEST_F(RenderGLTest, RandomScenesAtSeveralResolutions) {
                  Case{10000, 96, 96}}) {
     Window w{-2, 1, 3, 5};
     Grid grid{w, c.w, c.h};
-    auto f = Render(grid, grid.pixel_size(), RandomPoints(c.sites, w, c.sites));
-    double worst = CheckEveryPixel(*f);
+    auto sites = RandomPoints(c.sites, w, c.sites);
+    double worst = CheckEveryPixel(*Render(grid, grid.pixel_size(), sites), sites);
     RecordProperty("worst_px_" + std::to_string(c.sites), std::to_string(worst));
   }
 }
@@ -134,8 +133,8 @@ TEST_F(RenderGLTest, NonSquarePixelsAndCoarseAndFineErrors) {
   Window w{0, 0, 10, 1};
   for (double eps_px : {0.0625, 1.0, 6.0}) {
     Grid grid{w, 100, 80};  // pixels 0.1 x 0.0125
-    auto f = Render(grid, eps_px * grid.pixel_size(), RandomPoints(50, w, 9));
-    CheckEveryPixel(*f);
+    auto sites = RandomPoints(50, w, 9);
+    CheckEveryPixel(*Render(grid, eps_px * grid.pixel_size(), sites), sites);
   }
 }
 
@@ -150,8 +149,7 @@ TEST_F(RenderGLTest, TiesOnALatticeAndCoincidentSites) {
     }
   }
   for (int d = 0; d < 3; ++d) sites.push_back({"same" + std::to_string(d), PointSite{{20.5, 20.5}}});
-  auto f = Render(grid, grid.pixel_size(), sites);
-  CheckEveryPixel(*f);
+  CheckEveryPixel(*Render(grid, grid.pixel_size(), sites), sites);
 }
 
 TEST_F(RenderGLTest, SitesOutsideTheWindow) {
@@ -161,16 +159,15 @@ TEST_F(RenderGLTest, SitesOutsideTheWindow) {
                              {"far", PointSite{{30, -40}}},
                              {"corner", PointSite{{1.2, 1.3}}},
                              {"inside", PointSite{{0.7, 0.2}}}};
-  auto f = Render(grid, grid.pixel_size(), sites);
-  CheckEveryPixel(*f);
+  CheckEveryPixel(*Render(grid, grid.pixel_size(), sites), sites);
 }
 
 TEST_F(RenderGLTest, WindowFarFromTheOrigin) {
   // Float vertex positions would lose the site's position at 1e7 if taken absolute.
   Window w{1e7, -1e7, 1e7 + 2, -1e7 + 1};
   Grid grid{w, 200, 100};
-  auto f = Render(grid, grid.pixel_size(), RandomPoints(300, w, 5));
-  CheckEveryPixel(*f);
+  auto sites = RandomPoints(300, w, 5);
+  CheckEveryPixel(*Render(grid, grid.pixel_size(), sites), sites);
 }
 
 TEST_F(RenderGLTest, LoneSiteConeHasAtLeastThePapersTriangleCount) {
@@ -196,8 +193,8 @@ TEST_F(RenderGLTest, QueriesHonourTheirBound) {
     Vec2 q{u(rng), u(rng)};
     auto a = f->Nearest(q);
     ASSERT_TRUE(a.has_value());
-    ExactNearest truth = NearestBruteForce(q, f->sites());
-    ASSERT_EQ(a->distance, ExactDistance(q, f->sites()[a->site_index].geometry));
+    ExactNearest truth = NearestBruteForce(q, sites);
+    ASSERT_EQ(a->distance, ExactDistance(q, sites[a->site_index].geometry));
     ASSERT_GE(truth.distance, a->distance - a->error_bound) << q.x << "," << q.y;
     worst_bound = std::max(worst_bound, a->error_bound);
   }

@@ -14,11 +14,11 @@
 namespace gvd {
 namespace {
 
-std::shared_ptr<const SiteTable> RandomSites(size_t n, const Window& w, uint64_t seed) {
+SiteTable RandomSites(size_t n, const Window& w, uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> ux(w.min_x, w.max_x), uy(w.min_y, w.max_y);
-  auto sites = std::make_shared<SiteTable>();
-  for (size_t i = 0; i < n; ++i) sites->push_back({std::to_string(i), PointSite{{ux(rng), uy(rng)}}});
+  SiteTable sites;
+  for (size_t i = 0; i < n; ++i) sites.push_back({std::to_string(i), PointSite{{ux(rng), uy(rng)}}});
   return sites;
 }
 
@@ -50,21 +50,21 @@ void BM_Render(benchmark::State& state) {
   const uint32_t size = state.range(1);
   Grid grid{{0, 0, 1, 1}, size, size};
   auto sites = RandomSites(n, grid.window, 1);
-  auto target = std::move(*RenderTarget::Create(size, size));
   RenderStats stats;
   for (auto _ : state) {
-    auto frame = gl.rasterizer->Render(grid, grid.pixel_size(), 1, sites, nullptr, *target, &stats);
+    auto frame = gl.rasterizer->Render(grid, grid.pixel_size(), 1, sites, &stats);
     benchmark::DoNotOptimize(frame);
   }
+  state.counters["coverage_ms"] = stats.coverage_seconds * 1e3;
   state.counters["draw_ms"] = stats.draw_seconds * 1e3;
+  state.counters["fill"] = stats.fill_ratio;
+  state.counters["tile_px"] = stats.tile_px;
   state.counters["readback_ms"] = stats.readback_seconds * 1e3;
   state.counters["triangles_per_cone"] = stats.cone_segments;
   state.SetLabel(gl.context->info().gl_renderer);
 }
 BENCHMARK(BM_Render)
-    ->Args({1000, 1024})
-    ->Args({10000, 1024})
-    ->Args({1000, 2048})
+    ->ArgsProduct({{1000, 10000, 100000, 1000000}, {1024, 2048}})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1)
     ->UseRealTime();
@@ -77,11 +77,8 @@ void BM_FrameNearest(benchmark::State& state) {
     return;
   }
   Grid grid{{0, 0, 1, 1}, 1024, 1024};
-  static std::shared_ptr<const Frame> frame = [&] {
-    auto target = std::move(*RenderTarget::Create(1024, 1024));
-    return *gl.rasterizer->Render(grid, grid.pixel_size(), 1, RandomSites(10000, grid.window, 2),
-                                  nullptr, *target);
-  }();
+  static std::shared_ptr<const Frame> frame =
+      *gl.rasterizer->Render(grid, grid.pixel_size(), 1, RandomSites(10000, grid.window, 2));
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> u(0, 1);
   std::vector<Vec2> q(1 << 16);
@@ -125,7 +122,7 @@ void BM_GrpcFindNearest(benchmark::State& state) {
     (void)client->CreateScene(c, &scene);
     v1::UpsertSitesRequest u;
     u.set_scene_id("bench");
-    for (const Site& s : *RandomSites(10000, {0, 0, 1, 1}, 4)) {
+    for (const Site& s : RandomSites(10000, {0, 0, 1, 1}, 4)) {
       auto* site = u.add_sites();
       site->set_id(s.id);
       site->mutable_point()->set_x(std::get<PointSite>(s.geometry).p.x);

@@ -1,0 +1,301 @@
+#include "render/scene_raster.h"
+
+#include <algorithm>
+#include <chrono>
+#include <numbers>
+
+#include "render/coverage.h"
+#include "render/exact.h"
+
+namespace gvd {
+namespace {
+
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+// The rectangle spanned by the pixel centres of `rect`.
+Window CentreBox(const Grid& grid, PixelRect rect) {
+  Vec2 lo = grid.Center(rect.x0, rect.y0), hi = grid.Center(rect.x1 - 1, rect.y1 - 1);
+  return {lo.x, lo.y, hi.x, hi.y};
+}
+
+// Distance from the geometry to the nearest point of the box (0 inside).
+double NearestDistance(const Window& box, const Geometry& g) {
+  Window b = BoundingBox(g);
+  double dx = std::max({0.0, box.min_x - b.max_x, b.min_x - box.max_x});
+  double dy = std::max({0.0, box.min_y - b.max_y, b.min_y - box.max_y});
+  return std::hypot(dx, dy);  // a lower bound; exact for points
+}
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<SceneRaster>> SceneRaster::Create(const Grid& grid, double eps) {
+  auto target = RenderTarget::Create(grid.width, grid.height);
+  if (!target.ok()) return target.status();
+  return std::unique_ptr<SceneRaster>(new SceneRaster(grid, eps, std::move(*target)));
+}
+
+PixelRect SceneRaster::Reach(const Geometry& g, double extent) const {
+  Window b = BoundingBox(g);
+  return grid_.CentresIn({b.min_x - extent, b.min_y - extent}, {b.max_x + extent, b.max_y + extent});
+}
+
+void SceneRaster::Publish(uint64_t version, PixelRect rect, const std::vector<uint32_t>& ids,
+                          const std::vector<float>& distances) {
+  // Vertices snap to 1/256 pixel (GL_SUBPIXEL_BITS = 8 on llvmpipe and NVIDIA), which moves a
+  // cone's surface by at most 1/256 pixel diagonal, as its slope is at most k ~ 1: we allow
+  // 1/64. Float interpolation and depth storage err by a few ulps of the depth range and of D.
+  ErrorModel error;
+  error.overestimate = overestimate_;
+  error.max_excess = eps_;
+  error.absolute_slack = grid_.pixel_diagonal() / 64 + depth_scale_ * 0x1p-18;
+  error.relative_slack = 0x1p-18;
+  if (rect == grid_.all() || frame_ == nullptr || frame_->empty()) {  // a full render
+    frame_ = std::make_shared<const Frame>(grid_, version, eps_, error, ids.data(),
+                                           distances.data(), slots_, slot_of_.size());
+  } else {
+    frame_ = std::make_shared<const Frame>(*frame_, version, error, rect, ids.data(),
+                                           distances.data(), slots_, slot_of_.size());
+  }
+}
+
+absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& rasterizer,
+                                                                    uint64_t version,
+                                                                    RenderStats* stats) {
+  auto start = std::chrono::steady_clock::now();
+  Coverage cov = ComputeCoverage(grid_, slots_, index_, grid_.all());
+  double coverage_seconds = Seconds(start);
+  std::vector<ConeDraw> cones;
+  double max_extent = 0, area = 0;
+  uint32_t max_segments = 0;
+  overestimate_ = 1;
+  extent_.assign(slots_.size(), -1);
+  for (uint32_t s = 0; s < slots_.size(); ++s) {
+    if (cov.radius[s] < 0) continue;
+    const auto& p = std::get<PointSite>(slots_.get(s)->geometry).p;
+    cones.push_back({p, cov.radius[s], s});
+    auto shape = rasterizer.Shape(grid_, cov.radius[s], eps_);
+    extent_[s] = shape.extent;
+    max_extent = std::max(max_extent, shape.extent);
+    overestimate_ = std::max(overestimate_, shape.overestimate);
+    max_segments = std::max(max_segments, shape.segments);
+    area += std::numbers::pi * cov.radius[s] * cov.radius[s];
+  }
+  // Headroom: later increments may draw cones up to twice as far without a full render.
+  depth_scale_ = 2 * max_extent;
+  auto draw_start = std::chrono::steady_clock::now();
+  if (auto s = rasterizer.Draw(grid_, eps_, depth_scale_, grid_.all(), true, cones, *target_); !s.ok()) {
+    return s;
+  }
+  std::vector<uint32_t> ids;
+  std::vector<float> distances;
+  auto read_start = std::chrono::steady_clock::now();
+  double draw_seconds = Seconds(draw_start);
+  if (auto s = rasterizer.ReadBack(*target_, grid_.all(), depth_scale_, &ids, &distances); !s.ok()) {
+    return s;
+  }
+  double readback_seconds = Seconds(read_start);
+  valid_ = true;
+  Publish(version, grid_.all(), ids, distances);
+  if (stats) {
+    stats->cone_segments = max_segments;
+    stats->sites_drawn = cones.size();
+    stats->fill_ratio = area / (grid_.window.width() * grid_.window.height());
+    stats->tile_px = cov.tile_px;
+    stats->coverage_seconds = coverage_seconds;
+    stats->draw_seconds = draw_seconds;
+    stats->readback_seconds = readback_seconds;
+    stats->window = grid_.all();
+    stats->windows = 1;
+    stats->pixels = grid_.pixel_count();
+    stats->full = true;
+  }
+  return frame_;
+}
+
+absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rasterizer,
+                                                                uint64_t version,
+                                                                std::vector<SiteChange> changes,
+                                                                RenderStats* stats) {
+  // 1. Apply the changes to the slots and the index; collect the windows that old cones
+  //    reached (their pixels may now belong to other sites) and the slots placed anew.
+  std::vector<PixelRect> dirty;
+  std::vector<uint32_t> placed, freed;
+  for (SiteChange& c : changes) {
+    auto it = slot_of_.find(c.id);
+    if (it != slot_of_.end()) {
+      uint32_t s = it->second;
+      const Geometry& old = slots_.get(s)->geometry;
+      if (valid_ && extent_[s] >= 0) {
+        PixelRect r = Reach(old, extent_[s]);
+        if (!r.empty()) dirty.push_back(r);
+      }
+      index_.Remove(s, old);
+      extent_[s] = -1;
+      if (c.geometry) {
+        index_.Insert(s, *c.geometry);
+        slots_.Set(s, Site{c.id, *c.geometry});
+        placed.push_back(s);
+      } else {
+        slots_.Set(s, std::nullopt);
+        slot_of_.erase(it);
+        freed.push_back(s);
+      }
+    } else if (c.geometry) {
+      uint32_t s;
+      if (!free_.empty()) {
+        s = free_.back();
+        free_.pop_back();
+      } else {
+        s = slots_.size();
+      }
+      if (extent_.size() <= s) extent_.resize(s + 1, -1);
+      index_.Insert(s, *c.geometry);
+      slots_.Set(s, Site{c.id, *c.geometry});
+      slot_of_.emplace(std::move(c.id), s);
+      placed.push_back(s);
+    }
+  }
+  // A freed slot's old pixels are all inside `dirty`, which is redrawn below; reusing it
+  // only from the next Apply keeps that reasoning simple.
+  free_.insert(free_.end(), freed.begin(), freed.end());
+  std::sort(placed.begin(), placed.end());
+  placed.erase(std::unique(placed.begin(), placed.end()), placed.end());
+  std::erase_if(placed, [&](uint32_t s) { return slots_.get(s) == nullptr; });
+
+  if (slot_of_.empty()) {
+    valid_ = false;
+    frame_ = Frame::Empty(grid_, version, eps_);
+    return frame_;
+  }
+  if (!valid_ || frame_ == nullptr || frame_->empty()) return RenderAll(rasterizer, version, stats);
+
+  auto start = std::chrono::steady_clock::now();
+  // 2. Where can each placed site be nearest now? Outside the old cones' windows no pixel got
+  //    farther from its nearest site, so a pixel p the site wins has d(p, site) <= D(p) +
+  //    slack: only tiles whose nearest point to the site is within their largest stored
+  //    distance qualify. (Inside those windows everything is recomputed anyway.)
+  const ErrorModel& err = frame_->error();
+  struct Window_ {
+    PixelRect rect;
+    bool clear;                    // holds an old cone's reach: redraw from scratch
+    std::vector<ConeDraw> added;   // else: draw these over what is there
+  };
+  std::vector<Window_> windows;
+  for (const PixelRect& d : dirty) windows.push_back({d, true, {}});
+  for (uint32_t s : placed) {
+    const Geometry& g = slots_.get(s)->geometry;
+    double radius = -1;
+    PixelRect grown;
+    for (uint32_t ty = 0; ty < frame_->tiles_y(); ++ty) {
+      for (uint32_t tx = 0; tx < frame_->tiles_x(); ++tx) {
+        PixelRect rect{tx * Frame::kTile, ty * Frame::kTile,
+                       std::min((tx + 1) * Frame::kTile, grid_.width),
+                       std::min((ty + 1) * Frame::kTile, grid_.height)};
+        Window box = CentreBox(grid_, rect);
+        double m = frame_->tile_at(tx, ty).max_distance;
+        if (NearestDistance(box, g) > m + err.Slack(m)) continue;
+        grown = grown.Union(rect);
+        radius = std::max(radius, FarthestDistance(box, g));
+      }
+    }
+    if (radius >= 0) windows.push_back({grown, false, {{std::get<PointSite>(g).p, radius, s}}});
+  }
+  // Merge overlapping windows until none overlap (a merged window is cleared if either was).
+  for (bool merged = true; merged;) {
+    merged = false;
+    for (size_t a = 0; a < windows.size() && !merged; ++a) {
+      for (size_t b = a + 1; b < windows.size() && !merged; ++b) {
+        if (windows[a].rect.Intersects(windows[b].rect)) {
+          windows[a].rect = windows[a].rect.Union(windows[b].rect);
+          windows[a].clear = windows[a].clear || windows[b].clear;
+          windows[a].added.insert(windows[a].added.end(), windows[b].added.begin(),
+                                  windows[b].added.end());
+          windows.erase(windows.begin() + b);
+          merged = true;
+        }
+      }
+    }
+  }
+  uint64_t area = 0;
+  for (const auto& w : windows) area += w.rect.area();
+  if (area > grid_.pixel_count() / 2) return RenderAll(rasterizer, version, stats);
+
+  // 3. Each window: cleared ones get every site that can be nearest there, with the
+  //    coverage proof restricted to the window; the others only their new cones.
+  std::vector<std::vector<ConeDraw>> cones(windows.size());
+  uint32_t tile_px = 0;
+  for (size_t w = 0; w < windows.size(); ++w) {
+    if (!windows[w].clear) {
+      cones[w] = std::move(windows[w].added);
+      continue;
+    }
+    Coverage cov = ComputeCoverage(grid_, slots_, index_, windows[w].rect);
+    tile_px = cov.tile_px;
+    for (uint32_t s = 0; s < slots_.size(); ++s) {
+      if (cov.radius[s] >= 0) {
+        cones[w].push_back({std::get<PointSite>(slots_.get(s)->geometry).p, cov.radius[s], s});
+      }
+    }
+  }
+  double coverage_seconds = Seconds(start);
+  double fill = 0, max_extent = 0;
+  uint32_t max_segments = 0;
+  uint64_t drawn = 0;
+  for (const auto& list : cones) {
+    for (const ConeDraw& c : list) {
+      auto shape = rasterizer.Shape(grid_, c.radius, eps_);
+      max_extent = std::max(max_extent, shape.extent);
+      max_segments = std::max(max_segments, shape.segments);
+      fill += std::numbers::pi * c.radius * c.radius;
+      ++drawn;
+    }
+  }
+  if (max_extent > depth_scale_) return RenderAll(rasterizer, version, stats);  // rescale
+  for (const auto& list : cones) {
+    for (const ConeDraw& c : list) {
+      auto shape = rasterizer.Shape(grid_, c.radius, eps_);
+      extent_[c.slot] = std::max(extent_[c.slot], shape.extent);
+      overestimate_ = std::max(overestimate_, shape.overestimate);
+    }
+  }
+  double draw_seconds = 0, readback_seconds = 0;
+  PixelRect all_windows;
+  for (size_t w = 0; w < windows.size(); ++w) {
+    const PixelRect& rect = windows[w].rect;
+    auto draw_start = std::chrono::steady_clock::now();
+    if (auto s = rasterizer.Draw(grid_, eps_, depth_scale_, rect, windows[w].clear, cones[w],
+                                 *target_);
+        !s.ok()) {
+      return s;
+    }
+    std::vector<uint32_t> ids;
+    std::vector<float> distances;
+    auto read_start = std::chrono::steady_clock::now();
+    draw_seconds += std::chrono::duration<double>(read_start - draw_start).count();
+    if (auto s = rasterizer.ReadBack(*target_, rect, depth_scale_, &ids, &distances); !s.ok()) {
+      return s;
+    }
+    readback_seconds += Seconds(read_start);
+    Publish(version, rect, ids, distances);
+    all_windows = all_windows.Union(rect);
+  }
+  if (windows.empty()) Publish(version, {}, {}, {});  // nothing visible changed
+  if (stats) {
+    stats->cone_segments = max_segments;
+    stats->sites_drawn = drawn;
+    stats->fill_ratio = fill / (grid_.window.width() * grid_.window.height());
+    stats->tile_px = tile_px;
+    stats->coverage_seconds = coverage_seconds;
+    stats->draw_seconds = draw_seconds;
+    stats->readback_seconds = readback_seconds;
+    stats->window = all_windows;
+    stats->windows = windows.size();
+    stats->pixels = area;
+    stats->full = false;
+  }
+  return frame_;
+}
+
+}  // namespace gvd

@@ -1,0 +1,24 @@
+#include "render/site.h"
+
+namespace gvd {
+
+SlotTable::SlotTable(const SiteTable& sites) {
+  for (uint32_t i = 0; i < sites.size(); i += kChunk) {
+    auto chunk = std::make_shared<Chunk>(kChunk);
+    for (uint32_t j = i; j < std::min<size_t>(sites.size(), i + kChunk); ++j) {
+      (*chunk)[j - i] = sites[j];
+    }
+    chunks_.push_back(std::move(chunk));
+  }
+  size_ = static_cast<uint32_t>(sites.size());
+}
+
+void SlotTable::Set(uint32_t slot, std::optional<Site> site) {
+  while (chunks_.size() * kChunk <= slot) chunks_.push_back(std::make_shared<Chunk>(kChunk));
+  size_ = std::max(size_, slot + 1);
+  auto& chunk = chunks_[slot / kChunk];
+  if (chunk.use_count() > 1) chunk = std::make_shared<Chunk>(*chunk);  // copy on write
+  const_cast<Chunk&>(*chunk)[slot % kChunk] = std::move(site);
+}
+
+}  // namespace gvd

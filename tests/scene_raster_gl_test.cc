@@ -1,0 +1,197 @@
+// Incremental rendering on a real EGL context: after any sequence of adds, moves and deletes,
+// the incrementally maintained frame equals a from-scratch render of the same sites, pixel
+// for pixel (ties aside), and holds against the exact oracle.
+#include "render/scene_raster.h"
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <random>
+
+#include "render/context.h"
+#include "render/exact.h"
+
+namespace gvd {
+namespace {
+
+class SceneRasterGLTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    auto ctx = GlContext::Create(DevicePreference::kAuto);
+    if (!ctx.ok()) return;
+    context_ = ctx->release();
+    rasterizer_ = Rasterizer::Create()->release();
+  }
+  static void TearDownTestSuite() {
+    delete rasterizer_;
+    delete context_;
+  }
+  void SetUp() override {
+    if (context_ == nullptr) GTEST_SKIP() << "no EGL context";
+  }
+
+  // The sites of a frame, by slot, as the oracle sees them.
+  static SiteTable Live(const std::map<std::string, Vec2>& sites) {
+    SiteTable t;
+    for (const auto& [id, p] : sites) t.push_back({id, PointSite{p}});
+    return t;
+  }
+
+  // Compares the incremental frame with a fresh render, and both with the oracle.
+  static void ExpectEquivalent(const Frame& inc, const std::map<std::string, Vec2>& sites,
+                               const std::string& when) {
+    const Grid& g = inc.grid();
+    SiteTable live = Live(sites);
+    auto full = rasterizer_->Render(g, inc.eps(), inc.version(), live);
+    ASSERT_TRUE(full.ok()) << full.status();
+    const Frame& ref = **full;
+    ASSERT_EQ(inc.site_count(), live.size());
+    int failures = 0;
+    for (uint32_t j = 0; j < g.height && failures < 5; ++j) {
+      for (uint32_t i = 0; i < g.width && failures < 5; ++i) {
+        Vec2 p = g.Center(i, j);
+        uint32_t a = inc.id_at(i, j), b = ref.id_at(i, j);
+        if (a == 0 || b == 0) {
+          ADD_FAILURE() << when << ": pixel " << i << "," << j << " has no site";
+          ++failures;
+          continue;
+        }
+        const Site* sa = inc.sites().get(a - 1);
+        const Site* sb = ref.sites().get(b - 1);
+        ASSERT_TRUE(sa && sb) << when << ": pixel " << i << "," << j << " names a free slot";
+        double da = ExactDistance(p, sa->geometry), db = ExactDistance(p, sb->geometry);
+        double truth = NearestBruteForce(p, live).distance;
+        double eps = inc.eps(), slack = inc.error().Slack(inc.distance_at(i, j));
+        // The same site, or a tie within the meshes' error; distances within eps of each other.
+        bool same = sa->id == sb->id || std::abs(da - db) <= 2 * eps + slack;
+        bool close = std::abs(inc.distance_at(i, j) - ref.distance_at(i, j)) <= eps + 2 * slack;
+        bool sound = da <= truth + 2 * eps + slack && inc.error().LowerBound(inc.distance_at(i, j)) <= truth;
+        if (!same || !close || !sound) {
+          ++failures;
+          ADD_FAILURE() << when << ": pixel " << i << "," << j << " incremental " << sa->id << " "
+                        << inc.distance_at(i, j) << " (exact " << da << "), from scratch "
+                        << sb->id << " " << ref.distance_at(i, j) << " (exact " << db
+                        << "), nearest " << truth;
+        }
+      }
+    }
+  }
+
+  static inline GlContext* context_ = nullptr;
+  static inline Rasterizer* rasterizer_ = nullptr;
+};
+
+TEST_F(SceneRasterGLTest, RandomUpdateSequencesMatchRendersFromScratch) {
+  for (uint64_t seed : {1, 2, 3}) {
+    Grid grid{{0, 0, 4, 3}, 128, 96};
+    auto raster = SceneRaster::Create(grid, grid.pixel_size());
+    ASSERT_TRUE(raster.ok());
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> ux(-0.5, 4.5), uy(-0.5, 3.5);  // some outside
+    std::map<std::string, Vec2> sites;
+    int next = 0;
+    uint64_t version = 1;
+    auto apply = [&](std::vector<SiteChange> changes, const std::string& what) {
+      auto f = (*raster)->Apply(*rasterizer_, ++version, std::move(changes));
+      ASSERT_TRUE(f.ok()) << f.status();
+      ExpectEquivalent(**f, sites, what + " (seed " + std::to_string(seed) + ", version " +
+                                       std::to_string(version) + ")");
+    };
+    std::vector<SiteChange> initial;
+    for (int i = 0; i < 150; ++i) {
+      std::string id = "s" + std::to_string(next++);
+      sites[id] = {ux(rng), uy(rng)};
+      initial.push_back({id, PointSite{sites[id]}});
+    }
+    apply(std::move(initial), "initial");
+    for (int step = 0; step < 40 && !HasFailure(); ++step) {
+      std::vector<SiteChange> changes;
+      int kind = step % 4;
+      int count = 1 + static_cast<int>(rng() % 3);
+      for (int c = 0; c < count; ++c) {
+        auto pick = [&] {
+          auto it = sites.begin();
+          std::advance(it, rng() % sites.size());
+          return it->first;
+        };
+        if (kind == 0 || sites.size() < 10) {  // add
+          std::string id = "s" + std::to_string(next++);
+          sites[id] = {ux(rng), uy(rng)};
+          changes.push_back({id, PointSite{sites[id]}});
+        } else if (kind == 1) {  // move
+          std::string id = pick();
+          sites[id] = {ux(rng), uy(rng)};
+          changes.push_back({id, PointSite{sites[id]}});
+        } else if (kind == 2) {  // delete
+          std::string id = pick();
+          sites.erase(id);
+          changes.push_back({id, std::nullopt});
+        } else {  // a burst: add, move the new one, delete another
+          std::string id = "s" + std::to_string(next++);
+          changes.push_back({id, PointSite{{ux(rng), uy(rng)}}});
+          sites[id] = {ux(rng), uy(rng)};
+          changes.push_back({id, PointSite{sites[id]}});
+          std::string gone = pick();
+          if (gone != id) {
+            sites.erase(gone);
+            changes.push_back({gone, std::nullopt});
+          }
+        }
+      }
+      apply(std::move(changes), "step " + std::to_string(step));
+    }
+  }
+}
+
+TEST_F(SceneRasterGLTest, DeletingEverySiteAndStartingAgain) {
+  Grid grid{{0, 0, 1, 1}, 64, 64};
+  auto raster = SceneRaster::Create(grid, grid.pixel_size());
+  ASSERT_TRUE(raster.ok());
+  auto f = (*raster)->Apply(*rasterizer_, 2, {{"a", PointSite{{0.2, 0.2}}}, {"b", PointSite{{0.8, 0.7}}}});
+  ASSERT_TRUE(f.ok());
+  f = (*raster)->Apply(*rasterizer_, 3, {{"a", std::nullopt}, {"b", std::nullopt}});
+  ASSERT_TRUE(f.ok());
+  EXPECT_TRUE((*f)->empty());
+  f = (*raster)->Apply(*rasterizer_, 4, {{"c", PointSite{{0.5, 0.5}}}});
+  ASSERT_TRUE(f.ok());
+  ExpectEquivalent(**f, {{"c", {0.5, 0.5}}}, "after emptying");
+}
+
+// A one-site change in a dense scene redraws a small window and shares the other tiles.
+TEST_F(SceneRasterGLTest, SmallChangesRedrawSmallWindowsAndShareTiles) {
+  Grid grid{{0, 0, 1, 1}, 256, 256};
+  auto raster = SceneRaster::Create(grid, grid.pixel_size());
+  ASSERT_TRUE(raster.ok());
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<SiteChange> all;
+  std::map<std::string, Vec2> sites;
+  for (int i = 0; i < 1500; ++i) {
+    std::string id = std::to_string(i);
+    sites[id] = {u(rng), u(rng)};
+    all.push_back({id, PointSite{sites[id]}});
+  }
+  auto before = (*raster)->Apply(*rasterizer_, 2, all);
+  ASSERT_TRUE(before.ok());
+  RenderStats stats;
+  sites["7"] = {0.25, 0.75};
+  auto after = (*raster)->Apply(*rasterizer_, 3, {{"7", PointSite{sites["7"]}}}, &stats);
+  ASSERT_TRUE(after.ok());
+  EXPECT_FALSE(stats.full);
+  EXPECT_LT(stats.pixels, grid.pixel_count() / 8) << stats.windows << " windows";
+  int shared = 0;
+  for (uint32_t ty = 0; ty < (*after)->tiles_y(); ++ty) {
+    for (uint32_t tx = 0; tx < (*after)->tiles_x(); ++tx) shared += (*after)->SharesTile(**before, tx, ty);
+  }
+  EXPECT_GE(shared, 48);  // of 64: only the tiles the windows touch are copied
+  ExpectEquivalent(**after, sites, "after the move");
+  // An addition alone draws only the new site.
+  sites["new"] = {0.5, 0.5};
+  auto added = (*raster)->Apply(*rasterizer_, 4, {{"new", PointSite{sites["new"]}}}, &stats);
+  ASSERT_TRUE(added.ok());
+  EXPECT_EQ(stats.sites_drawn, 1u);
+  ExpectEquivalent(**added, sites, "after the addition");
+}
+
+}  // namespace
+}  // namespace gvd
