@@ -82,8 +82,10 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
     max_segments = std::max(max_segments, shape.segments);
     area += std::numbers::pi * cov.radius[s] * cov.radius[s];
   }
-  // Headroom: later increments may draw cones up to twice as far without a full render.
-  depth_scale_ = 2 * max_extent;
+  // Headroom: later increments may draw cones up to four window diagonals (or twice this
+  // render's largest) without a full render. Float depth keeps its relative precision at any
+  // scale; only the absolute slack (depth_scale * 2^-18) grows, to a few thousandths of a pixel.
+  depth_scale_ = std::max(2 * max_extent, 4 * grid_.window.diagonal());
   auto draw_start = std::chrono::steady_clock::now();
   if (auto s = rasterizer.Draw(grid_, eps_, depth_scale_, grid_.all(), true, cones, *target_); !s.ok()) {
     return s;
@@ -122,6 +124,8 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
   //    reached (their pixels may now belong to other sites) and the slots placed anew.
   std::vector<PixelRect> dirty;
   std::vector<uint32_t> placed, freed;
+  // A render from scratch bulk-loads the index afterwards instead of updating it.
+  const bool from_scratch = !valid_ || frame_ == nullptr || frame_->empty();
   for (SiteChange& c : changes) {
     auto it = slot_of_.find(c.id);
     if (it != slot_of_.end()) {
@@ -131,10 +135,10 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
         PixelRect r = Reach(old, extent_[s]);
         if (!r.empty()) dirty.push_back(r);
       }
-      index_.Remove(s, old);
+      if (!from_scratch) index_.Remove(s, old);
       extent_[s] = -1;
       if (c.geometry) {
-        index_.Insert(s, *c.geometry);
+        if (!from_scratch) index_.Insert(s, *c.geometry);
         slots_.Set(s, Site{c.id, *c.geometry});
         placed.push_back(s);
       } else {
@@ -151,7 +155,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
         s = slots_.size();
       }
       if (extent_.size() <= s) extent_.resize(s + 1, -1);
-      index_.Insert(s, *c.geometry);
+      if (!from_scratch) index_.Insert(s, *c.geometry);
       slots_.Set(s, Site{c.id, *c.geometry});
       slot_of_.emplace(std::move(c.id), s);
       placed.push_back(s);
@@ -169,7 +173,10 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
     frame_ = Frame::Empty(grid_, version, eps_);
     return frame_;
   }
-  if (!valid_ || frame_ == nullptr || frame_->empty()) return RenderAll(rasterizer, version, stats);
+  if (from_scratch) {
+    index_ = SiteIndex::Build(slots_);
+    return RenderAll(rasterizer, version, stats);
+  }
 
   auto start = std::chrono::steady_clock::now();
   // 2. Where can each placed site be nearest now? Outside the old cones' windows no pixel got
