@@ -90,6 +90,16 @@ grpc::Status Client::FindNearest(const v1::FindNearestRequest& request,
   return stub_->FindNearest(Context().get(), request, response);
 }
 
+grpc::Status Client::FindNearestStream(const v1::FindNearestRequest& request,
+                                       std::vector<v1::FindNearestResponse>* chunks) {
+  chunks->clear();
+  auto ctx = Context();
+  auto reader = stub_->FindNearestStream(ctx.get(), request);
+  v1::FindNearestResponse chunk;
+  while (reader->Read(&chunk)) chunks->push_back(std::move(chunk));
+  return reader->Finish();
+}
+
 bool Client::WaitForConnected(std::chrono::milliseconds timeout) {
   return channel_->WaitForConnected(std::chrono::system_clock::now() + timeout);
 }

@@ -32,9 +32,9 @@ Sites (of the scene named by --scene, default "default"):
   gvd sites rm ID [ID ...]
   gvd sites ls
 Queries:
-  gvd nearest X Y [X Y ...] [--min-version V]
+  gvd nearest X Y [X Y ...] [--min-version V] [--exact]
       prints, per point, the nearest site, its exact distance, and the error bound: no
-      site is closer than distance - error_bound
+      site is closer than distance - error_bound; --exact certifies each answer exact
 
 Flags:
   --server HOST:PORT   default 127.0.0.1:50051, or $GVD_SERVER
@@ -47,6 +47,7 @@ struct Args {
   std::string server = "127.0.0.1:50051";
   std::string scene = "default";
   bool json = false;
+  bool exact = false;
   double timeout = 30;
   std::map<std::string, std::string> options;  // command flags such as --window
   std::vector<std::string> words;
@@ -71,8 +72,8 @@ Args ParseArgs(int argc, char** argv) {
       a.words.push_back(arg);
       continue;
     }
-    if (arg == "--json") {
-      a.json = true;
+    if (arg == "--json" || arg == "--exact") {
+      (arg == "--json" ? a.json : a.exact) = true;
       continue;
     }
     std::string value;
@@ -316,17 +317,19 @@ int Run(const Args& a) {
       if (!absl::SimpleAtoi(*v, &mv)) Usage("--min-version needs a version number");
       r.set_min_version(mv);
     }
+    r.set_exact(a.exact);
     gvd::v1::FindNearestResponse response;
     if (auto s = client->FindNearest(r, &response); !s.ok()) return Fail(s);
     if (a.json) {
       PrintJson(response);
       return 0;
     }
-    std::cout << "x\ty\tsite\tdistance\terror_bound\n";
+    std::cout << "x\ty\tsite\tdistance\terror_bound\texact\n";
     for (int i = 0; i < response.results_size(); ++i) {
       const auto& n = response.results(i);
       std::cout << Num(r.points(i).x()) << "\t" << Num(r.points(i).y()) << "\t" << n.site_id()
-                << "\t" << Num(n.distance()) << "\t" << Num(n.error_bound()) << "\n";
+                << "\t" << Num(n.distance()) << "\t" << Num(n.error_bound()) << "\t"
+                << (n.exact() ? "yes" : "no") << "\n";
     }
     return 0;
   }

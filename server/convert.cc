@@ -172,28 +172,34 @@ Status ToSiteIds(const v1::DeleteSitesRequest& r, const ServerLimits& limits,
 }
 
 Status ToQueryPoints(const v1::FindNearestRequest& r, const Window& w, const ServerLimits& limits,
-                     std::vector<Vec2>* points) {
-  if (r.points_size() == 0) return Invalid("points is empty");
-  if (size_t(r.points_size()) > limits.max_points_per_query) {
+                     std::vector<Vec2>* points, bool* outside) {
+  if (r.points_size() > 0 && r.xy_size() > 0) {
+    return Invalid("points and xy are both set; use one form");
+  }
+  if (r.xy_size() % 2 != 0) {
+    return Invalid(absl::StrCat("xy has ", r.xy_size(), " values; it needs x, y pairs"));
+  }
+  const size_t n = r.xy_size() > 0 ? r.xy_size() / 2 : r.points_size();
+  if (n == 0) return Invalid("points is empty");
+  if (n > limits.max_points_per_query) {
     return Status(StatusCode::RESOURCE_EXHAUSTED,
-                  absl::StrCat("points has ", r.points_size(), " entries; the limit per query is ",
-                               limits.max_points_per_query));
+                  absl::StrCat(r.xy_size() > 0 ? "xy" : "points", " has ", n,
+                               " points; the limit per query is ", limits.max_points_per_query));
   }
-  points->resize(r.points_size());
-  for (int i = 0; i < r.points_size(); ++i) {
-    const v1::Point& p = r.points(i);
-    std::string field = Indexed("points", i);
-    if (auto s = CheckPoint(p, field); !s.ok()) return s;
-    Vec2 v{p.x(), p.y()};
-    if (!w.Contains(v)) {
-      return Status(StatusCode::OUT_OF_RANGE,
-                    absl::StrCat(field, " (", FormatNumber(v.x), ", ", FormatNumber(v.y),
-                                 ") is outside the scene window [", FormatNumber(w.min_x), ", ",
-                                 FormatNumber(w.max_x), "] x [", FormatNumber(w.min_y), ", ",
-                                 FormatNumber(w.max_y), "]"));
+  points->resize(n);
+  *outside = false;
+  if (r.xy_size() > 0) {
+    for (int i = 0; i < r.xy_size(); ++i) {
+      if (auto s = CheckFinite(r.xy(i), Indexed("xy", i)); !s.ok()) return s;
     }
-    (*points)[i] = v;
+    for (size_t i = 0; i < n; ++i) (*points)[i] = {r.xy(2 * i), r.xy(2 * i + 1)};
+  } else {
+    for (int i = 0; i < r.points_size(); ++i) {
+      if (auto s = CheckPoint(r.points(i), Indexed("points", i)); !s.ok()) return s;
+      (*points)[i] = {r.points(i).x(), r.points(i).y()};
+    }
   }
+  for (const Vec2& p : *points) *outside = *outside || !w.Contains(p);
   return Status::OK;
 }
 

@@ -33,9 +33,10 @@ grpc::Status ToSites(const v1::UpsertSitesRequest& request, const ServerLimits& 
 grpc::Status ToSiteIds(const v1::DeleteSitesRequest& request, const ServerLimits& limits,
                        std::vector<std::string>* ids);
 
-// Checks the query points: count within the limit, finite, inside the scene's window.
+// Checks the query points (`points` or packed `xy`): count within the limit, finite. Sets
+// *outside when some point lies outside the window.
 grpc::Status ToQueryPoints(const v1::FindNearestRequest& request, const Window& window,
-                           const ServerLimits& limits, std::vector<Vec2>* points);
+                           const ServerLimits& limits, std::vector<Vec2>* points, bool* outside);
 
 void ToProto(const Site& site, v1::Site* out);
 void ToProto(const Scene& scene, v1::Scene* out);

@@ -2,6 +2,7 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
+#include "render/exact.h"
 
 namespace gvd {
 
@@ -10,71 +11,125 @@ Scene::Scene(SceneSettings settings) : settings_(std::move(settings)) {
 }
 
 absl::StatusOr<uint64_t> Scene::Upsert(std::vector<Site> sites, size_t max_sites) {
-  std::lock_guard<std::mutex> lock(mu_);
+  std::unique_lock<std::shared_mutex> lock(mu_);
   size_t added = 0;
-  for (const Site& s : sites) added += sites_.count(s.id) == 0;
-  if (sites_.size() + added > max_sites) {
+  for (const Site& s : sites) added += slot_of_.count(s.id) == 0;
+  if (slot_of_.size() + added > max_sites) {
     return absl::ResourceExhaustedError(
-        absl::StrCat("scene \"", id(), "\" would hold ", sites_.size() + added,
+        absl::StrCat("scene \"", id(), "\" would hold ", slot_of_.size() + added,
                      " sites; the limit per scene is ", max_sites));
   }
   for (Site& s : sites) {
     changed_.insert(s.id);
-    sites_.insert_or_assign(std::move(s.id), std::move(s.geometry));
+    auto it = slot_of_.find(s.id);
+    uint32_t slot;
+    if (it != slot_of_.end()) {
+      slot = it->second;
+      index_.Remove(slot, slots_.get(slot)->geometry);
+    } else {
+      if (!free_.empty()) {
+        slot = free_.back();
+        free_.pop_back();
+      } else {
+        slot = slots_.size();
+      }
+      slot_of_.emplace(s.id, slot);
+    }
+    index_.Insert(slot, s.geometry);
+    slots_.Set(slot, std::move(s));
   }
   return ++version_;
 }
 
 absl::StatusOr<uint64_t> Scene::Delete(const std::vector<std::string>& ids) {
-  std::lock_guard<std::mutex> lock(mu_);
+  std::unique_lock<std::shared_mutex> lock(mu_);
   for (size_t i = 0; i < ids.size(); ++i) {
-    if (sites_.find(ids[i]) == sites_.end()) {
+    if (slot_of_.find(ids[i]) == slot_of_.end()) {
       return absl::NotFoundError(absl::StrCat("ids[", i, "] \"", ids[i],
                                               "\" is not a site of scene \"", id(), "\""));
     }
   }
   for (const auto& i : ids) {
-    sites_.erase(i);
+    auto it = slot_of_.find(i);
+    uint32_t slot = it->second;
+    index_.Remove(slot, slots_.get(slot)->geometry);
+    slots_.Set(slot, std::nullopt);
+    free_.push_back(slot);
+    slot_of_.erase(it);
     changed_.insert(i);
   }
   return ++version_;
 }
 
 uint64_t Scene::version() const {
-  std::lock_guard<std::mutex> lock(mu_);
+  std::shared_lock<std::shared_mutex> lock(mu_);
   return version_;
 }
 
 size_t Scene::site_count() const {
-  std::lock_guard<std::mutex> lock(mu_);
-  return sites_.size();
+  std::shared_lock<std::shared_mutex> lock(mu_);
+  return slot_of_.size();
+}
+
+uint64_t Scene::NearestExact(const std::vector<Vec2>& points,
+                             std::vector<ExactAnswer>* answers) const {
+  std::shared_lock<std::shared_mutex> lock(mu_);
+  auto frame = frame_.load();
+  const bool fresh = frame->version() == version_ && !frame->empty();
+  const Window& window = settings_.grid.window;
+  answers->resize(points.size());
+  std::vector<uint32_t> nearer;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Vec2 q = points[i];
+    std::optional<NearestAnswer> raster;
+    if (fresh && window.Contains(q)) raster = frame->Nearest(q);
+    if (!raster) {
+      ExactNearest best = index_.Nearest(q, slots_);
+      (*answers)[i] = {slots_.get(static_cast<uint32_t>(best.index))->id, best.distance};
+      continue;
+    }
+    // The frame's site exists at this version, at exactly this distance from q (its slots are
+    // the render thread's, so it is carried by id): only sites the index finds within that
+    // radius can be nearer.
+    ExactAnswer best{frame->sites().get(raster->site_index)->id, raster->distance};
+    nearer.clear();
+    index_.Within(q, best.distance, &nearer);
+    for (uint32_t s : nearer) {
+      const Site* site = slots_.get(s);
+      double d = ExactDistance(q, site->geometry);
+      if (d < best.distance) best = {site->id, d};
+    }
+    (*answers)[i] = std::move(best);
+  }
+  return version_;
 }
 
 Scene::SitePage Scene::ListSites(std::string_view after, size_t limit) const {
-  std::lock_guard<std::mutex> lock(mu_);
+  std::shared_lock<std::shared_mutex> lock(mu_);
   SitePage page;
   page.version = version_;
-  auto it = after.empty() ? sites_.begin() : sites_.upper_bound(after);
-  for (; it != sites_.end() && page.sites.size() < limit; ++it) {
-    page.sites.push_back({it->first, it->second});
+  auto it = after.empty() ? slot_of_.begin() : slot_of_.upper_bound(after);
+  for (; it != slot_of_.end() && page.sites.size() < limit; ++it) {
+    page.sites.push_back(*slots_.get(it->second));
   }
-  if (it != sites_.end() && !page.sites.empty()) page.last_id = page.sites.back().id;
+  if (it != slot_of_.end() && !page.sites.empty()) page.last_id = page.sites.back().id;
   return page;
 }
 
 Scene::Changes Scene::TakeChanges(bool all) {
-  std::lock_guard<std::mutex> lock(mu_);
+  std::unique_lock<std::shared_mutex> lock(mu_);
   Changes out;
   out.version = version_;
   if (all) {
-    out.changes.reserve(sites_.size());
-    for (const auto& [id, geometry] : sites_) out.changes.push_back({id, geometry});
+    out.changes.reserve(slot_of_.size());
+    for (const auto& [id, slot] : slot_of_) out.changes.push_back({id, slots_.get(slot)->geometry});
   } else {
     out.changes.reserve(changed_.size());
     for (const auto& id : changed_) {
-      auto it = sites_.find(id);
-      out.changes.push_back(
-          {id, it == sites_.end() ? std::nullopt : std::optional<Geometry>(it->second)});
+      auto it = slot_of_.find(id);
+      out.changes.push_back({id, it == slot_of_.end()
+                                     ? std::nullopt
+                                     : std::optional<Geometry>(slots_.get(it->second)->geometry)});
     }
   }
   changed_.clear();
@@ -84,7 +139,7 @@ Scene::Changes Scene::TakeChanges(bool all) {
 void Scene::Publish(std::shared_ptr<const Frame> frame) {
   std::vector<FrameCallback> ready;
   {
-    std::lock_guard<std::mutex> lock(mu_);
+    std::unique_lock<std::shared_mutex> lock(mu_);
     frame_.store(frame);
     for (auto it = waiters_.begin(); it != waiters_.end();) {
       if (it->second.min_version <= frame->version()) {
@@ -101,7 +156,7 @@ void Scene::Publish(std::shared_ptr<const Frame> frame) {
 void Scene::FailWaiters(const absl::Status& status) {
   std::map<uint64_t, Waiter> failed;
   {
-    std::lock_guard<std::mutex> lock(mu_);
+    std::unique_lock<std::shared_mutex> lock(mu_);
     failed.swap(waiters_);
   }
   for (auto& [token, w] : failed) w.done(status);
@@ -111,7 +166,7 @@ uint64_t Scene::WhenRendered(uint64_t min_version, FrameCallback done) {
   std::shared_ptr<const Frame> ready;
   uint64_t token;
   {
-    std::lock_guard<std::mutex> lock(mu_);
+    std::unique_lock<std::shared_mutex> lock(mu_);
     token = next_token_++;
     auto current = frame_.load();
     if (current->version() >= min_version) {
@@ -127,7 +182,7 @@ uint64_t Scene::WhenRendered(uint64_t min_version, FrameCallback done) {
 void Scene::Cancel(uint64_t token, const absl::Status& why) {
   FrameCallback done;
   {
-    std::lock_guard<std::mutex> lock(mu_);
+    std::unique_lock<std::shared_mutex> lock(mu_);
     auto it = waiters_.find(token);
     if (it == waiters_.end()) return;
     done = std::move(it->second.done);

@@ -8,6 +8,7 @@
 #include <memory>
 #include <mutex>
 #include <set>
+#include <shared_mutex>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -17,6 +18,7 @@
 #include "render/geometry.h"
 #include "render/scene_raster.h"
 #include "render/site.h"
+#include "render/site_index.h"
 
 namespace gvd {
 
@@ -51,6 +53,17 @@ class Scene {
 
   uint64_t version() const;
   size_t site_count() const;
+
+  // Exact nearest sites at the current version, which it returns. When the latest frame is
+  // of that version and q lies in the window, the frame's answer bounds the search (paper
+  // sec. 6.3: the raster's site is an upper bound) and the spatial index supplies every site
+  // within it; otherwise the index alone finds the nearest. Concurrent calls do not block
+  // each other. CONTRACT: the scene has sites.
+  struct ExactAnswer {
+    std::string site_id;
+    double distance = 0;
+  };
+  uint64_t NearestExact(const std::vector<Vec2>& points, std::vector<ExactAnswer>* answers) const;
 
   struct SitePage {
     std::vector<Site> sites;
@@ -96,9 +109,12 @@ class Scene {
   std::atomic<bool> deleted_{false};
   std::atomic<std::shared_ptr<const Frame>> frame_;
 
-  mutable std::mutex mu_;  // guards everything below
+  mutable std::shared_mutex mu_;  // guards everything below; shared by exact queries
   uint64_t version_ = 1;
-  std::map<std::string, Geometry, std::less<>> sites_;
+  std::map<std::string, uint32_t, std::less<>> slot_of_;  // id -> slot, in id order
+  SlotTable slots_;
+  std::vector<uint32_t> free_;
+  SiteIndex index_;
   std::set<std::string> changed_;  // since the last TakeChanges
   uint64_t next_token_ = 1;
   std::map<uint64_t, Waiter> waiters_;

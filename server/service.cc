@@ -4,7 +4,18 @@
 #include "server/convert.h"
 #include "server/log.h"
 
+#include <unordered_map>
+
 namespace gvd {
+
+// A validated FindNearest request.
+struct NearestQuery {
+  std::shared_ptr<Scene> scene;
+  std::vector<Vec2> points;
+  bool exact = false;
+  uint64_t min_version = 0;
+};
+
 namespace {
 
 using grpc::Status;
@@ -16,80 +27,194 @@ grpc::ServerUnaryReactor* Done(grpc::CallbackServerContext* ctx, const Status& s
   return reactor;
 }
 
-// Answers every query point from one frame.
-Status Answer(const Frame& frame, const std::vector<Vec2>& points,
-              v1::FindNearestResponse* response) {
-  response->set_version(frame.version());
-  auto* results = response->mutable_results();
-  results->Reserve(static_cast<int>(points.size()));
-  for (const Vec2& q : points) {
-    auto answer = frame.Nearest(q);
-    if (!answer) return Status(StatusCode::INTERNAL, "frame has no site at a query point");
-    v1::NearestSite* r = results->Add();
-    r->set_site_id(frame.sites().get(answer->site_index)->id);
-    r->set_distance(answer->distance);
-    r->set_error_bound(answer->error_bound);
+// One answer, pointing into storage its NearestJob keeps alive.
+struct AnswerRow {
+  const std::string* site_id;
+  double distance;
+  double error_bound;
+  bool exact;
+};
+
+// Writes rows [begin, end) into the response: as NearestSite results, or packed.
+void Fill(const std::vector<AnswerRow>& rows, size_t begin, size_t end, bool packed,
+          v1::FindNearestResponse* response) {
+  if (!packed) {
+    auto* results = response->mutable_results();
+    results->Reserve(static_cast<int>(end - begin));
+    for (size_t i = begin; i < end; ++i) {
+      v1::NearestSite* r = results->Add();
+      r->set_site_id(*rows[i].site_id);
+      r->set_distance(rows[i].distance);
+      r->set_error_bound(rows[i].error_bound);
+      r->set_exact(rows[i].exact);
+    }
+    return;
   }
-  return Status::OK;
+  v1::PackedNearest* p = response->mutable_packed();
+  const int n = static_cast<int>(end - begin);
+  p->mutable_site()->Reserve(n);
+  p->mutable_distance()->Reserve(n);
+  p->mutable_error_bound()->Reserve(n);
+  p->mutable_exact()->Reserve(n);
+  std::unordered_map<const std::string*, uint32_t> ref;
+  for (size_t i = begin; i < end; ++i) {
+    auto [it, fresh] = ref.emplace(rows[i].site_id, static_cast<uint32_t>(ref.size()));
+    if (fresh) p->add_site_ids(*rows[i].site_id);
+    p->add_site(it->second);
+    p->add_distance(rows[i].distance);
+    p->add_error_bound(rows[i].error_bound);
+    p->add_exact(rows[i].exact);
+  }
 }
 
-// A FindNearest call that may wait for the render thread. Shared state lets the frame
-// callback and OnCancel race safely: whichever removes the waiter from the scene finishes.
-class NearestReactor final : public grpc::ServerUnaryReactor {
+// Resolves a query's answers: at once when they are exact or the latest frame is new
+// enough, else when the render thread publishes the awaited version. The frame callback and
+// Cancel race safely: whichever removes the waiter from the scene finishes the job.
+class NearestJob : public std::enable_shared_from_this<NearestJob> {
  public:
-  NearestReactor(std::shared_ptr<Scene> scene, std::vector<Vec2> points,
-                 v1::FindNearestResponse* response)
-      : scene_(std::move(scene)),
-        points_(std::move(points)),
-        response_(response),
-        pending_(std::make_shared<Pending>()) {}
+  explicit NearestJob(NearestQuery query) : query_(std::move(query)) {}
 
-  // Registers the wait. After WhenRendered this object may already be finished and deleted,
-  // so only locals are touched from then on.
-  void Start(uint64_t min_version) {
-    auto scene = scene_;
-    auto pending = pending_;
-    uint64_t token = scene->WhenRendered(min_version, [this](auto frame) { OnFrame(frame); });
-    std::lock_guard<std::mutex> lock(pending->mu);
-    pending->token = token;
-    if (pending->cancelled) scene->Cancel(token, absl::CancelledError("call cancelled"));
+  // Calls done exactly once; `rows()` and `version()` are valid once it has been called
+  // with OK.
+  void Start(std::function<void(const Status&)> done) {
+    auto self = shared_from_this();  // done() may release the job's last other owner
+    done_ = std::move(done);
+    if (query_.exact) {
+      version_ = query_.scene->NearestExact(query_.points, &exact_answers_);
+      rows_.reserve(exact_answers_.size());
+      for (const auto& a : exact_answers_) rows_.push_back({&a.site_id, a.distance, 0, true});
+      done_(Status::OK);
+      return;
+    }
+    uint64_t token = query_.scene->WhenRendered(
+        query_.min_version, [self](auto frame) { self->OnFrame(frame); });
+    std::lock_guard<std::mutex> lock(mu_);
+    token_ = token;
+    if (cancelled_) query_.scene->Cancel(token, absl::CancelledError("call cancelled"));
   }
 
-  void OnCancel() override {
-    std::lock_guard<std::mutex> lock(pending_->mu);
-    pending_->cancelled = true;
-    if (pending_->token != 0) {
-      scene_->Cancel(pending_->token, absl::DeadlineExceededError(
-                                          "cancelled or past its deadline while waiting for "
-                                          "the scene's min_version to be rendered"));
+  void Cancel() {
+    std::lock_guard<std::mutex> lock(mu_);
+    cancelled_ = true;
+    if (token_ != 0) {
+      query_.scene->Cancel(token_, absl::DeadlineExceededError(
+                                       "cancelled or past its deadline while waiting for the "
+                                       "scene's min_version to be rendered"));
     }
   }
 
+  const std::vector<AnswerRow>& rows() const { return rows_; }
+  uint64_t version() const { return version_; }
+
+ private:
+  void OnFrame(const absl::StatusOr<std::shared_ptr<const Frame>>& frame) {
+    if (!frame.ok()) {
+      done_(ToGrpc(frame.status()));
+      return;
+    }
+    frame_ = *frame;
+    if (frame_->empty()) {
+      done_(Status(StatusCode::FAILED_PRECONDITION,
+                   absl::StrCat("scene \"", query_.scene->id(), "\" has no sites at version ",
+                                frame_->version())));
+      return;
+    }
+    version_ = frame_->version();
+    rows_.reserve(query_.points.size());
+    for (const Vec2& q : query_.points) {
+      auto a = frame_->Nearest(q);
+      if (!a) {
+        done_(Status(StatusCode::INTERNAL, "frame has no site at a query point"));
+        return;
+      }
+      rows_.push_back({&frame_->sites().get(a->site_index)->id, a->distance, a->error_bound,
+                       a->error_bound == 0});
+    }
+    done_(Status::OK);
+  }
+
+  NearestQuery query_;
+  std::function<void(const Status&)> done_;
+  std::shared_ptr<const Frame> frame_;  // owns the ids the rows point to
+  std::vector<Scene::ExactAnswer> exact_answers_;
+  std::vector<AnswerRow> rows_;
+  uint64_t version_ = 0;
+  std::mutex mu_;
+  uint64_t token_ = 0;
+  bool cancelled_ = false;
+};
+
+class NearestUnaryReactor final : public grpc::ServerUnaryReactor {
+ public:
+  NearestUnaryReactor(NearestQuery query, bool packed, v1::FindNearestResponse* response)
+      : job_(std::make_shared<NearestJob>(std::move(query))), packed_(packed),
+        response_(response) {}
+
+  // After Start, this object may already be finished and deleted.
+  void Start() {
+    auto job = job_;
+    job->Start([this](const Status& s) {
+      if (s.ok()) {
+        response_->set_version(job_->version());
+        Fill(job_->rows(), 0, job_->rows().size(), packed_, response_);
+      }
+      Finish(s);
+    });
+  }
+  void OnCancel() override { job_->Cancel(); }
   void OnDone() override { delete this; }
 
  private:
-  struct Pending {
-    std::mutex mu;
-    uint64_t token = 0;
-    bool cancelled = false;
-  };
+  std::shared_ptr<NearestJob> job_;
+  bool packed_;
+  v1::FindNearestResponse* response_;
+};
 
-  void OnFrame(const absl::StatusOr<std::shared_ptr<const Frame>>& frame) {
-    if (!frame.ok()) {
-      Finish(ToGrpc(frame.status()));
-    } else if ((*frame)->empty()) {
-      Finish(Status(StatusCode::FAILED_PRECONDITION,
-                    absl::StrCat("scene \"", scene_->id(), "\" has no sites at version ",
-                                 (*frame)->version())));
-    } else {
-      Finish(Answer(**frame, points_, response_));
+class NearestStreamReactor final : public grpc::ServerWriteReactor<v1::FindNearestResponse> {
+ public:
+  NearestStreamReactor(NearestQuery query, size_t chunk)
+      : job_(std::make_shared<NearestJob>(std::move(query))), chunk_(chunk) {}
+
+  void Start() {
+    auto job = job_;
+    job->Start([this](const Status& s) {
+      if (!s.ok()) {
+        Finish(s);
+        return;
+      }
+      Next();
+    });
+  }
+  void OnWriteDone(bool ok) override {
+    if (!ok) {
+      Finish(Status(StatusCode::CANCELLED, "the client stopped reading"));
+      return;
     }
+    Next();
+  }
+  void OnCancel() override { job_->Cancel(); }
+  void OnDone() override { delete this; }
+
+ private:
+  void Next() {
+    const auto& rows = job_->rows();
+    if (offset_ >= rows.size()) {
+      Finish(Status::OK);
+      return;
+    }
+    size_t end = std::min(rows.size(), offset_ + chunk_);
+    message_.Clear();
+    message_.set_version(job_->version());
+    message_.set_offset(offset_);
+    Fill(rows, offset_, end, /*packed=*/true, &message_);
+    offset_ = end;
+    StartWrite(&message_);
   }
 
-  std::shared_ptr<Scene> scene_;
-  std::vector<Vec2> points_;
-  v1::FindNearestResponse* response_;
-  std::shared_ptr<Pending> pending_;
+  std::shared_ptr<NearestJob> job_;
+  size_t chunk_;
+  size_t offset_ = 0;
+  v1::FindNearestResponse message_;
 };
 
 }  // namespace
@@ -225,27 +350,57 @@ grpc::ServerUnaryReactor* VoronoiService::ListSites(grpc::CallbackServerContext*
   return Done(ctx, Status::OK);
 }
 
+Status VoronoiService::ParseNearest(const v1::FindNearestRequest& request,
+                                    NearestQuery* query) const {
+  if (auto s = Lookup(request.scene_id(), &query->scene); !s.ok()) return s;
+  bool outside = false;
+  if (auto s = ToQueryPoints(request, query->scene->settings().grid.window, limits_,
+                             &query->points, &outside);
+      !s.ok()) {
+    return s;
+  }
+  uint64_t version = query->scene->version();
+  query->min_version = request.min_version();
+  if (query->min_version > version) {
+    return Status(StatusCode::OUT_OF_RANGE,
+                  absl::StrCat("min_version ", query->min_version, " is ahead of scene \"",
+                               query->scene->id(), "\", which is at version ", version));
+  }
+  query->exact = request.exact() || outside;
+  if (query->exact) {
+    if (query->scene->site_count() == 0) {
+      return Status(StatusCode::FAILED_PRECONDITION,
+                    absl::StrCat("scene \"", query->scene->id(), "\" has no sites at version ",
+                                 version));
+    }
+  } else if (query->scene->frame()->empty() && query->scene->site_count() > 0) {
+    // A scene whose first render is under way waits for it rather than answering "no sites".
+    query->min_version = version;
+  }
+  return Status::OK;
+}
+
 grpc::ServerUnaryReactor* VoronoiService::FindNearest(grpc::CallbackServerContext* ctx,
                                                       const v1::FindNearestRequest* request,
                                                       v1::FindNearestResponse* response) {
-  std::shared_ptr<Scene> scene;
-  if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return Done(ctx, s);
-  std::vector<Vec2> points;
-  if (auto s = ToQueryPoints(*request, scene->settings().grid.window, limits_, &points); !s.ok()) {
-    return Done(ctx, s);
+  NearestQuery query;
+  if (auto s = ParseNearest(*request, &query); !s.ok()) return Done(ctx, s);
+  auto* reactor = new NearestUnaryReactor(std::move(query), request->xy_size() > 0, response);
+  reactor->Start();
+  return reactor;
+}
+
+grpc::ServerWriteReactor<v1::FindNearestResponse>* VoronoiService::FindNearestStream(
+    grpc::CallbackServerContext*, const v1::FindNearestRequest* request) {
+  NearestQuery query;
+  Status s = ParseNearest(*request, &query);
+  size_t chunk = request->chunk_size() == 0 ? 65536 : request->chunk_size();
+  auto* reactor = new NearestStreamReactor(std::move(query), chunk);
+  if (!s.ok()) {
+    reactor->Finish(s);
+  } else {
+    reactor->Start();
   }
-  uint64_t version = scene->version();
-  uint64_t min_version = request->min_version();
-  if (min_version > version) {
-    return Done(ctx, Status(StatusCode::OUT_OF_RANGE,
-                            absl::StrCat("min_version ", min_version, " is ahead of scene \"",
-                                         scene->id(), "\", which is at version ", version)));
-  }
-  // A scene that has sites but whose first render is still under way waits for it rather
-  // than answering "no sites".
-  if (scene->frame()->empty() && scene->site_count() > 0) min_version = version;
-  auto* reactor = new NearestReactor(scene, std::move(points), response);
-  reactor->Start(min_version);
   return reactor;
 }
 

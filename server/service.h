@@ -15,6 +15,8 @@
 
 namespace gvd {
 
+struct NearestQuery;
+
 class VoronoiService final : public v1::Voronoi::CallbackService {
  public:
   // `renderer` must outlive the service.
@@ -44,8 +46,13 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   grpc::ServerUnaryReactor* FindNearest(grpc::CallbackServerContext* ctx,
                                         const v1::FindNearestRequest* request,
                                         v1::FindNearestResponse* response) override;
+  grpc::ServerWriteReactor<v1::FindNearestResponse>* FindNearestStream(
+      grpc::CallbackServerContext* ctx, const v1::FindNearestRequest* request) override;
 
  private:
+  // Validates a FindNearest request and resolves its scene, points and mode.
+  grpc::Status ParseNearest(const v1::FindNearestRequest& request, NearestQuery* query) const;
+
   // The scene, or NOT_FOUND naming it (after validating the id).
   grpc::Status Lookup(const std::string& scene_id, std::shared_ptr<Scene>* scene) const;
 

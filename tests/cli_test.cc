@@ -58,7 +58,7 @@ TEST_F(CliTest, TourFromTheReadme) {
   std::istringstream lines(r.out);
   std::string header, line;
   std::getline(lines, header);
-  EXPECT_EQ(header, "x\ty\tsite\tdistance\terror_bound");
+  EXPECT_EQ(header, "x\ty\tsite\tdistance\terror_bound\texact");
   struct Expect {
     double x, y;
     const char* site;
@@ -77,6 +77,9 @@ TEST_F(CliTest, TourFromTheReadme) {
     EXPECT_GE(bound, 0);
     EXPECT_LT(bound, 1);
   }
+  r = Gvd("--scene demo nearest 45 80 --exact");
+  EXPECT_NE(r.out.find("45\t80\tc\t" ), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\t0\tyes\n"), std::string::npos) << r.out;
   r = Gvd("scene ls");
   EXPECT_NE(r.out.find("scene demo:"), std::string::npos) << r.out;
   r = Gvd("--scene demo sites ls");

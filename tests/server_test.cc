@@ -363,13 +363,26 @@ TEST_F(ServerTest, BadInputIsRefusedAndChangesNothing) {
          r.add_points()->set_x(nan);
        }),
        StatusCode::INVALID_ARGUMENT, "points[1].x is NaN"},
-      {"query point outside the window",
+      {"odd packed coordinates",
        nearest([](auto& r) {
-         auto* p = r.add_points();
-         p->set_x(10.5);
-         p->set_y(3);
+         r.add_xy(1);
+         r.add_xy(2);
+         r.add_xy(3);
        }),
-       StatusCode::OUT_OF_RANGE, "points[0] (10.5, 3) is outside the scene window [0, 10] x [0, 10]"},
+       StatusCode::INVALID_ARGUMENT, "xy has 3 values; it needs x, y pairs"},
+      {"both point forms",
+       nearest([](auto& r) {
+         r.add_points();
+         r.add_xy(1);
+         r.add_xy(2);
+       }),
+       StatusCode::INVALID_ARGUMENT, "points and xy are both set"},
+      {"packed NaN",
+       nearest([&](auto& r) {
+         r.add_xy(1);
+         r.add_xy(nan);
+       }),
+       StatusCode::INVALID_ARGUMENT, "xy[1] is NaN"},
       {"query ahead of the scene",
        nearest([&](auto& r) {
          r.add_points();
@@ -499,6 +512,106 @@ TEST_F(ServerTest, MinVersionWaitsAndHonoursTheDeadline) {
   // A patient query gets the version it asked for.
   ASSERT_TRUE(client_->FindNearest(r, &response).ok());
   EXPECT_GE(response.version(), v);
+}
+
+// Exact answers: certified, equal to the oracle's nearest distance, also outside the window,
+// and from the latest version without waiting for a render.
+TEST_F(ServerTest, ExactAnswersMatchTheOracle) {
+  Window w{0, 0, 10, 10};
+  Create("exact", w, 128, 128);
+  auto sites = RandomSites(3000, w, 17);
+  uint64_t v = Upsert("exact", sites);
+  // Wait for the render, so that exact answers inside the window start from the frame's bound
+  // (the index-only path is taken by points outside, and by the query after the next upsert).
+  Nearest("exact", {{5, 5}}, v);
+  std::mt19937_64 rng(8);
+  std::uniform_real_distribution<double> u(-5, 15);  // about half of them outside the window
+  v1::FindNearestRequest r;
+  r.set_scene_id("exact");
+  r.set_exact(true);
+  r.set_min_version(v);
+  std::vector<Vec2> q;
+  for (int i = 0; i < 4000; ++i) {
+    q.push_back({u(rng), u(rng)});
+    auto* p = r.add_points();
+    p->set_x(q.back().x);
+    p->set_y(q.back().y);
+  }
+  v1::FindNearestResponse response;
+  ASSERT_TRUE(client_->FindNearest(r, &response).ok());
+  EXPECT_EQ(response.version(), v);
+  for (size_t i = 0; i < q.size(); ++i) {
+    const auto& n = response.results(i);
+    EXPECT_TRUE(n.exact());
+    EXPECT_EQ(n.error_bound(), 0);
+    EXPECT_EQ(n.distance(), NearestBruteForce(q[i], sites).distance) << i;
+    ExpectContract(sites, q[i], n);
+  }
+  // Without `exact`, a point outside the window is answered exactly all the same.
+  auto far = Nearest("exact", {{-100, 50}, {5, 5}}, v);
+  EXPECT_TRUE(far.results(0).exact());
+  EXPECT_TRUE(far.results(1).exact());
+  EXPECT_EQ(far.results(0).distance(), NearestBruteForce({-100, 50}, sites).distance);
+  // Exact answers see the latest version at once.
+  sites.push_back({"fresh", PointSite{{2.5, 2.5}}});
+  uint64_t v2 = Upsert("exact", {sites.back()});
+  v1::FindNearestRequest now;
+  now.set_scene_id("exact");
+  now.set_exact(true);
+  now.add_points()->set_x(2.5);
+  now.mutable_points(0)->set_y(2.5);
+  ASSERT_TRUE(client_->FindNearest(now, &response).ok());
+  EXPECT_EQ(response.version(), v2);
+  EXPECT_EQ(response.results(0).site_id(), "fresh");
+  EXPECT_EQ(response.results(0).distance(), 0);
+}
+
+// The packed form and the stream give the same answers as the per-point form.
+TEST_F(ServerTest, PackedAndStreamedAnswersAgree) {
+  Window w{0, 0, 1, 1};
+  Create("packed", w, 256, 256);
+  auto sites = RandomSites(2000, w, 23);
+  uint64_t v = Upsert("packed", sites);
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> u(0, 1);
+  v1::FindNearestRequest plain, packed;
+  plain.set_scene_id("packed");
+  plain.set_min_version(v);
+  packed = plain;
+  for (int i = 0; i < 5000; ++i) {
+    double x = u(rng), y = u(rng);
+    auto* p = plain.add_points();
+    p->set_x(x);
+    p->set_y(y);
+    packed.add_xy(x);
+    packed.add_xy(y);
+  }
+  v1::FindNearestResponse a, b;
+  ASSERT_TRUE(client_->FindNearest(plain, &a).ok());
+  ASSERT_TRUE(client_->FindNearest(packed, &b).ok());
+  ASSERT_EQ(b.packed().site_size(), 5000);
+  EXPECT_EQ(a.results_size(), 5000);
+  for (int i = 0; i < 5000; ++i) {
+    EXPECT_EQ(a.results(i).site_id(), b.packed().site_ids(b.packed().site(i)));
+    EXPECT_EQ(a.results(i).distance(), b.packed().distance(i));
+    EXPECT_EQ(a.results(i).error_bound(), b.packed().error_bound(i));
+  }
+  packed.set_chunk_size(1200);
+  std::vector<v1::FindNearestResponse> chunks;
+  ASSERT_TRUE(client_->FindNearestStream(packed, &chunks).ok());
+  ASSERT_EQ(chunks.size(), 5u);  // 1200 x 4 + 200
+  int i = 0;
+  for (const auto& c : chunks) {
+    EXPECT_EQ(c.offset(), uint64_t(i));
+    for (int k = 0; k < c.packed().site_size(); ++k, ++i) {
+      EXPECT_EQ(c.packed().site_ids(c.packed().site(k)), a.results(i).site_id());
+      EXPECT_EQ(c.packed().distance(k), a.results(i).distance());
+    }
+  }
+  EXPECT_EQ(i, 5000);
+  // A stream for an unknown scene fails with its status.
+  packed.set_scene_id("nowhere");
+  EXPECT_EQ(client_->FindNearestStream(packed, &chunks).error_code(), StatusCode::NOT_FOUND);
 }
 
 TEST_F(ServerTest, HealthServiceSaysServing) {

@@ -40,6 +40,9 @@ class Client {
 
   grpc::Status FindNearest(const v1::FindNearestRequest& request,
                            v1::FindNearestResponse* response);
+  // FindNearestStream: every packed chunk, in order.
+  grpc::Status FindNearestStream(const v1::FindNearestRequest& request,
+                                 std::vector<v1::FindNearestResponse>* chunks);
 
   // Waits until the server answers or `timeout` passes; true when connected.
   bool WaitForConnected(std::chrono::milliseconds timeout);
