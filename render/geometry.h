@@ -16,8 +16,14 @@ inline Vec2 operator-(Vec2 a, Vec2 b) { return {a.x - b.x, a.y - b.y}; }
 inline Vec2 operator+(Vec2 a, Vec2 b) { return {a.x + b.x, a.y + b.y}; }
 inline Vec2 operator*(double s, Vec2 a) { return {s * a.x, s * a.y}; }
 inline double Dot(Vec2 a, Vec2 b) { return a.x * b.x + a.y * b.y; }
-// Euclidean length, without undue overflow or underflow.
-inline double Length(Vec2 a) { return std::hypot(a.x, a.y); }
+// Euclidean length, without undue overflow or underflow: sqrt(x^2 + y^2) where the squares
+// can neither overflow nor lose precision to underflow (within an ulp or so of hypot), hypot
+// elsewhere.
+inline double Length(Vec2 a) {
+  double m = std::max(std::abs(a.x), std::abs(a.y));
+  if (m < 0x1p500 && m > 0x1p-500) return std::sqrt(a.x * a.x + a.y * a.y);
+  return std::hypot(a.x, a.y);
+}
 inline double Distance(Vec2 a, Vec2 b) { return Length(a - b); }
 
 // An axis-aligned rectangle; valid when min < max on both axes and all values are finite.

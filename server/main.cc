@@ -25,6 +25,10 @@ constexpr const char* kUsage = R"(usage: gvd-server [flags]
   --egl-device auto|hardware|software
                               which EGL device renders (default auto: a GPU if there is one,
                               else Mesa's software rasterizer)
+  --software-render-threads N rasterizer threads of Mesa's llvmpipe (default 0: rasterize on
+                              the render thread itself, which keeps query latency low and
+                              incremental updates fast; more threads speed up full renders).
+                              Ignored on a GPU, and when LP_NUM_THREADS is set.
   --log-level debug|info|warn|error   (default info)
   --max-scenes N              (default 1000)
   --max-sites-per-scene N     (default 1000000)
@@ -39,6 +43,7 @@ struct Flags {
   std::string port_file;
   std::string egl_device = "auto";
   std::string log_level = "info";
+  uint32_t software_render_threads = 0;
   gvd::ServerLimits limits;
 };
 
@@ -77,6 +82,11 @@ Flags ParseFlags(int argc, char** argv) {
     else if (arg == "--port-file") f.port_file = value;
     else if (arg == "--egl-device") f.egl_device = value;
     else if (arg == "--log-level") f.log_level = value;
+    else if (arg == "--software-render-threads") {
+      if (!absl::SimpleAtoi(value, &f.software_render_threads) || f.software_render_threads > 64) {
+        Die(absl::StrCat("--software-render-threads needs 0 to 64, not \"", value, "\""));
+      }
+    }
     else if (arg == "--max-scenes") ParseCount(arg, value, &f.limits.max_scenes);
     else if (arg == "--max-sites-per-scene") ParseCount(arg, value, &f.limits.max_sites_per_scene);
     else if (arg == "--max-side-px") ParseCount(arg, value, &f.limits.max_side_px);
@@ -107,6 +117,9 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  // llvmpipe reads this when the context is made.
+  setenv("LP_NUM_THREADS", absl::StrCat(flags.software_render_threads).c_str(), /*overwrite=*/0);
 
   gvd::RenderLoop renderer;
   if (auto s = renderer.Start(*preference); !s.ok()) {

@@ -3,6 +3,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "render/exact.h"
+#include "render/parallel.h"
 
 namespace gvd {
 
@@ -78,29 +79,32 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points,
   const bool fresh = frame->version() == version_ && !frame->empty();
   const Window& window = settings_.grid.window;
   answers->resize(points.size());
-  std::vector<uint32_t> nearer;
-  for (size_t i = 0; i < points.size(); ++i) {
-    const Vec2 q = points[i];
-    std::optional<NearestAnswer> raster;
-    if (fresh && window.Contains(q)) raster = frame->Nearest(q);
-    if (!raster) {
-      ExactNearest best = index_.Nearest(q, slots_);
-      (*answers)[i] = {slots_.get(static_cast<uint32_t>(best.index))->id, best.distance};
-      continue;
+  // Large batches are split across cores, all under this one shared lock (one version).
+  ParallelFor(points.size(), 8192, [&](size_t begin, size_t end) {
+    std::vector<uint32_t> nearer;
+    for (size_t i = begin; i < end; ++i) {
+      const Vec2 q = points[i];
+      std::optional<NearestAnswer> raster;
+      if (fresh && window.Contains(q)) raster = frame->Nearest(q);
+      if (!raster) {
+        ExactNearest best = index_.Nearest(q, slots_);
+        (*answers)[i] = {slots_.get(static_cast<uint32_t>(best.index))->id, best.distance};
+        continue;
+      }
+      // The frame's site exists at this version, at exactly this distance from q (its slots
+      // are the render thread's, so it is carried by id): only sites the index finds within
+      // that radius can be nearer.
+      ExactAnswer best{frame->sites().get(raster->site_index)->id, raster->distance};
+      nearer.clear();
+      index_.Within(q, best.distance, &nearer);
+      for (uint32_t s : nearer) {
+        const Site* site = slots_.get(s);
+        double d = ExactDistance(q, site->geometry);
+        if (d < best.distance) best = {site->id, d};
+      }
+      (*answers)[i] = std::move(best);
     }
-    // The frame's site exists at this version, at exactly this distance from q (its slots are
-    // the render thread's, so it is carried by id): only sites the index finds within that
-    // radius can be nearer.
-    ExactAnswer best{frame->sites().get(raster->site_index)->id, raster->distance};
-    nearer.clear();
-    index_.Within(q, best.distance, &nearer);
-    for (uint32_t s : nearer) {
-      const Site* site = slots_.get(s);
-      double d = ExactDistance(q, site->geometry);
-      if (d < best.distance) best = {site->id, d};
-    }
-    (*answers)[i] = std::move(best);
-  }
+  });
   return version_;
 }
 
@@ -163,6 +167,11 @@ void Scene::FailWaiters(const absl::Status& status) {
 }
 
 uint64_t Scene::WhenRendered(uint64_t min_version, FrameCallback done) {
+  // Fast path, without the lock: frames only get newer.
+  if (auto current = frame_.load(); current->version() >= min_version) {
+    done(std::move(current));
+    return 0;
+  }
   std::shared_ptr<const Frame> ready;
   uint64_t token;
   {

@@ -91,7 +91,7 @@ class Scene {
 
   // Calls `done` with a frame of version >= min_version: at once, on this thread, when the
   // latest frame is new enough; else from the thread that publishes one. Returns a token for
-  // Cancel(). CONTRACT: min_version <= version().
+  // Cancel() (0 when done was called at once). CONTRACT: min_version <= version().
   uint64_t WhenRendered(uint64_t min_version, FrameCallback done);
   // If the waiter is still pending, removes it and calls it with `why`.
   void Cancel(uint64_t token, const absl::Status& why);

@@ -2,8 +2,10 @@
 
 #include "absl/strings/str_cat.h"
 #include "server/convert.h"
+#include "render/parallel.h"
 #include "server/log.h"
 
+#include <atomic>
 #include <unordered_map>
 
 namespace gvd {
@@ -120,15 +122,22 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
       return;
     }
     version_ = frame_->version();
-    rows_.reserve(query_.points.size());
-    for (const Vec2& q : query_.points) {
-      auto a = frame_->Nearest(q);
-      if (!a) {
-        done_(Status(StatusCode::INTERNAL, "frame has no site at a query point"));
-        return;
+    rows_.resize(query_.points.size());
+    std::atomic<bool> missing{false};
+    ParallelFor(rows_.size(), 8192, [&](size_t begin, size_t end) {
+      for (size_t i = begin; i < end; ++i) {
+        auto a = frame_->Nearest(query_.points[i]);
+        if (!a) {
+          missing = true;
+          return;
+        }
+        rows_[i] = {&frame_->sites().get(a->site_index)->id, a->distance, a->error_bound,
+                    a->error_bound == 0};
       }
-      rows_.push_back({&frame_->sites().get(a->site_index)->id, a->distance, a->error_bound,
-                       a->error_bound == 0});
+    });
+    if (missing) {
+      done_(Status(StatusCode::INTERNAL, "frame has no site at a query point"));
+      return;
     }
     done_(Status::OK);
   }

@@ -1,9 +1,13 @@
-// Benchmarks of the render core and the query paths. Run: build/tests/bench/gvd_bench
-// (see tests/bench/README.md for recorded results and the commands that produced them).
+// Benchmarks of gvd beside the references a user would pick: OpenCV's labelled distance
+// transform for whole diagrams, nanoflann's kd-tree for nearest-site queries.
+// Run: tests/bench/run.sh (prints one table; see tests/bench/README.md).
 #include <benchmark/benchmark.h>
 #include <grpcpp/grpcpp.h>
 
+#include <atomic>
+#include <nanoflann.hpp>
 #include <random>
+#include <thread>
 
 #include "gvd/client.h"
 #include "render/context.h"
@@ -12,6 +16,10 @@
 #include "server/render_loop.h"
 #include "server/service.h"
 
+#ifdef GVD_BENCH_OPENCV
+#include <opencv2/imgproc.hpp>
+#endif
+
 namespace gvd {
 namespace {
 
@@ -19,8 +27,17 @@ SiteTable RandomSites(size_t n, const Window& w, uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> ux(w.min_x, w.max_x), uy(w.min_y, w.max_y);
   SiteTable sites;
+  sites.reserve(n);
   for (size_t i = 0; i < n; ++i) sites.push_back({std::to_string(i), PointSite{{ux(rng), uy(rng)}}});
   return sites;
+}
+
+std::vector<Vec2> RandomPoints(size_t n, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<Vec2> q(n);
+  for (auto& p : q) p = {u(rng), u(rng)};
+  return q;
 }
 
 // One GL context for the whole run, current on the main thread.
@@ -40,47 +57,63 @@ struct Gl {
   }
 };
 
-// Full render of N random points on a size x size grid, one pixel of error, readback included.
+const Window kUnit{0, 0, 1, 1};
+
+// 1. Full render of N random points on a size x size grid, one pixel of error, readback and
+// frame included.
 void BM_Render(benchmark::State& state) {
   Gl& gl = Gl::Get();
-  if (!gl.context) {
-    state.SkipWithError("no EGL context");
-    return;
-  }
+  if (!gl.context) return state.SkipWithError("no EGL context");
   const size_t n = state.range(0);
   const uint32_t size = state.range(1);
-  Grid grid{{0, 0, 1, 1}, size, size};
-  auto sites = RandomSites(n, grid.window, 1);
+  Grid grid{kUnit, size, size};
+  auto sites = RandomSites(n, kUnit, 1);
   RenderStats stats;
   for (auto _ : state) {
     auto frame = gl.rasterizer->Render(grid, grid.pixel_size(), 1, sites, &stats);
     benchmark::DoNotOptimize(frame);
   }
   state.counters["coverage_ms"] = stats.coverage_seconds * 1e3;
-  state.counters["draw_ms"] = stats.draw_seconds * 1e3;
   state.counters["fill"] = stats.fill_ratio;
-  state.counters["tile_px"] = stats.tile_px;
-  state.counters["readback_ms"] = stats.readback_seconds * 1e3;
-  state.counters["triangles_per_cone"] = stats.cone_segments;
   state.SetLabel(gl.context->info().gl_renderer);
 }
 BENCHMARK(BM_Render)
     ->ArgsProduct({{1000, 10000, 100000, 1000000}, {1024, 2048}})
     ->Unit(benchmark::kMillisecond)
-    ->Iterations(1)
+    ->MinTime(1)
     ->UseRealTime();
 
-// One-site add (range 0 = 0), move (1) and delete (2) in a scene of 100,000 points at
-// 1024 x 1024: the time until the new frame is made (publishing it is a pointer swap).
+#ifdef GVD_BENCH_OPENCV
+// 1'. OpenCV's Voronoi: cv::distanceTransform with labels (DIST_LABEL_PIXEL, L2, 5x5 mask)
+// over the same sites snapped to pixels.
+void BM_OpenCVDistanceTransform(benchmark::State& state) {
+  cv::setNumThreads(1);
+  const size_t n = state.range(0);
+  const int size = static_cast<int>(state.range(1));
+  cv::Mat src(size, size, CV_8U, cv::Scalar(255)), dist, labels;
+  for (const Site& s : RandomSites(n, kUnit, 1)) {
+    const auto& p = std::get<PointSite>(s.geometry).p;
+    src.at<uint8_t>(std::min(size - 1, int(p.y * size)), std::min(size - 1, int(p.x * size))) = 0;
+  }
+  for (auto _ : state) {
+    cv::distanceTransform(src, dist, labels, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
+    benchmark::DoNotOptimize(labels.data);
+  }
+}
+BENCHMARK(BM_OpenCVDistanceTransform)
+    ->ArgsProduct({{1000, 10000, 100000, 1000000}, {1024, 2048}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+#endif
+
+// 2. One-site add (0), move (1) and delete (2) in a scene of 100,000 points at 1024 x 1024:
+// the time until the new frame exists (publishing it is a pointer swap).
 void BM_UpdateOneSite(benchmark::State& state) {
   Gl& gl = Gl::Get();
-  if (!gl.context) {
-    state.SkipWithError("no EGL context");
-    return;
-  }
-  Grid grid{{0, 0, 1, 1}, 1024, 1024};
+  if (!gl.context) return state.SkipWithError("no EGL context");
+  Grid grid{kUnit, 1024, 1024};
   auto scene = std::move(*SceneRaster::Create(grid, grid.pixel_size()));
-  SiteTable sites = RandomSites(100000, grid.window, 6);
+  SiteTable sites = RandomSites(100000, kUnit, 6);
   std::vector<SiteChange> all;
   for (const Site& s : sites) all.push_back({s.id, s.geometry});
   uint64_t version = 1;
@@ -101,7 +134,7 @@ void BM_UpdateOneSite(benchmark::State& state) {
       change.push_back({sites[next++].id, std::nullopt});
     }
     auto frame = scene->Apply(*gl.rasterizer, ++version, std::move(change), &stats);
-    if (!frame.ok()) state.SkipWithError("render failed");
+    if (!frame.ok()) return state.SkipWithError("render failed");
     pixels += stats.pixels;
     drawn += stats.sites_drawn;
   }
@@ -111,92 +144,184 @@ void BM_UpdateOneSite(benchmark::State& state) {
 }
 BENCHMARK(BM_UpdateOneSite)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// In-process lookups: Frame::Nearest on a 1024 x 1024 frame of 10,000 sites.
+// 3. Queries on 100,000 sites at 1024 x 1024.
+constexpr size_t kQuerySites = 100000;
+
+std::shared_ptr<const Frame> QueryFrame() {
+  static std::shared_ptr<const Frame> frame = [] {
+    Grid grid{kUnit, 1024, 1024};
+    return *Gl::Get().rasterizer->Render(grid, grid.pixel_size(), 1, RandomSites(kQuerySites, kUnit, 2));
+  }();
+  return frame;
+}
+
+// In process: Frame::Nearest (raster answer with its bound), one thread.
 void BM_FrameNearest(benchmark::State& state) {
-  Gl& gl = Gl::Get();
-  if (!gl.context) {
-    state.SkipWithError("no EGL context");
-    return;
-  }
-  Grid grid{{0, 0, 1, 1}, 1024, 1024};
-  static std::shared_ptr<const Frame> frame =
-      *gl.rasterizer->Render(grid, grid.pixel_size(), 1, RandomSites(10000, grid.window, 2));
-  std::mt19937_64 rng(3);
-  std::uniform_real_distribution<double> u(0, 1);
-  std::vector<Vec2> q(1 << 16);
-  for (auto& p : q) p = {u(rng), u(rng)};
+  if (!Gl::Get().context) return state.SkipWithError("no EGL context");
+  auto frame = QueryFrame();
+  auto q = RandomPoints(1 << 16, 3);
   size_t i = 0;
-  for (auto _ : state) {
-    benchmark::DoNotOptimize(frame->Nearest(q[i++ & (q.size() - 1)]));
-  }
+  for (auto _ : state) benchmark::DoNotOptimize(frame->Nearest(q[i++ & (q.size() - 1)]));
   state.SetItemsProcessed(state.iterations());
 }
 BENCHMARK(BM_FrameNearest);
 
-// FindNearest over loopback gRPC against an in-process server, batch size = range(0).
-void BM_GrpcFindNearest(benchmark::State& state) {
-  static RenderLoop* renderer = nullptr;
-  static VoronoiService* service = nullptr;
-  static std::unique_ptr<grpc::Server> server;
-  static std::unique_ptr<Client> client;
-  static int port = 0;
-  if (!server) {
-    renderer = new RenderLoop();
-    if (!renderer->Start(DevicePreference::kAuto).ok()) {
-      state.SkipWithError("no EGL context");
-      return;
-    }
-    service = new VoronoiService(renderer, ServerLimits{});
-    grpc::ServerBuilder builder;
-    builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
-    builder.SetMaxReceiveMessageSize(256 << 20);
-    builder.SetMaxSendMessageSize(256 << 20);
-    builder.RegisterService(service);
-    server = builder.BuildAndStart();
-    client = Client::Connect("127.0.0.1:" + std::to_string(port));
-    v1::CreateSceneRequest c;
-    c.set_scene_id("bench");
-    c.mutable_window()->set_max_x(1);
-    c.mutable_window()->set_max_y(1);
-    c.set_width_px(1024);
-    c.set_height_px(1024);
-    v1::Scene scene;
-    (void)client->CreateScene(c, &scene);
-    v1::UpsertSitesRequest u;
-    u.set_scene_id("bench");
-    for (const Site& s : RandomSites(10000, {0, 0, 1, 1}, 4)) {
-      auto* site = u.add_sites();
-      site->set_id(s.id);
-      site->mutable_point()->set_x(std::get<PointSite>(s.geometry).p.x);
-      site->mutable_point()->set_y(std::get<PointSite>(s.geometry).p.y);
-    }
-    uint64_t version;
-    (void)client->UpsertSites(u, &version);
-    v1::FindNearestRequest warm;
-    warm.set_scene_id("bench");
-    warm.set_min_version(version);
-    warm.add_points();
-    v1::FindNearestResponse r;
-    (void)client->FindNearest(warm, &r);  // waits for the first render
+// The reference: nanoflann's kd-tree, nearest neighbour of one point, one thread.
+struct Cloud {
+  std::vector<Vec2> pts;
+  size_t kdtree_get_point_count() const { return pts.size(); }
+  double kdtree_get_pt(size_t i, size_t d) const { return d == 0 ? pts[i].x : pts[i].y; }
+  template <class B>
+  bool kdtree_get_bbox(B&) const {
+    return false;
   }
-  const int batch = state.range(0);
-  std::mt19937_64 rng(5);
-  std::uniform_real_distribution<double> u(0, 1);
+};
+void BM_NanoflannNearest(benchmark::State& state) {
+  Cloud cloud;
+  for (const Site& s : RandomSites(kQuerySites, kUnit, 2)) cloud.pts.push_back(std::get<PointSite>(s.geometry).p);
+  using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Cloud>,
+                                                   Cloud, 2>;
+  Tree tree(2, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  tree.buildIndex();
+  auto q = RandomPoints(1 << 16, 3);
+  size_t i = 0;
+  for (auto _ : state) {
+    const Vec2& p = q[i++ & (q.size() - 1)];
+    double query[2] = {p.x, p.y};
+    unsigned index;
+    double d2;
+    tree.knnSearch(query, 1, &index, &d2);
+    benchmark::DoNotOptimize(index);
+  }
+  state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_NanoflannNearest);
+
+// An in-process gvd-server on a loopback port with a 100,000-site scene "bench".
+struct LoopbackServer {
+  RenderLoop renderer;
+  std::unique_ptr<VoronoiService> service;
+  std::unique_ptr<grpc::Server> server;
+  std::string address;
+  uint64_t version = 0;
+
+  static LoopbackServer* Get() {
+    static LoopbackServer* s = [] {
+      auto* ls = new LoopbackServer();
+      if (!ls->renderer.Start(DevicePreference::kAuto).ok()) return (LoopbackServer*)nullptr;
+      ls->service = std::make_unique<VoronoiService>(&ls->renderer, ServerLimits{});
+      grpc::ServerBuilder builder;
+      int port = 0;
+      builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+      builder.SetMaxReceiveMessageSize(256 << 20);
+      builder.SetMaxSendMessageSize(256 << 20);
+      builder.RegisterService(ls->service.get());
+      ls->server = builder.BuildAndStart();
+      ls->address = "127.0.0.1:" + std::to_string(port);
+      auto client = Client::Connect(ls->address);
+      v1::CreateSceneRequest c;
+      c.set_scene_id("bench");
+      c.mutable_window()->set_max_x(1);
+      c.mutable_window()->set_max_y(1);
+      c.set_width_px(1024);
+      c.set_height_px(1024);
+      v1::Scene scene;
+      (void)client->CreateScene(c, &scene);
+      v1::UpsertSitesRequest u;
+      u.set_scene_id("bench");
+      for (const Site& s : RandomSites(kQuerySites, kUnit, 2)) {
+        auto* site = u.add_sites();
+        site->set_id(s.id);
+        site->mutable_point()->set_x(std::get<PointSite>(s.geometry).p.x);
+        site->mutable_point()->set_y(std::get<PointSite>(s.geometry).p.y);
+      }
+      (void)client->UpsertSites(u, &ls->version);
+      v1::FindNearestRequest warm;
+      warm.set_scene_id("bench");
+      warm.set_min_version(ls->version);
+      warm.add_points();
+      v1::FindNearestResponse r;
+      (void)client->FindNearest(warm, &r);  // waits for the first render
+      return ls;
+    }();
+    return s;
+  }
+};
+
+// Over loopback gRPC: batch size = range(0), packed points; range(1) = exact.
+void BM_GrpcFindNearest(benchmark::State& state) {
+  LoopbackServer* ls = LoopbackServer::Get();
+  if (!ls) return state.SkipWithError("no EGL context");
+  auto client = Client::Connect(ls->address);
+  const size_t batch = state.range(0);
   v1::FindNearestRequest request;
   request.set_scene_id("bench");
-  for (int i = 0; i < batch; ++i) {
-    auto* p = request.add_points();
-    p->set_x(u(rng));
-    p->set_y(u(rng));
+  request.set_exact(state.range(1) != 0);
+  for (const Vec2& p : RandomPoints(batch, 5)) {
+    request.add_xy(p.x);
+    request.add_xy(p.y);
   }
   v1::FindNearestResponse response;
   for (auto _ : state) {
     grpc::Status s = client->FindNearest(request, &response);
-    if (!s.ok()) state.SkipWithError(s.error_message().c_str());
+    if (!s.ok()) return state.SkipWithError(s.error_message().c_str());
   }
   state.SetItemsProcessed(state.iterations() * batch);
+  state.SetLabel(state.range(1) ? "exact" : "raster");
 }
-BENCHMARK(BM_GrpcFindNearest)->Arg(1)->Arg(1000)->Arg(100000)->UseRealTime();
+BENCHMARK(BM_GrpcFindNearest)
+    ->ArgsProduct({{1, 1000, 1000000}, {0, 1}})
+    ->Unit(benchmark::kMicrosecond)
+    ->UseRealTime();
+
+// 4. Single-point FindNearest latency over loopback while another client moves one site
+// after another as fast as the server takes them.
+void BM_LatencyUnderWriter(benchmark::State& state) {
+  LoopbackServer* ls = LoopbackServer::Get();
+  if (!ls) return state.SkipWithError("no EGL context");
+  std::atomic<bool> stop{false};
+  std::atomic<uint64_t> moves{0};
+  std::thread writer([&] {
+    auto client = Client::Connect(ls->address);
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> u(0, 1);
+    v1::UpsertSitesRequest r;
+    r.set_scene_id("bench");
+    auto* site = r.add_sites();
+    while (!stop) {
+      site->set_id(std::to_string(rng() % kQuerySites));
+      site->mutable_point()->set_x(u(rng));
+      site->mutable_point()->set_y(u(rng));
+      uint64_t v;
+      if (client->UpsertSites(r, &v).ok()) ++moves;
+    }
+  });
+  auto client = Client::Connect(ls->address);
+  auto q = RandomPoints(1 << 12, 13);
+  v1::FindNearestRequest request;
+  request.set_scene_id("bench");
+  auto* p = request.add_points();
+  v1::FindNearestResponse response;
+  std::vector<double> micros;
+  size_t i = 0;
+  auto start = std::chrono::steady_clock::now();
+  for (auto _ : state) {
+    p->set_x(q[i & (q.size() - 1)].x);
+    p->set_y(q[i++ & (q.size() - 1)].y);
+    auto t0 = std::chrono::steady_clock::now();
+    grpc::Status s = client->FindNearest(request, &response);
+    micros.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+    if (!s.ok()) state.SkipWithError(s.error_message().c_str());
+  }
+  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  stop = true;
+  writer.join();
+  std::sort(micros.begin(), micros.end());
+  state.counters["p50_us"] = micros[micros.size() / 2];
+  state.counters["p99_us"] = micros[micros.size() * 99 / 100];
+  state.counters["moves_per_s"] = moves / seconds;
+}
+BENCHMARK(BM_LatencyUnderWriter)->Iterations(20000)->UseRealTime();
 
 }  // namespace
 }  // namespace gvd

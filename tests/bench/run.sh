@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Builds gvd_bench (Release, with OpenCV when libopencv-dev is installed) and prints the
+# benchmark table of tests/bench/README.md. Usage: bash tests/bench/run.sh [gbench flags]
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+. deploy/debian-deps.sh
+gvd_install_packages build test
+cmake -S . -B build/bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DGVD_BUILD_TESTS=ON >/dev/null
+cmake --build build/bench --target gvd_bench
+bench=build/bench/tests/bench/gvd_bench
+# Full renders with llvmpipe's rasterizer threads (one per core, its default); updates and
+# queries as gvd-server runs them by default (rasterizing on the render thread).
+env -u LP_NUM_THREADS "$bench" --benchmark_filter='Render|OpenCV' \
+  --benchmark_out=build/bench/render.json --benchmark_out_format=json "$@" >&2
+LP_NUM_THREADS=0 "$bench" --benchmark_filter='Update|Nearest|Grpc|Latency' \
+  --benchmark_out=build/bench/serve.json --benchmark_out_format=json "$@" >&2
+python3 tests/bench/table.py build/bench/render.json build/bench/serve.json

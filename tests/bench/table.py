@@ -1,0 +1,76 @@
+#!/usr/bin/env python3
+"""Turns gvd_bench's JSON output into the markdown table of tests/bench/README.md."""
+import json
+import sys
+
+
+def main(paths):
+    rows = {}
+    for path in paths:
+        data = json.load(open(path))
+        for b in data["benchmarks"]:
+            if b.get("run_type") == "aggregate" or b.get("error_occurred"):
+                continue
+            rows[b["name"].split("/min_time")[0].split("/real_time")[0]] = b
+    ctx = data["context"]
+    print(f"Machine: {ctx.get('num_cpus')} CPUs, {ctx.get('host_name', '')}; "
+          f"renderer: {next((b.get('label') for b in rows.values() if 'Render' in b['name']), '?')}")
+    print()
+    print("| benchmark | gvd | reference | gvd vs reference |")
+    print("|---|---|---|---|")
+
+    def ms(b):
+        return b["real_time"] * {"ms": 1, "us": 1e-3, "ns": 1e-6}[b["time_unit"]]
+
+    for n in (1000, 10000, 100000, 1000000):
+        for size in (1024, 2048):
+            g = rows.get(f"BM_Render/{n}/{size}")
+            o = rows.get(f"BM_OpenCVDistanceTransform/{n}/{size}")
+            if not g:
+                continue
+            ref = f"{ms(o):.1f} ms (OpenCV distanceTransform, labels)" if o else "n/a"
+            ratio = f"{ms(o) / ms(g):.2f}x" if o else ""
+            print(f"| full render, {n:,} points, {size}x{size} | {ms(g):.1f} ms "
+                  f"(fill {g['fill']:.0f}x grid) | {ref} | {ratio} |")
+    full = rows.get("BM_Render/100000/1024")
+    ocv = rows.get("BM_OpenCVDistanceTransform/100000/1024")
+    for kind, name in ((0, "add"), (1, "move"), (2, "delete")):
+        u = rows.get(f"BM_UpdateOneSite/{kind}")
+        if not u:
+            continue
+        vs = []
+        if full:
+            vs.append(f"{ms(full) / ms(u):.0f}x faster than our full render")
+        if ocv:
+            vs.append(f"{ms(ocv) / ms(u):.0f}x faster than OpenCV's recompute")
+        print(f"| one-site {name}, 100,000 points, 1024x1024 | {ms(u):.3f} ms "
+              f"({u['pixels']:.0f} px redrawn) | full render {ms(full):.0f} ms"
+              + (f", OpenCV {ms(ocv):.1f} ms" if ocv else "") + f" | {'; '.join(vs)} |")
+    fn = rows.get("BM_FrameNearest")
+    nf = rows.get("BM_NanoflannNearest")
+    if fn and nf:
+        print(f"| FindNearest in process, 1 thread | {fn['items_per_second'] / 1e6:.2f} M/s "
+              f"| {nf['items_per_second'] / 1e6:.2f} M/s (nanoflann kd-tree) "
+              f"| {fn['items_per_second'] / nf['items_per_second']:.2f}x |")
+    for batch in (1, 1000, 1000000):
+        for exact, label in ((0, "raster"), (1, "exact")):
+            g = rows.get(f"BM_GrpcFindNearest/{batch}/{exact}")
+            if not g:
+                continue
+            if batch == 1:
+                print(f"| FindNearest over loopback, 1 point per call, {label} | "
+                      f"{ms(g) * 1e3:.0f} us per call | | |")
+                continue
+            ref = f"{nf['items_per_second'] / 1e6:.2f} M/s" if nf else "n/a"
+            ratio = f"{g['items_per_second'] / nf['items_per_second']:.2f}x" if nf else ""
+            print(f"| FindNearest over loopback, batch {batch:,}, {label} | "
+                  f"{g['items_per_second'] / 1e6:.2f} M points/s | {ref} (nanoflann, 1 thread) "
+                  f"| {ratio} |")
+    lat = rows.get("BM_LatencyUnderWriter/iterations:20000")
+    if lat:
+        print(f"| single-point FindNearest latency under a writer | p50 {lat['p50_us']:.0f} us, "
+              f"p99 {lat['p99_us']:.0f} us | writer: {lat['moves_per_s']:.0f} moves/s | |")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
