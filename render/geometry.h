@@ -40,11 +40,7 @@ struct Window {
     return p.x >= min_x && p.x <= max_x && p.y >= min_y && p.y <= max_y;
   }
   // Distance from p to the farthest point of the window (one of its corners).
-  double FarthestDistance(Vec2 p) const {
-    double dx = std::max(std::abs(p.x - min_x), std::abs(p.x - max_x));
-    double dy = std::max(std::abs(p.y - min_y), std::abs(p.y - max_y));
-    return std::hypot(dx, dy);
-  }
+  double FarthestDistance(Vec2 p) const;
 };
 
 // A rectangle of pixels [x0, x1) x [y0, y1).
@@ -102,5 +98,11 @@ struct Grid {
     return {first(a.x, width), first(a.y, height), past(b.x, width), past(b.y, height)};
   }
 };
+
+inline double Window::FarthestDistance(Vec2 p) const {
+  double dx = std::max(std::abs(p.x - min_x), std::abs(p.x - max_x));
+  double dy = std::max(std::abs(p.y - min_y), std::abs(p.y - max_y));
+  return Length({dx, dy});
+}
 
 }  // namespace gvd
