@@ -22,6 +22,7 @@ constexpr const char* kUsage = R"(usage: gvd [--server HOST:PORT] [--scene ID] [
 
 Scenes:
   gvd scene create ID --window MIN_X,MIN_Y,MAX_X,MAX_Y --size WIDTHxHEIGHT [--max-error E]
+                     [--render-mode mesh|exact]
   gvd scene get ID
   gvd scene ls
   gvd scene rm ID
@@ -92,7 +93,7 @@ Args ParseArgs(int argc, char** argv) {
         Usage(absl::StrCat("--timeout needs a positive number of seconds, not \"", value, "\""));
       }
     } else if (arg == "--window" || arg == "--size" || arg == "--max-error" || arg == "--file" ||
-               arg == "--min-version") {
+               arg == "--min-version" || arg == "--render-mode") {
       a.options[arg] = value;
     } else {
       Usage(absl::StrCat("unknown flag ", arg));
@@ -139,7 +140,9 @@ void PrintScene(const gvd::v1::Scene& s) {
   std::cout << "scene " << s.scene_id() << ": window [" << Num(w.min_x()) << ", " << Num(w.max_x())
             << "] x [" << Num(w.min_y()) << ", " << Num(w.max_y()) << "], " << s.width_px() << "x"
             << s.height_px() << " px, max_error " << Num(s.max_error()) << ", "
-            << s.cone_triangles() << " triangles per cone, version " << s.version() << ", "
+            << (s.render_mode() == gvd::v1::EXACT ? std::string("exact render")
+                                                  : absl::StrCat(s.cone_triangles(), " triangles per cone"))
+            << ", version " << s.version() << ", "
             << s.site_count() << " sites, rendered version " << s.rendered_version() << "\n";
 }
 
@@ -222,6 +225,10 @@ int Run(const Args& a) {
       r.set_width_px(width);
       r.set_height_px(height);
       if (const std::string* e = option("--max-error")) r.set_max_error(Number(*e, "--max-error"));
+      if (const std::string* m = option("--render-mode")) {
+        if (*m != "mesh" && *m != "exact") Usage("--render-mode must be mesh or exact");
+        r.set_render_mode(*m == "exact" ? gvd::v1::EXACT : gvd::v1::MESH);
+      }
       gvd::v1::Scene scene;
       if (auto s = client->CreateScene(r, &scene); !s.ok()) return Fail(s);
       a.json ? PrintJson(scene) : PrintScene(scene);

@@ -42,6 +42,36 @@ layout(location = 0) out uint o_site;
 void main() { o_site = v_site; }
 )";
 
+// Exact mode: the same instances drawn as quads (`unit` spans [-1, 1]^2) whose fragments
+// evaluate the distance to the site analytically, from the pixel centre gl_FragCoord.
+constexpr const char* kExactVertexShader = R"(#version 450 core
+layout(location = 0) in vec3 unit;
+layout(location = 1) in vec3 instance;
+layout(location = 2) in uint site;
+uniform vec2 u_scale;
+uniform vec2 u_inv_pixel;
+flat out uint v_site;
+flat out vec2 v_site_px;
+void main() {
+  vec2 p = instance.xy + instance.z * unit.xy;
+  gl_Position = vec4(p * u_scale - 1.0, 0.0, 1.0);
+  v_site = site;
+  v_site_px = instance.xy * u_inv_pixel;
+}
+)";
+
+constexpr const char* kExactFragmentShader = R"(#version 450 core
+flat in uint v_site;
+flat in vec2 v_site_px;
+uniform vec2 u_pixel;
+uniform float u_inv_depth;
+layout(location = 0) out uint o_site;
+void main() {
+  gl_FragDepth = length((gl_FragCoord.xy - v_site_px) * u_pixel) * u_inv_depth;
+  o_site = v_site;
+}
+)";
+
 absl::Status GlError(const char* what) {
   GLenum e = glGetError();
   if (e == GL_NO_ERROR) return absl::OkStatus();
@@ -101,41 +131,62 @@ RenderTarget::~RenderTarget() {
   glDeleteRenderbuffers(1, &depth_);
 }
 
-absl::StatusOr<std::unique_ptr<Rasterizer>> Rasterizer::Create() {
-  auto vs = Compile(GL_VERTEX_SHADER, kVertexShader);
+absl::StatusOr<Rasterizer::Program> Rasterizer::Link(const char* vertex, const char* fragment) {
+  auto vs = Compile(GL_VERTEX_SHADER, vertex);
   if (!vs.ok()) return vs.status();
-  auto fs = Compile(GL_FRAGMENT_SHADER, kFragmentShader);
+  auto fs = Compile(GL_FRAGMENT_SHADER, fragment);
   if (!fs.ok()) {
     glDeleteShader(*vs);
     return fs.status();
   }
-  std::unique_ptr<Rasterizer> r(new Rasterizer());
-  r->program_ = glCreateProgram();
-  glAttachShader(r->program_, *vs);
-  glAttachShader(r->program_, *fs);
-  glLinkProgram(r->program_);
+  Program p;
+  p.id = glCreateProgram();
+  glAttachShader(p.id, *vs);
+  glAttachShader(p.id, *fs);
+  glLinkProgram(p.id);
   glDeleteShader(*vs);
   glDeleteShader(*fs);
   GLint ok = 0;
-  glGetProgramiv(r->program_, GL_LINK_STATUS, &ok);
+  glGetProgramiv(p.id, GL_LINK_STATUS, &ok);
   if (!ok) {
     char log[2048] = {};
-    glGetProgramInfoLog(r->program_, sizeof log, nullptr, log);
+    glGetProgramInfoLog(p.id, sizeof log, nullptr, log);
+    glDeleteProgram(p.id);
     return absl::InternalError(absl::StrCat("shader link failed: ", log));
   }
-  r->u_scale_ = glGetUniformLocation(r->program_, "u_scale");
-  r->u_inv_depth_ = glGetUniformLocation(r->program_, "u_inv_depth");
+  p.u_scale = glGetUniformLocation(p.id, "u_scale");
+  p.u_inv_depth = glGetUniformLocation(p.id, "u_inv_depth");
+  p.u_pixel = glGetUniformLocation(p.id, "u_pixel");
+  p.u_inv_pixel = glGetUniformLocation(p.id, "u_inv_pixel");
+  return p;
+}
+
+absl::StatusOr<std::unique_ptr<Rasterizer>> Rasterizer::Create() {
+  std::unique_ptr<Rasterizer> r(new Rasterizer());
+  auto mesh = Link(kVertexShader, kFragmentShader);
+  if (!mesh.ok()) return mesh.status();
+  r->mesh_ = *mesh;
+  auto exact = Link(kExactVertexShader, kExactFragmentShader);
+  if (!exact.ok()) return exact.status();
+  r->exact_ = *exact;
   glGenVertexArrays(1, &r->vao_);
   glGenBuffers(1, &r->instances_);
+  // Two triangles spanning [-1, 1]^2, in the cone vertices' layout.
+  const float quad[] = {-1, -1, 0, 1, -1, 0, 1, 1, 0, -1, -1, 0, 1, 1, 0, -1, 1, 0};
+  glGenBuffers(1, &r->quad_);
+  glBindBuffer(GL_ARRAY_BUFFER, r->quad_);
+  glBufferData(GL_ARRAY_BUFFER, sizeof quad, quad, GL_STATIC_DRAW);
   if (auto s = GlError("creating the rasterizer"); !s.ok()) return s;
   return r;
 }
 
 Rasterizer::~Rasterizer() {
   for (auto& [n, buffer] : cones_) glDeleteBuffers(1, &buffer);
+  glDeleteBuffers(1, &quad_);
   glDeleteBuffers(1, &instances_);
   glDeleteVertexArrays(1, &vao_);
-  glDeleteProgram(program_);
+  glDeleteProgram(mesh_.id);
+  glDeleteProgram(exact_.id);
 }
 
 unsigned Rasterizer::ConeBuffer(uint32_t segments) {
@@ -169,19 +220,24 @@ uint32_t SegmentBucket(uint32_t needed) {
 
 }  // namespace
 
-Rasterizer::ConeShape Rasterizer::Shape(const Grid& grid, double radius, double eps) const {
+Rasterizer::ConeShape Rasterizer::Shape(const Grid& grid, double radius, double eps,
+                                        RenderMode mode) const {
   // A sixteenth of a pixel beyond the proven radius keeps centres on the edge inside,
   // whatever the rasterizer's snapping (1/256 pixel). Scaled by extent = r * k, the fan
   // covers radius r; the factor 1 + 2^-20 absorbs the rounding of the float ring vertices,
   // which can fall a few ulps inside the unit circle.
   double r = radius + grid.pixel_size() / 16;
+  if (mode == RenderMode::kExact) {
+    // A quad of half-side r: its corners, sqrt(2) r away, bound the distances it writes.
+    return {2, 1, r * std::numbers::sqrt2 * (1 + 0x1p-20), r};
+  }
   uint32_t n = SegmentBucket(ConeSegments(r + eps, eps));
   double k = 1 / std::cos(std::numbers::pi / n);
-  return {n, k, r * k * (1 + 0x1p-20)};
+  return {n, k, r * k * (1 + 0x1p-20), r * k * (1 + 0x1p-20)};
 }
 
-absl::Status Rasterizer::Draw(const Grid& grid, double eps, double depth_scale, PixelRect scissor,
-                              bool clear, const std::vector<ConeDraw>& cones,
+absl::Status Rasterizer::Draw(const Grid& grid, double eps, RenderMode mode, double depth_scale,
+                              PixelRect scissor, bool clear, const std::vector<ConeDraw>& cones,
                               RenderTarget& target) {
   if (target.width() != grid.width || target.height() != grid.height) {
     return absl::InternalError("render target does not match the grid");
@@ -193,10 +249,10 @@ absl::Status Rasterizer::Draw(const Grid& grid, double eps, double depth_scale, 
   };
   std::map<uint32_t, std::vector<Instance>> buckets;
   for (const ConeDraw& c : cones) {
-    ConeShape shape = Shape(grid, c.radius, eps);
+    ConeShape shape = Shape(grid, c.radius, eps, mode);
     buckets[shape.segments].push_back({static_cast<float>(c.site.x - grid.window.min_x),
                                        static_cast<float>(c.site.y - grid.window.min_y),
-                                       static_cast<float>(shape.extent), c.slot + 1});
+                                       static_cast<float>(shape.scale), c.slot + 1});
   }
   glBindFramebuffer(GL_FRAMEBUFFER, target.framebuffer());
   glViewport(0, 0, grid.width, grid.height);
@@ -213,13 +269,20 @@ absl::Status Rasterizer::Draw(const Grid& grid, double eps, double depth_scale, 
     glClearBufferuiv(GL_COLOR, 0, zero_id);
     glClearBufferfi(GL_DEPTH_STENCIL, 0, 1.0f, 0);
   }
-  glUseProgram(program_);
-  glUniform2f(u_scale_, static_cast<float>(2 / grid.window.width()),
+  const Program& program = mode == RenderMode::kExact ? exact_ : mesh_;
+  glUseProgram(program.id);
+  glUniform2f(program.u_scale, static_cast<float>(2 / grid.window.width()),
               static_cast<float>(2 / grid.window.height()));
-  glUniform1f(u_inv_depth_, static_cast<float>(1 / depth_scale));
+  glUniform1f(program.u_inv_depth, static_cast<float>(1 / depth_scale));
+  if (mode == RenderMode::kExact) {
+    glUniform2f(program.u_pixel, static_cast<float>(grid.pixel_width()),
+                static_cast<float>(grid.pixel_height()));
+    glUniform2f(program.u_inv_pixel, static_cast<float>(1 / grid.pixel_width()),
+                static_cast<float>(1 / grid.pixel_height()));
+  }
   glBindVertexArray(vao_);
   for (const auto& [segments, instances] : buckets) {
-    glBindBuffer(GL_ARRAY_BUFFER, ConeBuffer(segments));
+    glBindBuffer(GL_ARRAY_BUFFER, mode == RenderMode::kExact ? quad_ : ConeBuffer(segments));
     glEnableVertexAttribArray(0);
     glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), nullptr);
     glVertexAttribDivisor(0, 0);
@@ -261,8 +324,9 @@ absl::Status Rasterizer::ReadBack(RenderTarget& target, PixelRect rect, double d
 absl::StatusOr<std::shared_ptr<const Frame>> Rasterizer::Render(const Grid& grid, double eps,
                                                                 uint64_t version,
                                                                 const SiteTable& sites,
-                                                                RenderStats* stats) {
-  auto scene = SceneRaster::Create(grid, eps);
+                                                                RenderStats* stats,
+                                                                RenderMode mode) {
+  auto scene = SceneRaster::Create(grid, eps, mode);
   if (!scene.ok()) return scene.status();
   std::vector<SiteChange> changes;
   changes.reserve(sites.size());

@@ -47,6 +47,12 @@ struct RenderStats {
   bool full = false;           // a render from scratch
 };
 
+// How distance functions are drawn. kMesh: the paper's bounded-error triangle fans (error at
+// most eps, interpolated by the rasterizer). kExact: one quad per site whose fragments
+// compute the distance analytically and write it as depth (no meshing error; two triangles
+// per site, but no early depth test).
+enum class RenderMode { kMesh, kExact };
+
 // A point site's distance cone to draw: it must cover every pixel centre within `radius`.
 struct ConeDraw {
   Vec2 site;
@@ -62,19 +68,23 @@ class Rasterizer {
   Rasterizer(const Rasterizer&) = delete;
   Rasterizer& operator=(const Rasterizer&) = delete;
 
-  // The triangles and the extent (how far from the site the fan reaches, >= radius) of the
-  // cone drawn for a radius: its fan has within-eps error up to the radius.
+  // What is drawn for a site that must cover `radius`: a fan of `segments` triangles with
+  // error within eps up to the radius (kMesh), or a quad (kExact, segments = 2). `extent`
+  // bounds the distances it writes and how far from the site it reaches; `scale` sizes it.
   struct ConeShape {
     uint32_t segments;
-    double overestimate;  // k of the fan
+    double overestimate;  // k of the fan; 1 for quads
     double extent;
+    double scale;
   };
-  ConeShape Shape(const Grid& grid, double radius, double eps) const;
+  ConeShape Shape(const Grid& grid, double radius, double eps, RenderMode mode) const;
 
-  // Draws the cones into `target` inside `scissor` (clearing it first when `clear`), with
-  // depth = distance / depth_scale. CONTRACT: every cone's extent <= depth_scale.
-  absl::Status Draw(const Grid& grid, double eps, double depth_scale, PixelRect scissor,
-                    bool clear, const std::vector<ConeDraw>& cones, RenderTarget& target);
+  // Draws the sites' distance functions into `target` inside `scissor` (clearing it first
+  // when `clear`), with depth = distance / depth_scale.
+  // CONTRACT: every shape's extent <= depth_scale.
+  absl::Status Draw(const Grid& grid, double eps, RenderMode mode, double depth_scale,
+                    PixelRect scissor, bool clear, const std::vector<ConeDraw>& cones,
+                    RenderTarget& target);
 
   // Reads `rect` of the target: ids, and distances (depth * depth_scale), row-major.
   absl::Status ReadBack(RenderTarget& target, PixelRect rect, double depth_scale,
@@ -84,15 +94,22 @@ class Rasterizer {
   // render (SceneRaster).
   absl::StatusOr<std::shared_ptr<const Frame>> Render(const Grid& grid, double eps,
                                                       uint64_t version, const SiteTable& sites,
-                                                      RenderStats* stats = nullptr);
+                                                      RenderStats* stats = nullptr,
+                                                      RenderMode mode = RenderMode::kMesh);
 
  private:
   Rasterizer() = default;
   // The vertex buffer of the unit cone with `segments` triangles, made on first use.
   unsigned ConeBuffer(uint32_t segments);
 
-  unsigned program_ = 0, vao_ = 0, instances_ = 0;
-  int u_scale_ = -1, u_inv_depth_ = -1;
+  struct Program {
+    unsigned id = 0;
+    int u_scale = -1, u_inv_depth = -1, u_pixel = -1, u_inv_pixel = -1;
+  };
+  static absl::StatusOr<Program> Link(const char* vertex, const char* fragment);
+
+  Program mesh_, exact_;
+  unsigned vao_ = 0, instances_ = 0, quad_ = 0;
   std::map<uint32_t, unsigned> cones_;  // segments -> vertex buffer
 };
 

@@ -30,10 +30,11 @@ double NearestDistance(const Window& box, const Geometry& g) {
 
 }  // namespace
 
-absl::StatusOr<std::unique_ptr<SceneRaster>> SceneRaster::Create(const Grid& grid, double eps) {
+absl::StatusOr<std::unique_ptr<SceneRaster>> SceneRaster::Create(const Grid& grid, double eps,
+                                                                  RenderMode mode) {
   auto target = RenderTarget::Create(grid.width, grid.height);
   if (!target.ok()) return target.status();
-  return std::unique_ptr<SceneRaster>(new SceneRaster(grid, eps, std::move(*target)));
+  return std::unique_ptr<SceneRaster>(new SceneRaster(grid, eps, mode, std::move(*target)));
 }
 
 PixelRect SceneRaster::Reach(const Geometry& g, double extent) const {
@@ -48,7 +49,7 @@ void SceneRaster::Publish(uint64_t version, PixelRect rect, const std::vector<ui
   // 1/64. Float interpolation and depth storage err by a few ulps of the depth range and of D.
   ErrorModel error;
   error.overestimate = overestimate_;
-  error.max_excess = eps_;
+  error.max_excess = mode_ == RenderMode::kExact ? 0 : eps_;
   error.absolute_slack = grid_.pixel_diagonal() / 64 + depth_scale_ * 0x1p-18;
   error.relative_slack = 0x1p-18;
   if (rect == grid_.all() || frame_ == nullptr || frame_->empty()) {  // a full render
@@ -75,7 +76,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
     if (cov.radius[s] < 0) continue;
     const auto& p = std::get<PointSite>(slots_.get(s)->geometry).p;
     cones.push_back({p, cov.radius[s], s});
-    auto shape = rasterizer.Shape(grid_, cov.radius[s], eps_);
+    auto shape = rasterizer.Shape(grid_, cov.radius[s], eps_, mode_);
     extent_[s] = shape.extent;
     max_extent = std::max(max_extent, shape.extent);
     overestimate_ = std::max(overestimate_, shape.overestimate);
@@ -87,7 +88,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
   // scale; only the absolute slack (depth_scale * 2^-18) grows, to a few thousandths of a pixel.
   depth_scale_ = std::max(2 * max_extent, 4 * grid_.window.diagonal());
   auto draw_start = std::chrono::steady_clock::now();
-  if (auto s = rasterizer.Draw(grid_, eps_, depth_scale_, grid_.all(), true, cones, *target_); !s.ok()) {
+  if (auto s = rasterizer.Draw(grid_, eps_, mode_, depth_scale_, grid_.all(), true, cones, *target_); !s.ok()) {
     return s;
   }
   std::vector<uint32_t> ids;
@@ -252,7 +253,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
   uint64_t drawn = 0;
   for (const auto& list : cones) {
     for (const ConeDraw& c : list) {
-      auto shape = rasterizer.Shape(grid_, c.radius, eps_);
+      auto shape = rasterizer.Shape(grid_, c.radius, eps_, mode_);
       max_extent = std::max(max_extent, shape.extent);
       max_segments = std::max(max_segments, shape.segments);
       fill += std::numbers::pi * c.radius * c.radius;
@@ -262,7 +263,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
   if (max_extent > depth_scale_) return RenderAll(rasterizer, version, stats);  // rescale
   for (const auto& list : cones) {
     for (const ConeDraw& c : list) {
-      auto shape = rasterizer.Shape(grid_, c.radius, eps_);
+      auto shape = rasterizer.Shape(grid_, c.radius, eps_, mode_);
       extent_[c.slot] = std::max(extent_[c.slot], shape.extent);
       overestimate_ = std::max(overestimate_, shape.overestimate);
     }
@@ -272,7 +273,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
   for (size_t w = 0; w < windows.size(); ++w) {
     const PixelRect& rect = windows[w].rect;
     auto draw_start = std::chrono::steady_clock::now();
-    if (auto s = rasterizer.Draw(grid_, eps_, depth_scale_, rect, windows[w].clear, cones[w],
+    if (auto s = rasterizer.Draw(grid_, eps_, mode_, depth_scale_, rect, windows[w].clear, cones[w],
                                  *target_);
         !s.ok()) {
       return s;

@@ -27,7 +27,8 @@ struct SiteChange {
 // Not thread-safe: the render thread owns it (it holds GL objects).
 class SceneRaster {
  public:
-  static absl::StatusOr<std::unique_ptr<SceneRaster>> Create(const Grid& grid, double eps);
+  static absl::StatusOr<std::unique_ptr<SceneRaster>> Create(const Grid& grid, double eps,
+                                                            RenderMode mode = RenderMode::kMesh);
 
   // Applies the changes in order and renders what they can touch:
   //  - the first render (or the first after Invalidate) draws everything;
@@ -47,8 +48,8 @@ class SceneRaster {
   size_t site_count() const { return slot_of_.size(); }
 
  private:
-  SceneRaster(const Grid& grid, double eps, std::unique_ptr<RenderTarget> target)
-      : grid_(grid), eps_(eps), target_(std::move(target)) {}
+  SceneRaster(const Grid& grid, double eps, RenderMode mode, std::unique_ptr<RenderTarget> target)
+      : grid_(grid), eps_(eps), mode_(mode), target_(std::move(target)) {}
 
   // The pixels whose centres lie within `extent` of the geometry's bounding box.
   PixelRect Reach(const Geometry& g, double extent) const;
@@ -59,6 +60,7 @@ class SceneRaster {
 
   const Grid grid_;
   const double eps_;
+  const RenderMode mode_;
   std::unique_ptr<RenderTarget> target_;
 
   SlotTable slots_;

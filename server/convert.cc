@@ -109,6 +109,17 @@ Status ToSceneSettings(const v1::CreateSceneRequest& r, const ServerLimits& limi
   settings->grid = grid;
   settings->eps = eps;
   settings->cone_triangles = ConeSegments(grid.window.diagonal() + eps, eps);
+  switch (r.render_mode()) {
+    case v1::RENDER_MODE_UNSPECIFIED:
+    case v1::MESH:
+      settings->mode = RenderMode::kMesh;
+      break;
+    case v1::EXACT:
+      settings->mode = RenderMode::kExact;
+      break;
+    default:
+      return Invalid(absl::StrCat("render_mode is ", r.render_mode(), "; it must be MESH or EXACT"));
+  }
   return Status::OK;
 }
 
@@ -225,6 +236,7 @@ void ToProto(const Scene& scene, v1::Scene* out) {
   out->set_site_count(scene.site_count());
   out->set_rendered_version(scene.frame()->version());
   out->set_cone_triangles(s.cone_triangles);
+  out->set_render_mode(s.mode == RenderMode::kExact ? v1::EXACT : v1::MESH);
 }
 
 grpc::Status ToGrpc(const absl::Status& status) {

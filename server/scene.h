@@ -27,6 +27,7 @@ struct SceneSettings {
   Grid grid;
   double eps = 0;        // the distance meshes' error bound, scene units (never 0)
   uint32_t cone_triangles = 0;  // for sites inside the window
+  RenderMode mode = RenderMode::kMesh;
 };
 
 // Called exactly once: with a frame of at least the awaited version, or with the reason

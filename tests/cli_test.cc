@@ -96,7 +96,9 @@ TEST_F(CliTest, TourFromTheReadme) {
 }
 
 TEST_F(CliTest, SitesFromJsonAndTextFiles) {
-  ASSERT_EQ(Gvd("scene create files --window -1,-1,1,1 --size 64x64").exit_code, 0);
+  Result created = Gvd("scene create files --window -1,-1,1,1 --size 64x64 --render-mode exact");
+  ASSERT_EQ(created.exit_code, 0) << created.out;
+  EXPECT_NE(created.out.find("exact render"), std::string::npos) << created.out;
   std::string json = WriteFile("sites.json", R"([
     {"id": "left", "point": {"x": -0.5, "y": 0}},
     {"id": "right", "point": {"x": 0.5, "y": 0}}

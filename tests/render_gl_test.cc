@@ -40,8 +40,9 @@ class RenderGLTest : public ::testing::Test {
 
   // Renders from scratch; the frame's slot i holds sites[i] (ids are distinct).
   std::shared_ptr<const Frame> Render(const Grid& grid, double eps, const std::vector<Site>& sites,
-                                      RenderStats* stats = nullptr) {
-    auto frame = rasterizer_->Render(grid, eps, 1, sites, stats);
+                                      RenderStats* stats = nullptr,
+                                      RenderMode mode = RenderMode::kMesh) {
+    auto frame = rasterizer_->Render(grid, eps, 1, sites, stats, mode);
     EXPECT_TRUE(frame.ok()) << frame.status();
     for (uint32_t i = 0; i < sites.size(); ++i) EXPECT_EQ((*frame)->sites().get(i)->id, sites[i].id);
     return *frame;
@@ -55,7 +56,7 @@ class RenderGLTest : public ::testing::Test {
   // Returns the largest |stored - exact| seen, in pixels.
   static double CheckEveryPixel(const Frame& f, const SiteTable& sites) {
     const Grid& g = f.grid();
-    const double eps = f.eps();
+    const double eps = f.error().max_excess;  // the mesh's eps; 0 in exact mode
     const ErrorModel& e = f.error();
     double worst = 0;
     int failures = 0;
@@ -111,6 +112,26 @@ TEST_F(RenderGLTest, SinglePointIsItsOwnCone) {
   Grid grid{{0, 0, 1, 1}, 64, 64};
   SiteTable sites = {{"a", PointSite{{0.3, 0.6}}}};
   CheckEveryPixel(*Render(grid, grid.pixel_size(), sites), sites);
+}
+
+// Exact mode: the same scenes, every stored distance within the arithmetic slack alone.
+TEST_F(RenderGLTest, ExactModeRandomAndAdversarialScenes) {
+  Window w{-2, 1, 3, 5};
+  for (size_t n : {1, 100, 3000}) {
+    Grid grid{w, 200, 160};
+    auto sites = RandomPoints(n, w, n + 7);
+    auto f = Render(grid, grid.pixel_size(), sites, nullptr, RenderMode::kExact);
+    EXPECT_EQ(f->error().max_excess, 0);
+    EXPECT_EQ(f->error().overestimate, 1);
+    CheckEveryPixel(*f, sites);
+  }
+  SiteTable outside = {{"left", PointSite{{-0.5, 0.5}}}, {"far", PointSite{{30, -40}}},
+                       {"same1", PointSite{{0.7, 0.2}}}, {"same2", PointSite{{0.7, 0.2}}}};
+  Grid unit{{0, 0, 1, 1}, 96, 64};
+  CheckEveryPixel(*Render(unit, unit.pixel_size(), outside, nullptr, RenderMode::kExact), outside);
+  Grid far{{1e7, -1e7, 1e7 + 2, -1e7 + 1}, 200, 100};
+  auto sites = RandomPoints(300, far.window, 5);
+  CheckEveryPixel(*Render(far, far.pixel_size(), sites, nullptr, RenderMode::kExact), sites);
 }
 
 TEST_F(RenderGLTest, RandomScenesAtSeveralResolutions) {

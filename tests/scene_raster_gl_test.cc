@@ -42,7 +42,8 @@ class SceneRasterGLTest : public ::testing::Test {
                                const std::string& when) {
     const Grid& g = inc.grid();
     SiteTable live = Live(sites);
-    auto full = rasterizer_->Render(g, inc.eps(), inc.version(), live);
+    const RenderMode mode = inc.error().max_excess == 0 ? RenderMode::kExact : RenderMode::kMesh;
+    auto full = rasterizer_->Render(g, inc.eps(), inc.version(), live, nullptr, mode);
     ASSERT_TRUE(full.ok()) << full.status();
     const Frame& ref = **full;
     ASSERT_EQ(inc.site_count(), live.size());
@@ -61,7 +62,7 @@ class SceneRasterGLTest : public ::testing::Test {
         ASSERT_TRUE(sa && sb) << when << ": pixel " << i << "," << j << " names a free slot";
         double da = ExactDistance(p, sa->geometry), db = ExactDistance(p, sb->geometry);
         double truth = NearestBruteForce(p, live).distance;
-        double eps = inc.eps(), slack = inc.error().Slack(inc.distance_at(i, j));
+        double eps = inc.error().max_excess, slack = inc.error().Slack(inc.distance_at(i, j));
         // The same site, or a tie within the meshes' error; distances within eps of each other.
         bool same = sa->id == sb->id || std::abs(da - db) <= 2 * eps + slack;
         bool close = std::abs(inc.distance_at(i, j) - ref.distance_at(i, j)) <= eps + 2 * slack;
@@ -82,9 +83,10 @@ class SceneRasterGLTest : public ::testing::Test {
 };
 
 TEST_F(SceneRasterGLTest, RandomUpdateSequencesMatchRendersFromScratch) {
-  for (uint64_t seed : {1, 2, 3}) {
+  for (uint64_t seed : {1, 2, 3, 4}) {
+    const RenderMode mode = seed % 2 ? RenderMode::kMesh : RenderMode::kExact;
     Grid grid{{0, 0, 4, 3}, 128, 96};
-    auto raster = SceneRaster::Create(grid, grid.pixel_size());
+    auto raster = SceneRaster::Create(grid, grid.pixel_size(), mode);
     ASSERT_TRUE(raster.ok());
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> ux(-0.5, 4.5), uy(-0.5, 3.5);  // some outside

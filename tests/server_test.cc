@@ -38,7 +38,7 @@ class ServerTest : public ::testing::Test {
   }
 
   static v1::Scene Create(const std::string& id, Window w, uint32_t width, uint32_t height,
-                          double max_error = 0) {
+                          double max_error = 0, v1::RenderMode mode = v1::MESH) {
     v1::CreateSceneRequest r;
     r.set_scene_id(id);
     r.mutable_window()->set_min_x(w.min_x);
@@ -48,6 +48,7 @@ class ServerTest : public ::testing::Test {
     r.set_width_px(width);
     r.set_height_px(height);
     r.set_max_error(max_error);
+    r.set_render_mode(mode);
     v1::Scene scene;
     grpc::Status s = client_->CreateScene(r, &scene);
     EXPECT_TRUE(s.ok()) << s.error_message();
@@ -138,12 +139,15 @@ TEST_F(ServerTest, SceneLifecycle) {
 }
 
 TEST_F(ServerTest, TenThousandRandomSitesAnswerWithinTheirBound) {
+  for (v1::RenderMode mode : {v1::MESH, v1::EXACT}) {
+  const std::string name = mode == v1::MESH ? "random10k" : "random10k-exact";
   Window w{-50, 20, 150, 220};
-  v1::Scene scene = Create("random10k", w, 384, 384);
+  v1::Scene scene = Create(name, w, 384, 384, 0, mode);
+  EXPECT_EQ(scene.render_mode(), mode);
   auto sites = RandomSites(10000, w, 42);
   // In two requests, so the second upsert also exercises replacement-free growth.
-  uint64_t v1 = Upsert("random10k", {sites.begin(), sites.begin() + 5000});
-  uint64_t v2 = Upsert("random10k", {sites.begin() + 5000, sites.end()});
+  uint64_t v1 = Upsert(name, {sites.begin(), sites.begin() + 5000});
+  uint64_t v2 = Upsert(name, {sites.begin() + 5000, sites.end()});
   EXPECT_EQ(v2, v1 + 1);
 
   std::mt19937_64 rng(7);
@@ -152,7 +156,7 @@ TEST_F(ServerTest, TenThousandRandomSitesAnswerWithinTheirBound) {
   for (int i = 0; i < 10000; ++i) queries.push_back({ux(rng), uy(rng)});
   queries.push_back({w.min_x, w.min_y});  // the window's corners are inside it
   queries.push_back({w.max_x, w.max_y});
-  auto response = Nearest("random10k", queries, v2);
+  auto response = Nearest(name, queries, v2);
   ASSERT_EQ(response.results_size(), int(queries.size()));
   EXPECT_GE(response.version(), v2);
   double pixel_diagonal = std::hypot(200.0 / 384, 200.0 / 384);
@@ -163,6 +167,7 @@ TEST_F(ServerTest, TenThousandRandomSitesAnswerWithinTheirBound) {
   }
   // The bound stays near the sampling resolution: a pixel diagonal plus twice the meshes' eps.
   EXPECT_LE(worst, pixel_diagonal + 2 * scene.max_error());
+  }
 }
 
 TEST_F(ServerTest, TiesAndCoincidentSites) {

@@ -60,17 +60,18 @@ struct Gl {
 const Window kUnit{0, 0, 1, 1};
 
 // 1. Full render of N random points on a size x size grid, one pixel of error, readback and
-// frame included.
+// frame included; range(2): 0 = mesh mode, 1 = exact mode.
 void BM_Render(benchmark::State& state) {
   Gl& gl = Gl::Get();
   if (!gl.context) return state.SkipWithError("no EGL context");
   const size_t n = state.range(0);
   const uint32_t size = state.range(1);
+  const RenderMode mode = state.range(2) ? RenderMode::kExact : RenderMode::kMesh;
   Grid grid{kUnit, size, size};
   auto sites = RandomSites(n, kUnit, 1);
   RenderStats stats;
   for (auto _ : state) {
-    auto frame = gl.rasterizer->Render(grid, grid.pixel_size(), 1, sites, &stats);
+    auto frame = gl.rasterizer->Render(grid, grid.pixel_size(), 1, sites, &stats, mode);
     benchmark::DoNotOptimize(frame);
   }
   state.counters["coverage_ms"] = stats.coverage_seconds * 1e3;
@@ -78,7 +79,7 @@ void BM_Render(benchmark::State& state) {
   state.SetLabel(gl.context->info().gl_renderer);
 }
 BENCHMARK(BM_Render)
-    ->ArgsProduct({{1000, 10000, 100000, 1000000}, {1024, 2048}})
+    ->ArgsProduct({{1000, 10000, 100000, 1000000}, {1024, 2048}, {0, 1}})
     ->Unit(benchmark::kMillisecond)
     ->MinTime(1)
     ->UseRealTime();

@@ -24,15 +24,16 @@ def main(paths):
 
     for n in (1000, 10000, 100000, 1000000):
         for size in (1024, 2048):
-            g = rows.get(f"BM_Render/{n}/{size}")
-            o = rows.get(f"BM_OpenCVDistanceTransform/{n}/{size}")
-            if not g:
-                continue
-            ref = f"{ms(o):.1f} ms (OpenCV distanceTransform, labels)" if o else "n/a"
-            ratio = f"{ms(o) / ms(g):.2f}x" if o else ""
-            print(f"| full render, {n:,} points, {size}x{size} | {ms(g):.1f} ms "
-                  f"(fill {g['fill']:.0f}x grid) | {ref} | {ratio} |")
-    full = rows.get("BM_Render/100000/1024")
+            for mode, label in ((0, "mesh"), (1, "exact")):
+                g = rows.get(f"BM_Render/{n}/{size}/{mode}")
+                o = rows.get(f"BM_OpenCVDistanceTransform/{n}/{size}")
+                if not g:
+                    continue
+                ref = f"{ms(o):.1f} ms (OpenCV distanceTransform, labels)" if o else "n/a"
+                ratio = f"{ms(o) / ms(g):.2f}x" if o else ""
+                print(f"| full render, {n:,} points, {size}x{size}, {label} mode | {ms(g):.1f} ms "
+                      f"(fill {g['fill']:.0f}x grid) | {ref} | {ratio} |")
+    full = rows.get("BM_Render/100000/1024/0")
     ocv = rows.get("BM_OpenCVDistanceTransform/100000/1024")
     for kind, name in ((0, "add"), (1, "move"), (2, "delete")):
         u = rows.get(f"BM_UpdateOneSite/{kind}")
