@@ -145,6 +145,48 @@ TEST_F(SceneRasterGLTest, RandomUpdateSequencesMatchRendersFromScratch) {
   }
 }
 
+// A long sequence of single and burst updates, compared every 50 steps and at the end.
+TEST_F(SceneRasterGLTest, LongUpdateSequencesStayEquivalent) {
+  for (RenderMode mode : {RenderMode::kMesh, RenderMode::kExact}) {
+    Grid grid{{-1, -1, 1, 1}, 96, 96};
+    auto raster = SceneRaster::Create(grid, grid.pixel_size(), mode);
+    ASSERT_TRUE(raster.ok());
+    std::mt19937_64 rng(mode == RenderMode::kMesh ? 11 : 12);
+    std::uniform_real_distribution<double> u(-1.2, 1.2);
+    std::map<std::string, Vec2> sites;
+    uint64_t version = 1;
+    int next = 0;
+    std::shared_ptr<const Frame> frame;
+    for (int step = 0; step < 400 && !HasFailure(); ++step) {
+      std::vector<SiteChange> changes;
+      int count = step % 10 == 0 ? 20 : 1;
+      for (int c = 0; c < count; ++c) {
+        uint64_t what = rng() % 3;
+        if (what == 0 || sites.size() < 20) {
+          std::string id = "s" + std::to_string(next++);
+          sites[id] = {u(rng), u(rng)};
+          changes.push_back({id, PointSite{sites[id]}});
+        } else {
+          auto it = sites.begin();
+          std::advance(it, rng() % sites.size());
+          std::string id = it->first;
+          if (what == 1) {
+            sites[id] = {u(rng), u(rng)};
+            changes.push_back({id, PointSite{sites[id]}});
+          } else {
+            sites.erase(id);
+            changes.push_back({id, std::nullopt});
+          }
+        }
+      }
+      auto f = (*raster)->Apply(*rasterizer_, ++version, std::move(changes));
+      ASSERT_TRUE(f.ok()) << f.status();
+      frame = *f;
+      if (step % 50 == 49) ExpectEquivalent(*frame, sites, "step " + std::to_string(step));
+    }
+  }
+}
+
 TEST_F(SceneRasterGLTest, DeletingEverySiteAndStartingAgain) {
   Grid grid{{0, 0, 1, 1}, 64, 64};
   auto raster = SceneRaster::Create(grid, grid.pixel_size());
