@@ -179,6 +179,10 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
     return RenderAll(rasterizer, version, stats);
   }
 
+  // Past a few dozen windows, finding and merging them costs more than drawing everything.
+  constexpr size_t kMaxWindows = 64;
+  if (placed.size() + dirty.size() > kMaxWindows) return RenderAll(rasterizer, version, stats);
+
   auto start = std::chrono::steady_clock::now();
   // 2. Where can each placed site be nearest now? Outside the old cones' windows no pixel got
   //    farther from its nearest site, so a pixel p the site wins has d(p, site) <= D(p) +

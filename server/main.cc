@@ -3,6 +3,8 @@
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
 
+#include <sys/stat.h>
+
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -15,6 +17,7 @@
 #include "server/log.h"
 #include "server/render_loop.h"
 #include "server/service.h"
+#include "server/store.h"
 
 namespace {
 
@@ -22,6 +25,9 @@ constexpr const char* kUsage = R"(usage: gvd-server [flags]
 
   --listen HOST:PORT          address to serve on (default 127.0.0.1:50051; port 0 picks one)
   --port-file PATH            write the bound port to PATH once serving (for scripts and tests)
+  --data DIR                  where scenes and sites are stored (SQLite, WAL, synchronous=FULL);
+                              default $XDG_STATE_HOME/gvd or ~/.local/state/gvd; ":memory:"
+                              keeps nothing across restarts
   --egl-device auto|hardware|software
                               which EGL device renders (default auto: a GPU if there is one,
                               else Mesa's software rasterizer)
@@ -29,6 +35,8 @@ constexpr const char* kUsage = R"(usage: gvd-server [flags]
                               the render thread itself, which keeps query latency low and
                               incremental updates fast; more threads speed up full renders).
                               Ignored on a GPU, and when LP_NUM_THREADS is set.
+  --shutdown-grace-ms N       on SIGTERM, how long calls in flight may take to finish
+                              (default 5000)
   --log-level debug|info|warn|error   (default info)
   --max-scenes N              (default 1000)
   --max-sites-per-scene N     (default 1000000)
@@ -41,9 +49,11 @@ constexpr const char* kUsage = R"(usage: gvd-server [flags]
 struct Flags {
   std::string listen = "127.0.0.1:50051";
   std::string port_file;
+  std::string data;
   std::string egl_device = "auto";
   std::string log_level = "info";
   uint32_t software_render_threads = 0;
+  uint32_t grace_ms = 5000;
   gvd::ServerLimits limits;
 };
 
@@ -80,6 +90,8 @@ Flags ParseFlags(int argc, char** argv) {
     }
     if (arg == "--listen") f.listen = value;
     else if (arg == "--port-file") f.port_file = value;
+    else if (arg == "--data") f.data = value;
+    else if (arg == "--shutdown-grace-ms") ParseCount(arg, value, &f.grace_ms);
     else if (arg == "--egl-device") f.egl_device = value;
     else if (arg == "--log-level") f.log_level = value;
     else if (arg == "--software-render-threads") {
@@ -95,7 +107,25 @@ Flags ParseFlags(int argc, char** argv) {
     else Die(absl::StrCat("unknown flag ", arg));
   }
   f.limits.max_scene_pixels = uint64_t{f.limits.max_side_px} * f.limits.max_side_px;
+  if (f.data.empty()) {
+    const char* state = std::getenv("XDG_STATE_HOME");
+    const char* home = std::getenv("HOME");
+    if (state && *state) {
+      f.data = std::string(state) + "/gvd";
+    } else if (home && *home) {
+      f.data = std::string(home) + "/.local/state/gvd";
+    } else {
+      Die("--data is needed: neither XDG_STATE_HOME nor HOME is set");
+    }
+  }
   return f;
+}
+
+// mkdir -p for the parents of `dir`.
+void MakeParents(const std::string& dir) {
+  for (size_t i = 1; i < dir.size(); ++i) {
+    if (dir[i] == '/') mkdir(dir.substr(0, i).c_str(), 0700);
+  }
 }
 
 }  // namespace
@@ -134,7 +164,13 @@ int main(int argc, char** argv) {
             {"gl_renderer", renderer.device().gl_renderer},
             {"gl_version", renderer.device().gl_version}});
 
-  gvd::VoronoiService service(&renderer, flags.limits);
+  if (flags.data != ":memory:") MakeParents(flags.data);
+  auto store = gvd::Store::Open(flags.data);
+  if (!store.ok()) {
+    gvd::Log(gvd::LogLevel::kError, "store_failed", {{"error", store.status().ToString()}});
+    return 1;
+  }
+  gvd::VoronoiService service(&renderer, store->get(), flags.limits);
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
@@ -148,9 +184,16 @@ int main(int argc, char** argv) {
     gvd::Log(gvd::LogLevel::kError, "listen_failed", {{"address", flags.listen}});
     return 1;
   }
-  server->GetHealthCheckService()->SetServingStatus(true);
+  // Not serving until every stored scene is rebuilt; calls meanwhile get UNAVAILABLE.
+  server->GetHealthCheckService()->SetServingStatus(false);
   gvd::Log(gvd::LogLevel::kInfo, "listening",
            {{"address", flags.listen}, {"port", absl::StrCat(port)}});
+  if (auto s = service.Load(); !s.ok()) {
+    gvd::Log(gvd::LogLevel::kError, "store_load_failed", {{"error", s.ToString()}});
+    server->Shutdown();
+    return 1;
+  }
+  server->GetHealthCheckService()->SetServingStatus(true);
   if (!flags.port_file.empty()) {
     std::string tmp = flags.port_file + ".tmp";
     std::ofstream(tmp) << port << "\n";
@@ -159,10 +202,15 @@ int main(int argc, char** argv) {
 
   int sig = 0;
   sigwait(&signals, &sig);
-  gvd::Log(gvd::LogLevel::kInfo, "shutting_down", {{"signal", strsignal(sig)}});
+  gvd::Log(gvd::LogLevel::kInfo, "shutting_down",
+           {{"signal", strsignal(sig)}, {"in_flight", absl::StrCat(service.in_flight())}});
+  // Drain: health says NOT_SERVING, new calls are refused, calls in flight get the grace
+  // period to finish; whatever is left then is cancelled.
   server->GetHealthCheckService()->SetServingStatus(false);
-  server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(5));
+  int left = service.Drain(std::chrono::milliseconds(flags.grace_ms));
+  server->Shutdown(std::chrono::system_clock::now());
   renderer.Stop();
-  gvd::Log(gvd::LogLevel::kInfo, "stopped");
+  store->reset();  // closes the database cleanly
+  gvd::Log(gvd::LogLevel::kInfo, "stopped", {{"cancelled_calls", absl::StrCat(left)}});
   return 0;
 }

@@ -11,7 +11,15 @@ Scene::Scene(SceneSettings settings) : settings_(std::move(settings)) {
   frame_.store(Frame::Empty(settings_.grid, 1, settings_.eps));
 }
 
-absl::StatusOr<uint64_t> Scene::Upsert(std::vector<Site> sites, size_t max_sites) {
+Scene::Scene(SceneSettings settings, uint64_t version, std::vector<Site> sites)
+    : Scene(std::move(settings)) {
+  (void)Upsert(std::move(sites), SIZE_MAX);
+  std::unique_lock<std::shared_mutex> lock(mu_);
+  version_ = version;
+}
+
+absl::StatusOr<uint64_t> Scene::Upsert(std::vector<Site> sites, size_t max_sites,
+                                       const Persist& persist) {
   std::unique_lock<std::shared_mutex> lock(mu_);
   size_t added = 0;
   for (const Site& s : sites) added += slot_of_.count(s.id) == 0;
@@ -19,6 +27,9 @@ absl::StatusOr<uint64_t> Scene::Upsert(std::vector<Site> sites, size_t max_sites
     return absl::ResourceExhaustedError(
         absl::StrCat("scene \"", id(), "\" would hold ", slot_of_.size() + added,
                      " sites; the limit per scene is ", max_sites));
+  }
+  if (persist) {
+    if (auto s = persist(version_ + 1); !s.ok()) return s;
   }
   for (Site& s : sites) {
     changed_.insert(s.id);
@@ -42,13 +53,17 @@ absl::StatusOr<uint64_t> Scene::Upsert(std::vector<Site> sites, size_t max_sites
   return ++version_;
 }
 
-absl::StatusOr<uint64_t> Scene::Delete(const std::vector<std::string>& ids) {
+absl::StatusOr<uint64_t> Scene::Delete(const std::vector<std::string>& ids,
+                                       const Persist& persist) {
   std::unique_lock<std::shared_mutex> lock(mu_);
   for (size_t i = 0; i < ids.size(); ++i) {
     if (slot_of_.find(ids[i]) == slot_of_.end()) {
       return absl::NotFoundError(absl::StrCat("ids[", i, "] \"", ids[i],
                                               "\" is not a site of scene \"", id(), "\""));
     }
+  }
+  if (persist) {
+    if (auto s = persist(version_ + 1); !s.ok()) return s;
   }
   for (const auto& i : ids) {
     auto it = slot_of_.find(i);

@@ -40,17 +40,25 @@ class Scene {
  public:
   // A new scene at version 1 with no sites and an empty frame.
   explicit Scene(SceneSettings settings);
+  // A scene restored from the store, at its stored version.
+  Scene(SceneSettings settings, uint64_t version, std::vector<Site> sites);
+
+  // Makes a change durable before it is applied: called with the version the change brings
+  // the scene to, under the scene's lock; an error cancels the change.
+  using Persist = std::function<absl::Status(uint64_t new_version)>;
 
   const SceneSettings& settings() const { return settings_; }
   const std::string& id() const { return settings_.id; }
 
   // Inserts or replaces sites, atomically; returns the new version. If the scene would then
-  // hold more than max_sites sites, changes nothing and returns ResourceExhausted.
+  // hold more than max_sites sites, or `persist` fails, changes nothing and says why.
   // CONTRACT: sites are valid and their ids distinct.
-  absl::StatusOr<uint64_t> Upsert(std::vector<Site> sites, size_t max_sites);
-  // Removes the sites, atomically. If ids[i] is unknown, removes nothing and returns
-  // NotFound naming ids[i]. CONTRACT: ids are distinct.
-  absl::StatusOr<uint64_t> Delete(const std::vector<std::string>& ids);
+  absl::StatusOr<uint64_t> Upsert(std::vector<Site> sites, size_t max_sites,
+                                  const Persist& persist = nullptr);
+  // Removes the sites, atomically. If ids[i] is unknown, or `persist` fails, removes nothing
+  // and says why (NotFound naming ids[i]). CONTRACT: ids are distinct.
+  absl::StatusOr<uint64_t> Delete(const std::vector<std::string>& ids,
+                                  const Persist& persist = nullptr);
 
   uint64_t version() const;
   size_t site_count() const;

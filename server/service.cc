@@ -6,12 +6,26 @@
 #include "server/log.h"
 
 #include <atomic>
+#include <thread>
 #include <unordered_map>
 
 namespace gvd {
 
+// Counts a call in flight for as long as it lives.
+class CallScope {
+ public:
+  explicit CallScope(const VoronoiService* s) : s_(s) { ++s_->in_flight_; }
+  ~CallScope() { --s_->in_flight_; }
+  CallScope(const CallScope&) = delete;
+  CallScope& operator=(const CallScope&) = delete;
+
+ private:
+  const VoronoiService* s_;
+};
+
 // A validated FindNearest request.
 struct NearestQuery {
+  std::shared_ptr<CallScope> scope;  // the call stays in flight while the query lives
   std::shared_ptr<Scene> scene;
   std::vector<Vec2> points;
   bool exact = false;
@@ -228,10 +242,62 @@ class NearestStreamReactor final : public grpc::ServerWriteReactor<v1::FindNeare
 
 }  // namespace
 
-VoronoiService::VoronoiService(RenderLoop* renderer, ServerLimits limits)
-    : renderer_(renderer), limits_(limits) {}
+VoronoiService::VoronoiService(RenderLoop* renderer, Store* store, ServerLimits limits)
+    : renderer_(renderer), store_(store), limits_(limits) {}
+
+absl::Status VoronoiService::Load() {
+  auto stored = store_->Load();
+  if (!stored.ok()) return stored.status();
+  size_t sites = 0;
+  for (Store::StoredScene& s : *stored) {
+    SceneSettings settings;
+    if (auto st = ToSceneSettings(s.request, limits_, &settings); !st.ok()) {
+      return absl::DataLossError(absl::StrCat("stored scene \"", s.request.scene_id(),
+                                              "\" is refused now: ", st.error_message()));
+    }
+    v1::UpsertSitesRequest request;
+    for (auto& site : s.sites) *request.add_sites() = std::move(site);
+    std::vector<Site> parsed;
+    if (request.sites_size() > 0) {
+      ServerLimits unlimited = limits_;
+      unlimited.max_sites_per_request = SIZE_MAX;
+      if (auto st = ToSites(request, unlimited, &parsed); !st.ok()) {
+        return absl::DataLossError(absl::StrCat("stored sites of scene \"", s.request.scene_id(),
+                                                "\" are refused now: ", st.error_message()));
+      }
+    }
+    sites += parsed.size();
+    auto scene = std::make_shared<Scene>(std::move(settings), s.version, std::move(parsed));
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      scenes_[scene->id()] = scene;
+    }
+    renderer_->MarkDirty(scene);
+  }
+  Log(LogLevel::kInfo, "store_loaded",
+      {{"path", store_->path()}, {"scenes", absl::StrCat(stored->size())},
+       {"sites", absl::StrCat(sites)}});
+  ready_ = true;
+  return absl::OkStatus();
+}
+
+Status VoronoiService::Ready() const {
+  if (draining_) return Status(StatusCode::UNAVAILABLE, "the server is shutting down");
+  if (ready_) return Status::OK;
+  return Status(StatusCode::UNAVAILABLE, "the server is loading its store; retry shortly");
+}
+
+int VoronoiService::Drain(std::chrono::milliseconds grace) {
+  draining_ = true;
+  auto deadline = std::chrono::steady_clock::now() + grace;
+  while (in_flight_ > 0 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return in_flight_;
+}
 
 Status VoronoiService::Lookup(const std::string& scene_id, std::shared_ptr<Scene>* scene) const {
+  if (auto s = Ready(); !s.ok()) return s;
   if (auto s = ValidateSceneId(scene_id, limits_); !s.ok()) return s;
   std::lock_guard<std::mutex> lock(mu_);
   auto it = scenes_.find(scene_id);
@@ -245,6 +311,8 @@ Status VoronoiService::Lookup(const std::string& scene_id, std::shared_ptr<Scene
 grpc::ServerUnaryReactor* VoronoiService::CreateScene(grpc::CallbackServerContext* ctx,
                                                       const v1::CreateSceneRequest* request,
                                                       v1::Scene* response) {
+  CallScope scope(this);
+  if (auto s = Ready(); !s.ok()) return Done(ctx, s);
   SceneSettings settings;
   if (auto s = ToSceneSettings(*request, limits_, &settings); !s.ok()) return Done(ctx, s);
   auto scene = std::make_shared<Scene>(std::move(settings));
@@ -257,7 +325,11 @@ grpc::ServerUnaryReactor* VoronoiService::CreateScene(grpc::CallbackServerContex
     if (scenes_.size() >= limits_.max_scenes) {
       return Done(ctx, Status(StatusCode::RESOURCE_EXHAUSTED,
                               absl::StrCat("the server holds ", scenes_.size(),
-                                           " scenes; the limit is ", limits_.max_scenes)));
+                                           " scenes; the limit (--max-scenes) is ",
+                                           limits_.max_scenes)));
+    }
+    if (auto s = store_->CreateScene(*request, scene->version()); !s.ok()) {
+      return Done(ctx, ToGrpc(s));
     }
     scenes_.emplace(scene->id(), scene);
   }
@@ -272,6 +344,7 @@ grpc::ServerUnaryReactor* VoronoiService::CreateScene(grpc::CallbackServerContex
 grpc::ServerUnaryReactor* VoronoiService::GetScene(grpc::CallbackServerContext* ctx,
                                                    const v1::GetSceneRequest* request,
                                                    v1::Scene* response) {
+  CallScope scope(this);
   std::shared_ptr<Scene> scene;
   if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return Done(ctx, s);
   ToProto(*scene, response);
@@ -281,6 +354,8 @@ grpc::ServerUnaryReactor* VoronoiService::GetScene(grpc::CallbackServerContext* 
 grpc::ServerUnaryReactor* VoronoiService::ListScenes(grpc::CallbackServerContext* ctx,
                                                      const v1::ListScenesRequest*,
                                                      v1::ListScenesResponse* response) {
+  CallScope scope(this);
+  if (auto s = Ready(); !s.ok()) return Done(ctx, s);
   std::vector<std::shared_ptr<Scene>> scenes;
   {
     std::lock_guard<std::mutex> lock(mu_);
@@ -293,6 +368,8 @@ grpc::ServerUnaryReactor* VoronoiService::ListScenes(grpc::CallbackServerContext
 grpc::ServerUnaryReactor* VoronoiService::DeleteScene(grpc::CallbackServerContext* ctx,
                                                       const v1::DeleteSceneRequest* request,
                                                       v1::DeleteSceneResponse*) {
+  CallScope scope(this);
+  if (auto s = Ready(); !s.ok()) return Done(ctx, s);
   if (auto s = ValidateSceneId(request->scene_id(), limits_); !s.ok()) return Done(ctx, s);
   std::shared_ptr<Scene> scene;
   {
@@ -302,6 +379,7 @@ grpc::ServerUnaryReactor* VoronoiService::DeleteScene(grpc::CallbackServerContex
       return Done(ctx, Status(StatusCode::NOT_FOUND, absl::StrCat("scene \"", request->scene_id(),
                                                                   "\" does not exist")));
     }
+    if (auto s = store_->DeleteScene(request->scene_id()); !s.ok()) return Done(ctx, ToGrpc(s));
     scene = std::move(it->second);
     scenes_.erase(it);
   }
@@ -315,11 +393,14 @@ grpc::ServerUnaryReactor* VoronoiService::DeleteScene(grpc::CallbackServerContex
 grpc::ServerUnaryReactor* VoronoiService::UpsertSites(grpc::CallbackServerContext* ctx,
                                                       const v1::UpsertSitesRequest* request,
                                                       v1::UpsertSitesResponse* response) {
+  CallScope scope(this);
   std::shared_ptr<Scene> scene;
   if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return Done(ctx, s);
   std::vector<Site> sites;
   if (auto s = ToSites(*request, limits_, &sites); !s.ok()) return Done(ctx, s);
-  auto version = scene->Upsert(std::move(sites), limits_.max_sites_per_scene);
+  auto version = scene->Upsert(std::move(sites), limits_.max_sites_per_scene, [&](uint64_t v) {
+    return store_->UpsertSites(scene->id(), request->sites(), v);
+  });
   if (!version.ok()) return Done(ctx, ToGrpc(version.status()));
   response->set_version(*version);
   renderer_->MarkDirty(scene);
@@ -329,11 +410,14 @@ grpc::ServerUnaryReactor* VoronoiService::UpsertSites(grpc::CallbackServerContex
 grpc::ServerUnaryReactor* VoronoiService::DeleteSites(grpc::CallbackServerContext* ctx,
                                                       const v1::DeleteSitesRequest* request,
                                                       v1::DeleteSitesResponse* response) {
+  CallScope scope(this);
   std::shared_ptr<Scene> scene;
   if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return Done(ctx, s);
   std::vector<std::string> ids;
   if (auto s = ToSiteIds(*request, limits_, &ids); !s.ok()) return Done(ctx, s);
-  auto version = scene->Delete(ids);
+  auto version = scene->Delete(ids, [&](uint64_t v) {
+    return store_->DeleteSites(scene->id(), ids, v);
+  });
   if (!version.ok()) return Done(ctx, ToGrpc(version.status()));
   response->set_version(*version);
   renderer_->MarkDirty(scene);
@@ -343,6 +427,7 @@ grpc::ServerUnaryReactor* VoronoiService::DeleteSites(grpc::CallbackServerContex
 grpc::ServerUnaryReactor* VoronoiService::ListSites(grpc::CallbackServerContext* ctx,
                                                     const v1::ListSitesRequest* request,
                                                     v1::ListSitesResponse* response) {
+  CallScope scope(this);
   std::shared_ptr<Scene> scene;
   if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return Done(ctx, s);
   uint32_t size = request->page_size() == 0 ? 1000 : request->page_size();
@@ -393,6 +478,7 @@ grpc::ServerUnaryReactor* VoronoiService::FindNearest(grpc::CallbackServerContex
                                                       const v1::FindNearestRequest* request,
                                                       v1::FindNearestResponse* response) {
   NearestQuery query;
+  query.scope = std::make_shared<CallScope>(this);
   if (auto s = ParseNearest(*request, &query); !s.ok()) return Done(ctx, s);
   auto* reactor = new NearestUnaryReactor(std::move(query), request->xy_size() > 0, response);
   reactor->Start();
@@ -402,6 +488,7 @@ grpc::ServerUnaryReactor* VoronoiService::FindNearest(grpc::CallbackServerContex
 grpc::ServerWriteReactor<v1::FindNearestResponse>* VoronoiService::FindNearestStream(
     grpc::CallbackServerContext*, const v1::FindNearestRequest* request) {
   NearestQuery query;
+  query.scope = std::make_shared<CallScope>(this);
   Status s = ParseNearest(*request, &query);
   size_t chunk = request->chunk_size() == 0 ? 65536 : request->chunk_size();
   auto* reactor = new NearestStreamReactor(std::move(query), chunk);

@@ -3,6 +3,8 @@
 // (a query that asks for a newer version parks until the render thread publishes it).
 #pragma once
 
+#include <atomic>
+#include <chrono>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -12,6 +14,7 @@
 #include "server/limits.h"
 #include "server/render_loop.h"
 #include "server/scene.h"
+#include "server/store.h"
 
 namespace gvd {
 
@@ -19,8 +22,18 @@ struct NearestQuery;
 
 class VoronoiService final : public v1::Voronoi::CallbackService {
  public:
-  // `renderer` must outlive the service.
-  VoronoiService(RenderLoop* renderer, ServerLimits limits);
+  // `renderer` and `store` must outlive the service. Until Load() has run, every call is
+  // answered UNAVAILABLE.
+  VoronoiService(RenderLoop* renderer, Store* store, ServerLimits limits);
+
+  // Rebuilds every stored scene (and queues its render); then the service answers calls.
+  absl::Status Load();
+
+  // Refuses new calls (UNAVAILABLE) from now on, and waits up to `grace` for the calls in
+  // flight to finish. Returns how many were still in flight.
+  int Drain(std::chrono::milliseconds grace);
+  // Calls in flight: handlers running, queries waiting for a render, streams writing.
+  int in_flight() const { return in_flight_; }
 
   grpc::ServerUnaryReactor* CreateScene(grpc::CallbackServerContext* ctx,
                                         const v1::CreateSceneRequest* request,
@@ -56,8 +69,16 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   // The scene, or NOT_FOUND naming it (after validating the id).
   grpc::Status Lookup(const std::string& scene_id, std::shared_ptr<Scene>* scene) const;
 
+  // UNAVAILABLE until Load() has run.
+  grpc::Status Ready() const;
+
   RenderLoop* const renderer_;
+  Store* const store_;
   const ServerLimits limits_;
+  std::atomic<bool> ready_{false};
+  std::atomic<bool> draining_{false};
+  mutable std::atomic<int> in_flight_{0};
+  friend class CallScope;
   mutable std::mutex mu_;  // guards scenes_
   std::map<std::string, std::shared_ptr<Scene>> scenes_;
 };

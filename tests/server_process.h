@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <fstream>
@@ -26,6 +27,9 @@ class ServerProcess {
     std::string port_file = dir_ + "/port";
     log_ = dir_ + "/server.log";
     std::vector<std::string> args = {binary, "--listen", "127.0.0.1:0", "--port-file", port_file};
+    if (std::find(flags.begin(), flags.end(), "--data") == flags.end()) {
+      args.insert(args.end(), {"--data", dir_ + "/data"});
+    }
     args.insert(args.end(), flags.begin(), flags.end());
     pid_ = fork();
     if (pid_ == 0) {
@@ -55,6 +59,15 @@ class ServerProcess {
   ~ServerProcess() {
     if (pid_ > 0) Stop();
     std::system(("rm -rf " + dir_).c_str());
+  }
+
+  // Kills the server with SIGKILL, as a crash would.
+  void Kill() {
+    if (pid_ <= 0) return;
+    kill(pid_, SIGKILL);
+    int status = 0;
+    waitpid(pid_, &status, 0);
+    pid_ = -1;
   }
 
   // Sends SIGTERM and waits; returns the exit status as waitpid reports it.

@@ -201,6 +201,7 @@ BENCHMARK(BM_NanoflannNearest);
 // An in-process gvd-server on a loopback port with a 100,000-site scene "bench".
 struct LoopbackServer {
   RenderLoop renderer;
+  std::unique_ptr<Store> store;
   std::unique_ptr<VoronoiService> service;
   std::unique_ptr<grpc::Server> server;
   std::string address;
@@ -210,7 +211,9 @@ struct LoopbackServer {
     static LoopbackServer* s = [] {
       auto* ls = new LoopbackServer();
       if (!ls->renderer.Start(DevicePreference::kAuto).ok()) return (LoopbackServer*)nullptr;
-      ls->service = std::make_unique<VoronoiService>(&ls->renderer, ServerLimits{});
+      ls->store = std::move(*Store::Open(":memory:"));
+      ls->service = std::make_unique<VoronoiService>(&ls->renderer, ls->store.get(), ServerLimits{});
+      (void)ls->service->Load();
       grpc::ServerBuilder builder;
       int port = 0;
       builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);

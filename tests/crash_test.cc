@@ -1,0 +1,273 @@
+// Durability: a writer streams upserts, moves and deletes; the real server is killed with
+// SIGKILL at random moments and restarted on the same store. Every acknowledged update must be
+// there after the restart, and the request in flight at the kill entirely or not at all.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <map>
+#include <optional>
+#include <random>
+#include <thread>
+
+#include "gvd/client.h"
+#include "server_process.h"
+
+namespace gvd {
+namespace {
+
+using SceneState = std::map<std::string, std::pair<double, double>>;  // site -> (x, y)
+
+struct Op {
+  std::string scene;
+  std::map<std::string, std::optional<std::pair<double, double>>> changes;  // none: delete
+};
+
+void ApplyOp(const Op& op, std::map<std::string, SceneState>* state,
+             std::map<std::string, uint64_t>* versions) {
+  SceneState& s = (*state)[op.scene];
+  for (const auto& [id, p] : op.changes) {
+    if (p) {
+      s[id] = *p;
+    } else {
+      s.erase(id);
+    }
+  }
+  ++(*versions)[op.scene];
+}
+
+// What the restarted server holds.
+void ReadBack(Client& client, const std::vector<std::string>& scenes,
+              std::map<std::string, SceneState>* state, std::map<std::string, uint64_t>* versions) {
+  for (const auto& name : scenes) {
+    v1::Scene scene;
+    grpc::Status s = client.GetScene(name, &scene);
+    ASSERT_TRUE(s.ok()) << s.error_message();
+    (*versions)[name] = scene.version();
+    std::vector<v1::Site> sites;
+    ASSERT_TRUE(client.ListAllSites(name, &sites).ok());
+    SceneState& st = (*state)[name];
+    st.clear();
+    for (const auto& site : sites) st[site.id()] = {site.point().x(), site.point().y()};
+    ASSERT_EQ(scene.site_count(), st.size());
+  }
+}
+
+TEST(CrashTest, AcknowledgedUpdatesSurviveSigkill) {
+  char dir_template[] = "/tmp/gvd-crash-XXXXXX";
+  const std::string data = std::string(mkdtemp(dir_template)) + "/store";
+  const std::vector<std::string> scenes = {"left", "right"};
+  std::map<std::string, SceneState> acked;
+  std::map<std::string, uint64_t> acked_versions;
+  std::optional<Op> in_flight;
+  std::mt19937_64 rng(2026);
+  int applied_in_flight = 0, lost_in_flight = 0, acknowledged = 0;
+
+  const int kRounds = 12;
+  for (int round = 0; round <= kRounds; ++round) {
+    testing::ServerProcess server(GVD_SERVER_PATH, {"--data", data});
+    ASSERT_TRUE(server.error().empty()) << server.error();
+    auto client = Client::Connect(server.address());
+    ASSERT_TRUE(client->WaitForConnected(std::chrono::seconds(10)));
+    if (round == 0) {
+      for (const auto& name : scenes) {
+        v1::CreateSceneRequest c;
+        c.set_scene_id(name);
+        c.mutable_window()->set_max_x(1);
+        c.mutable_window()->set_max_y(1);
+        c.set_width_px(64);
+        c.set_height_px(64);
+        v1::Scene scene;
+        ASSERT_TRUE(client->CreateScene(c, &scene).ok());
+        acked[name] = {};
+        acked_versions[name] = scene.version();
+      }
+    } else {
+      // The restarted store: the acknowledged state, plus at most the whole request that was
+      // in flight at the kill.
+      std::map<std::string, SceneState> got;
+      std::map<std::string, uint64_t> got_versions;
+      ReadBack(*client, scenes, &got, &got_versions);
+      if (got == acked && got_versions == acked_versions) {
+        lost_in_flight += in_flight.has_value();
+      } else {
+        ASSERT_TRUE(in_flight.has_value()) << "round " << round << ": the store differs from "
+                                           << "what was acknowledged, with nothing in flight";
+        auto with = acked;
+        auto with_versions = acked_versions;
+        ApplyOp(*in_flight, &with, &with_versions);
+        ASSERT_EQ(got, with) << "round " << round << ": neither the acknowledged state nor it "
+                             << "plus the whole request in flight";
+        ASSERT_EQ(got_versions, with_versions) << "round " << round;
+        acked = with;
+        acked_versions = with_versions;
+        ++applied_in_flight;
+      }
+      in_flight.reset();
+    }
+    if (round == kRounds) break;
+
+    // The writer: one request at a time, each recorded as in flight until acknowledged.
+    std::atomic<bool> dead{false};
+    std::mutex mu;
+    uint64_t seed = rng();
+    std::thread writer([&] {
+      std::mt19937_64 r(seed);
+      std::uniform_real_distribution<double> u(0, 1);
+      int next = 0;
+      while (!dead) {
+        Op op;
+        op.scene = scenes[r() % scenes.size()];
+        const SceneState& current = acked[op.scene];
+        bool remove = !current.empty() && r() % 4 == 0;
+        if (remove) {
+          auto it = current.begin();
+          std::advance(it, r() % current.size());
+          for (int k = 0; k < 3 && it != current.end(); ++k, ++it) op.changes[it->first] = std::nullopt;
+        } else {
+          int n = 1 + static_cast<int>(r() % 40);
+          for (int k = 0; k < n; ++k) {
+            std::string id;
+            if (!current.empty() && r() % 2) {  // a move
+              auto it = current.begin();
+              std::advance(it, r() % current.size());
+              id = it->first;
+            } else {
+              id = "r" + std::to_string(round) + "-" + std::to_string(next++);
+            }
+            op.changes[id] = std::make_pair(u(r), u(r));
+          }
+        }
+        {
+          std::lock_guard<std::mutex> lock(mu);
+          in_flight = op;
+        }
+        grpc::Status s;
+        uint64_t version = 0;
+        if (remove) {
+          std::vector<std::string> ids;
+          for (const auto& [id, p] : op.changes) ids.push_back(id);
+          s = client->DeleteSites(op.scene, ids, &version);
+        } else {
+          v1::UpsertSitesRequest req;
+          req.set_scene_id(op.scene);
+          for (const auto& [id, p] : op.changes) {
+            auto* site = req.add_sites();
+            site->set_id(id);
+            site->mutable_point()->set_x(p->first);
+            site->mutable_point()->set_y(p->second);
+          }
+          s = client->UpsertSites(req, &version);
+        }
+        if (!s.ok()) return;  // the server is gone: the request stays in flight
+        std::lock_guard<std::mutex> lock(mu);
+        ApplyOp(op, &acked, &acked_versions);
+        EXPECT_EQ(version, acked_versions[op.scene]);
+        in_flight.reset();
+        ++acknowledged;
+      }
+    });
+    std::this_thread::sleep_for(std::chrono::milliseconds(30 + rng() % 300));
+    server.Kill();
+    dead = true;
+    writer.join();
+  }
+  std::printf("acknowledged %d requests over %d kills; in flight at the kill: %d applied, "
+              "%d not\n", acknowledged, kRounds, applied_in_flight, lost_in_flight);
+  EXPECT_GT(acknowledged, kRounds * 5);
+  std::system(("rm -rf " + data.substr(0, data.rfind('/'))).c_str());
+}
+
+// SIGTERM drains: a query waiting for a render when the signal comes still gets its answer,
+// and the server exits 0.
+TEST(CrashTest, SigtermDrainsCallsInFlight) {
+  testing::ServerProcess server(GVD_SERVER_PATH);
+  ASSERT_TRUE(server.error().empty()) << server.error();
+  auto client = Client::Connect(server.address());
+  v1::CreateSceneRequest c;
+  c.set_scene_id("slow");
+  c.mutable_window()->set_max_x(1);
+  c.mutable_window()->set_max_y(1);
+  c.set_width_px(1024);
+  c.set_height_px(1024);
+  v1::Scene scene;
+  ASSERT_TRUE(client->CreateScene(c, &scene).ok());
+  std::mt19937_64 rng(1);
+  std::uniform_real_distribution<double> unit(0, 1);
+  uint64_t v;
+  for (int batch = 0; batch < 2; ++batch) {  // 200,000 points: a render of a second or so
+    v1::UpsertSitesRequest u;
+    u.set_scene_id("slow");
+    for (int i = 0; i < 100000; ++i) {
+      auto* s = u.add_sites();
+      s->set_id(std::to_string(batch) + "-" + std::to_string(i));
+      s->mutable_point()->set_x(unit(rng));
+      s->mutable_point()->set_y(unit(rng));
+    }
+    ASSERT_TRUE(client->UpsertSites(u, &v).ok());
+  }
+  grpc::Status answered;
+  std::thread waiting([&] {
+    v1::FindNearestRequest q;
+    q.set_scene_id("slow");
+    q.set_min_version(v);
+    q.add_points()->set_x(0.5);
+    v1::FindNearestResponse r;
+    answered = client->FindNearest(q, &r);
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  int status = server.Stop();  // SIGTERM while the query waits for the render
+  waiting.join();
+  EXPECT_TRUE(answered.ok()) << answered.error_message();
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << server.log();
+  EXPECT_NE(server.log().find("event=stopped cancelled_calls=0"), std::string::npos) << server.log();
+}
+
+// A clean restart keeps every scene, site and version.
+TEST(CrashTest, CleanRestartKeepsEverything) {
+  char dir_template[] = "/tmp/gvd-restart-XXXXXX";
+  const std::string data = std::string(mkdtemp(dir_template)) + "/store";
+  {
+    testing::ServerProcess server(GVD_SERVER_PATH, {"--data", data});
+    ASSERT_TRUE(server.error().empty()) << server.error();
+    auto client = Client::Connect(server.address());
+    v1::CreateSceneRequest c;
+    c.set_scene_id("kept");
+    c.mutable_window()->set_max_x(10);
+    c.mutable_window()->set_max_y(10);
+    c.set_width_px(32);
+    c.set_height_px(32);
+    c.set_render_mode(v1::EXACT);
+    v1::Scene scene;
+    ASSERT_TRUE(client->CreateScene(c, &scene).ok());
+    v1::UpsertSitesRequest u;
+    u.set_scene_id("kept");
+    auto* s = u.add_sites();
+    s->set_id("a");
+    s->mutable_point()->set_x(3);
+    s->mutable_point()->set_y(4);
+    uint64_t v;
+    ASSERT_TRUE(client->UpsertSites(u, &v).ok());
+    int status = server.Stop();
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  }
+  testing::ServerProcess server(GVD_SERVER_PATH, {"--data", data});
+  ASSERT_TRUE(server.error().empty()) << server.error();
+  auto client = Client::Connect(server.address());
+  v1::Scene scene;
+  ASSERT_TRUE(client->GetScene("kept", &scene).ok());
+  EXPECT_EQ(scene.version(), 2u);
+  EXPECT_EQ(scene.site_count(), 1u);
+  EXPECT_EQ(scene.render_mode(), v1::EXACT);
+  v1::FindNearestRequest q;
+  q.set_scene_id("kept");
+  q.add_points();
+  q.set_min_version(2);
+  v1::FindNearestResponse r;
+  ASSERT_TRUE(client->FindNearest(q, &r).ok());
+  EXPECT_EQ(r.results(0).site_id(), "a");
+  EXPECT_EQ(r.results(0).distance(), 5);
+  std::system(("rm -rf " + data.substr(0, data.rfind('/'))).c_str());
+}
+
+}  // namespace
+}  // namespace gvd
