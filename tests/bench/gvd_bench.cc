@@ -15,6 +15,7 @@
 #include "render/scene_raster.h"
 #include "server/render_loop.h"
 #include "server/service.h"
+#include "server/store.h"
 
 #ifdef GVD_BENCH_OPENCV
 #include <opencv2/imgproc.hpp>
@@ -277,6 +278,55 @@ BENCHMARK(BM_GrpcFindNearest)
     ->ArgsProduct({{1, 1000, 1000000}, {0, 1}})
     ->Unit(benchmark::kMicrosecond)
     ->UseRealTime();
+
+// Durability's cost: one-site upserts over loopback, one at a time, each acknowledged only
+// once committed, to a store in memory (range 0) or on disk (range 1: WAL, synchronous=FULL).
+void BM_GrpcUpsert(benchmark::State& state) {
+  const bool disk = state.range(0) != 0;
+  char dir_template[] = "/tmp/gvd-bench-XXXXXX";
+  std::string dir = disk ? std::string(mkdtemp(dir_template)) + "/store" : ":memory:";
+  RenderLoop renderer;
+  if (!renderer.Start(DevicePreference::kAuto).ok()) return state.SkipWithError("no EGL context");
+  auto store = Store::Open(dir);
+  if (!store.ok()) return state.SkipWithError("no store");
+  VoronoiService service(&renderer, store->get(), ServerLimits{});
+  (void)service.Load();
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+  builder.RegisterService(&service);
+  auto server = builder.BuildAndStart();
+  auto client = Client::Connect("127.0.0.1:" + std::to_string(port));
+  v1::CreateSceneRequest c;
+  c.set_scene_id("durable");
+  c.mutable_window()->set_max_x(1);
+  c.mutable_window()->set_max_y(1);
+  c.set_width_px(256);
+  c.set_height_px(256);
+  v1::Scene scene;
+  (void)client->CreateScene(c, &scene);
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(0, 1);
+  v1::UpsertSitesRequest r;
+  r.set_scene_id("durable");
+  auto* site = r.add_sites();
+  double commit = 0;
+  for (auto _ : state) {
+    site->set_id(std::to_string(rng() % 1000));
+    site->mutable_point()->set_x(u(rng));
+    site->mutable_point()->set_y(u(rng));
+    uint64_t v;
+    if (!client->UpsertSites(r, &v).ok()) return state.SkipWithError("upsert failed");
+    commit += (*store)->last_commit_seconds();
+  }
+  state.counters["commit_us"] = commit / state.iterations() * 1e6;
+  state.SetItemsProcessed(state.iterations());
+  state.SetLabel(disk ? "disk" : "memory");
+  server->Shutdown(std::chrono::system_clock::now());
+  renderer.Stop();
+  if (disk) std::system(("rm -rf " + dir.substr(0, dir.rfind('/'))).c_str());
+}
+BENCHMARK(BM_GrpcUpsert)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond)->UseRealTime();
 
 // 4. Single-point FindNearest latency over loopback while another client moves one site
 // after another as fast as the server takes them.

@@ -67,6 +67,13 @@ def main(paths):
             print(f"| FindNearest over loopback, batch {batch:,}, {label} | "
                   f"{g['items_per_second'] / 1e6:.2f} M points/s | {ref} (nanoflann, 1 thread) "
                   f"| {ratio} |")
+    mem = rows.get("BM_GrpcUpsert/0")
+    disk = rows.get("BM_GrpcUpsert/1")
+    if mem and disk:
+        print(f"| one-site upserts over loopback, store on disk (WAL, synchronous=FULL) | "
+              f"{disk['items_per_second']:.0f}/s, commit {disk['commit_us']:.0f} us | "
+              f"store in memory: {mem['items_per_second']:.0f}/s, commit {mem['commit_us']:.0f} us "
+              f"| {disk['items_per_second'] / mem['items_per_second']:.2f}x |")
     lat = rows.get("BM_LatencyUnderWriter/iterations:20000")
     if lat:
         print(f"| single-point FindNearest latency under a writer | p50 {lat['p50_us']:.0f} us, "
