@@ -9,8 +9,15 @@ std::unique_ptr<Client> Client::Connect(const std::string& target, ClientOptions
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(options.max_message_bytes);
   args.SetMaxSendMessageSize(options.max_message_bytes);
-  auto channel =
-      grpc::CreateCustomChannel(target, grpc::InsecureChannelCredentials(), args);
+  std::shared_ptr<grpc::ChannelCredentials> credentials = grpc::InsecureChannelCredentials();
+  if (!options.tls_ca.empty()) {
+    grpc::SslCredentialsOptions tls;
+    tls.pem_root_certs = options.tls_ca;
+    tls.pem_private_key = options.tls_key;
+    tls.pem_cert_chain = options.tls_cert;
+    credentials = grpc::SslCredentials(tls);
+  }
+  auto channel = grpc::CreateCustomChannel(target, credentials, args);
   return std::make_unique<Client>(std::move(channel), options);
 }
 
@@ -20,6 +27,7 @@ Client::Client(std::shared_ptr<grpc::Channel> channel, ClientOptions options)
 std::unique_ptr<grpc::ClientContext> Client::Context() const {
   auto ctx = std::make_unique<grpc::ClientContext>();
   ctx->set_deadline(std::chrono::system_clock::now() + options_.timeout);
+  if (!options_.token.empty()) ctx->AddMetadata("authorization", "Bearer " + options_.token);
   return ctx;
 }
 

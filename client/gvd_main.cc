@@ -42,6 +42,9 @@ Flags:
   --scene ID           default "default", or $GVD_SCENE
   --json               print responses as JSON
   --timeout SECONDS    per call (default 30)
+  --token TOKEN        bearer token, or $GVD_TOKEN
+  --tls-ca FILE        use TLS, trusting this CA (PEM); --tls-cert FILE --tls-key FILE add a
+                       client certificate
 )";
 
 struct Args {
@@ -50,6 +53,7 @@ struct Args {
   bool json = false;
   bool exact = false;
   double timeout = 30;
+  std::string token, tls_ca, tls_cert, tls_key;
   std::map<std::string, std::string> options;  // command flags such as --window
   std::vector<std::string> words;
 };
@@ -63,6 +67,7 @@ Args ParseArgs(int argc, char** argv) {
   Args a;
   if (const char* s = std::getenv("GVD_SERVER")) a.server = s;
   if (const char* s = std::getenv("GVD_SCENE")) a.scene = s;
+  if (const char* s = std::getenv("GVD_TOKEN")) a.token = s;
   for (int i = 1; i < argc; ++i) {
     std::string arg = argv[i];
     if (arg == "--help" || arg == "-h") {
@@ -87,6 +92,10 @@ Args ParseArgs(int argc, char** argv) {
       Usage(absl::StrCat(arg, " needs a value"));
     }
     if (arg == "--server") a.server = value;
+    else if (arg == "--token") a.token = value;
+    else if (arg == "--tls-ca") a.tls_ca = value;
+    else if (arg == "--tls-cert") a.tls_cert = value;
+    else if (arg == "--tls-key") a.tls_key = value;
     else if (arg == "--scene") a.scene = value;
     else if (arg == "--timeout") {
       if (!absl::SimpleAtod(value, &a.timeout) || !(a.timeout > 0)) {
@@ -193,6 +202,17 @@ int Run(const Args& a) {
   if (w.empty()) Usage("no command");
   gvd::ClientOptions options;
   options.timeout = std::chrono::milliseconds(static_cast<int64_t>(a.timeout * 1000));
+  options.token = a.token;
+  auto read = [](const std::string& flag, const std::string& path) {
+    std::ifstream in(path);
+    if (!in) Usage(absl::StrCat(flag, ": cannot read ", path));
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+  };
+  if (!a.tls_ca.empty()) options.tls_ca = read("--tls-ca", a.tls_ca);
+  if (!a.tls_cert.empty()) options.tls_cert = read("--tls-cert", a.tls_cert);
+  if (!a.tls_key.empty()) options.tls_key = read("--tls-key", a.tls_key);
   auto client = gvd::Client::Connect(a.server, options);
   auto need = [&](size_t n, const char* form) {
     if (w.size() != n) Usage(absl::StrCat("usage: gvd ", form));

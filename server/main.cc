@@ -9,11 +9,15 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <optional>
+#include <sstream>
+#include <vector>
 #include <string>
 #include <string_view>
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "server/auth.h"
 #include "server/log.h"
 #include "server/render_loop.h"
 #include "server/service.h"
@@ -43,7 +47,15 @@ constexpr const char* kUsage = R"(usage: gvd-server [flags]
   --max-side-px N             largest width_px or height_px (default 8192)
   --max-points-per-query N    (default 1000000)
   --max-message-bytes N       gRPC message size limit (default 268435456)
+  --tokens FILE               require bearer tokens: one "TOKEN read" or "TOKEN write" per line
+  --tls-cert FILE, --tls-key FILE
+                              serve TLS with this certificate chain and private key (PEM)
+  --tls-client-ca FILE        also require client certificates signed by this CA (PEM)
+  --config FILE               read flags from FILE, one "--flag value" per line (# comments);
+                              flags on the command line after --config override it
   --help
+
+By default the server listens on loopback only, without TLS and without authentication.
 )";
 
 struct Flags {
@@ -54,6 +66,7 @@ struct Flags {
   std::string log_level = "info";
   uint32_t software_render_threads = 0;
   uint32_t grace_ms = 5000;
+  std::string tokens, tls_cert, tls_key, tls_client_ca;
   gvd::ServerLimits limits;
 };
 
@@ -71,10 +84,48 @@ void ParseCount(const std::string& flag, const std::string& value, T* out) {
   *out = static_cast<T>(v);
 }
 
-Flags ParseFlags(int argc, char** argv) {
-  Flags f;
+// The arguments with each --config FILE replaced by the flags it holds.
+std::vector<std::string> ExpandConfig(int argc, char** argv) {
+  std::vector<std::string> out;
   for (int i = 1; i < argc; ++i) {
     std::string arg = argv[i];
+    std::string file;
+    if (arg == "--config" && i + 1 < argc) {
+      file = argv[++i];
+    } else if (arg.rfind("--config=", 0) == 0) {
+      file = arg.substr(9);
+    } else {
+      out.push_back(arg);
+      continue;
+    }
+    std::ifstream in(file);
+    if (!in) Die(absl::StrCat("cannot read --config file ", file));
+    std::string line;
+    for (int n = 1; std::getline(in, line); ++n) {
+      std::istringstream words(line);
+      std::string flag, value;
+      if (!(words >> flag) || flag[0] == '#') continue;
+      if (flag.rfind("--", 0) != 0) Die(absl::StrCat(file, ":", n, ": expected --flag value"));
+      out.push_back(flag);
+      if (flag.find('=') == std::string::npos && (words >> value)) out.push_back(value);
+    }
+  }
+  return out;
+}
+
+std::string ReadFile(const std::string& flag, const std::string& path) {
+  std::ifstream in(path);
+  if (!in) Die(absl::StrCat(flag, ": cannot read ", path));
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+Flags ParseFlags(int argc, char** argv) {
+  Flags f;
+  std::vector<std::string> args = ExpandConfig(argc, argv);
+  for (size_t i = 0; i < args.size(); ++i) {
+    std::string arg = args[i];
     if (arg == "--help" || arg == "-h") {
       std::fputs(kUsage, stdout);
       std::exit(0);
@@ -83,12 +134,16 @@ Flags ParseFlags(int argc, char** argv) {
     if (auto eq = arg.find('='); eq != std::string::npos) {
       value = arg.substr(eq + 1);
       arg = arg.substr(0, eq);
-    } else if (i + 1 < argc) {
-      value = argv[++i];
+    } else if (i + 1 < args.size()) {
+      value = args[++i];
     } else {
       Die(absl::StrCat(arg, " needs a value"));
     }
     if (arg == "--listen") f.listen = value;
+    else if (arg == "--tokens") f.tokens = value;
+    else if (arg == "--tls-cert") f.tls_cert = value;
+    else if (arg == "--tls-key") f.tls_key = value;
+    else if (arg == "--tls-client-ca") f.tls_client_ca = value;
     else if (arg == "--port-file") f.port_file = value;
     else if (arg == "--data") f.data = value;
     else if (arg == "--shutdown-grace-ms") ParseCount(arg, value, &f.grace_ms);
@@ -170,12 +225,35 @@ int main(int argc, char** argv) {
     gvd::Log(gvd::LogLevel::kError, "store_failed", {{"error", store.status().ToString()}});
     return 1;
   }
-  gvd::VoronoiService service(&renderer, store->get(), flags.limits);
+  std::optional<gvd::TokenAuth> auth;
+  if (!flags.tokens.empty()) {
+    auto loaded = gvd::TokenAuth::Load(flags.tokens);
+    if (!loaded.ok()) Die(std::string(loaded.status().message()));
+    auth = std::move(*loaded);
+  }
+  std::shared_ptr<grpc::ServerCredentials> credentials = grpc::InsecureServerCredentials();
+  if (!flags.tls_cert.empty() || !flags.tls_key.empty()) {
+    if (flags.tls_cert.empty() || flags.tls_key.empty()) Die("--tls-cert and --tls-key go together");
+    grpc::SslServerCredentialsOptions tls(
+        flags.tls_client_ca.empty() ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE
+                                    : GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY);
+    tls.pem_key_cert_pairs.push_back(
+        {ReadFile("--tls-key", flags.tls_key), ReadFile("--tls-cert", flags.tls_cert)});
+    if (!flags.tls_client_ca.empty()) tls.pem_root_certs = ReadFile("--tls-client-ca", flags.tls_client_ca);
+    credentials = grpc::SslServerCredentials(tls);
+  } else if (!flags.tls_client_ca.empty()) {
+    Die("--tls-client-ca needs --tls-cert and --tls-key");
+  }
+  gvd::Log(gvd::LogLevel::kInfo, "security",
+           {{"tls", flags.tls_cert.empty() ? "off" : "on"},
+            {"client_certificates", flags.tls_client_ca.empty() ? "not required" : "required"},
+            {"tokens", auth ? absl::StrCat(auth->size()) : "off"}});
+  gvd::VoronoiService service(&renderer, store->get(), flags.limits, auth ? &*auth : nullptr);
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
   int port = 0;
-  builder.AddListeningPort(flags.listen, grpc::InsecureServerCredentials(), &port);
+  builder.AddListeningPort(flags.listen, credentials, &port);
   builder.SetMaxReceiveMessageSize(flags.limits.max_message_bytes);
   builder.SetMaxSendMessageSize(flags.limits.max_message_bytes);
   builder.RegisterService(&service);

@@ -242,8 +242,15 @@ class NearestStreamReactor final : public grpc::ServerWriteReactor<v1::FindNeare
 
 }  // namespace
 
-VoronoiService::VoronoiService(RenderLoop* renderer, Store* store, ServerLimits limits)
-    : renderer_(renderer), store_(store), limits_(limits) {}
+VoronoiService::VoronoiService(RenderLoop* renderer, Store* store, ServerLimits limits,
+                               const TokenAuth* auth)
+    : renderer_(renderer), store_(store), limits_(limits), auth_(auth) {}
+
+Status VoronoiService::Admit(grpc::CallbackServerContext* ctx, bool write) const {
+  if (auto s = Ready(); !s.ok()) return s;
+  if (auth_ != nullptr) return auth_->Check(*ctx, write);
+  return Status::OK;
+}
 
 absl::Status VoronoiService::Load() {
   auto stored = store_->Load();
@@ -312,6 +319,7 @@ grpc::ServerUnaryReactor* VoronoiService::CreateScene(grpc::CallbackServerContex
                                                       const v1::CreateSceneRequest* request,
                                                       v1::Scene* response) {
   CallScope scope(this);
+  if (auto s = Admit(ctx, true); !s.ok()) return Done(ctx, s);
   if (auto s = Ready(); !s.ok()) return Done(ctx, s);
   SceneSettings settings;
   if (auto s = ToSceneSettings(*request, limits_, &settings); !s.ok()) return Done(ctx, s);
@@ -345,6 +353,7 @@ grpc::ServerUnaryReactor* VoronoiService::GetScene(grpc::CallbackServerContext* 
                                                    const v1::GetSceneRequest* request,
                                                    v1::Scene* response) {
   CallScope scope(this);
+  if (auto s = Admit(ctx, false); !s.ok()) return Done(ctx, s);
   std::shared_ptr<Scene> scene;
   if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return Done(ctx, s);
   ToProto(*scene, response);
@@ -355,6 +364,7 @@ grpc::ServerUnaryReactor* VoronoiService::ListScenes(grpc::CallbackServerContext
                                                      const v1::ListScenesRequest*,
                                                      v1::ListScenesResponse* response) {
   CallScope scope(this);
+  if (auto s = Admit(ctx, false); !s.ok()) return Done(ctx, s);
   if (auto s = Ready(); !s.ok()) return Done(ctx, s);
   std::vector<std::shared_ptr<Scene>> scenes;
   {
@@ -369,6 +379,7 @@ grpc::ServerUnaryReactor* VoronoiService::DeleteScene(grpc::CallbackServerContex
                                                       const v1::DeleteSceneRequest* request,
                                                       v1::DeleteSceneResponse*) {
   CallScope scope(this);
+  if (auto s = Admit(ctx, true); !s.ok()) return Done(ctx, s);
   if (auto s = Ready(); !s.ok()) return Done(ctx, s);
   if (auto s = ValidateSceneId(request->scene_id(), limits_); !s.ok()) return Done(ctx, s);
   std::shared_ptr<Scene> scene;
@@ -394,6 +405,7 @@ grpc::ServerUnaryReactor* VoronoiService::UpsertSites(grpc::CallbackServerContex
                                                       const v1::UpsertSitesRequest* request,
                                                       v1::UpsertSitesResponse* response) {
   CallScope scope(this);
+  if (auto s = Admit(ctx, true); !s.ok()) return Done(ctx, s);
   std::shared_ptr<Scene> scene;
   if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return Done(ctx, s);
   std::vector<Site> sites;
@@ -411,6 +423,7 @@ grpc::ServerUnaryReactor* VoronoiService::DeleteSites(grpc::CallbackServerContex
                                                       const v1::DeleteSitesRequest* request,
                                                       v1::DeleteSitesResponse* response) {
   CallScope scope(this);
+  if (auto s = Admit(ctx, true); !s.ok()) return Done(ctx, s);
   std::shared_ptr<Scene> scene;
   if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return Done(ctx, s);
   std::vector<std::string> ids;
@@ -428,6 +441,7 @@ grpc::ServerUnaryReactor* VoronoiService::ListSites(grpc::CallbackServerContext*
                                                     const v1::ListSitesRequest* request,
                                                     v1::ListSitesResponse* response) {
   CallScope scope(this);
+  if (auto s = Admit(ctx, false); !s.ok()) return Done(ctx, s);
   std::shared_ptr<Scene> scene;
   if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return Done(ctx, s);
   uint32_t size = request->page_size() == 0 ? 1000 : request->page_size();
@@ -477,6 +491,7 @@ Status VoronoiService::ParseNearest(const v1::FindNearestRequest& request,
 grpc::ServerUnaryReactor* VoronoiService::FindNearest(grpc::CallbackServerContext* ctx,
                                                       const v1::FindNearestRequest* request,
                                                       v1::FindNearestResponse* response) {
+  if (auto s = Admit(ctx, false); !s.ok()) return Done(ctx, s);
   NearestQuery query;
   query.scope = std::make_shared<CallScope>(this);
   if (auto s = ParseNearest(*request, &query); !s.ok()) return Done(ctx, s);
@@ -486,10 +501,11 @@ grpc::ServerUnaryReactor* VoronoiService::FindNearest(grpc::CallbackServerContex
 }
 
 grpc::ServerWriteReactor<v1::FindNearestResponse>* VoronoiService::FindNearestStream(
-    grpc::CallbackServerContext*, const v1::FindNearestRequest* request) {
+    grpc::CallbackServerContext* ctx, const v1::FindNearestRequest* request) {
   NearestQuery query;
   query.scope = std::make_shared<CallScope>(this);
-  Status s = ParseNearest(*request, &query);
+  Status s = Admit(ctx, false);
+  if (s.ok()) s = ParseNearest(*request, &query);
   size_t chunk = request->chunk_size() == 0 ? 65536 : request->chunk_size();
   auto* reactor = new NearestStreamReactor(std::move(query), chunk);
   if (!s.ok()) {

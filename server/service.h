@@ -11,6 +11,7 @@
 #include <string>
 
 #include "gvd/v1/voronoi.grpc.pb.h"
+#include "server/auth.h"
 #include "server/limits.h"
 #include "server/render_loop.h"
 #include "server/scene.h"
@@ -24,7 +25,8 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
  public:
   // `renderer` and `store` must outlive the service. Until Load() has run, every call is
   // answered UNAVAILABLE.
-  VoronoiService(RenderLoop* renderer, Store* store, ServerLimits limits);
+  VoronoiService(RenderLoop* renderer, Store* store, ServerLimits limits,
+                 const TokenAuth* auth = nullptr);
 
   // Rebuilds every stored scene (and queues its render); then the service answers calls.
   absl::Status Load();
@@ -69,12 +71,14 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   // The scene, or NOT_FOUND naming it (after validating the id).
   grpc::Status Lookup(const std::string& scene_id, std::shared_ptr<Scene>* scene) const;
 
-  // UNAVAILABLE until Load() has run.
+  // UNAVAILABLE until Load() has run (and once draining); then the token check, if any.
+  grpc::Status Admit(grpc::CallbackServerContext* ctx, bool write) const;
   grpc::Status Ready() const;
 
   RenderLoop* const renderer_;
   Store* const store_;
   const ServerLimits limits_;
+  const TokenAuth* const auth_;
   std::atomic<bool> ready_{false};
   std::atomic<bool> draining_{false};
   mutable std::atomic<int> in_flight_{0};

@@ -18,11 +18,16 @@ struct ClientOptions {
   // Deadline of each call; a FindNearest with min_version waits at most this long.
   std::chrono::milliseconds timeout{30'000};
   int max_message_bytes = 256 << 20;
+  // Sent as "authorization: Bearer TOKEN" when not empty.
+  std::string token;
+  // TLS when tls_ca is set: the CA (PEM) the server's certificate must chain to, and
+  // optionally a client certificate chain and key (PEM) for servers that require one.
+  std::string tls_ca, tls_cert, tls_key;
 };
 
 class Client {
  public:
-  // A client over an insecure channel to `target` (e.g. "127.0.0.1:50051").
+  // A client of `target` (e.g. "127.0.0.1:50051"), over TLS when options.tls_ca is set.
   static std::unique_ptr<Client> Connect(const std::string& target, ClientOptions options = {});
   Client(std::shared_ptr<grpc::Channel> channel, ClientOptions options);
 

@@ -1,0 +1,35 @@
+// Bearer-token authentication: tokens from a file, each allowed to read, or to read and write.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <grpcpp/server_context.h>
+
+#include "absl/status/statusor.h"
+
+namespace gvd {
+
+// Immutable once loaded; thread-safe.
+class TokenAuth {
+ public:
+  // Reads FILE: one "TOKEN read" or "TOKEN write" per line ("write" also reads); blank lines
+  // and lines starting with '#' are skipped. Tokens are 16 or more printable characters.
+  static absl::StatusOr<TokenAuth> Load(const std::string& path);
+
+  // OK when the call carries "authorization: Bearer TOKEN" for a known token that may do it;
+  // else UNAUTHENTICATED (no or unknown token) or PERMISSION_DENIED (a read-only token
+  // asking to write). Tokens are compared in constant time.
+  grpc::Status Check(const grpc::CallbackServerContext& ctx, bool write) const;
+
+  size_t size() const { return tokens_.size(); }
+
+ private:
+  struct Token {
+    std::string secret;
+    bool can_write;
+  };
+  std::vector<Token> tokens_;
+};
+
+}  // namespace gvd
