@@ -3,7 +3,7 @@
 
 GVD_PACKAGES_build="cmake ninja-build g++ pkgconf ccache
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler libabsl-dev libboost-dev
-  libsqlite3-dev
+  libsqlite3-dev prometheus-cpp-dev
   libegl-dev libopengl-dev libegl1 libopengl0 libegl-mesa0 libgl1-mesa-dri"
 GVD_PACKAGES_test="libgtest-dev libgmock-dev libbenchmark-dev libnanoflann-dev openssl"
 

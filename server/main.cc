@@ -19,6 +19,7 @@
 #include "absl/strings/str_cat.h"
 #include "server/auth.h"
 #include "server/log.h"
+#include "server/metrics.h"
 #include "server/render_loop.h"
 #include "server/service.h"
 #include "server/store.h"
@@ -47,6 +48,7 @@ constexpr const char* kUsage = R"(usage: gvd-server [flags]
   --max-side-px N             largest width_px or height_px (default 8192)
   --max-points-per-query N    (default 1000000)
   --max-message-bytes N       gRPC message size limit (default 268435456)
+  --metrics-listen HOST:PORT  serve Prometheus metrics at http://HOST:PORT/metrics (default off)
   --tokens FILE               require bearer tokens: one "TOKEN read" or "TOKEN write" per line
   --tls-cert FILE, --tls-key FILE
                               serve TLS with this certificate chain and private key (PEM)
@@ -66,7 +68,7 @@ struct Flags {
   std::string log_level = "info";
   uint32_t software_render_threads = 0;
   uint32_t grace_ms = 5000;
-  std::string tokens, tls_cert, tls_key, tls_client_ca;
+  std::string tokens, tls_cert, tls_key, tls_client_ca, metrics_listen;
   gvd::ServerLimits limits;
 };
 
@@ -141,6 +143,7 @@ Flags ParseFlags(int argc, char** argv) {
     }
     if (arg == "--listen") f.listen = value;
     else if (arg == "--tokens") f.tokens = value;
+    else if (arg == "--metrics-listen") f.metrics_listen = value;
     else if (arg == "--tls-cert") f.tls_cert = value;
     else if (arg == "--tls-key") f.tls_key = value;
     else if (arg == "--tls-client-ca") f.tls_client_ca = value;
@@ -206,7 +209,9 @@ int main(int argc, char** argv) {
   // llvmpipe reads this when the context is made.
   setenv("LP_NUM_THREADS", absl::StrCat(flags.software_render_threads).c_str(), /*overwrite=*/0);
 
+  gvd::Metrics metrics;
   gvd::RenderLoop renderer;
+  renderer.set_metrics(&metrics);
   if (auto s = renderer.Start(*preference); !s.ok()) {
     gvd::Log(gvd::LogLevel::kError, "no_render_context", {{"error", s.ToString()}});
     return 1;
@@ -248,7 +253,17 @@ int main(int argc, char** argv) {
            {{"tls", flags.tls_cert.empty() ? "off" : "on"},
             {"client_certificates", flags.tls_client_ca.empty() ? "not required" : "required"},
             {"tokens", auth ? absl::StrCat(auth->size()) : "off"}});
-  gvd::VoronoiService service(&renderer, store->get(), flags.limits, auth ? &*auth : nullptr);
+  gvd::VoronoiService service(&renderer, store->get(), flags.limits, auth ? &*auth : nullptr,
+                              &metrics);
+  if (!flags.metrics_listen.empty()) {
+    auto port = metrics.Serve(flags.metrics_listen, [&service] { return service.SampleScenes(); });
+    if (!port.ok()) {
+      gvd::Log(gvd::LogLevel::kError, "metrics_failed", {{"error", port.status().ToString()}});
+      return 1;
+    }
+    gvd::Log(gvd::LogLevel::kInfo, "metrics", {{"address", flags.metrics_listen},
+                                               {"port", absl::StrCat(*port)}});
+  }
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;

@@ -127,6 +127,10 @@ void RenderLoop::Run(DevicePreference preference) {
       continue;
     }
     scene->Publish(*frame);
+    if (metrics_) {
+      metrics_->ObserveRender(render_stats.full, seconds, render_stats.readback_seconds,
+                              static_cast<double>(render_stats.pixels));
+    }
     {
       std::lock_guard<std::mutex> lock(mu_);
       ++stats_.renders;

@@ -13,6 +13,7 @@
 
 #include "absl/status/status.h"
 #include "render/context.h"
+#include "server/metrics.h"
 #include "server/scene.h"
 
 namespace gvd {
@@ -44,11 +45,15 @@ class RenderLoop {
 
   RenderLoopStats stats() const;
 
+  // Renders are observed here from now on (null: none). Call before Start.
+  void set_metrics(Metrics* metrics) { metrics_ = metrics; }
+
  private:
   void Run(DevicePreference preference);
 
   std::thread thread_;
   DeviceInfo device_;
+  Metrics* metrics_ = nullptr;
 
   mutable std::mutex mu_;
   std::condition_variable cv_;

@@ -1,5 +1,7 @@
 #include "server/scene.h"
 
+#include <chrono>
+
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "render/exact.h"
@@ -7,9 +9,20 @@
 
 namespace gvd {
 
+namespace {
+int64_t NowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+}  // namespace
+
 Scene::Scene(SceneSettings settings) : settings_(std::move(settings)) {
   frame_.store(Frame::Empty(settings_.grid, 1, settings_.eps));
+  published_ns_ = NowNs();
 }
+
+double Scene::frame_age_seconds() const { return (NowNs() - published_ns_.load()) * 1e-9; }
 
 Scene::Scene(SceneSettings settings, uint64_t version, std::vector<Site> sites)
     : Scene(std::move(settings)) {
@@ -160,6 +173,7 @@ void Scene::Publish(std::shared_ptr<const Frame> frame) {
   {
     std::unique_lock<std::shared_mutex> lock(mu_);
     frame_.store(frame);
+    published_ns_ = NowNs();
     for (auto it = waiters_.begin(); it != waiters_.end();) {
       if (it->second.min_version <= frame->version()) {
         ready.push_back(std::move(it->second.done));

@@ -91,6 +91,9 @@ class Scene {
   };
   Changes TakeChanges(bool all);
 
+  // Seconds since the latest frame was published.
+  double frame_age_seconds() const;
+
   // The latest published frame. Lock-free for readers.
   std::shared_ptr<const Frame> frame() const { return frame_.load(); }
   // Publishes a newer frame and hands it to the waiters it satisfies.
@@ -117,6 +120,7 @@ class Scene {
   const SceneSettings settings_;
   std::atomic<bool> deleted_{false};
   std::atomic<std::shared_ptr<const Frame>> frame_;
+  std::atomic<int64_t> published_ns_{0};  // steady_clock
 
   mutable std::shared_mutex mu_;  // guards everything below; shared by exact queries
   uint64_t version_ = 1;

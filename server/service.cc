@@ -11,16 +11,39 @@
 
 namespace gvd {
 
-// Counts a call in flight for as long as it lives.
+// Counts a call in flight for as long as it lives, and records its method, status and
+// duration in the metrics when it ends.
 class CallScope {
  public:
-  explicit CallScope(const VoronoiService* s) : s_(s) { ++s_->in_flight_; }
-  ~CallScope() { --s_->in_flight_; }
+  CallScope(const VoronoiService* s, const char* method)
+      : s_(s), method_(method), start_(std::chrono::steady_clock::now()) {
+    ++s_->in_flight_;
+  }
+  ~CallScope() {
+    if (s_->metrics_) {
+      s_->metrics_->ObserveRpc(
+          method_, code_,
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count());
+    }
+    --s_->in_flight_;
+  }
   CallScope(const CallScope&) = delete;
   CallScope& operator=(const CallScope&) = delete;
 
+  void set_status(const grpc::Status& s) { code_ = s.error_code(); }
+  // Finishes a unary call with `status`, noting it.
+  grpc::ServerUnaryReactor* Done(grpc::CallbackServerContext* ctx, const grpc::Status& status) {
+    set_status(status);
+    auto* reactor = ctx->DefaultReactor();
+    reactor->Finish(status);
+    return reactor;
+  }
+
  private:
   const VoronoiService* s_;
+  const char* method_;
+  std::chrono::steady_clock::time_point start_;
+  grpc::StatusCode code_ = grpc::StatusCode::OK;
 };
 
 // A validated FindNearest request.
@@ -36,12 +59,6 @@ namespace {
 
 using grpc::Status;
 using grpc::StatusCode;
-
-grpc::ServerUnaryReactor* Done(grpc::CallbackServerContext* ctx, const Status& status) {
-  auto* reactor = ctx->DefaultReactor();
-  reactor->Finish(status);
-  return reactor;
-}
 
 // One answer, pointing into storage its NearestJob keeps alive.
 struct AnswerRow {
@@ -94,7 +111,10 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
   // with OK.
   void Start(std::function<void(const Status&)> done) {
     auto self = shared_from_this();  // done() may release the job's last other owner
-    done_ = std::move(done);
+    done_ = [this, done = std::move(done)](const Status& s) {
+      query_.scope->set_status(s);
+      done(s);
+    };
     if (query_.exact) {
       version_ = query_.scene->NearestExact(query_.points, &exact_answers_);
       rows_.reserve(exact_answers_.size());
@@ -243,8 +263,26 @@ class NearestStreamReactor final : public grpc::ServerWriteReactor<v1::FindNeare
 }  // namespace
 
 VoronoiService::VoronoiService(RenderLoop* renderer, Store* store, ServerLimits limits,
-                               const TokenAuth* auth)
-    : renderer_(renderer), store_(store), limits_(limits), auth_(auth) {}
+                               const TokenAuth* auth, Metrics* metrics)
+    : renderer_(renderer), store_(store), limits_(limits), auth_(auth), metrics_(metrics) {}
+
+void VoronoiService::ObserveCommit() const {
+  if (metrics_) metrics_->ObserveCommit(store_->last_commit_seconds());
+}
+
+std::vector<Metrics::SceneSample> VoronoiService::SampleScenes() const {
+  std::vector<std::shared_ptr<Scene>> scenes;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    for (const auto& [id, scene] : scenes_) scenes.push_back(scene);
+  }
+  std::vector<Metrics::SceneSample> out;
+  for (const auto& s : scenes) {
+    double lag = static_cast<double>(s->version() - s->frame()->version());
+    out.push_back({s->id(), static_cast<double>(s->site_count()), lag, s->frame_age_seconds()});
+  }
+  return out;
+}
 
 Status VoronoiService::Admit(grpc::CallbackServerContext* ctx, bool write) const {
   if (auto s = Ready(); !s.ok()) return s;
@@ -318,27 +356,28 @@ Status VoronoiService::Lookup(const std::string& scene_id, std::shared_ptr<Scene
 grpc::ServerUnaryReactor* VoronoiService::CreateScene(grpc::CallbackServerContext* ctx,
                                                       const v1::CreateSceneRequest* request,
                                                       v1::Scene* response) {
-  CallScope scope(this);
-  if (auto s = Admit(ctx, true); !s.ok()) return Done(ctx, s);
-  if (auto s = Ready(); !s.ok()) return Done(ctx, s);
+  CallScope scope(this, "CreateScene");
+  if (auto s = Admit(ctx, true); !s.ok()) return scope.Done(ctx, s);
+  if (auto s = Ready(); !s.ok()) return scope.Done(ctx, s);
   SceneSettings settings;
-  if (auto s = ToSceneSettings(*request, limits_, &settings); !s.ok()) return Done(ctx, s);
+  if (auto s = ToSceneSettings(*request, limits_, &settings); !s.ok()) return scope.Done(ctx, s);
   auto scene = std::make_shared<Scene>(std::move(settings));
   {
     std::lock_guard<std::mutex> lock(mu_);
     if (scenes_.count(scene->id())) {
-      return Done(ctx, Status(StatusCode::ALREADY_EXISTS,
+      return scope.Done(ctx, Status(StatusCode::ALREADY_EXISTS,
                               absl::StrCat("scene \"", scene->id(), "\" already exists")));
     }
     if (scenes_.size() >= limits_.max_scenes) {
-      return Done(ctx, Status(StatusCode::RESOURCE_EXHAUSTED,
+      return scope.Done(ctx, Status(StatusCode::RESOURCE_EXHAUSTED,
                               absl::StrCat("the server holds ", scenes_.size(),
                                            " scenes; the limit (--max-scenes) is ",
                                            limits_.max_scenes)));
     }
     if (auto s = store_->CreateScene(*request, scene->version()); !s.ok()) {
-      return Done(ctx, ToGrpc(s));
+      return scope.Done(ctx, ToGrpc(s));
     }
+    ObserveCommit();
     scenes_.emplace(scene->id(), scene);
   }
   ToProto(*scene, response);
@@ -346,51 +385,52 @@ grpc::ServerUnaryReactor* VoronoiService::CreateScene(grpc::CallbackServerContex
       {{"scene", scene->id()}, {"width_px", absl::StrCat(request->width_px())},
        {"height_px", absl::StrCat(request->height_px())},
        {"max_error", FormatNumber(scene->settings().eps)}});
-  return Done(ctx, Status::OK);
+  return scope.Done(ctx, Status::OK);
 }
 
 grpc::ServerUnaryReactor* VoronoiService::GetScene(grpc::CallbackServerContext* ctx,
                                                    const v1::GetSceneRequest* request,
                                                    v1::Scene* response) {
-  CallScope scope(this);
-  if (auto s = Admit(ctx, false); !s.ok()) return Done(ctx, s);
+  CallScope scope(this, "GetScene");
+  if (auto s = Admit(ctx, false); !s.ok()) return scope.Done(ctx, s);
   std::shared_ptr<Scene> scene;
-  if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return Done(ctx, s);
+  if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return scope.Done(ctx, s);
   ToProto(*scene, response);
-  return Done(ctx, Status::OK);
+  return scope.Done(ctx, Status::OK);
 }
 
 grpc::ServerUnaryReactor* VoronoiService::ListScenes(grpc::CallbackServerContext* ctx,
                                                      const v1::ListScenesRequest*,
                                                      v1::ListScenesResponse* response) {
-  CallScope scope(this);
-  if (auto s = Admit(ctx, false); !s.ok()) return Done(ctx, s);
-  if (auto s = Ready(); !s.ok()) return Done(ctx, s);
+  CallScope scope(this, "ListScenes");
+  if (auto s = Admit(ctx, false); !s.ok()) return scope.Done(ctx, s);
+  if (auto s = Ready(); !s.ok()) return scope.Done(ctx, s);
   std::vector<std::shared_ptr<Scene>> scenes;
   {
     std::lock_guard<std::mutex> lock(mu_);
     for (const auto& [id, scene] : scenes_) scenes.push_back(scene);
   }
   for (const auto& scene : scenes) ToProto(*scene, response->add_scenes());
-  return Done(ctx, Status::OK);
+  return scope.Done(ctx, Status::OK);
 }
 
 grpc::ServerUnaryReactor* VoronoiService::DeleteScene(grpc::CallbackServerContext* ctx,
                                                       const v1::DeleteSceneRequest* request,
                                                       v1::DeleteSceneResponse*) {
-  CallScope scope(this);
-  if (auto s = Admit(ctx, true); !s.ok()) return Done(ctx, s);
-  if (auto s = Ready(); !s.ok()) return Done(ctx, s);
-  if (auto s = ValidateSceneId(request->scene_id(), limits_); !s.ok()) return Done(ctx, s);
+  CallScope scope(this, "DeleteScene");
+  if (auto s = Admit(ctx, true); !s.ok()) return scope.Done(ctx, s);
+  if (auto s = Ready(); !s.ok()) return scope.Done(ctx, s);
+  if (auto s = ValidateSceneId(request->scene_id(), limits_); !s.ok()) return scope.Done(ctx, s);
   std::shared_ptr<Scene> scene;
   {
     std::lock_guard<std::mutex> lock(mu_);
     auto it = scenes_.find(request->scene_id());
     if (it == scenes_.end()) {
-      return Done(ctx, Status(StatusCode::NOT_FOUND, absl::StrCat("scene \"", request->scene_id(),
+      return scope.Done(ctx, Status(StatusCode::NOT_FOUND, absl::StrCat("scene \"", request->scene_id(),
                                                                   "\" does not exist")));
     }
-    if (auto s = store_->DeleteScene(request->scene_id()); !s.ok()) return Done(ctx, ToGrpc(s));
+    if (auto s = store_->DeleteScene(request->scene_id()); !s.ok()) return scope.Done(ctx, ToGrpc(s));
+    ObserveCommit();
     scene = std::move(it->second);
     scenes_.erase(it);
   }
@@ -398,55 +438,59 @@ grpc::ServerUnaryReactor* VoronoiService::DeleteScene(grpc::CallbackServerContex
   scene->FailWaiters(absl::NotFoundError(absl::StrCat("scene \"", scene->id(), "\" was deleted")));
   renderer_->MarkDirty(scene);  // lets the render thread release the scene's target
   Log(LogLevel::kInfo, "scene_deleted", {{"scene", scene->id()}});
-  return Done(ctx, Status::OK);
+  return scope.Done(ctx, Status::OK);
 }
 
 grpc::ServerUnaryReactor* VoronoiService::UpsertSites(grpc::CallbackServerContext* ctx,
                                                       const v1::UpsertSitesRequest* request,
                                                       v1::UpsertSitesResponse* response) {
-  CallScope scope(this);
-  if (auto s = Admit(ctx, true); !s.ok()) return Done(ctx, s);
+  CallScope scope(this, "UpsertSites");
+  if (auto s = Admit(ctx, true); !s.ok()) return scope.Done(ctx, s);
   std::shared_ptr<Scene> scene;
-  if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return Done(ctx, s);
+  if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return scope.Done(ctx, s);
   std::vector<Site> sites;
-  if (auto s = ToSites(*request, limits_, &sites); !s.ok()) return Done(ctx, s);
+  if (auto s = ToSites(*request, limits_, &sites); !s.ok()) return scope.Done(ctx, s);
   auto version = scene->Upsert(std::move(sites), limits_.max_sites_per_scene, [&](uint64_t v) {
-    return store_->UpsertSites(scene->id(), request->sites(), v);
+    auto s = store_->UpsertSites(scene->id(), request->sites(), v);
+    if (s.ok()) ObserveCommit();
+    return s;
   });
-  if (!version.ok()) return Done(ctx, ToGrpc(version.status()));
+  if (!version.ok()) return scope.Done(ctx, ToGrpc(version.status()));
   response->set_version(*version);
   renderer_->MarkDirty(scene);
-  return Done(ctx, Status::OK);
+  return scope.Done(ctx, Status::OK);
 }
 
 grpc::ServerUnaryReactor* VoronoiService::DeleteSites(grpc::CallbackServerContext* ctx,
                                                       const v1::DeleteSitesRequest* request,
                                                       v1::DeleteSitesResponse* response) {
-  CallScope scope(this);
-  if (auto s = Admit(ctx, true); !s.ok()) return Done(ctx, s);
+  CallScope scope(this, "DeleteSites");
+  if (auto s = Admit(ctx, true); !s.ok()) return scope.Done(ctx, s);
   std::shared_ptr<Scene> scene;
-  if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return Done(ctx, s);
+  if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return scope.Done(ctx, s);
   std::vector<std::string> ids;
-  if (auto s = ToSiteIds(*request, limits_, &ids); !s.ok()) return Done(ctx, s);
+  if (auto s = ToSiteIds(*request, limits_, &ids); !s.ok()) return scope.Done(ctx, s);
   auto version = scene->Delete(ids, [&](uint64_t v) {
-    return store_->DeleteSites(scene->id(), ids, v);
+    auto s = store_->DeleteSites(scene->id(), ids, v);
+    if (s.ok()) ObserveCommit();
+    return s;
   });
-  if (!version.ok()) return Done(ctx, ToGrpc(version.status()));
+  if (!version.ok()) return scope.Done(ctx, ToGrpc(version.status()));
   response->set_version(*version);
   renderer_->MarkDirty(scene);
-  return Done(ctx, Status::OK);
+  return scope.Done(ctx, Status::OK);
 }
 
 grpc::ServerUnaryReactor* VoronoiService::ListSites(grpc::CallbackServerContext* ctx,
                                                     const v1::ListSitesRequest* request,
                                                     v1::ListSitesResponse* response) {
-  CallScope scope(this);
-  if (auto s = Admit(ctx, false); !s.ok()) return Done(ctx, s);
+  CallScope scope(this, "ListSites");
+  if (auto s = Admit(ctx, false); !s.ok()) return scope.Done(ctx, s);
   std::shared_ptr<Scene> scene;
-  if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return Done(ctx, s);
+  if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return scope.Done(ctx, s);
   uint32_t size = request->page_size() == 0 ? 1000 : request->page_size();
   if (size > limits_.max_page_size) {
-    return Done(ctx, Status(StatusCode::INVALID_ARGUMENT,
+    return scope.Done(ctx, Status(StatusCode::INVALID_ARGUMENT,
                             absl::StrCat("page_size is ", size, "; it must be at most ",
                                          limits_.max_page_size)));
   }
@@ -455,7 +499,7 @@ grpc::ServerUnaryReactor* VoronoiService::ListSites(grpc::CallbackServerContext*
   for (const Site& site : page.sites) ToProto(site, response->add_sites());
   response->set_next_page_token(page.last_id);
   response->set_version(page.version);
-  return Done(ctx, Status::OK);
+  return scope.Done(ctx, Status::OK);
 }
 
 Status VoronoiService::ParseNearest(const v1::FindNearestRequest& request,
@@ -491,10 +535,10 @@ Status VoronoiService::ParseNearest(const v1::FindNearestRequest& request,
 grpc::ServerUnaryReactor* VoronoiService::FindNearest(grpc::CallbackServerContext* ctx,
                                                       const v1::FindNearestRequest* request,
                                                       v1::FindNearestResponse* response) {
-  if (auto s = Admit(ctx, false); !s.ok()) return Done(ctx, s);
   NearestQuery query;
-  query.scope = std::make_shared<CallScope>(this);
-  if (auto s = ParseNearest(*request, &query); !s.ok()) return Done(ctx, s);
+  query.scope = std::make_shared<CallScope>(this, "FindNearest");
+  if (auto s = Admit(ctx, false); !s.ok()) return query.scope->Done(ctx, s);
+  if (auto s = ParseNearest(*request, &query); !s.ok()) return query.scope->Done(ctx, s);
   auto* reactor = new NearestUnaryReactor(std::move(query), request->xy_size() > 0, response);
   reactor->Start();
   return reactor;
@@ -503,9 +547,10 @@ grpc::ServerUnaryReactor* VoronoiService::FindNearest(grpc::CallbackServerContex
 grpc::ServerWriteReactor<v1::FindNearestResponse>* VoronoiService::FindNearestStream(
     grpc::CallbackServerContext* ctx, const v1::FindNearestRequest* request) {
   NearestQuery query;
-  query.scope = std::make_shared<CallScope>(this);
+  query.scope = std::make_shared<CallScope>(this, "FindNearestStream");
   Status s = Admit(ctx, false);
   if (s.ok()) s = ParseNearest(*request, &query);
+  query.scope->set_status(s);
   size_t chunk = request->chunk_size() == 0 ? 65536 : request->chunk_size();
   auto* reactor = new NearestStreamReactor(std::move(query), chunk);
   if (!s.ok()) {

@@ -13,6 +13,7 @@
 #include "gvd/v1/voronoi.grpc.pb.h"
 #include "server/auth.h"
 #include "server/limits.h"
+#include "server/metrics.h"
 #include "server/render_loop.h"
 #include "server/scene.h"
 #include "server/store.h"
@@ -26,7 +27,10 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   // `renderer` and `store` must outlive the service. Until Load() has run, every call is
   // answered UNAVAILABLE.
   VoronoiService(RenderLoop* renderer, Store* store, ServerLimits limits,
-                 const TokenAuth* auth = nullptr);
+                 const TokenAuth* auth = nullptr, Metrics* metrics = nullptr);
+
+  // Per-scene figures for the metrics.
+  std::vector<Metrics::SceneSample> SampleScenes() const;
 
   // Rebuilds every stored scene (and queues its render); then the service answers calls.
   absl::Status Load();
@@ -79,6 +83,8 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   Store* const store_;
   const ServerLimits limits_;
   const TokenAuth* const auth_;
+  Metrics* const metrics_;
+  void ObserveCommit() const;
   std::atomic<bool> ready_{false};
   std::atomic<bool> draining_{false};
   mutable std::atomic<int> in_flight_{0};

@@ -1,0 +1,139 @@
+#include "server/metrics.h"
+
+#include <prometheus/collectable.h>
+#include <prometheus/counter.h>
+#include <prometheus/exposer.h>
+#include <prometheus/family.h>
+#include <prometheus/histogram.h>
+#include <prometheus/metric_family.h>
+#include <prometheus/registry.h>
+
+#include <mutex>
+
+#include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
+
+namespace gvd {
+namespace {
+
+const char* CodeName(grpc::StatusCode code) {
+  static const char* kNames[] = {"OK", "CANCELLED", "UNKNOWN", "INVALID_ARGUMENT",
+                                 "DEADLINE_EXCEEDED", "NOT_FOUND", "ALREADY_EXISTS",
+                                 "PERMISSION_DENIED", "RESOURCE_EXHAUSTED", "FAILED_PRECONDITION",
+                                 "ABORTED", "OUT_OF_RANGE", "UNIMPLEMENTED", "INTERNAL",
+                                 "UNAVAILABLE", "DATA_LOSS", "UNAUTHENTICATED"};
+  int c = static_cast<int>(code);
+  return c >= 0 && c <= 16 ? kNames[c] : "UNKNOWN";
+}
+
+// Exponential buckets from 10 us to about 40 s.
+prometheus::Histogram::BucketBoundaries Seconds() {
+  prometheus::Histogram::BucketBoundaries b;
+  for (double v = 1e-5; v < 60; v *= 2.5) b.push_back(v);
+  return b;
+}
+
+prometheus::MetricFamily Gauge(const std::string& name, const std::string& help) {
+  prometheus::MetricFamily f;
+  f.name = name;
+  f.help = help;
+  f.type = prometheus::MetricType::Gauge;
+  return f;
+}
+
+}  // namespace
+
+// Samples the scenes when scraped.
+class Metrics::SceneCollector : public prometheus::Collectable {
+ public:
+  void Set(SceneSampler sampler) {
+    std::lock_guard<std::mutex> lock(mu_);
+    sampler_ = std::move(sampler);
+  }
+  std::vector<prometheus::MetricFamily> Collect() const override {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (!sampler_) return {};
+    auto sites = Gauge("gvd_scene_sites", "Sites in the scene.");
+    auto lag = Gauge("gvd_scene_version_lag",
+                     "Accepted versions of the scene not yet in its rendered frame.");
+    auto age = Gauge("gvd_scene_frame_age_seconds", "Age of the scene's rendered frame.");
+    for (const SceneSample& s : sampler_()) {
+      for (auto [family, value] : {std::pair{&sites, s.sites}, {&lag, s.version_lag},
+                                   {&age, s.frame_age_seconds}}) {
+        prometheus::ClientMetric m;
+        m.label.push_back({"scene", s.scene});
+        m.gauge.value = value;
+        family->metric.push_back(std::move(m));
+      }
+    }
+    return {sites, lag, age};
+  }
+
+ private:
+  mutable std::mutex mu_;
+  SceneSampler sampler_;
+};
+
+Metrics::Metrics()
+    : registry_(std::make_shared<prometheus::Registry>()),
+      scenes_(std::make_shared<SceneCollector>()) {
+  rpc_seconds_ = &prometheus::BuildHistogram()
+                      .Name("gvd_rpc_duration_seconds")
+                      .Help("Time from a call's arrival to its status, by method.")
+                      .Register(*registry_);
+  rpc_total_ = &prometheus::BuildCounter()
+                    .Name("gvd_rpc_total")
+                    .Help("Calls finished, by method and status code.")
+                    .Register(*registry_);
+  render_seconds_ = &prometheus::BuildHistogram()
+                         .Name("gvd_render_seconds")
+                         .Help("Renders, from taking the changes to the frame (readback "
+                               "included), by kind: full or incremental.")
+                         .Register(*registry_);
+  readback_seconds_ = &prometheus::BuildHistogram()
+                           .Name("gvd_readback_seconds")
+                           .Help("Reading rendered windows back from the GPU.")
+                           .Register(*registry_)
+                           .Add({}, Seconds());
+  rendered_pixels_ = &prometheus::BuildCounter()
+                          .Name("gvd_rendered_pixels_total")
+                          .Help("Pixels redrawn and read back, by kind.")
+                          .Register(*registry_);
+  commit_seconds_ = &prometheus::BuildHistogram()
+                         .Name("gvd_store_commit_seconds")
+                         .Help("Store transactions, BEGIN to durable COMMIT.")
+                         .Register(*registry_)
+                         .Add({}, Seconds());
+}
+
+Metrics::~Metrics() = default;
+
+absl::StatusOr<int> Metrics::Serve(const std::string& address, SceneSampler sampler) {
+  scenes_->Set(std::move(sampler));
+  try {
+    exposer_ = std::make_unique<prometheus::Exposer>(address);
+  } catch (const std::exception& e) {
+    return absl::UnavailableError(absl::StrCat("cannot serve metrics on ", address, ": ", e.what()));
+  }
+  exposer_->RegisterCollectable(registry_);
+  exposer_->RegisterCollectable(scenes_);
+  auto ports = exposer_->GetListeningPorts();
+  return ports.empty() ? 0 : ports[0];
+}
+
+void Metrics::ObserveRpc(const std::string& method, grpc::StatusCode code, double seconds) {
+  rpc_seconds_->Add({{"method", method}}, Seconds()).Observe(seconds);
+  rpc_total_->Add({{"method", method}, {"code", CodeName(code)}}).Increment();
+}
+
+void Metrics::ObserveRender(bool full, double render_seconds, double readback_seconds,
+                            double pixels) {
+  const char* kind = full ? "full" : "incremental";
+  render_seconds_->Add({{"kind", kind}}, Seconds()).Observe(render_seconds);
+  readback_seconds_->Observe(readback_seconds);
+  rendered_pixels_->Add({{"kind", kind}}).Increment(pixels);
+}
+
+void Metrics::ObserveCommit(double seconds) { commit_seconds_->Observe(seconds); }
+
+}  // namespace gvd

@@ -1,0 +1,58 @@
+// Prometheus metrics (prometheus-cpp), served at /metrics on their own port. Thread-safe.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <grpcpp/support/status.h>
+
+#include "absl/status/statusor.h"
+
+namespace prometheus {
+class Exposer;
+class Registry;
+template <class T>
+class Family;
+class Counter;
+class Histogram;
+}  // namespace prometheus
+
+namespace gvd {
+
+class Metrics {
+ public:
+  // Per-scene figures, sampled at each scrape.
+  struct SceneSample {
+    std::string scene;
+    double sites;
+    double version_lag;        // accepted version - rendered version
+    double frame_age_seconds;  // since the rendered frame was published
+  };
+  using SceneSampler = std::function<std::vector<SceneSample>()>;
+
+  Metrics();
+  ~Metrics();
+
+  // Serves /metrics on `address` (HOST:PORT; port 0 picks one). Returns the bound port.
+  absl::StatusOr<int> Serve(const std::string& address, SceneSampler sampler);
+
+  void ObserveRpc(const std::string& method, grpc::StatusCode code, double seconds);
+  void ObserveRender(bool full, double render_seconds, double readback_seconds, double pixels);
+  void ObserveCommit(double seconds);
+
+ private:
+  class SceneCollector;
+  std::shared_ptr<prometheus::Registry> registry_;
+  std::shared_ptr<SceneCollector> scenes_;
+  std::unique_ptr<prometheus::Exposer> exposer_;
+  prometheus::Family<prometheus::Histogram>* rpc_seconds_;
+  prometheus::Family<prometheus::Counter>* rpc_total_;
+  prometheus::Family<prometheus::Histogram>* render_seconds_;
+  prometheus::Histogram* readback_seconds_;
+  prometheus::Family<prometheus::Counter>* rendered_pixels_;
+  prometheus::Histogram* commit_seconds_;
+};
+
+}  // namespace gvd

@@ -1,0 +1,95 @@
+// /metrics on its own port, scraped as Prometheus would, after calls whose counts are known.
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <regex>
+
+#include "gvd/client.h"
+#include "server_process.h"
+
+namespace gvd {
+namespace {
+
+// GET http://127.0.0.1:port/metrics; the body, or "" on failure.
+std::string Scrape(int port) {
+  int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(port);
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+    close(fd);
+    return "";
+  }
+  std::string request = "GET /metrics HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n";
+  if (write(fd, request.data(), request.size()) != ssize_t(request.size())) {
+    close(fd);
+    return "";
+  }
+  std::string response;
+  char buf[4096];
+  ssize_t n;
+  while ((n = read(fd, buf, sizeof buf)) > 0) response.append(buf, n);
+  close(fd);
+  auto body = response.find("\r\n\r\n");
+  return body == std::string::npos ? "" : response.substr(body + 4);
+}
+
+TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
+  testing::ServerProcess server(GVD_SERVER_PATH, {"--metrics-listen", "127.0.0.1:0"});
+  ASSERT_TRUE(server.error().empty()) << server.error();
+  std::smatch m;
+  std::string log = server.log();
+  ASSERT_TRUE(std::regex_search(log, m, std::regex("event=metrics address=\\S+ port=(\\d+)"))) << log;
+  int port = std::stoi(m[1]);
+
+  auto client = Client::Connect(server.address());
+  v1::CreateSceneRequest c;
+  c.set_scene_id("metered");
+  c.mutable_window()->set_max_x(1);
+  c.mutable_window()->set_max_y(1);
+  c.set_width_px(64);
+  c.set_height_px(64);
+  v1::Scene scene;
+  ASSERT_TRUE(client->CreateScene(c, &scene).ok());
+  EXPECT_EQ(client->CreateScene(c, &scene).error_code(), grpc::StatusCode::ALREADY_EXISTS);
+  v1::UpsertSitesRequest u;
+  u.set_scene_id("metered");
+  for (int i = 0; i < 3; ++i) {
+    auto* s = u.add_sites();
+    s->set_id(std::to_string(i));
+    s->mutable_point()->set_x(0.2 * (i + 1));
+    s->mutable_point()->set_y(0.5);
+  }
+  uint64_t v;
+  ASSERT_TRUE(client->UpsertSites(u, &v).ok());
+  v1::FindNearestRequest q;
+  q.set_scene_id("metered");
+  q.set_min_version(v);
+  q.add_points();
+  v1::FindNearestResponse r;
+  ASSERT_TRUE(client->FindNearest(q, &r).ok());
+
+  std::string text = Scrape(port);
+  ASSERT_FALSE(text.empty());
+  for (const char* want : {
+           "gvd_rpc_total{code=\"OK\",method=\"CreateScene\"} 1",
+           "gvd_rpc_total{code=\"ALREADY_EXISTS\",method=\"CreateScene\"} 1",
+           "gvd_rpc_total{code=\"OK\",method=\"UpsertSites\"} 1",
+           "gvd_rpc_total{code=\"OK\",method=\"FindNearest\"} 1",
+           "gvd_rpc_duration_seconds_count{method=\"FindNearest\"} 1",
+           "gvd_render_seconds_count{kind=\"full\"} 1",
+           "gvd_store_commit_seconds_count 2",  // the scene, then the sites
+           "gvd_scene_sites{scene=\"metered\"} 3",
+           "gvd_scene_version_lag{scene=\"metered\"} 0",
+           "gvd_scene_frame_age_seconds{scene=\"metered\"}",
+       }) {
+    EXPECT_NE(text.find(want), std::string::npos) << "missing: " << want << "\n" << text;
+  }
+}
+
+}  // namespace
+}  // namespace gvd
