@@ -82,14 +82,15 @@ Status ToSceneSettings(const v1::CreateSceneRequest& r, const ServerLimits& limi
   }
   for (auto [v, name] : {std::pair{r.width_px(), "width_px"}, {r.height_px(), "height_px"}}) {
     if (v == 0 || v > limits.max_side_px) {
-      return Invalid(absl::StrCat(name, " is ", v, "; it must be 1 to ", limits.max_side_px));
+      return Invalid(absl::StrCat(name, " is ", v, "; it must be 1 to ", limits.max_side_px,
+                                  " (--max-side-px)"));
     }
   }
   uint64_t pixels = uint64_t{r.width_px()} * r.height_px();
   if (pixels > limits.max_scene_pixels) {
     return Status(StatusCode::RESOURCE_EXHAUSTED,
                   absl::StrCat("width_px x height_px is ", pixels, " pixels; the limit is ",
-                               limits.max_scene_pixels));
+                               limits.max_scene_pixels, " (--max-side-px squared)"));
   }
   Grid grid{{w.min_x(), w.min_y(), w.max_x(), w.max_y()}, r.width_px(), r.height_px()};
   double eps = r.max_error();
@@ -129,7 +130,7 @@ Status ToSites(const v1::UpsertSitesRequest& r, const ServerLimits& limits,
   if (size_t(r.sites_size()) > limits.max_sites_per_request) {
     return Status(StatusCode::RESOURCE_EXHAUSTED,
                   absl::StrCat("sites has ", r.sites_size(), " entries; the limit per request is ",
-                               limits.max_sites_per_request));
+                               limits.max_sites_per_request, " (--max-sites-per-request)"));
   }
   std::unordered_map<std::string_view, size_t> seen;
   sites->clear();
@@ -166,7 +167,7 @@ Status ToSiteIds(const v1::DeleteSitesRequest& r, const ServerLimits& limits,
   if (size_t(r.ids_size()) > limits.max_sites_per_request) {
     return Status(StatusCode::RESOURCE_EXHAUSTED,
                   absl::StrCat("ids has ", r.ids_size(), " entries; the limit per request is ",
-                               limits.max_sites_per_request));
+                               limits.max_sites_per_request, " (--max-sites-per-request)"));
   }
   std::unordered_map<std::string_view, size_t> seen;
   for (int i = 0; i < r.ids_size(); ++i) {
@@ -195,7 +196,8 @@ Status ToQueryPoints(const v1::FindNearestRequest& r, const Window& w, const Ser
   if (n > limits.max_points_per_query) {
     return Status(StatusCode::RESOURCE_EXHAUSTED,
                   absl::StrCat(r.xy_size() > 0 ? "xy" : "points", " has ", n,
-                               " points; the limit per query is ", limits.max_points_per_query));
+                               " points; the limit per query is ", limits.max_points_per_query,
+                               " (--max-points-per-query)"));
   }
   points->resize(n);
   *outside = false;

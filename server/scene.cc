@@ -39,7 +39,7 @@ absl::StatusOr<uint64_t> Scene::Upsert(std::vector<Site> sites, size_t max_sites
   if (slot_of_.size() + added > max_sites) {
     return absl::ResourceExhaustedError(
         absl::StrCat("scene \"", id(), "\" would hold ", slot_of_.size() + added,
-                     " sites; the limit per scene is ", max_sites));
+                     " sites; the limit per scene is ", max_sites, " (--max-sites-per-scene)"));
   }
   if (persist) {
     if (auto s = persist(version_ + 1); !s.ok()) return s;

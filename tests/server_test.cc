@@ -315,7 +315,7 @@ TEST_F(ServerTest, BadInputIsRefusedAndChangesNothing) {
       {"zero width", create([](auto& r) { r.set_width_px(0); }), StatusCode::INVALID_ARGUMENT,
        "width_px is 0"},
       {"oversize height", create([](auto& r) { r.set_height_px(100000); }),
-       StatusCode::INVALID_ARGUMENT, "height_px is 100000; it must be 1 to 8192"},
+       StatusCode::INVALID_ARGUMENT, "height_px is 100000; it must be 1 to 8192 (--max-side-px)"},
       {"negative max_error", create([](auto& r) { r.set_max_error(-1); }),
        StatusCode::INVALID_ARGUMENT, "max_error is -1"},
       {"tiny max_error", create([](auto& r) { r.set_max_error(1e-9); }),
@@ -617,6 +617,64 @@ TEST_F(ServerTest, PackedAndStreamedAnswersAgree) {
   // A stream for an unknown scene fails with its status.
   packed.set_scene_id("nowhere");
   EXPECT_EQ(client_->FindNearestStream(packed, &chunks).error_code(), StatusCode::NOT_FOUND);
+}
+
+// Each limit, set small on a server of its own, refuses with its code and names its flag.
+TEST(LimitsTest, EveryLimitIsEnforcedAndNamed) {
+  testing::ServerProcess server(
+      GVD_SERVER_PATH, {"--max-scenes", "2", "--max-sites-per-scene", "5", "--max-side-px", "64",
+                        "--max-points-per-query", "10", "--max-sites-per-request", "4",
+                        "--max-message-bytes", "20000"});
+  ASSERT_TRUE(server.error().empty()) << server.error();
+  auto client = Client::Connect(server.address());
+  auto create = [&](const std::string& id, uint32_t side) {
+    v1::CreateSceneRequest c;
+    c.set_scene_id(id);
+    c.mutable_window()->set_max_x(1);
+    c.mutable_window()->set_max_y(1);
+    c.set_width_px(side);
+    c.set_height_px(side);
+    v1::Scene scene;
+    return client->CreateScene(c, &scene);
+  };
+  auto upsert = [&](int first, int count) {
+    v1::UpsertSitesRequest u;
+    u.set_scene_id("a");
+    for (int i = first; i < first + count; ++i) {
+      auto* s = u.add_sites();
+      s->set_id(std::to_string(i));
+      s->mutable_point()->set_x(0.5);
+    }
+    uint64_t v;
+    return client->UpsertSites(u, &v);
+  };
+  auto expect = [](const grpc::Status& s, StatusCode code, const std::string& text) {
+    EXPECT_EQ(s.error_code(), code) << s.error_message();
+    EXPECT_NE(s.error_message().find(text), std::string::npos) << s.error_message();
+  };
+  expect(create("big", 65), StatusCode::INVALID_ARGUMENT, "(--max-side-px)");
+  ASSERT_TRUE(create("a", 64).ok());
+  ASSERT_TRUE(create("b", 8).ok());
+  expect(create("c", 8), StatusCode::RESOURCE_EXHAUSTED, "the limit (--max-scenes) is 2");
+  expect(upsert(0, 5), StatusCode::RESOURCE_EXHAUSTED, "(--max-sites-per-request)");
+  ASSERT_TRUE(upsert(0, 4).ok());
+  expect(upsert(4, 2), StatusCode::RESOURCE_EXHAUSTED, "the limit per scene is 5 (--max-sites-per-scene)");
+  v1::FindNearestRequest q;
+  q.set_scene_id("a");
+  for (int i = 0; i < 11; ++i) q.add_points();
+  v1::FindNearestResponse r;
+  expect(client->FindNearest(q, &r), StatusCode::RESOURCE_EXHAUSTED, "(--max-points-per-query)");
+  v1::FindNearestRequest huge;
+  huge.set_scene_id("a");
+  for (int i = 0; i < 4000; ++i) huge.add_xy(0.5);  // 32 KB, over --max-message-bytes
+  expect(client->FindNearest(huge, &r), StatusCode::RESOURCE_EXHAUSTED, "larger than max");
+  // Nothing refused was applied.
+  v1::Scene a;
+  ASSERT_TRUE(client->GetScene("a", &a).ok());
+  EXPECT_EQ(a.site_count(), 4u);
+  std::vector<v1::Scene> all;
+  ASSERT_TRUE(client->ListScenes(&all).ok());
+  EXPECT_EQ(all.size(), 2u);
 }
 
 TEST_F(ServerTest, HealthServiceSaysServing) {
