@@ -1,5 +1,6 @@
 #include "server/scene.h"
 
+#include <atomic>
 #include <chrono>
 
 #include "absl/status/status.h"
@@ -100,8 +101,9 @@ size_t Scene::site_count() const {
   return slot_of_.size();
 }
 
-uint64_t Scene::NearestExact(const std::vector<Vec2>& points,
-                             std::vector<ExactAnswer>* answers) const {
+uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactAnswer>* answers,
+                             const std::function<bool()>& cancelled) const {
+  std::atomic<bool> stop{false};
   std::shared_lock<std::shared_mutex> lock(mu_);
   auto frame = frame_.load();
   const bool fresh = frame->version() == version_ && !frame->empty();
@@ -111,6 +113,10 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points,
   ParallelFor(points.size(), 8192, [&](size_t begin, size_t end) {
     std::vector<uint32_t> nearer;
     for (size_t i = begin; i < end; ++i) {
+      if (i % 4096 == 0 && cancelled && (stop || cancelled())) {
+        stop = true;
+        return;
+      }
       const Vec2 q = points[i];
       std::optional<NearestAnswer> raster;
       if (fresh && window.Contains(q)) raster = frame->Nearest(q);
@@ -133,6 +139,7 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points,
       (*answers)[i] = std::move(best);
     }
   });
+  if (stop) return 0;
   return version_;
 }
 

@@ -72,7 +72,10 @@ class Scene {
     std::string site_id;
     double distance = 0;
   };
-  uint64_t NearestExact(const std::vector<Vec2>& points, std::vector<ExactAnswer>* answers) const;
+  // `cancelled`, when given, is polled every few thousand points; once it says true the
+  // answers are left incomplete and the call returns 0.
+  uint64_t NearestExact(const std::vector<Vec2>& points, std::vector<ExactAnswer>* answers,
+                        const std::function<bool()>& cancelled = nullptr) const;
 
   struct SitePage {
     std::vector<Site> sites;

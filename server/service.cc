@@ -20,20 +20,23 @@ class CallScope {
     ++s_->in_flight_;
   }
   ~CallScope() {
-    if (s_->metrics_) {
-      s_->metrics_->ObserveRpc(
-          method_, code_,
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count());
-    }
+    Record(grpc::Status::OK);  // a call that ended without a recorded status
     --s_->in_flight_;
   }
   CallScope(const CallScope&) = delete;
   CallScope& operator=(const CallScope&) = delete;
 
-  void set_status(const grpc::Status& s) { code_ = s.error_code(); }
-  // Finishes a unary call with `status`, noting it.
+  // Records the call's status and duration, once, before the status goes out (so that a
+  // client that has its answer finds it in the metrics).
+  void Record(const grpc::Status& s) {
+    if (recorded_.exchange(true) || !s_->metrics_) return;
+    s_->metrics_->ObserveRpc(
+        method_, s.error_code(),
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count());
+  }
+  // Finishes a unary call with `status`, recording it.
   grpc::ServerUnaryReactor* Done(grpc::CallbackServerContext* ctx, const grpc::Status& status) {
-    set_status(status);
+    Record(status);
     auto* reactor = ctx->DefaultReactor();
     reactor->Finish(status);
     return reactor;
@@ -43,12 +46,13 @@ class CallScope {
   const VoronoiService* s_;
   const char* method_;
   std::chrono::steady_clock::time_point start_;
-  grpc::StatusCode code_ = grpc::StatusCode::OK;
+  std::atomic<bool> recorded_{false};
 };
 
 // A validated FindNearest request.
 struct NearestQuery {
   std::shared_ptr<CallScope> scope;  // the call stays in flight while the query lives
+  grpc::CallbackServerContext* ctx = nullptr;  // valid while the call lives
   std::shared_ptr<Scene> scene;
   std::vector<Vec2> points;
   bool exact = false;
@@ -112,11 +116,16 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
   void Start(std::function<void(const Status&)> done) {
     auto self = shared_from_this();  // done() may release the job's last other owner
     done_ = [this, done = std::move(done)](const Status& s) {
-      query_.scope->set_status(s);
+      query_.scope->Record(s);
       done(s);
     };
     if (query_.exact) {
-      version_ = query_.scene->NearestExact(query_.points, &exact_answers_);
+      version_ = query_.scene->NearestExact(query_.points, &exact_answers_,
+                                            [this] { return query_.ctx->IsCancelled(); });
+      if (version_ == 0) {
+        done_(Status(StatusCode::CANCELLED, "the call was cancelled"));
+        return;
+      }
       rows_.reserve(exact_answers_.size());
       for (const auto& a : exact_answers_) rows_.push_back({&a.site_id, a.distance, 0, true});
       done_(Status::OK);
@@ -157,9 +166,13 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
     }
     version_ = frame_->version();
     rows_.resize(query_.points.size());
-    std::atomic<bool> missing{false};
+    std::atomic<bool> missing{false}, cancelled{false};
     ParallelFor(rows_.size(), 8192, [&](size_t begin, size_t end) {
       for (size_t i = begin; i < end; ++i) {
+        if (i % 4096 == 0 && (cancelled || query_.ctx->IsCancelled())) {
+          cancelled = true;
+          return;
+        }
         auto a = frame_->Nearest(query_.points[i]);
         if (!a) {
           missing = true;
@@ -169,6 +182,10 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
                     a->error_bound == 0};
       }
     });
+    if (cancelled) {
+      done_(Status(StatusCode::CANCELLED, "the call was cancelled"));
+      return;
+    }
     if (missing) {
       done_(Status(StatusCode::INTERNAL, "frame has no site at a query point"));
       return;
@@ -537,6 +554,7 @@ grpc::ServerUnaryReactor* VoronoiService::FindNearest(grpc::CallbackServerContex
                                                       v1::FindNearestResponse* response) {
   NearestQuery query;
   query.scope = std::make_shared<CallScope>(this, "FindNearest");
+  query.ctx = ctx;
   if (auto s = Admit(ctx, false); !s.ok()) return query.scope->Done(ctx, s);
   if (auto s = ParseNearest(*request, &query); !s.ok()) return query.scope->Done(ctx, s);
   auto* reactor = new NearestUnaryReactor(std::move(query), request->xy_size() > 0, response);
@@ -548,9 +566,10 @@ grpc::ServerWriteReactor<v1::FindNearestResponse>* VoronoiService::FindNearestSt
     grpc::CallbackServerContext* ctx, const v1::FindNearestRequest* request) {
   NearestQuery query;
   query.scope = std::make_shared<CallScope>(this, "FindNearestStream");
+  query.ctx = ctx;
   Status s = Admit(ctx, false);
   if (s.ok()) s = ParseNearest(*request, &query);
-  query.scope->set_status(s);
+  if (!s.ok()) query.scope->Record(s);
   size_t chunk = request->chunk_size() == 0 ? 65536 : request->chunk_size();
   auto* reactor = new NearestStreamReactor(std::move(query), chunk);
   if (!s.ok()) {

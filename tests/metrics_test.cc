@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <regex>
+#include <thread>
 
 #include "gvd/client.h"
 #include "server_process.h"
@@ -89,6 +90,56 @@ TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
        }) {
     EXPECT_NE(text.find(want), std::string::npos) << "missing: " << want << "\n" << text;
   }
+}
+
+// A query whose deadline passes while it computes stops there: the server records it as
+// cancelled instead of finishing a million lookups for nobody.
+TEST(MetricsTest, ExpiredBatchesStopWorking) {
+  testing::ServerProcess server(GVD_SERVER_PATH, {"--metrics-listen", "127.0.0.1:0"});
+  ASSERT_TRUE(server.error().empty()) << server.error();
+  std::smatch m;
+  std::string log = server.log();
+  ASSERT_TRUE(std::regex_search(log, m, std::regex("event=metrics address=\\S+ port=(\\d+)")));
+  int port = std::stoi(m[1]);
+  auto client = Client::Connect(server.address());
+  v1::CreateSceneRequest c;
+  c.set_scene_id("s");
+  c.mutable_window()->set_max_x(1);
+  c.mutable_window()->set_max_y(1);
+  c.set_width_px(64);
+  c.set_height_px(64);
+  v1::Scene scene;
+  ASSERT_TRUE(client->CreateScene(c, &scene).ok());
+  v1::UpsertSitesRequest u;
+  u.set_scene_id("s");
+  for (int i = 0; i < 50000; ++i) {
+    auto* s = u.add_sites();
+    s->set_id(std::to_string(i));
+    s->mutable_point()->set_x((i % 223) / 223.0);
+    s->mutable_point()->set_y((i / 223) / 223.0);
+  }
+  uint64_t v;
+  ASSERT_TRUE(client->UpsertSites(u, &v).ok());
+  v1::FindNearestRequest q;
+  q.set_scene_id("s");
+  q.set_exact(true);
+  for (int i = 0; i < 1000000; ++i) {
+    q.add_xy(-1.0 - i * 1e-6);  // outside the window: each one an index search
+    q.add_xy(0.5);
+  }
+  ClientOptions hasty;
+  hasty.timeout = std::chrono::milliseconds(150);
+  v1::FindNearestResponse r;
+  EXPECT_EQ(Client::Connect(server.address(), hasty)->FindNearest(q, &r).error_code(),
+            grpc::StatusCode::DEADLINE_EXCEEDED);
+  std::string text;
+  for (int tries = 0; tries < 100; ++tries) {  // the server notices within a few thousand points
+    text = Scrape(port);
+    if (text.find("gvd_rpc_total{code=\"CANCELLED\",method=\"FindNearest\"} 1") != std::string::npos) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_NE(text.find("gvd_rpc_total{code=\"CANCELLED\",method=\"FindNearest\"} 1"), std::string::npos)
+      << text;
 }
 
 }  // namespace
