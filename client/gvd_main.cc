@@ -1,5 +1,7 @@
 // gvd: the command-line client of gvd-server.
 #include <google/protobuf/util/json_util.h>
+#include <grpcpp/create_channel.h>
+#include <grpcpp/security/credentials.h>
 
 #include <charconv>
 #include <cstdio>
@@ -14,6 +16,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
+#include "grpc/health/v1/health.grpc.pb.h"
 #include "gvd/client.h"
 
 namespace {
@@ -32,6 +35,9 @@ Sites (of the scene named by --scene, default "default"):
                               {"sites": [...]}; or text lines "ID X Y"; PATH - reads stdin
   gvd sites rm ID [ID ...]
   gvd sites ls
+Health:
+  gvd health           the server's grpc.health.v1 status; exit 0 when SERVING
+
 Queries:
   gvd nearest X Y [X Y ...] [--min-version V] [--exact]
       prints, per point, the nearest site, its exact distance, and the error bound: no
@@ -328,6 +334,24 @@ int Run(const Args& a) {
       }
       return 0;
     }
+  }
+
+  if (w[0] == "health") {
+    need(1, "health");
+    grpc::ChannelArguments args;
+    auto channel = grpc::CreateCustomChannel(
+        a.server,
+        options.tls_ca.empty() ? grpc::InsecureChannelCredentials()
+                               : grpc::SslCredentials({options.tls_ca, options.tls_key, options.tls_cert}),
+        args);
+    auto stub = grpc::health::v1::Health::NewStub(channel);
+    grpc::ClientContext ctx;
+    ctx.set_deadline(std::chrono::system_clock::now() + options.timeout);
+    grpc::health::v1::HealthCheckRequest request;
+    grpc::health::v1::HealthCheckResponse response;
+    if (auto s = stub->Check(&ctx, request, &response); !s.ok()) return Fail(s);
+    std::cout << grpc::health::v1::HealthCheckResponse::ServingStatus_Name(response.status()) << "\n";
+    return response.status() == grpc::health::v1::HealthCheckResponse::SERVING ? 0 : 1;
   }
 
   if (w[0] == "nearest") {

@@ -1,26 +1,42 @@
+# shellcheck shell=bash
 # Sourced by the setup scripts: installs Debian 12 packages that are missing, idempotently.
 # Usage: gvd_install_packages GROUP...   (groups: build, test)
 
-GVD_PACKAGES_build="cmake ninja-build g++ pkgconf ccache
-  libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler libabsl-dev libboost-dev
-  libsqlite3-dev prometheus-cpp-dev
-  libegl-dev libopengl-dev libegl1 libopengl0 libegl-mesa0 libgl1-mesa-dri"
-GVD_PACKAGES_test="libgtest-dev libgmock-dev libbenchmark-dev libnanoflann-dev openssl"
+gvd_packages() {
+  case "$1" in
+    build)
+      echo cmake ninja-build g++ pkgconf ccache \
+        libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler libabsl-dev \
+        libboost-dev libsqlite3-dev prometheus-cpp-dev \
+        libegl-dev libopengl-dev libegl1 libopengl0 libegl-mesa0 libgl1-mesa-dri
+      ;;
+    test)
+      echo libgtest-dev libgmock-dev libbenchmark-dev libnanoflann-dev openssl \
+        shellcheck yamllint python3-yaml
+      ;;
+    *)
+      echo "gvd_packages: unknown group $1" >&2
+      return 1
+      ;;
+  esac
+}
 
 gvd_install_packages() {
-  local wanted="" group pkg missing=""
+  local group pkg
+  local -a wanted=() missing=() sudo=()
   for group in "$@"; do
-    eval "wanted=\"\$wanted \$GVD_PACKAGES_$group\""
+    read -r -a pkgs <<<"$(gvd_packages "$group")"
+    wanted+=("${pkgs[@]}")
   done
-  for pkg in $wanted; do
+  for pkg in "${wanted[@]}"; do
     if [ "$(dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null)" != "install ok installed" ]; then
-      missing="$missing $pkg"
+      missing+=("$pkg")
     fi
   done
-  [ -z "$missing" ] && return 0
-  local sudo=""
-  [ "$(id -u)" -ne 0 ] && sudo="sudo"
-  echo "Installing:$missing"
-  $sudo apt-get update -q
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -q --no-install-recommends $missing
+  [ ${#missing[@]} -eq 0 ] && return 0
+  [ "$(id -u)" -ne 0 ] && sudo=(sudo)
+  echo "Installing: ${missing[*]}"
+  "${sudo[@]}" apt-get update -q
+  "${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends \
+    "${missing[@]}"
 }

@@ -4,6 +4,7 @@
 # Extra arguments go to gvd-server, e.g. --listen 0.0.0.0:50051 --log-level debug.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# shellcheck source=deploy/debian-deps.sh
 . deploy/debian-deps.sh
 gvd_install_packages build
 cmake -S . -B build/release -G Ninja -DCMAKE_BUILD_TYPE=Release -DGVD_BUILD_TESTS=OFF

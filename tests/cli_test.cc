@@ -136,6 +136,12 @@ TEST_F(CliTest, ErrorsAreReportedWithTheirStatus) {
   EXPECT_NE(r.out.find("unknown command"), std::string::npos) << r.out;
 }
 
+TEST_F(CliTest, HealthSaysServing) {
+  Result r = Gvd("health");
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_EQ(r.out, "SERVING\n");
+}
+
 TEST_F(CliTest, UnreachableServerIsAClearError) {
   std::string command = std::string(GVD_CLI_PATH) + " --server 127.0.0.1:1 --timeout 2 scene ls 2>&1";
   FILE* p = popen(command.c_str(), "r");

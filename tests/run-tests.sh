@@ -4,6 +4,7 @@
 # and integration tests against the real gvd-server and gvd CLI on loopback.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# shellcheck source=deploy/debian-deps.sh
 . deploy/debian-deps.sh
 gvd_install_packages build test
 cmake -S . -B build/test -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGVD_BUILD_TESTS=ON

@@ -3,6 +3,7 @@
 # benchmark table of tests/bench/README.md. Usage: bash tests/bench/run.sh [gbench flags]
 set -euo pipefail
 cd "$(dirname "$0")/../.."
+# shellcheck source=deploy/debian-deps.sh
 . deploy/debian-deps.sh
 gvd_install_packages build test
 cmake -S . -B build/bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DGVD_BUILD_TESTS=ON >/dev/null
