@@ -1,0 +1,69 @@
+// Writes the seed corpus: a few valid and invalid requests of each kind (the first byte picks
+// the kind, as in fuzz_requests.cc), and some geometry inputs. Usage: make_seeds CORPUS_DIR
+#include <cmath>
+#include <fstream>
+#include <string>
+
+#include "gvd/v1/voronoi.pb.h"
+
+namespace {
+
+void Write(const std::string& path, char kind, const google::protobuf::Message& m) {
+  std::ofstream(path, std::ios::binary) << kind << m.SerializeAsString();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2) return 2;
+  const std::string dir = argv[1];
+  gvd::v1::CreateSceneRequest c;
+  c.set_scene_id("seed");
+  c.mutable_window()->set_max_x(1);
+  c.mutable_window()->set_max_y(1);
+  c.set_width_px(64);
+  c.set_height_px(48);
+  Write(dir + "/requests/create-valid", 0, c);
+  c.mutable_window()->set_min_x(NAN);
+  c.set_max_error(-1);
+  Write(dir + "/requests/create-invalid", 0, c);
+
+  gvd::v1::UpsertSitesRequest u;
+  u.set_scene_id("fuzz");
+  for (int i = 0; i < 4; ++i) {
+    auto* s = u.add_sites();
+    s->set_id("s" + std::to_string(i));
+    s->mutable_point()->set_x(0.1 * i);
+    s->mutable_point()->set_y(0.2 * i);
+  }
+  Write(dir + "/requests/upsert-valid", 1, u);
+  u.mutable_sites(2)->set_id("s0");
+  Write(dir + "/requests/upsert-duplicate", 1, u);
+
+  gvd::v1::DeleteSitesRequest d;
+  d.set_scene_id("fuzz");
+  d.add_ids("a");
+  d.add_ids("c");
+  Write(dir + "/requests/delete-valid", 2, d);
+  d.add_ids("ghost");
+  Write(dir + "/requests/delete-unknown", 2, d);
+
+  gvd::v1::FindNearestRequest q;
+  q.set_scene_id("fuzz");
+  for (double x : {0.0, 0.5, 1.0, -3.0, 7.5}) {
+    auto* p = q.add_points();
+    p->set_x(x);
+    p->set_y(1 - x);
+  }
+  Write(dir + "/requests/nearest-points", 3, q);
+  q.clear_points();
+  for (double v : {0.1, 0.2, 0.3, 0.4, 2.0, -1.0}) q.add_xy(v);
+  q.set_exact(true);
+  Write(dir + "/requests/nearest-xy", 3, q);
+
+  for (int s = 0; s < 4; ++s) {
+    std::ofstream out(dir + "/geometry/seed-" + std::to_string(s), std::ios::binary);
+    for (int i = 0; i < 64; ++i) out << static_cast<char>((i * 37 + s * 101) & 0xff);
+  }
+  return 0;
+}
