@@ -11,6 +11,7 @@
 
 #include "gvd/client.h"
 #include "server_process.h"
+#include "test_scenes.h"
 
 namespace gvd {
 namespace {
@@ -70,14 +71,8 @@ TEST(CrashTest, AcknowledgedUpdatesSurviveSigkill) {
     ASSERT_TRUE(client->WaitForConnected(std::chrono::seconds(10)));
     if (round == 0) {
       for (const auto& name : scenes) {
-        v1::CreateSceneRequest c;
-        c.set_scene_id(name);
-        c.mutable_window()->set_max_x(1);
-        c.mutable_window()->set_max_y(1);
-        c.set_width_px(64);
-        c.set_height_px(64);
         v1::Scene scene;
-        ASSERT_TRUE(client->CreateScene(c, &scene).ok());
+        ASSERT_TRUE(client->CreateScene(testing::UnitScene(name, 64, 64), &scene).ok());
         acked[name] = {};
         acked_versions[name] = scene.version();
       }
@@ -185,14 +180,8 @@ TEST(CrashTest, SigtermDrainsCallsInFlight) {
   testing::ServerProcess server(GVD_SERVER_PATH, {"--shutdown-grace-ms", "120000"});
   ASSERT_TRUE(server.error().empty()) << server.error();
   auto client = Client::Connect(server.address());
-  v1::CreateSceneRequest c;
-  c.set_scene_id("slow");
-  c.mutable_window()->set_max_x(1);
-  c.mutable_window()->set_max_y(1);
-  c.set_width_px(1024);
-  c.set_height_px(1024);
   v1::Scene scene;
-  ASSERT_TRUE(client->CreateScene(c, &scene).ok());
+  ASSERT_TRUE(client->CreateScene(testing::UnitScene("slow", 1024, 1024), &scene).ok());
   std::mt19937_64 rng(1);
   std::uniform_real_distribution<double> unit(0, 1);
   uint64_t v;

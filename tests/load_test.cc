@@ -15,6 +15,7 @@
 #include "gvd/client.h"
 #include "render/exact.h"
 #include "server_process.h"
+#include "test_scenes.h"
 
 namespace gvd {
 namespace {
@@ -58,16 +59,12 @@ TEST(LoadTest, MixedWorkloadHoldsItsContract) {
   testing::ServerProcess server(GVD_SERVER_PATH, {"--data", ":memory:"});
   ASSERT_TRUE(server.error().empty()) << server.error();
   const std::vector<std::string> names = {"load-a", "load-b", "load-c"};
-  std::map<std::string, SceneOracle> oracles;
+  std::map<std::string, SceneOracle> oracles;  // complete before the threads start
+  for (const auto& name : names) oracles[name];
   {
     auto client = Client::Connect(server.address());
     for (const auto& name : names) {
-      v1::CreateSceneRequest c;
-      c.set_scene_id(name);
-      c.mutable_window()->set_max_x(1);
-      c.mutable_window()->set_max_y(1);
-      c.set_width_px(256);
-      c.set_height_px(256);
+      v1::CreateSceneRequest c = testing::UnitScene(name, 256, 256);
       if (name == "load-c") c.set_render_mode(v1::EXACT);
       v1::Scene scene;
       ASSERT_TRUE(client->CreateScene(c, &scene).ok());
@@ -84,7 +81,7 @@ TEST(LoadTest, MixedWorkloadHoldsItsContract) {
   for (size_t s = 0; s < names.size(); ++s) {
     threads.emplace_back([&, s] {  // the scene's writer
       const std::string& name = names[s];
-      SceneOracle& oracle = oracles[name];
+      SceneOracle& oracle = oracles.at(name);
       auto client = Client::Connect(server.address());
       std::mt19937_64 rng(100 + s);
       std::uniform_real_distribution<double> u(0, 1);
@@ -166,7 +163,7 @@ TEST(LoadTest, MixedWorkloadHoldsItsContract) {
           fail(name + ": query failed: " + st.error_message());
           continue;
         }
-        auto sites = oracles[name].Get(resp.version());
+        auto sites = oracles.at(name).Get(resp.version());
         if (!sites) {
           fail(name + ": served from unknown version " + std::to_string(resp.version()));
           continue;

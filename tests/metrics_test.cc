@@ -10,6 +10,7 @@
 
 #include "gvd/client.h"
 #include "server_process.h"
+#include "test_scenes.h"
 
 namespace gvd {
 namespace {
@@ -42,18 +43,11 @@ std::string Scrape(int port) {
 TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
   testing::ServerProcess server(GVD_SERVER_PATH, {"--metrics-listen", "127.0.0.1:0"});
   ASSERT_TRUE(server.error().empty()) << server.error();
-  std::smatch m;
-  std::string log = server.log();
-  ASSERT_TRUE(std::regex_search(log, m, std::regex("event=metrics address=\\S+ port=(\\d+)"))) << log;
-  int port = std::stoi(m[1]);
+  int port = testing::MetricsPort(server.log());
+  ASSERT_NE(port, 0) << server.log();
 
   auto client = Client::Connect(server.address());
-  v1::CreateSceneRequest c;
-  c.set_scene_id("metered");
-  c.mutable_window()->set_max_x(1);
-  c.mutable_window()->set_max_y(1);
-  c.set_width_px(64);
-  c.set_height_px(64);
+  v1::CreateSceneRequest c = testing::UnitScene("metered", 64, 64);
   v1::Scene scene;
   ASSERT_TRUE(client->CreateScene(c, &scene).ok());
   EXPECT_EQ(client->CreateScene(c, &scene).error_code(), grpc::StatusCode::ALREADY_EXISTS);
@@ -97,19 +91,11 @@ TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
 TEST(MetricsTest, ExpiredBatchesStopWorking) {
   testing::ServerProcess server(GVD_SERVER_PATH, {"--metrics-listen", "127.0.0.1:0"});
   ASSERT_TRUE(server.error().empty()) << server.error();
-  std::smatch m;
-  std::string log = server.log();
-  ASSERT_TRUE(std::regex_search(log, m, std::regex("event=metrics address=\\S+ port=(\\d+)")));
-  int port = std::stoi(m[1]);
+  int port = testing::MetricsPort(server.log());
+  ASSERT_NE(port, 0) << server.log();
   auto client = Client::Connect(server.address());
-  v1::CreateSceneRequest c;
-  c.set_scene_id("s");
-  c.mutable_window()->set_max_x(1);
-  c.mutable_window()->set_max_y(1);
-  c.set_width_px(64);
-  c.set_height_px(64);
   v1::Scene scene;
-  ASSERT_TRUE(client->CreateScene(c, &scene).ok());
+  ASSERT_TRUE(client->CreateScene(testing::UnitScene("s", 64, 64), &scene).ok());
   v1::UpsertSitesRequest u;
   u.set_scene_id("s");
   for (int i = 0; i < 50000; ++i) {

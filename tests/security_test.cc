@@ -10,6 +10,7 @@
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "gvd/client.h"
 #include "server_process.h"
+#include "test_scenes.h"
 
 namespace gvd {
 namespace {
@@ -61,14 +62,8 @@ class SecurityTest : public ::testing::Test {
   }
   static grpc::Status CreateScene(const std::string& address, ClientOptions options,
                                   const std::string& id) {
-    v1::CreateSceneRequest r;
-    r.set_scene_id(id);
-    r.mutable_window()->set_max_x(1);
-    r.mutable_window()->set_max_y(1);
-    r.set_width_px(8);
-    r.set_height_px(8);
     v1::Scene scene;
-    return Client::Connect(address, options)->CreateScene(r, &scene);
+    return Client::Connect(address, options)->CreateScene(testing::UnitScene(id, 8, 8), &scene);
   }
 
   static inline std::string* dir_ = nullptr;

@@ -8,6 +8,8 @@
 
 #include <algorithm>
 #include <chrono>
+
+#include <gtest/gtest.h>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -56,8 +58,15 @@ class ServerProcess {
     error_ = "gvd-server wrote no port within 60 s: " + log();
   }
 
+  // Stops the server with SIGTERM and fails the running test unless it exits 0: a crash at
+  // shutdown, or a sanitizer report (they change the exit status), is a failure.
   ~ServerProcess() {
-    if (pid_ > 0) Stop();
+    if (pid_ > 0) {
+      int status = Stop();
+      if (!(WIFEXITED(status) && WEXITSTATUS(status) == 0)) {
+        ADD_FAILURE() << "gvd-server did not exit cleanly (wait status " << status << "):\n" << log();
+      }
+    }
     std::system(("rm -rf " + dir_).c_str());
   }
 
