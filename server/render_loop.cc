@@ -126,11 +126,12 @@ void RenderLoop::Run(DevicePreference preference) {
           absl::StrCat("rendering scene \"", scene->id(), "\" failed: ", frame.status().message())));
       continue;
     }
-    scene->Publish(*frame);
+    // Recorded before publishing: publishing releases the queries waiting for this frame.
     if (metrics_) {
       metrics_->ObserveRender(render_stats.full, seconds, render_stats.readback_seconds,
                               static_cast<double>(render_stats.pixels));
     }
+    scene->Publish(*frame);
     {
       std::lock_guard<std::mutex> lock(mu_);
       ++stats_.renders;
