@@ -254,23 +254,20 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
   double coverage_seconds = Seconds(start);
   double fill = 0, max_extent = 0;
   uint32_t max_segments = 0;
-  uint64_t drawn = 0;
+  std::vector<std::pair<const ConeDraw*, Rasterizer::ConeShape>> shapes;
   for (const auto& list : cones) {
     for (const ConeDraw& c : list) {
       auto shape = rasterizer.Shape(grid_, c.radius, eps_, mode_);
       max_extent = std::max(max_extent, shape.extent);
       max_segments = std::max(max_segments, shape.segments);
       fill += std::numbers::pi * c.radius * c.radius;
-      ++drawn;
+      shapes.emplace_back(&c, shape);
     }
   }
   if (max_extent > depth_scale_) return RenderAll(rasterizer, version, stats);  // rescale
-  for (const auto& list : cones) {
-    for (const ConeDraw& c : list) {
-      auto shape = rasterizer.Shape(grid_, c.radius, eps_, mode_);
-      extent_[c.slot] = std::max(extent_[c.slot], shape.extent);
-      overestimate_ = std::max(overestimate_, shape.overestimate);
-    }
+  for (const auto& [c, shape] : shapes) {
+    extent_[c->slot] = std::max(extent_[c->slot], shape.extent);
+    overestimate_ = std::max(overestimate_, shape.overestimate);
   }
   double draw_seconds = 0, readback_seconds = 0;
   PixelRect all_windows;
@@ -296,7 +293,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
   if (windows.empty()) Publish(version, {}, {}, {});  // nothing visible changed
   if (stats) {
     stats->cone_segments = max_segments;
-    stats->sites_drawn = drawn;
+    stats->sites_drawn = shapes.size();
     stats->fill_ratio = fill / (grid_.window.width() * grid_.window.height());
     stats->tile_px = tile_px;
     stats->coverage_seconds = coverage_seconds;

@@ -31,19 +31,17 @@ class SceneRaster {
                                                             RenderMode mode = RenderMode::kMesh);
 
   // Applies the changes in order and renders what they can touch:
-  //  - the first render (or the first after Invalidate) draws everything;
+  //  - the first render (or the first after the scene was emptied) draws everything;
   //  - sites only added (or moved from where they were nearest to nothing) are drawn alone,
   //    over the existing buffers, within the tiles where they can now be nearest;
   //  - deleting or moving a site clears the window its old cone reached, adds the windows
   //    its new position can win, and redraws there only the sites that can be nearest there.
   // Reads back only that window and publishes a frame that shares the other tiles.
-  // Deleting an unknown id is a no-op. On error, call Invalidate() before the next Apply.
+  // Deleting an unknown id is a no-op. After an error, the buffers are undefined: make a new
+  // SceneRaster (the render loop does).
   absl::StatusOr<std::shared_ptr<const Frame>> Apply(Rasterizer& rasterizer, uint64_t version,
                                                      std::vector<SiteChange> changes,
                                                      RenderStats* stats = nullptr);
-
-  // Makes the next Apply render from scratch.
-  void Invalidate() { valid_ = false; }
 
   size_t site_count() const { return slot_of_.size(); }
 

@@ -40,11 +40,6 @@ void RenderLoop::MarkDirty(std::shared_ptr<Scene> scene) {
   cv_.notify_all();
 }
 
-RenderLoopStats RenderLoop::stats() const {
-  std::lock_guard<std::mutex> lock(mu_);
-  return stats_;
-}
-
 void RenderLoop::Run(DevicePreference preference) {
   std::unique_ptr<GlContext> context;
   std::unique_ptr<Rasterizer> rasterizer;
@@ -118,10 +113,6 @@ void RenderLoop::Run(DevicePreference preference) {
       Log(LogLevel::kError, "render_failed",
           {{"scene", scene->id()}, {"version", absl::StrCat(changes.version)},
            {"error", frame.status().ToString()}});
-      {
-        std::lock_guard<std::mutex> lock(mu_);
-        ++stats_.failures;
-      }
       scene->FailWaiters(absl::UnavailableError(
           absl::StrCat("rendering scene \"", scene->id(), "\" failed: ", frame.status().message())));
       continue;
@@ -132,11 +123,6 @@ void RenderLoop::Run(DevicePreference preference) {
                               static_cast<double>(render_stats.pixels));
     }
     scene->Publish(*frame);
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      ++stats_.renders;
-      stats_.last_render_seconds = seconds;
-    }
     const PixelRect& w = render_stats.window;
     Log(LogLevel::kDebug, "rendered",
         {{"scene", scene->id()}, {"version", absl::StrCat(changes.version)},

@@ -18,12 +18,6 @@
 
 namespace gvd {
 
-struct RenderLoopStats {
-  uint64_t renders = 0;
-  uint64_t failures = 0;
-  double last_render_seconds = 0;
-};
-
 class RenderLoop {
  public:
   RenderLoop() = default;
@@ -43,8 +37,6 @@ class RenderLoop {
   // Queues a render of the scene at its latest version. Thread-safe; never blocks on a render.
   void MarkDirty(std::shared_ptr<Scene> scene);
 
-  RenderLoopStats stats() const;
-
   // Renders are observed here from now on (null: none). Call before Start.
   void set_metrics(Metrics* metrics) { metrics_ = metrics; }
 
@@ -62,7 +54,6 @@ class RenderLoop {
   absl::Status start_status_;
   std::deque<std::shared_ptr<Scene>> queue_;
   std::set<const Scene*> queued_;
-  RenderLoopStats stats_;
 };
 
 }  // namespace gvd

@@ -70,7 +70,7 @@ absl::StatusOr<std::unique_ptr<Store>> Store::Open(const std::string& dir) {
     sqlite3_close(db);
     return s;
   }
-  std::unique_ptr<Store> store(new Store(db, path, persistent));
+  std::unique_ptr<Store> store(new Store(db, path));
   sqlite3_busy_timeout(db, 5000);
   for (const char* sql : {
            "PRAGMA journal_mode=WAL",
@@ -179,6 +179,14 @@ absl::Status Store::DeleteScene(const std::string& scene_id) {
   });
 }
 
+absl::Status Store::SetVersion(const std::string& scene_id, uint64_t version) {
+  Statement v(db_, "UPDATE scenes SET version = ? WHERE id = ?");
+  v.Int(1, version);
+  v.Text(2, scene_id);
+  if (!v.ok() || !v.Run()) return SqliteError(db_, "storing the version");
+  return absl::OkStatus();
+}
+
 absl::Status Store::UpsertSites(const std::string& scene_id,
                                 const google::protobuf::RepeatedPtrField<v1::Site>& sites,
                                 uint64_t version) {
@@ -191,11 +199,7 @@ absl::Status Store::UpsertSites(const std::string& scene_id,
       put.Blob(3, site.SerializeAsString());
       if (!put.Run()) return SqliteError(db_, "storing a site");
     }
-    Statement v(db_, "UPDATE scenes SET version = ? WHERE id = ?");
-    v.Int(1, version);
-    v.Text(2, scene_id);
-    if (!v.ok() || !v.Run()) return SqliteError(db_, "storing the version");
-    return absl::OkStatus();
+    return SetVersion(scene_id, version);
   });
 }
 
@@ -209,11 +213,7 @@ absl::Status Store::DeleteSites(const std::string& scene_id, const std::vector<s
       del.Text(2, id);
       if (!del.Run()) return SqliteError(db_, "deleting a site");
     }
-    Statement v(db_, "UPDATE scenes SET version = ? WHERE id = ?");
-    v.Int(1, version);
-    v.Text(2, scene_id);
-    if (!v.ok() || !v.Run()) return SqliteError(db_, "storing the version");
-    return absl::OkStatus();
+    return SetVersion(scene_id, version);
   });
 }
 

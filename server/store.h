@@ -42,15 +42,15 @@ class Store {
   absl::Status DeleteSites(const std::string& scene_id, const std::vector<std::string>& ids,
                            uint64_t version);
 
-  bool persistent() const { return persistent_; }
   const std::string& path() const { return path_; }
   // Seconds the last commit took (BEGIN to durable COMMIT).
   double last_commit_seconds() const;
 
  private:
-  Store(sqlite3* db, std::string path, bool persistent)
-      : db_(db), path_(std::move(path)), persistent_(persistent) {}
+  Store(sqlite3* db, std::string path) : db_(db), path_(std::move(path)) {}
   absl::Status Exec(const char* sql);
+  // Sets a scene's version (inside a transaction).
+  absl::Status SetVersion(const std::string& scene_id, uint64_t version);
   // Runs `body` inside BEGIN IMMEDIATE ... COMMIT, rolling back if it fails.
   template <class Body>
   absl::Status Transaction(Body body);
@@ -58,7 +58,6 @@ class Store {
   mutable std::mutex mu_;
   sqlite3* db_;
   std::string path_;
-  bool persistent_;
   double last_commit_seconds_ = 0;
 };
 
