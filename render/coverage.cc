@@ -19,6 +19,19 @@ bool BeatsSomewhere(Vec2 s, Vec2 s1, const Window& c) {
   return false;
 }
 
+// The plain point of a site, or null.
+const PointSite* PlainPoint(const Site& s) {
+  return s.plain() ? std::get_if<PointSite>(&s.geometry) : nullptr;
+}
+
+// Whether the site is present (drawn) on the whole disc of radius h around c, whose
+// distance from the site is d.
+bool PresentOnDisc(const Site& s, double d, double h, double margin) {
+  if (!(d + h <= s.max_distance + margin)) return false;
+  const auto* poly = std::get_if<PolygonSite>(&s.geometry);
+  return poly == nullptr || poly->side == Side::kBoth;
+}
+
 }  // namespace
 
 uint32_t DefaultTilePx(const Grid& grid, size_t n) {
@@ -27,10 +40,33 @@ uint32_t DefaultTilePx(const Grid& grid, size_t n) {
 }
 
 Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
-                         PixelRect region, uint32_t tile_px) {
+                         PixelRect region, uint32_t tile_px, Diagram diagram) {
   Coverage cov;
   cov.radius.assign(sites.size(), -1);
   cov.tile_px = tile_px ? tile_px : DefaultTilePx(grid, index.size());
+  const double margin = DrawMargin(grid);
+  // The margin absorbs rounding differences between these bounds and distances computed
+  // elsewhere (a few ulps), so a radius can never fall short of them.
+  auto radius_for = [&](const Site& s, const Window& box) {
+    return std::min(FarthestDistance(box, s.geometry) * (1 + 0x1p-40), s.max_distance + margin);
+  };
+  if (region.empty()) return cov;
+  if (diagram == Diagram::kFarthest) {
+    Vec2 lo = grid.Center(region.x0, region.y0), hi = grid.Center(region.x1 - 1, region.y1 - 1);
+    Window box{lo.x, lo.y, hi.x, hi.y};
+    for (uint32_t s = 0; s < sites.size(); ++s) {
+      if (const Site* site = sites.get(s)) cov.radius[s] = radius_for(*site, box);
+      ++cov.pairs;
+    }
+    return cov;
+  }
+  double min_m = INFINITY, min_a = INFINITY;
+  for (uint32_t s = 0; s < sites.size(); ++s) {
+    if (const Site* site = sites.get(s)) {
+      min_m = std::min(min_m, site->multiplicative);
+      min_a = std::min(min_a, site->additive);
+    }
+  }
   std::vector<uint32_t> candidates;
   for (uint32_t ty = region.y0; ty < region.y1; ty += cov.tile_px) {
     for (uint32_t tx = region.x0; tx < region.x1; tx += cov.tile_px) {
@@ -40,20 +76,46 @@ Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteInd
       Window cell{lo.x, lo.y, hi.x, hi.y};
       Vec2 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2};
       double h = Distance(lo, hi) / 2;
-      ExactNearest s1 = index.Nearest(c, sites);
-      // Rounding slack on the search radius keeps the candidate set a superset.
-      double reach = (s1.distance + 2 * h) * (1 + 1e-12);
+      // U: an upper bound on the best drawn value at every centre of the cell.
+      ExactNearest s0 = index.Nearest(c, sites);
+      const Site* best_site = sites.get(static_cast<uint32_t>(s0.index));
+      double upper = INFINITY;
+      if (PresentOnDisc(*best_site, s0.distance, h, margin)) {
+        upper = best_site->multiplicative * (s0.distance + h) + best_site->additive;
+      }
       candidates.clear();
-      index.Within(c, reach, &candidates);
-      const auto* p1 = std::get_if<PointSite>(&sites.get(s1.index)->geometry);
-      for (uint32_t s : candidates) {
-        const Geometry& g = sites.get(s)->geometry;
-        if (ExactDistance(c, g) > reach) continue;
-        const auto* p = std::get_if<PointSite>(&g);
-        if (p && p1 && s != s1.index && !BeatsSomewhere(p->p, p1->p, cell)) continue;
-        // The margin absorbs rounding differences between this bound and distances computed
-        // elsewhere (a few ulps), so the radius can never fall short of them.
-        cov.radius[s] = std::max(cov.radius[s], FarthestDistance(cell, g) * (1 + 0x1p-40));
+      if (std::isfinite(upper)) {
+        // Rounding slack on the search radius keeps the candidate set a superset.
+        index.Within(c, ((upper - min_a) / min_m + h) * (1 + 1e-12), &candidates);
+      } else {
+        for (uint32_t s = 0; s < sites.size(); ++s) {
+          if (sites.get(s)) candidates.push_back(s);
+        }
+      }
+      // Distances from c, and the least U among the candidates present on the whole cell.
+      thread_local std::vector<double> dist;
+      dist.resize(candidates.size());
+      const Site* s1 = best_site;
+      for (size_t k = 0; k < candidates.size(); ++k) {
+        const Site& s = *sites.get(candidates[k]);
+        dist[k] = ExactDistance(c, s.geometry);
+        if (!PresentOnDisc(s, dist[k], h, margin)) continue;
+        double u = s.multiplicative * (dist[k] + h) + s.additive;
+        if (u < upper) {
+          upper = u;
+          s1 = &s;
+        }
+      }
+      const PointSite* p1 = PlainPoint(*s1);
+      for (size_t k = 0; k < candidates.size(); ++k) {
+        uint32_t slot = candidates[k];
+        const Site& s = *sites.get(slot);
+        double lower = s.multiplicative * std::max(0.0, dist[k] - h) + s.additive;
+        if (lower > upper * (1 + 1e-12)) continue;
+        if (dist[k] - h > (s.max_distance + margin) * (1 + 1e-12)) continue;  // absent on C
+        const PointSite* p = PlainPoint(s);
+        if (p && p1 && &s != s1 && !BeatsSomewhere(p->p, p1->p, cell)) continue;
+        cov.radius[slot] = std::max(cov.radius[slot], radius_for(s, cell));
         ++cov.pairs;
       }
     }

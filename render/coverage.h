@@ -21,6 +21,12 @@ struct Coverage {
   uint64_t pairs = 0;    // (tile, candidate site) pairs examined
 };
 
+// How far beyond a site's max_distance, and beyond the side of a polygon it excludes, its
+// distance function is still drawn: two pixel diagonals. A site that is a candidate at a
+// query point q is then drawn at the four pixel centres around q, which is what Frame's
+// bounds rest on; an empty pixel centre proves that no site is a candidate near it.
+inline double DrawMargin(const Grid& grid) { return 2 * grid.pixel_diagonal(); }
+
 // The tile side that ComputeCoverage uses by default for n sites on the grid: about twice the
 // mean spacing of the sites, in pixels, within [4, 64].
 uint32_t DefaultTilePx(const Grid& grid, size_t n);
@@ -28,18 +34,26 @@ uint32_t DefaultTilePx(const Grid& grid, size_t n);
 // Computes how far each site must reach to cover the pixel centres of `region` it is nearest
 // to. `index` indexes `sites` by slot. O(tiles * candidates per tile * log n).
 //
-// Why it is enough. Take a tile of the region, C the rectangle spanned by its pixel centres,
-// c the centre of C and h its half-diagonal; let s1 be the exact nearest site to c and
-// d1 = |c s1|. For any centre p in C and any site s nearest to p:
-//   d(p, s) <= d(p, s1) <= |p c| + d1 <= h + d1,   so   d(c, s) <= |c p| + d(p, s) <= d1 + 2h.
-// So s is among the sites within d1 + 2h of c. For point sites, s must also be at least as
-// near as s1 at p: p lies in the half-plane {x : |x s| <= |x s1|}; as C is convex, some corner
-// of C lies in it too, and sites with no corner there are dropped. Every remaining candidate
-// gets radius >= max over C of d(., s) >= d(p, s) for every p of C. Hence every pixel centre
-// lies within the radius of each of its nearest sites. tests/coverage_test.cc checks this
-// pixel by pixel against the oracle.
+// What is drawn. A site s is drawn with value v_s(p) = m_s d(p, s) + a_s wherever it is
+// "present": within max_distance + DrawMargin of its geometry and, for a polygon restricted to
+// one side, on that side or within DrawMargin of its boundary. The drawn diagram takes the
+// least (kNearest) or greatest (kFarthest) v over the sites present.
+//
+// Why the radii are enough (kNearest). Take a tile of the region, C the rectangle spanned by
+// its pixel centres, c the centre of C and h its half-diagonal. A site s1 present on all of C
+// gives U = m1 (d(c, s1) + h) + a1 >= v_s1(p) for every p of C; the least such U is taken over
+// the nearest site to c and the sites within reach of it. A site s best at some p of C has
+// v_s(p) <= U, so m_s max(0, d(c, s) - h) + a_s <= U: the others are dropped, as are sites
+// not present anywhere near C. For plain point sites s and s1, s must also be at least as near
+// as s1 at p: p lies in the half-plane {x : |x s| <= |x s1|}; as C is convex, some corner of C
+// lies in it too, and sites with no corner there are dropped. Every remaining candidate gets
+// radius >= max over C of d(., s) (capped at its presence, max_distance + DrawMargin), so
+// every pixel centre lies within the radius of each site best there. With no site present
+// on all of C, every site present near C is kept. kFarthest keeps every site, over the whole
+// region. tests/coverage_test.cc checks this pixel by pixel against the oracle.
 // CONTRACT: index holds exactly the live slots of the table, at least one.
 Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
-                         PixelRect region, uint32_t tile_px = 0);
+                         PixelRect region, uint32_t tile_px = 0,
+                         Diagram diagram = Diagram::kNearest);
 
 }  // namespace gvd

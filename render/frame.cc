@@ -96,31 +96,51 @@ std::optional<NearestAnswer> Frame::Nearest(Vec2 q) const {
   Vec2 c = grid_.ToPixel(q);
   uint32_t i0 = FloorCenter(c.x, grid_.width), j0 = FloorCenter(c.y, grid_.height);
   uint32_t i1 = std::min(i0 + 1, grid_.width - 1), j1 = std::min(j0 + 1, grid_.height - 1);
+  const Diagram diagram = error_.diagram;
+  const bool nearest = diagram == Diagram::kNearest;
 
   NearestAnswer best;
-  bool found = false;
-  double lower = 0;  // no site is closer to q than this
+  best.found = false;
+  // No site's value at q beats this.
+  double limit = nearest ? -INFINITY : INFINITY;
   const uint32_t is[2] = {i0, i1}, js[2] = {j0, j1};
   for (uint32_t a = 0; a < 2; ++a) {
     for (uint32_t b = 0; b < 2; ++b) {
       if ((a && i1 == i0) || (b && j1 == j0)) continue;
       uint32_t i = is[a], j = js[b];
       uint32_t id = id_at(i, j);
-      if (id == 0) continue;
-      // Every site B: dist(q, B) >= dist(p, B) - |q - p| >= LowerBound(D) - |q - p|.
-      double d = distance_at(i, j);
-      lower = std::max(lower, error_.LowerBound(d) - Distance(q, grid_.Center(i, j)));
+      if (id == 0) return NearestAnswer{0, 0, 0, false};  // no site is present near q
+      // Every site B candidate at q: v_B(q) >= v_B(p) - L |q - p| >= LowerBound(D) - L |q - p|
+      // (or <= UpperBound(D) + L |q - p|).
+      double d = distance_at(i, j), step = error_.lipschitz * Distance(q, grid_.Center(i, j));
+      limit = nearest ? std::max(limit, error_.LowerBound(d) - step)
+                      : std::min(limit, error_.UpperBound(d) + step);
       uint32_t index = id - 1;
-      if (found && index == best.site_index) continue;
-      double exact = ExactDistance(q, sites_.get(index)->geometry);
-      if (!found || exact < best.distance || (exact == best.distance && index < best.site_index)) {
-        best = {index, exact, 0};
-        found = true;
+      if (best.found && index == best.site_index) continue;
+      double value = SiteValue(q, *sites_.get(index));
+      if (!std::isfinite(value)) continue;
+      if (!best.found || Beats(diagram, value, best.distance) ||
+          (value == best.distance && index < best.site_index)) {
+        best = {index, value, 0, true};
       }
     }
   }
-  if (!found) return std::nullopt;
-  best.error_bound = std::max(0.0, best.distance - lower);
+  if (!best.found) {
+    // Every centre holds a site, none a candidate at q: q lies within a few pixels of some
+    // site's max_distance or side. Score them all.
+    for (uint32_t s = 0; s < sites_.size(); ++s) {
+      const Site* site = sites_.get(s);
+      if (site == nullptr) continue;
+      double value = SiteValue(q, *site);
+      if (std::isfinite(value) && (!best.found || Beats(diagram, value, best.distance))) {
+        best = {s, value, 0, true};
+      }
+    }
+    best.error_bound = error_.curve;
+    return best;
+  }
+  best.error_bound =
+      std::max(0.0, nearest ? best.distance - limit : limit - best.distance) + error_.curve;
   return best;
 }
 

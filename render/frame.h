@@ -8,36 +8,48 @@
 #include <optional>
 #include <vector>
 
+#include "render/exact.h"
 #include "render/geometry.h"
 #include "render/site.h"
 
 namespace gvd {
 
-// How far a frame's stored distances can be from the truth. Wherever a site B's mesh is
-// drawn over a pixel centre p, its height satisfies
-//   dist(p, B) <= h_B(p) <= min(overestimate * dist(p, B), dist(p, B) + max_excess)
-// (the fan's spokes lie on the cone; sec. 4.1.1), and each pixel centre is covered by the
-// mesh of its nearest site (render/coverage.h). The stored value D(p) is the smallest height
-// drawn there, up to the rasterizer's arithmetic: slack(D) = absolute_slack + relative_slack * D.
+// How far a frame's stored values can be from the truth. Let v_B(p) = m_B d(p, B) + a_B be
+// site B's value, ignoring its max_distance and side. Wherever B's pieces are drawn over a
+// pixel centre p, their height satisfies
+//   v_B(p) <= h_B(p) <= min(overestimate * v_B(p), v_B(p) + max_excess)
+// (a fan's spokes lie on the cone, sec. 4.1.1; a tent is exact; a >= 0), and each pixel
+// centre is covered by the pieces of every site best there among those present
+// (render/coverage.h). The stored value D(p) is the least (kNearest) or greatest (kFarthest)
+// height drawn there, up to the rasterizer's arithmetic: slack(D) = absolute_slack +
+// relative_slack * D. A site that is a candidate at q is present at the pixel centres around
+// q, and its value changes by at most lipschitz per unit of distance.
 struct ErrorModel {
+  Diagram diagram = Diagram::kNearest;
   double overestimate = 1;    // k >= 1
-  double max_excess = 0;      // eps, scene units
+  double max_excess = 0;      // eps * the largest weight, scene units
   double absolute_slack = 0;  // scene units: sub-pixel vertex snapping and interpolation
   double relative_slack = 0;  // float depth and interpolation rounding, relative to D
+  double lipschitz = 1;       // the largest multiplicative weight of any site
+  double curve = 0;           // the largest Bezier tolerance * weight, added to every bound
 
   double Slack(double d) const { return absolute_slack + relative_slack * d; }
-  // A lower bound on dist(p, B) for every site B, given the stored distance D at p: the
-  // nearest site's height at p is at least D.
+  // A lower bound on v_B(p) for every site B present at p, given the least stored value D
+  // at p: the best site's height at p is at least D.
   double LowerBound(double d) const {
     return std::max(d / overestimate, d - max_excess) - Slack(d);
   }
+  // An upper bound on v_B(p) for every site B present at p, given the greatest stored value
+  // D at p: every height drawn is at least the value.
+  double UpperBound(double d) const { return d + Slack(d); }
 };
 
-// The answer to a nearest-site query at a point.
+// The answer to a nearest-site (or farthest-site) query at a point.
 struct NearestAnswer {
   uint32_t site_index = 0;  // a slot of Frame::sites()
-  double distance = 0;      // exact distance from the query point to that site
-  double error_bound = 0;   // no site is closer than distance - error_bound
+  double distance = 0;      // that site's exact value at the query point
+  double error_bound = 0;   // no site's value beats distance by more than error_bound
+  bool found = true;        // false: no site is a candidate at the point (certain)
 };
 
 // Immutable once made; shared between threads by shared_ptr. Pixels live in square tiles
@@ -89,9 +101,11 @@ class Frame {
   // The pixel whose centre is nearest to p (clamped to the grid).
   void PixelOf(Vec2 p, uint32_t* i, uint32_t* j) const;
 
-  // The nearest site to q with an exact distance and a proven error bound (see NearestSite in
-  // the API). Uses the up to four pixel centres around q: each stored site is a candidate,
-  // scored exactly; each stored distance bounds every site from below. O(1).
+  // The best site at q with its exact value and a proven error bound (see NearestSite in the
+  // API). Uses the up to four pixel centres around q: each stored site is a candidate, scored
+  // exactly; each stored value bounds every site present there. An empty centre proves that
+  // no site is a candidate at q. O(1), except where none of the stored sites is a candidate
+  // at q (within a few pixels of a max_distance or a side): then every site is scored.
   // Returns nullopt when the frame is empty. q may lie anywhere; outside the window the
   // bound grows with the distance to the nearest pixel centre.
   std::optional<NearestAnswer> Nearest(Vec2 q) const;

@@ -11,6 +11,7 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
+#include "render/coverage.h"
 #include "render/exact.h"
 #include "render/scene_raster.h"
 #include "render/mesh.h"
@@ -18,57 +19,102 @@
 namespace gvd {
 namespace {
 
-// Point cones, instanced: `unit` is a vertex of the unit cone, `instance` = (x, y, rho) with
-// x, y relative to the window's min corner in scene units, `site` = site index + 1.
-// Depth is distance / depth_scale; glClipControl(ZERO_TO_ONE) keeps it unchanged into the
-// depth buffer, with no [-1, 1] remapping to cost precision.
-constexpr const char* kVertexShader = R"(#version 450 core
+// Every program works in scene units relative to the window's min corner, with depth =
+// value / depth_scale; glClipControl(ZERO_TO_ONE) keeps it unchanged into the depth buffer,
+// with no [-1, 1] remapping to cost precision.
+
+// Vertex cones, instanced: `unit` is a vertex of the unit cone, `cone` = (x, y, rho),
+// `weight` = (m, a), `site` = slot + 1. Height m * rho * z + a.
+constexpr const char* kConeVertexShader = R"(#version 450 core
 layout(location = 0) in vec3 unit;
-layout(location = 1) in vec3 instance;
-layout(location = 2) in uint site;
+layout(location = 1) in vec3 cone;
+layout(location = 2) in vec2 weight;
+layout(location = 3) in uint site;
 uniform vec2 u_scale;
 uniform float u_inv_depth;
 flat out uint v_site;
 void main() {
-  vec2 p = instance.xy + instance.z * unit.xy;
-  gl_Position = vec4(p * u_scale - 1.0, unit.z * instance.z * u_inv_depth, 1.0);
+  vec2 p = cone.xy + cone.z * unit.xy;
+  float value = weight.x * cone.z * unit.z + weight.y;
+  gl_Position = vec4(p * u_scale - 1.0, value * u_inv_depth, 1.0);
   v_site = site;
 }
 )";
 
-constexpr const char* kFragmentShader = R"(#version 450 core
+// Edge tents, instanced: `unit` = (u, v, |v|) spans the segment (u in [0, 1]) and its
+// normal (v in [-1, 1]); `ends` = (a, b), `tent` = (half-width r, m, a). Each half is a plane,
+// so the interpolated height is the distance to the segment's line, exactly.
+constexpr const char* kTentVertexShader = R"(#version 450 core
+layout(location = 0) in vec3 unit;
+layout(location = 1) in vec4 ends;
+layout(location = 2) in vec3 tent;
+layout(location = 3) in uint site;
+uniform vec2 u_scale;
+uniform float u_inv_depth;
+flat out uint v_site;
+void main() {
+  vec2 ab = ends.zw - ends.xy;
+  vec2 n = vec2(-ab.y, ab.x) / length(ab);
+  vec2 p = ends.xy + unit.x * ab + unit.y * tent.x * n;
+  float value = tent.y * tent.x * unit.z + tent.z;
+  gl_Position = vec4(p * u_scale - 1.0, value * u_inv_depth, 1.0);
+  v_site = site;
+}
+)";
+
+constexpr const char* kIdFragmentShader = R"(#version 450 core
 flat in uint v_site;
 layout(location = 0) out uint o_site;
 void main() { o_site = v_site; }
 )";
 
-// Exact mode: the same instances drawn as quads (`unit` spans [-1, 1]^2) whose fragments
-// evaluate the distance to the site analytically, from the pixel centre gl_FragCoord.
+// Per-fragment sites, instanced quads: `rect` = (x0, y0, x1, y1), `weight` = (m, a, reach),
+// `info` = (site, first segment, segment count, side: 0 both, 1 outside, 2 inside). The
+// fragment takes the least distance over the site's segments (a point is one of length 0),
+// tests the polygon's side by the even-odd rule, and writes m d + a as depth.
 constexpr const char* kExactVertexShader = R"(#version 450 core
 layout(location = 0) in vec3 unit;
-layout(location = 1) in vec3 instance;
-layout(location = 2) in uint site;
+layout(location = 1) in vec4 rect;
+layout(location = 2) in vec3 weight;
+layout(location = 3) in uvec4 info;
 uniform vec2 u_scale;
-uniform vec2 u_inv_pixel;
-flat out uint v_site;
-flat out vec2 v_site_px;
+flat out uvec4 v_info;
+flat out vec3 v_weight;
 void main() {
-  vec2 p = instance.xy + instance.z * unit.xy;
+  vec2 p = mix(rect.xy, rect.zw, unit.xy);
   gl_Position = vec4(p * u_scale - 1.0, 0.0, 1.0);
-  v_site = site;
-  v_site_px = instance.xy * u_inv_pixel;
+  v_info = info;
+  v_weight = weight;
 }
 )";
 
 constexpr const char* kExactFragmentShader = R"(#version 450 core
-flat in uint v_site;
-flat in vec2 v_site_px;
+layout(std430, binding = 0) readonly buffer Segments { vec4 segments[]; };
+flat in uvec4 v_info;
+flat in vec3 v_weight;
 uniform vec2 u_pixel;
 uniform float u_inv_depth;
+uniform float u_margin;
 layout(location = 0) out uint o_site;
 void main() {
-  gl_FragDepth = length((gl_FragCoord.xy - v_site_px) * u_pixel) * u_inv_depth;
-  o_site = v_site;
+  vec2 p = gl_FragCoord.xy * u_pixel;
+  float d = 3.0e38;
+  bool inside = false;
+  for (uint i = v_info.y; i < v_info.y + v_info.z; ++i) {
+    vec4 s = segments[i];
+    vec2 ab = s.zw - s.xy, ap = p - s.xy;
+    float len2 = dot(ab, ab);
+    float t = len2 > 0.0 ? clamp(dot(ap, ab) / len2, 0.0, 1.0) : 0.0;
+    d = min(d, length(ap - t * ab));
+    if ((s.y > p.y) != (s.w > p.y) &&
+        p.x < s.x + (p.y - s.y) / (s.w - s.y) * (s.z - s.x)) {
+      inside = !inside;
+    }
+  }
+  if (d > v_weight.z) discard;
+  if (v_info.w != 0u && d > u_margin && inside != (v_info.w == 2u)) discard;
+  gl_FragDepth = (v_weight.x * d + v_weight.y) * u_inv_depth;
+  o_site = v_info.x;
 }
 )";
 
@@ -157,36 +203,43 @@ absl::StatusOr<Rasterizer::Program> Rasterizer::Link(const char* vertex, const c
   p.u_scale = glGetUniformLocation(p.id, "u_scale");
   p.u_inv_depth = glGetUniformLocation(p.id, "u_inv_depth");
   p.u_pixel = glGetUniformLocation(p.id, "u_pixel");
-  p.u_inv_pixel = glGetUniformLocation(p.id, "u_inv_pixel");
+  p.u_margin = glGetUniformLocation(p.id, "u_margin");
   return p;
 }
 
 absl::StatusOr<std::unique_ptr<Rasterizer>> Rasterizer::Create() {
   std::unique_ptr<Rasterizer> r(new Rasterizer());
-  auto mesh = Link(kVertexShader, kFragmentShader);
-  if (!mesh.ok()) return mesh.status();
-  r->mesh_ = *mesh;
-  auto exact = Link(kExactVertexShader, kExactFragmentShader);
-  if (!exact.ok()) return exact.status();
-  r->exact_ = *exact;
+  for (auto [program, vertex, fragment] :
+       {std::tuple{&r->cone_, kConeVertexShader, kIdFragmentShader},
+        std::tuple{&r->tent_, kTentVertexShader, kIdFragmentShader},
+        std::tuple{&r->exact_, kExactVertexShader, kExactFragmentShader}}) {
+    auto linked = Link(vertex, fragment);
+    if (!linked.ok()) return linked.status();
+    *program = *linked;
+  }
   glGenVertexArrays(1, &r->vao_);
   glGenBuffers(1, &r->instances_);
-  // Two triangles spanning [-1, 1]^2, in the cone vertices' layout.
-  const float quad[] = {-1, -1, 0, 1, -1, 0, 1, 1, 0, -1, -1, 0, 1, 1, 0, -1, 1, 0};
+  glGenBuffers(1, &r->segments_);
+  // Two triangles spanning [0, 1]^2.
+  const float quad[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 0, 0, 1, 1, 0, 0, 1, 0};
   glGenBuffers(1, &r->quad_);
   glBindBuffer(GL_ARRAY_BUFFER, r->quad_);
   glBufferData(GL_ARRAY_BUFFER, sizeof quad, quad, GL_STATIC_DRAW);
+  // The two halves of a tent, (u, v, |v|): the segment at v = 0, the far sides at |v| = 1.
+  const float tent[] = {0, 0, 0, 1, 0, 0, 1, 1, 1, 0, 0, 0, 1, 1, 1, 0, 1, 1,
+                        0, 0, 0, 1, -1, 1, 1, 0, 0, 0, 0, 0, 0, -1, 1, 1, -1, 1};
+  glGenBuffers(1, &r->tent_mesh_);
+  glBindBuffer(GL_ARRAY_BUFFER, r->tent_mesh_);
+  glBufferData(GL_ARRAY_BUFFER, sizeof tent, tent, GL_STATIC_DRAW);
   if (auto s = GlError("creating the rasterizer"); !s.ok()) return s;
   return r;
 }
 
 Rasterizer::~Rasterizer() {
   for (auto& [n, buffer] : cones_) glDeleteBuffers(1, &buffer);
-  glDeleteBuffers(1, &quad_);
-  glDeleteBuffers(1, &instances_);
+  for (unsigned b : {quad_, tent_mesh_, instances_, segments_}) glDeleteBuffers(1, &b);
   glDeleteVertexArrays(1, &vao_);
-  glDeleteProgram(mesh_.id);
-  glDeleteProgram(exact_.id);
+  for (const Program* p : {&cone_, &tent_, &exact_}) glDeleteProgram(p->id);
 }
 
 unsigned Rasterizer::ConeBuffer(uint32_t segments) {
@@ -220,39 +273,124 @@ uint32_t SegmentBucket(uint32_t needed) {
 
 }  // namespace
 
-Rasterizer::ConeShape Rasterizer::Shape(const Grid& grid, double radius, double eps,
-                                        RenderMode mode) const {
-  // A sixteenth of a pixel beyond the proven radius keeps centres on the edge inside,
-  // whatever the rasterizer's snapping (1/256 pixel). Scaled by extent = r * k, the fan
-  // covers radius r; the factor 1 + 2^-20 absorbs the rounding of the float ring vertices,
-  // which can fall a few ulps inside the unit circle.
-  double r = radius + grid.pixel_size() / 16;
-  if (mode == RenderMode::kExact) {
-    // A quad of half-side r: its corners, sqrt(2) r away, bound the distances it writes.
-    return {2, 1, r * std::numbers::sqrt2 * (1 + 0x1p-20), r};
+namespace {
+
+// Whether a site is drawn per fragment (see RenderMode).
+bool PerFragment(const DrawParams& params, const Site& site) {
+  if (params.mode == RenderMode::kExact) return true;
+  if (const auto* poly = std::get_if<PolygonSite>(&site.geometry)) {
+    if (poly->side != Side::kBoth) return true;
   }
-  uint32_t n = SegmentBucket(ConeSegments(r + eps, eps));
-  double k = 1 / std::cos(std::numbers::pi / n);
-  return {n, k, r * k * (1 + 0x1p-20), r * k * (1 + 0x1p-20)};
+  return params.diagram == Diagram::kFarthest && !std::holds_alternative<PointSite>(site.geometry);
 }
 
-absl::Status Rasterizer::Draw(const Grid& grid, double eps, RenderMode mode, double depth_scale,
-                              PixelRect scissor, bool clear, const std::vector<ConeDraw>& cones,
-                              RenderTarget& target) {
+// Calls f(p) for each vertex of the geometry that gets a cone in kMesh, and g(a, b) for each
+// edge of positive length that gets a tent.
+template <class F, class G>
+void ForEachPiece(const Geometry& geometry, F&& f, G&& g) {
+  if (const auto* p = std::get_if<PointSite>(&geometry)) {
+    f(p->p);
+    return;
+  }
+  bool first = true;
+  const bool closed = std::holds_alternative<PolygonSite>(geometry);
+  ForEachSegment(geometry, [&](Vec2 a, Vec2 b) {
+    if (first && !closed) f(a);  // a polygon's first vertex is the last edge's end
+    first = false;
+    f(b);
+    if (a.x != b.x || a.y != b.y) g(a, b);
+  });
+}
+
+}  // namespace
+
+SiteShape Rasterizer::Shape(const Grid& grid, const DrawParams& params, const Site& site,
+                            double radius) const {
+  // A sixteenth of a pixel beyond the proven radius keeps centres on the edge inside,
+  // whatever the rasterizer's snapping (1/256 pixel). Scaled by extent = r * k, a fan covers
+  // radius r; the factor 1 + 2^-20 absorbs the rounding of the float ring vertices, which
+  // can fall a few ulps inside the unit circle.
+  const double r = radius + grid.pixel_size() / 16;
+  SiteShape shape;
+  const double m = site.multiplicative, a = site.additive;
+  if (PerFragment(params, site)) {
+    Window b = BoundingBox(site.geometry);
+    shape.per_fragment = true;
+    shape.extent = r;
+    shape.area = (b.width() + 2 * r) * (b.height() + 2 * r);
+  } else {
+    shape.segments = SegmentBucket(ConeSegments(r + params.eps, params.eps));
+    shape.overestimate = 1 / std::cos(std::numbers::pi / shape.segments);
+    shape.extent = r * shape.overestimate * (1 + 0x1p-20);
+    ForEachPiece(
+        site.geometry, [&](Vec2) { shape.area += std::numbers::pi * r * r; },
+        [&](Vec2 p, Vec2 q) { shape.area += 2 * r * Distance(p, q); });
+  }
+  shape.max_value = (m * shape.extent + a) * (1 + 0x1p-20);
+  return shape;
+}
+
+absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelRect scissor,
+                              bool clear, const SlotTable& sites,
+                              const std::vector<SiteDraw>& draws, RenderTarget& target) {
   if (target.width() != grid.width || target.height() != grid.height) {
     return absl::InternalError("render target does not match the grid");
   }
   if (scissor.empty()) return absl::OkStatus();
-  struct Instance {
-    float x, y, rho;
+  struct Cone {
+    float x, y, rho, m, a;
     uint32_t site;
   };
-  std::map<uint32_t, std::vector<Instance>> buckets;
-  for (const ConeDraw& c : cones) {
-    ConeShape shape = Shape(grid, c.radius, eps, mode);
-    buckets[shape.segments].push_back({static_cast<float>(c.site.x - grid.window.min_x),
-                                       static_cast<float>(c.site.y - grid.window.min_y),
-                                       static_cast<float>(shape.scale), c.slot + 1});
+  struct Tent {
+    float ax, ay, bx, by, r, m, a;
+    uint32_t site;
+  };
+  struct Quad {
+    float x0, y0, x1, y1, m, a, reach;
+    uint32_t site, first, count, side;
+  };
+  std::map<uint32_t, std::vector<Cone>> cones;  // by triangle count
+  std::vector<Tent> tents;
+  std::vector<Quad> quads;
+  std::vector<float> segments;  // x0, y0, x1, y1 per segment, for the quads
+  const Vec2 origin{grid.window.min_x, grid.window.min_y};
+  auto rel = [&](Vec2 p) { return p - origin; };
+  for (const SiteDraw& d : draws) {
+    const Site& site = *sites.get(d.slot);
+    SiteShape shape = Shape(grid, params, site, d.radius);
+    const float m = static_cast<float>(site.multiplicative);
+    const float a = static_cast<float>(site.additive);
+    const uint32_t id = d.slot + 1;
+    if (shape.per_fragment) {
+      Window b = BoundingBox(site.geometry);
+      const double r = shape.extent;
+      uint32_t first = static_cast<uint32_t>(segments.size() / 4), count = 0;
+      ForEachSegment(site.geometry, [&](Vec2 p, Vec2 q) {
+        Vec2 u = rel(p), v = rel(q);
+        segments.insert(segments.end(), {float(u.x), float(u.y), float(v.x), float(v.y)});
+        ++count;
+      });
+      uint32_t side = 0;
+      if (const auto* poly = std::get_if<PolygonSite>(&site.geometry)) {
+        side = poly->side == Side::kOutside ? 1 : poly->side == Side::kInside ? 2 : 0;
+      }
+      Vec2 lo = rel({b.min_x - r, b.min_y - r}), hi = rel({b.max_x + r, b.max_y + r});
+      quads.push_back({float(lo.x), float(lo.y), float(hi.x), float(hi.y), m, a, float(r), id,
+                       first, count, side});
+      continue;
+    }
+    const float rho = static_cast<float>(shape.extent);
+    ForEachPiece(
+        site.geometry,
+        [&](Vec2 p) {
+          Vec2 u = rel(p);
+          cones[shape.segments].push_back({float(u.x), float(u.y), rho, m, a, id});
+        },
+        [&](Vec2 p, Vec2 q) {
+          Vec2 u = rel(p), v = rel(q);
+          tents.push_back(
+              {float(u.x), float(u.y), float(v.x), float(v.y), float(shape.extent), m, a, id});
+        });
   }
   glBindFramebuffer(GL_FRAMEBUFFER, target.framebuffer());
   glViewport(0, 0, grid.width, grid.height);
@@ -260,44 +398,74 @@ absl::Status Rasterizer::Draw(const Grid& grid, double eps, RenderMode mode, dou
   glScissor(scissor.x0, scissor.y0, scissor.width(), scissor.height());
   glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
   glEnable(GL_DEPTH_TEST);
-  glDepthFunc(GL_LESS);
+  const bool farthest = params.diagram == Diagram::kFarthest;
+  glDepthFunc(farthest ? GL_GREATER : GL_LESS);
   glDepthMask(GL_TRUE);
   glDisable(GL_BLEND);
   glDisable(GL_CULL_FACE);
   if (clear) {
     const GLuint zero_id[4] = {0, 0, 0, 0};
     glClearBufferuiv(GL_COLOR, 0, zero_id);
-    glClearBufferfi(GL_DEPTH_STENCIL, 0, 1.0f, 0);
+    glClearBufferfi(GL_DEPTH_STENCIL, 0, farthest ? 0.0f : 1.0f, 0);
   }
-  const Program& program = mode == RenderMode::kExact ? exact_ : mesh_;
-  glUseProgram(program.id);
-  glUniform2f(program.u_scale, static_cast<float>(2 / grid.window.width()),
-              static_cast<float>(2 / grid.window.height()));
-  glUniform1f(program.u_inv_depth, static_cast<float>(1 / depth_scale));
-  if (mode == RenderMode::kExact) {
-    glUniform2f(program.u_pixel, static_cast<float>(grid.pixel_width()),
-                static_cast<float>(grid.pixel_height()));
-    glUniform2f(program.u_inv_pixel, static_cast<float>(1 / grid.pixel_width()),
-                static_cast<float>(1 / grid.pixel_height()));
-  }
-  glBindVertexArray(vao_);
-  for (const auto& [segments, instances] : buckets) {
-    glBindBuffer(GL_ARRAY_BUFFER, mode == RenderMode::kExact ? quad_ : ConeBuffer(segments));
+  const float scale[2] = {static_cast<float>(2 / grid.window.width()),
+                          static_cast<float>(2 / grid.window.height())};
+  const float inv_depth = static_cast<float>(1 / params.depth_scale);
+  auto use = [&](const Program& p) {
+    glUseProgram(p.id);
+    glUniform2f(p.u_scale, scale[0], scale[1]);
+    glUniform1f(p.u_inv_depth, inv_depth);
+  };
+  // Binds `mesh` as attribute 0 and `data` (n instances of `stride` bytes) as attributes
+  // 1.. with the given float component counts, then the uint components.
+  auto bind = [&](unsigned mesh, const void* data, size_t n, size_t stride,
+                  std::initializer_list<int> floats, int uints) {
+    glBindBuffer(GL_ARRAY_BUFFER, mesh);
     glEnableVertexAttribArray(0);
     glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), nullptr);
     glVertexAttribDivisor(0, 0);
     glBindBuffer(GL_ARRAY_BUFFER, instances_);
-    glBufferData(GL_ARRAY_BUFFER, instances.size() * sizeof(Instance), instances.data(),
+    glBufferData(GL_ARRAY_BUFFER, n * stride, data, GL_STREAM_DRAW);
+    GLuint location = 1;
+    size_t offset = 0;
+    for (int count : floats) {
+      glEnableVertexAttribArray(location);
+      glVertexAttribPointer(location, count, GL_FLOAT, GL_FALSE, static_cast<GLsizei>(stride),
+                            reinterpret_cast<void*>(offset));
+      glVertexAttribDivisor(location++, 1);
+      offset += count * sizeof(float);
+    }
+    glEnableVertexAttribArray(location);
+    glVertexAttribIPointer(location, uints, GL_UNSIGNED_INT, static_cast<GLsizei>(stride),
+                           reinterpret_cast<void*>(offset));
+    glVertexAttribDivisor(location, 1);
+  };
+  glBindVertexArray(vao_);
+  for (GLuint location = 0; location < 4; ++location) glDisableVertexAttribArray(location);
+  if (!cones.empty()) {
+    use(cone_);
+    for (const auto& [n, list] : cones) {
+      bind(ConeBuffer(n), list.data(), list.size(), sizeof(Cone), {3, 2}, 1);
+      glDrawArraysInstanced(GL_TRIANGLES, 0, static_cast<GLsizei>(n * 3),
+                            static_cast<GLsizei>(list.size()));
+    }
+  }
+  if (!tents.empty()) {
+    use(tent_);
+    bind(tent_mesh_, tents.data(), tents.size(), sizeof(Tent), {4, 3}, 1);
+    glDrawArraysInstanced(GL_TRIANGLES, 0, 12, static_cast<GLsizei>(tents.size()));
+  }
+  if (!quads.empty()) {
+    use(exact_);
+    glUniform2f(exact_.u_pixel, static_cast<float>(grid.pixel_width()),
+                static_cast<float>(grid.pixel_height()));
+    glUniform1f(exact_.u_margin, static_cast<float>(DrawMargin(grid)));
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, segments_);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, segments.size() * sizeof(float), segments.data(),
                  GL_STREAM_DRAW);
-    glEnableVertexAttribArray(1);
-    glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, sizeof(Instance), nullptr);
-    glVertexAttribDivisor(1, 1);
-    glEnableVertexAttribArray(2);
-    glVertexAttribIPointer(2, 1, GL_UNSIGNED_INT, sizeof(Instance),
-                           reinterpret_cast<void*>(offsetof(Instance, site)));
-    glVertexAttribDivisor(2, 1);
-    glDrawArraysInstanced(GL_TRIANGLES, 0, static_cast<GLsizei>(segments * 3),
-                          static_cast<GLsizei>(instances.size()));
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, segments_);
+    bind(quad_, quads.data(), quads.size(), sizeof(Quad), {4, 3}, 4);
+    glDrawArraysInstanced(GL_TRIANGLES, 0, 6, static_cast<GLsizei>(quads.size()));
   }
   glDisable(GL_SCISSOR_TEST);
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
@@ -325,12 +493,13 @@ absl::StatusOr<std::shared_ptr<const Frame>> Rasterizer::Render(const Grid& grid
                                                                 uint64_t version,
                                                                 const SiteTable& sites,
                                                                 RenderStats* stats,
-                                                                RenderMode mode) {
-  auto scene = SceneRaster::Create(grid, eps, mode);
+                                                                RenderMode mode,
+                                                                Diagram diagram) {
+  auto scene = SceneRaster::Create(grid, eps, mode, diagram);
   if (!scene.ok()) return scene.status();
   std::vector<SiteChange> changes;
   changes.reserve(sites.size());
-  for (const Site& s : sites) changes.push_back({s.id, s.geometry});
+  for (const Site& s : sites) changes.push_back({s.id, s});
   return (*scene)->Apply(*this, version, std::move(changes), stats);
 }
 

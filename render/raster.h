@@ -8,6 +8,7 @@
 
 #include "absl/status/statusor.h"
 #include "render/frame.h"
+#include "render/exact.h"
 #include "render/geometry.h"
 #include "render/site.h"
 
@@ -47,17 +48,38 @@ struct RenderStats {
   bool full = false;           // a render from scratch
 };
 
-// How distance functions are drawn. kMesh: the paper's bounded-error triangle fans (error at
-// most eps, interpolated by the rasterizer). kExact: one quad per site whose fragments
-// compute the distance analytically and write it as depth (no meshing error; two triangles
-// per site, but no early depth test).
+// How distance functions are drawn. kMesh: the paper's bounded-error meshes (a fan of
+// triangles within eps for every vertex, two exact planes per edge), interpolated by the
+// rasterizer. kExact: one quad per site whose fragments compute the site's distance
+// analytically and write it as depth (no meshing error; no early depth test either).
+// Some sites are drawn as in kExact whatever the mode, because one depth test cannot draw
+// them from pieces: polygons restricted to one side (the fragment tests the side), and every
+// site but a point in a kFarthest diagram (the site's value is the least over its pieces,
+// the diagram's the greatest over sites).
 enum class RenderMode { kMesh, kExact };
 
-// A point site's distance cone to draw: it must cover every pixel centre within `radius`.
-struct ConeDraw {
-  Vec2 site;
-  double radius = 0;
+// A site to draw: it must cover every pixel centre within `radius` of its geometry.
+struct SiteDraw {
   uint32_t slot = 0;
+  double radius = 0;
+};
+
+// What drawing one site with a given radius amounts to.
+struct SiteShape {
+  double extent = 0;        // no fragment lies farther than this from the geometry
+  double max_value = 0;     // no value written exceeds this (m * extent + a)
+  double overestimate = 1;  // k of its fans (1 when none)
+  uint32_t segments = 0;    // triangles in each of its fans (0 when none)
+  double area = 0;          // the area its pieces cover
+  bool per_fragment = false;  // drawn as a quad evaluated per fragment
+};
+
+// The fixed parameters of one scene's draws.
+struct DrawParams {
+  double eps = 0;
+  RenderMode mode = RenderMode::kMesh;
+  Diagram diagram = Diagram::kNearest;
+  double depth_scale = 1;  // depth = value / depth_scale
 };
 
 // Compiled shaders and mesh buffers. Not thread-safe; use on the context's thread.
@@ -68,22 +90,14 @@ class Rasterizer {
   Rasterizer(const Rasterizer&) = delete;
   Rasterizer& operator=(const Rasterizer&) = delete;
 
-  // What is drawn for a site that must cover `radius`: a fan of `segments` triangles with
-  // error within eps up to the radius (kMesh), or a quad (kExact, segments = 2). `extent`
-  // bounds the distances it writes and how far from the site it reaches; `scale` sizes it.
-  struct ConeShape {
-    uint32_t segments;
-    double overestimate;  // k of the fan; 1 for quads
-    double extent;
-    double scale;
-  };
-  ConeShape Shape(const Grid& grid, double radius, double eps, RenderMode mode) const;
+  // How a site that must cover `radius` is drawn.
+  SiteShape Shape(const Grid& grid, const DrawParams& params, const Site& site,
+                  double radius) const;
 
   // Draws the sites' distance functions into `target` inside `scissor` (clearing it first
-  // when `clear`), with depth = distance / depth_scale.
-  // CONTRACT: every shape's extent <= depth_scale.
-  absl::Status Draw(const Grid& grid, double eps, RenderMode mode, double depth_scale,
-                    PixelRect scissor, bool clear, const std::vector<ConeDraw>& cones,
+  // when `clear`). CONTRACT: every shape's max_value <= params.depth_scale.
+  absl::Status Draw(const Grid& grid, const DrawParams& params, PixelRect scissor, bool clear,
+                    const SlotTable& sites, const std::vector<SiteDraw>& draws,
                     RenderTarget& target);
 
   // Reads `rect` of the target: ids, and distances (depth * depth_scale), row-major.
@@ -95,7 +109,8 @@ class Rasterizer {
   absl::StatusOr<std::shared_ptr<const Frame>> Render(const Grid& grid, double eps,
                                                       uint64_t version, const SiteTable& sites,
                                                       RenderStats* stats = nullptr,
-                                                      RenderMode mode = RenderMode::kMesh);
+                                                      RenderMode mode = RenderMode::kMesh,
+                                                      Diagram diagram = Diagram::kNearest);
 
  private:
   Rasterizer() = default;
@@ -104,12 +119,12 @@ class Rasterizer {
 
   struct Program {
     unsigned id = 0;
-    int u_scale = -1, u_inv_depth = -1, u_pixel = -1, u_inv_pixel = -1;
+    int u_scale = -1, u_inv_depth = -1, u_pixel = -1, u_margin = -1;
   };
   static absl::StatusOr<Program> Link(const char* vertex, const char* fragment);
 
-  Program mesh_, exact_;
-  unsigned vao_ = 0, instances_ = 0, quad_ = 0;
+  Program cone_, tent_, exact_;
+  unsigned vao_ = 0, instances_ = 0, quad_ = 0, tent_mesh_ = 0, segments_ = 0;
   std::map<uint32_t, unsigned> cones_;  // segments -> vertex buffer
 };
 

@@ -28,13 +28,31 @@ double NearestDistance(const Window& box, const Geometry& g) {
   return std::hypot(dx, dy);  // a lower bound; exact for points
 }
 
+// How large the float coordinates of a drawn site get, relative to the window's min corner:
+// its geometry and the reach of its pieces.
+double CoordinateScale(const Grid& grid, const Geometry& g, const SiteShape& shape) {
+  Window b = BoundingBox(g);
+  double x = std::max(std::abs(b.min_x - grid.window.min_x), std::abs(b.max_x - grid.window.min_x));
+  double y = std::max(std::abs(b.min_y - grid.window.min_y), std::abs(b.max_y - grid.window.min_y));
+  return std::max({x, y, grid.window.width(), grid.window.height()}) + shape.extent;
+}
+
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<SceneRaster>> SceneRaster::Create(const Grid& grid, double eps,
-                                                                  RenderMode mode) {
+                                                                  RenderMode mode,
+                                                                  Diagram diagram) {
   auto target = RenderTarget::Create(grid.width, grid.height);
   if (!target.ok()) return target.status();
-  return std::unique_ptr<SceneRaster>(new SceneRaster(grid, eps, mode, std::move(*target)));
+  return std::unique_ptr<SceneRaster>(
+      new SceneRaster(grid, eps, mode, diagram, std::move(*target)));
+}
+
+void SceneRaster::Account(const Site& site) {
+  max_weight_ = std::max(max_weight_, site.multiplicative);
+  if (const auto* b = std::get_if<BezierSite>(&site.geometry)) {
+    curve_slack_ = std::max(curve_slack_, b->tolerance * site.multiplicative);
+  }
 }
 
 PixelRect SceneRaster::Reach(const Geometry& g, double extent) const {
@@ -47,11 +65,17 @@ void SceneRaster::Publish(uint64_t version, PixelRect rect, const std::vector<ui
   // Vertices snap to 1/256 pixel (GL_SUBPIXEL_BITS = 8 on llvmpipe and NVIDIA), which moves a
   // cone's surface by at most 1/256 pixel diagonal, as its slope is at most k ~ 1: we allow
   // 1/64. Float interpolation and depth storage err by a few ulps of the depth range and of D.
+  // Positions are floats relative to the window's min corner, so distances err by a few ulps
+  // of the largest coordinate or reach drawn. A weight scales all of it.
   ErrorModel error;
+  error.diagram = params_.diagram;
   error.overestimate = overestimate_;
-  error.max_excess = mode_ == RenderMode::kExact ? 0 : eps_;
-  error.absolute_slack = grid_.pixel_diagonal() / 64 + depth_scale_ * 0x1p-18;
+  error.max_excess = params_.mode == RenderMode::kExact ? 0 : eps_ * max_weight_;
+  error.absolute_slack =
+      (grid_.pixel_diagonal() / 64 + coordinate_scale_ * 0x1p-18) * max_weight_;
   error.relative_slack = 0x1p-18;
+  error.lipschitz = max_weight_;
+  error.curve = curve_slack_;
   if (rect == grid_.all() || frame_ == nullptr || frame_->empty()) {  // a full render
     frame_ = std::make_shared<const Frame>(grid_, version, eps_, error, ids.data(),
                                            distances.data(), slots_, slot_of_.size());
@@ -65,37 +89,45 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
                                                                     uint64_t version,
                                                                     RenderStats* stats) {
   auto start = std::chrono::steady_clock::now();
-  Coverage cov = ComputeCoverage(grid_, slots_, index_, grid_.all());
+  Coverage cov = ComputeCoverage(grid_, slots_, index_, grid_.all(), 0, params_.diagram);
   double coverage_seconds = Seconds(start);
-  std::vector<ConeDraw> cones;
-  double max_extent = 0, area = 0;
+  std::vector<SiteDraw> draws;
+  double max_value = 0, area = 0;
   uint32_t max_segments = 0;
   overestimate_ = 1;
+  max_weight_ = 1;
+  curve_slack_ = 0;
+  coordinate_scale_ = 0;
   extent_.assign(slots_.size(), -1);
   for (uint32_t s = 0; s < slots_.size(); ++s) {
+    const Site* site = slots_.get(s);
+    if (site == nullptr) continue;
+    Account(*site);
     if (cov.radius[s] < 0) continue;
-    const auto& p = std::get<PointSite>(slots_.get(s)->geometry).p;
-    cones.push_back({p, cov.radius[s], s});
-    auto shape = rasterizer.Shape(grid_, cov.radius[s], eps_, mode_);
+    draws.push_back({s, cov.radius[s]});
+    SiteShape shape = rasterizer.Shape(grid_, params_, *site, cov.radius[s]);
     extent_[s] = shape.extent;
-    max_extent = std::max(max_extent, shape.extent);
+    max_value = std::max(max_value, shape.max_value);
     overestimate_ = std::max(overestimate_, shape.overestimate);
     max_segments = std::max(max_segments, shape.segments);
-    area += std::numbers::pi * cov.radius[s] * cov.radius[s];
+    coordinate_scale_ = std::max(coordinate_scale_, CoordinateScale(grid_, site->geometry, shape));
+    area += shape.area;
   }
-  // Headroom: later increments may draw cones up to four window diagonals (or twice this
-  // render's largest) without a full render. Float depth keeps its relative precision at any
-  // scale; only the absolute slack (depth_scale * 2^-18) grows, to a few thousandths of a pixel.
-  depth_scale_ = std::max(2 * max_extent, 4 * grid_.window.diagonal());
+  // Headroom: later increments may draw values up to twice this render's largest (or four
+  // window diagonals) without a full render. Float depth keeps its relative precision at any
+  // scale.
+  params_.depth_scale = std::max(2 * max_value, 4 * grid_.window.diagonal());
   auto draw_start = std::chrono::steady_clock::now();
-  if (auto s = rasterizer.Draw(grid_, eps_, mode_, depth_scale_, grid_.all(), true, cones, *target_); !s.ok()) {
+  if (auto s = rasterizer.Draw(grid_, params_, grid_.all(), true, slots_, draws, *target_);
+      !s.ok()) {
     return s;
   }
   std::vector<uint32_t> ids;
   std::vector<float> distances;
   auto read_start = std::chrono::steady_clock::now();
   double draw_seconds = Seconds(draw_start);
-  if (auto s = rasterizer.ReadBack(*target_, grid_.all(), depth_scale_, &ids, &distances); !s.ok()) {
+  if (auto s = rasterizer.ReadBack(*target_, grid_.all(), params_.depth_scale, &ids, &distances);
+      !s.ok()) {
     return s;
   }
   double readback_seconds = Seconds(read_start);
@@ -103,7 +135,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
   Publish(version, grid_.all(), ids, distances);
   if (stats) {
     stats->cone_segments = max_segments;
-    stats->sites_drawn = cones.size();
+    stats->sites_drawn = draws.size();
     stats->fill_ratio = area / (grid_.window.width() * grid_.window.height());
     stats->tile_px = cov.tile_px;
     stats->coverage_seconds = coverage_seconds;
@@ -138,16 +170,17 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
       }
       if (!from_scratch) index_.Remove(s, old);
       extent_[s] = -1;
-      if (c.geometry) {
-        if (!from_scratch) index_.Insert(s, *c.geometry);
-        slots_.Set(s, Site{c.id, *c.geometry});
+      if (c.site) {
+        c.site->id = c.id;
+        if (!from_scratch) index_.Insert(s, c.site->geometry);
+        slots_.Set(s, std::move(*c.site));
         placed.push_back(s);
       } else {
         slots_.Set(s, std::nullopt);
         slot_of_.erase(it);
         freed.push_back(s);
       }
-    } else if (c.geometry) {
+    } else if (c.site) {
       uint32_t s;
       if (!free_.empty()) {
         s = free_.back();
@@ -156,8 +189,9 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
         s = slots_.size();
       }
       if (extent_.size() <= s) extent_.resize(s + 1, -1);
-      if (!from_scratch) index_.Insert(s, *c.geometry);
-      slots_.Set(s, Site{c.id, *c.geometry});
+      c.site->id = c.id;
+      if (!from_scratch) index_.Insert(s, c.site->geometry);
+      slots_.Set(s, std::move(*c.site));
       slot_of_.emplace(std::move(c.id), s);
       placed.push_back(s);
     }
@@ -178,26 +212,30 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
     index_ = SiteIndex::Build(slots_);
     return RenderAll(rasterizer, version, stats);
   }
+  if (params_.diagram == Diagram::kFarthest) return RenderAll(rasterizer, version, stats);
+  for (uint32_t s : placed) Account(*slots_.get(s));
 
   // Past a few dozen windows, finding and merging them costs more than drawing everything.
   constexpr size_t kMaxWindows = 64;
   if (placed.size() + dirty.size() > kMaxWindows) return RenderAll(rasterizer, version, stats);
 
   auto start = std::chrono::steady_clock::now();
-  // 2. Where can each placed site be nearest now? Outside the old cones' windows no pixel got
-  //    farther from its nearest site, so a pixel p the site wins has d(p, site) <= D(p) +
-  //    slack: only tiles whose nearest point to the site is within their largest stored
-  //    distance qualify. (Inside those windows everything is recomputed anyway.)
+  // 2. Where can each placed site be nearest now? Outside the old pieces' windows no pixel's
+  //    best value grew, so a pixel p the site wins has m d(p, site) + a <= D(p) + slack:
+  //    only tiles whose nearest point to the site passes that against their largest stored
+  //    value, and within its presence, qualify. (Inside those windows everything is
+  //    recomputed anyway.)
   const ErrorModel& err = frame_->error();
+  const double margin = DrawMargin(grid_);
   struct Window_ {
     PixelRect rect;
-    bool clear;                    // holds an old cone's reach: redraw from scratch
-    std::vector<ConeDraw> added;   // else: draw these over what is there
+    bool clear;                   // holds an old piece's reach: redraw from scratch
+    std::vector<SiteDraw> added;  // else: draw these over what is there
   };
   std::vector<Window_> windows;
   for (const PixelRect& d : dirty) windows.push_back({d, true, {}});
   for (uint32_t s : placed) {
-    const Geometry& g = slots_.get(s)->geometry;
+    const Site& site = *slots_.get(s);
     double radius = -1;
     PixelRect grown;
     for (uint32_t ty = 0; ty < frame_->tiles_y(); ++ty) {
@@ -207,12 +245,15 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
                        std::min((ty + 1) * Frame::kTile, grid_.height)};
         Window box = CentreBox(grid_, rect);
         double m = frame_->tile_at(tx, ty).max_distance;
-        if (NearestDistance(box, g) > m + err.Slack(m)) continue;
+        double near = NearestDistance(box, site.geometry);
+        if (site.multiplicative * near + site.additive > m + err.Slack(m)) continue;
+        if (near > site.max_distance + margin) continue;
         grown = grown.Union(rect);
-        radius = std::max(radius, FarthestDistance(box, g));
+        radius = std::max(radius, std::min(FarthestDistance(box, site.geometry) * (1 + 0x1p-40),
+                                           site.max_distance + margin));
       }
     }
-    if (radius >= 0) windows.push_back({grown, false, {{std::get<PointSite>(g).p, radius, s}}});
+    if (radius >= 0) windows.push_back({grown, false, {{s, radius}}});
   }
   // Merge overlapping windows until none overlap (a merged window is cleared if either was).
   for (bool merged = true; merged;) {
@@ -234,47 +275,49 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
   for (const auto& w : windows) area += w.rect.area();
   if (area > grid_.pixel_count() / 2) return RenderAll(rasterizer, version, stats);
 
-  // 3. Each window: cleared ones get every site that can be nearest there, with the
-  //    coverage proof restricted to the window; the others only their new cones.
-  std::vector<std::vector<ConeDraw>> cones(windows.size());
+  // 3. Each window: cleared ones get every site that can be best there, with the coverage
+  //    proof restricted to the window; the others only their new sites.
+  std::vector<std::vector<SiteDraw>> draws(windows.size());
   uint32_t tile_px = 0;
   for (size_t w = 0; w < windows.size(); ++w) {
     if (!windows[w].clear) {
-      cones[w] = std::move(windows[w].added);
+      draws[w] = std::move(windows[w].added);
       continue;
     }
     Coverage cov = ComputeCoverage(grid_, slots_, index_, windows[w].rect);
     tile_px = cov.tile_px;
     for (uint32_t s = 0; s < slots_.size(); ++s) {
-      if (cov.radius[s] >= 0) {
-        cones[w].push_back({std::get<PointSite>(slots_.get(s)->geometry).p, cov.radius[s], s});
-      }
+      if (cov.radius[s] >= 0) draws[w].push_back({s, cov.radius[s]});
     }
   }
   double coverage_seconds = Seconds(start);
-  double fill = 0, max_extent = 0;
+  double fill = 0, max_value = 0;
   uint32_t max_segments = 0;
-  std::vector<std::pair<const ConeDraw*, Rasterizer::ConeShape>> shapes;
-  for (const auto& list : cones) {
-    for (const ConeDraw& c : list) {
-      auto shape = rasterizer.Shape(grid_, c.radius, eps_, mode_);
-      max_extent = std::max(max_extent, shape.extent);
+  size_t drawn = 0;
+  std::vector<std::pair<uint32_t, SiteShape>> shapes;
+  for (const auto& list : draws) {
+    for (const SiteDraw& d : list) {
+      SiteShape shape = rasterizer.Shape(grid_, params_, *slots_.get(d.slot), d.radius);
+      max_value = std::max(max_value, shape.max_value);
       max_segments = std::max(max_segments, shape.segments);
-      fill += std::numbers::pi * c.radius * c.radius;
-      shapes.emplace_back(&c, shape);
+      fill += shape.area;
+      shapes.emplace_back(d.slot, shape);
+      ++drawn;
     }
   }
-  if (max_extent > depth_scale_) return RenderAll(rasterizer, version, stats);  // rescale
-  for (const auto& [c, shape] : shapes) {
-    extent_[c->slot] = std::max(extent_[c->slot], shape.extent);
+  if (max_value > params_.depth_scale) return RenderAll(rasterizer, version, stats);  // rescale
+  for (const auto& [slot, shape] : shapes) {
+    extent_[slot] = std::max(extent_[slot], shape.extent);
     overestimate_ = std::max(overestimate_, shape.overestimate);
+    coordinate_scale_ =
+        std::max(coordinate_scale_, CoordinateScale(grid_, slots_.get(slot)->geometry, shape));
   }
   double draw_seconds = 0, readback_seconds = 0;
   PixelRect all_windows;
   for (size_t w = 0; w < windows.size(); ++w) {
     const PixelRect& rect = windows[w].rect;
     auto draw_start = std::chrono::steady_clock::now();
-    if (auto s = rasterizer.Draw(grid_, eps_, mode_, depth_scale_, rect, windows[w].clear, cones[w],
+    if (auto s = rasterizer.Draw(grid_, params_, rect, windows[w].clear, slots_, draws[w],
                                  *target_);
         !s.ok()) {
       return s;
@@ -283,7 +326,8 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
     std::vector<float> distances;
     auto read_start = std::chrono::steady_clock::now();
     draw_seconds += std::chrono::duration<double>(read_start - draw_start).count();
-    if (auto s = rasterizer.ReadBack(*target_, rect, depth_scale_, &ids, &distances); !s.ok()) {
+    if (auto s = rasterizer.ReadBack(*target_, rect, params_.depth_scale, &ids, &distances);
+        !s.ok()) {
       return s;
     }
     readback_seconds += Seconds(read_start);
@@ -293,7 +337,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
   if (windows.empty()) Publish(version, {}, {}, {});  // nothing visible changed
   if (stats) {
     stats->cone_segments = max_segments;
-    stats->sites_drawn = shapes.size();
+    stats->sites_drawn = drawn;
     stats->fill_ratio = fill / (grid_.window.width() * grid_.window.height());
     stats->tile_px = tile_px;
     stats->coverage_seconds = coverage_seconds;

@@ -18,24 +18,30 @@
 
 namespace gvd {
 
-// An upsert (geometry set) or a deletion (geometry empty) of the site `id`.
+// An upsert (site set, with this id) or a deletion (site empty) of the site `id`.
 struct SiteChange {
+  SiteChange(std::string id, std::optional<Site> site) : id(std::move(id)), site(std::move(site)) {}
+  // An upsert of a plain site.
+  SiteChange(std::string id, Geometry geometry)
+      : id(std::move(id)), site(Site{this->id, std::move(geometry)}) {}
   std::string id;
-  std::optional<Geometry> geometry;
+  std::optional<Site> site;
 };
 
 // Not thread-safe: the render thread owns it (it holds GL objects).
 class SceneRaster {
  public:
-  static absl::StatusOr<std::unique_ptr<SceneRaster>> Create(const Grid& grid, double eps,
-                                                            RenderMode mode = RenderMode::kMesh);
+  static absl::StatusOr<std::unique_ptr<SceneRaster>> Create(
+      const Grid& grid, double eps, RenderMode mode = RenderMode::kMesh,
+      Diagram diagram = Diagram::kNearest);
 
   // Applies the changes in order and renders what they can touch:
   //  - the first render (or the first after the scene was emptied) draws everything;
   //  - sites only added (or moved from where they were nearest to nothing) are drawn alone,
   //    over the existing buffers, within the tiles where they can now be nearest;
   //  - deleting or moving a site clears the window its old cone reached, adds the windows
-  //    its new position can win, and redraws there only the sites that can be nearest there.
+  //    its new position can win, and redraws there only the sites that can be nearest there;
+  //  - in a kFarthest diagram every change draws everything.
   // Reads back only that window and publishes a frame that shares the other tiles.
   // Deleting an unknown id is a no-op. After an error, the buffers are undefined: make a new
   // SceneRaster (the render loop does).
@@ -46,8 +52,9 @@ class SceneRaster {
   size_t site_count() const { return slot_of_.size(); }
 
  private:
-  SceneRaster(const Grid& grid, double eps, RenderMode mode, std::unique_ptr<RenderTarget> target)
-      : grid_(grid), eps_(eps), mode_(mode), target_(std::move(target)) {}
+  SceneRaster(const Grid& grid, double eps, RenderMode mode, Diagram diagram,
+              std::unique_ptr<RenderTarget> target)
+      : grid_(grid), eps_(eps), params_{eps, mode, diagram, 1}, target_(std::move(target)) {}
 
   // The pixels whose centres lie within `extent` of the geometry's bounding box.
   PixelRect Reach(const Geometry& g, double extent) const;
@@ -56,9 +63,12 @@ class SceneRaster {
   void Publish(uint64_t version, PixelRect rect, const std::vector<uint32_t>& ids,
                const std::vector<float>& distances);
 
+  // Widens the error model's site-dependent terms for a site now live.
+  void Account(const Site& site);
+
   const Grid grid_;
   const double eps_;
-  const RenderMode mode_;
+  DrawParams params_;  // depth_scale: fixed between full renders, so old depths stay comparable
   std::unique_ptr<RenderTarget> target_;
 
   SlotTable slots_;
@@ -68,8 +78,13 @@ class SceneRaster {
   std::vector<double> extent_;  // per slot: how far its drawn fan reaches; < 0: not drawn
 
   bool valid_ = false;          // the target holds the diagram of slots_
-  double depth_scale_ = 0;      // fixed between full renders, so old depths stay comparable
-  double overestimate_ = 1;     // the largest k drawn since the last full render
+  // Since the last full render: the largest k drawn, and over the sites live at some point,
+  // the largest multiplicative weight, Bezier tolerance * weight, and coordinate magnitude
+  // (relative to the window's min corner).
+  double overestimate_ = 1;
+  double max_weight_ = 1;
+  double curve_slack_ = 0;
+  double coordinate_scale_ = 0;
   std::shared_ptr<const Frame> frame_;
 };
 

@@ -2,6 +2,12 @@
 
 namespace gvd {
 
+bool Site::plain() const {
+  if (weighted() || std::isfinite(max_distance)) return false;
+  const auto* polygon = std::get_if<PolygonSite>(&geometry);
+  return polygon == nullptr || polygon->side == Side::kBoth;
+}
+
 SlotTable::SlotTable(const SiteTable& sites) {
   for (uint32_t i = 0; i < sites.size(); i += kChunk) {
     auto chunk = std::make_shared<Chunk>(kChunk);

@@ -1,6 +1,7 @@
 // Voronoi sites as the render layer sees them: an id and a geometry.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -16,12 +17,58 @@ struct PointSite {
   Vec2 p;
 };
 
-// Every site kind; new kinds are added here and in exact.cc and the mesh builders.
-using Geometry = std::variant<PointSite>;
+// A closed segment; a == b is allowed (it is then a point).
+struct SegmentSite {
+  Vec2 a, b;
+};
+
+// An open chain of segments through `points` (at least two; repeats allowed).
+struct PolylineSite {
+  std::vector<Vec2> points;
+};
+
+// Where a polygon's distance function is defined (paper sec. 4.3).
+enum class Side : uint8_t { kBoth, kOutside, kInside };
+
+// A closed chain: edge i runs from vertex i to vertex i + 1 (mod n); at least three
+// vertices, repeats allowed. Its distance is the distance to that boundary. Inside and
+// outside follow the even-odd rule, so a self-intersecting polygon is well defined; one of
+// zero area has no inside. With kOutside (kInside) the polygon is a candidate only at points
+// outside (inside) it, or on its boundary.
+struct PolygonSite {
+  std::vector<Vec2> vertices;
+  Side side = Side::kBoth;
+};
+
+// A quadratic (3 control points) or cubic (4) Bezier curve, represented by `flat`: a
+// polyline through points of the curve within `tolerance` of it (see Flatten in exact.h).
+// Distances to the site are distances to `flat`.
+struct BezierSite {
+  std::vector<Vec2> control;
+  double tolerance = 0;
+  std::vector<Vec2> flat;
+};
+
+// Every site kind; new kinds are added here, in exact.cc and in the rasterizer's primitives.
+using Geometry = std::variant<PointSite, SegmentSite, PolylineSite, PolygonSite, BezierSite>;
+
+// What a site's part nearest to a point is (NearestSite.feature_kind in the API).
+enum class FeatureKind : uint8_t { kVertex, kEdge, kCurve };
 
 struct Site {
   std::string id;
   Geometry geometry;
+  // The site's value at q is multiplicative * d + additive, d the Euclidean distance from q
+  // to the geometry (paper sec. 4.4); beyond max_distance (in d) the site has no influence.
+  // CONTRACT: additive >= 0 and multiplicative > 0, both finite; max_distance > 0.
+  double additive = 0;
+  double multiplicative = 1;
+  double max_distance = INFINITY;
+
+  bool weighted() const { return additive != 0 || multiplicative != 1; }
+  // Whether the site is a candidate everywhere at its plain distance: unweighted, unbounded
+  // and not restricted to a side.
+  bool plain() const;
 };
 
 // A densely indexed list of sites; the id buffer holds index + 1.

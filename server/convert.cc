@@ -6,6 +6,7 @@
 #include <unordered_set>
 
 #include "absl/strings/str_cat.h"
+#include "render/exact.h"
 #include "render/mesh.h"
 
 namespace gvd {
@@ -121,6 +122,124 @@ Status ToSceneSettings(const v1::CreateSceneRequest& r, const ServerLimits& limi
     default:
       return Invalid(absl::StrCat("render_mode is ", r.render_mode(), "; it must be MESH or EXACT"));
   }
+  switch (r.diagram()) {
+    case v1::DIAGRAM_UNSPECIFIED:
+    case v1::NEAREST:
+      settings->diagram = Diagram::kNearest;
+      break;
+    case v1::FARTHEST:
+      settings->diagram = Diagram::kFarthest;
+      break;
+    default:
+      return Invalid(absl::StrCat("diagram is ", r.diagram(), "; it must be NEAREST or FARTHEST"));
+  }
+  return Status::OK;
+}
+
+Status ToSite(const v1::Site& s, const std::string& field, const ServerLimits& limits,
+              Site* site) {
+  site->id = s.id();
+  auto points = [&](const auto& list, const std::string& name, size_t min,
+                    std::vector<Vec2>* out) -> Status {
+    if (size_t(list.size()) < min) {
+      return Invalid(absl::StrCat(name, " has ", list.size(), " points; it needs at least ", min,
+                                  " (site ", Quoted(s.id()), ")"));
+    }
+    if (size_t(list.size()) > limits.max_vertices_per_site) {
+      return Status(StatusCode::RESOURCE_EXHAUSTED,
+                    absl::StrCat(name, " has ", list.size(), " points; the limit is ",
+                                 limits.max_vertices_per_site, " (--max-vertices-per-site)"));
+    }
+    out->clear();
+    out->reserve(list.size());
+    for (int k = 0; k < list.size(); ++k) {
+      if (auto st = CheckPoint(list[k], Indexed(name, k)); !st.ok()) return st;
+      out->push_back({list[k].x(), list[k].y()});
+    }
+    return Status::OK;
+  };
+  switch (s.geometry_case()) {
+    case v1::Site::kPoint: {
+      if (auto st = CheckPoint(s.point(), field + ".point"); !st.ok()) return st;
+      site->geometry = PointSite{{s.point().x(), s.point().y()}};
+      break;
+    }
+    case v1::Site::kSegment: {
+      if (auto st = CheckPoint(s.segment().a(), field + ".segment.a"); !st.ok()) return st;
+      if (auto st = CheckPoint(s.segment().b(), field + ".segment.b"); !st.ok()) return st;
+      site->geometry = SegmentSite{{s.segment().a().x(), s.segment().a().y()},
+                                   {s.segment().b().x(), s.segment().b().y()}};
+      break;
+    }
+    case v1::Site::kPolyline: {
+      PolylineSite l;
+      if (auto st = points(s.polyline().points(), field + ".polyline.points", 2, &l.points);
+          !st.ok()) {
+        return st;
+      }
+      site->geometry = std::move(l);
+      break;
+    }
+    case v1::Site::kPolygon: {
+      PolygonSite poly;
+      if (auto st = points(s.polygon().vertices(), field + ".polygon.vertices", 3, &poly.vertices);
+          !st.ok()) {
+        return st;
+      }
+      switch (s.polygon().side()) {
+        case v1::Polygon::SIDE_UNSPECIFIED: poly.side = Side::kBoth; break;
+        case v1::Polygon::OUTSIDE: poly.side = Side::kOutside; break;
+        case v1::Polygon::INSIDE: poly.side = Side::kInside; break;
+        default:
+          return Invalid(absl::StrCat(field, ".polygon.side is ", s.polygon().side(),
+                                      "; it must be SIDE_UNSPECIFIED, OUTSIDE or INSIDE"));
+      }
+      site->geometry = std::move(poly);
+      break;
+    }
+    case v1::Site::kBezier: {
+      std::vector<Vec2> control;
+      std::string name = field + ".bezier.control_points";
+      if (auto st = points(s.bezier().control_points(), name, 3, &control); !st.ok()) return st;
+      if (control.size() > 4) {
+        return Invalid(absl::StrCat(name, " has ", control.size(),
+                                    " points; a Bezier takes 3 (quadratic) or 4 (cubic)"));
+      }
+      double tol = s.bezier().tolerance();
+      if (!std::isfinite(tol) || tol < 0) {
+        return Invalid(absl::StrCat(field, ".bezier.tolerance is ", FormatNumber(tol),
+                                    "; it must be finite and not negative (0 means a "
+                                    "thousandth of the control polygon)"));
+      }
+      site->geometry = MakeBezier(std::move(control), tol);
+      break;
+    }
+    case v1::Site::GEOMETRY_NOT_SET:
+      return Invalid(absl::StrCat(field, ".geometry is not set (site ", Quoted(s.id()), ")"));
+  }
+  // Extents must stay finite for distances to be.
+  Window box = BoundingBox(site->geometry);
+  if (!std::isfinite(box.width()) || !std::isfinite(box.height())) {
+    return Invalid(absl::StrCat(field, " spans ", FormatNumber(box.width()), " x ",
+                                FormatNumber(box.height()),
+                                ", which overflows a double (site ", Quoted(s.id()), ")"));
+  }
+  double a = s.additive_weight(), m = s.multiplicative_weight(), r = s.max_distance();
+  if (!std::isfinite(a) || a < 0 || a > 1e15) {
+    return Invalid(absl::StrCat(field, ".additive_weight is ", FormatNumber(a),
+                                "; it must be 0 to 1e15"));
+  }
+  if (!std::isfinite(m) || m < 0 || m > 1e6 || (m != 0 && m < 1e-6)) {
+    return Invalid(absl::StrCat(field, ".multiplicative_weight is ", FormatNumber(m),
+                                "; it must be 0 (meaning 1) or 1e-6 to 1e6"));
+  }
+  if (!std::isfinite(r) || r < 0) {
+    return Invalid(absl::StrCat(field, ".max_distance is ", FormatNumber(r),
+                                "; it must be finite and positive, or 0 for none"));
+  }
+  site->additive = a;
+  site->multiplicative = m == 0 ? 1 : m;
+  site->max_distance = r == 0 ? INFINITY : r;
   return Status::OK;
 }
 
@@ -148,15 +267,9 @@ Status ToSites(const v1::UpsertSitesRequest& r, const ServerLimits& limits,
       return Invalid(absl::StrCat(field, ".id ", Quoted(s.id()), " repeats sites[", it->second,
                                   "].id; ids in one request must be distinct"));
     }
-    switch (s.geometry_case()) {
-      case v1::Site::kPoint: {
-        if (auto st = CheckPoint(s.point(), field + ".point"); !st.ok()) return st;
-        sites->push_back({s.id(), PointSite{{s.point().x(), s.point().y()}}});
-        break;
-      }
-      case v1::Site::GEOMETRY_NOT_SET:
-        return Invalid(absl::StrCat(field, ".geometry is not set (site ", Quoted(s.id()), ")"));
-    }
+    Site site;
+    if (auto st = ToSite(s, field, limits, &site); !st.ok()) return st;
+    sites->push_back(std::move(site));
   }
   return Status::OK;
 }
@@ -218,9 +331,29 @@ Status ToQueryPoints(const v1::FindNearestRequest& r, const Window& w, const Ser
 
 void ToProto(const Site& site, v1::Site* out) {
   out->set_id(site.id);
-  const auto& p = std::get<PointSite>(site.geometry).p;
-  out->mutable_point()->set_x(p.x);
-  out->mutable_point()->set_y(p.y);
+  auto set = [](Vec2 p, v1::Point* q) {
+    q->set_x(p.x);
+    q->set_y(p.y);
+  };
+  if (const auto* p = std::get_if<PointSite>(&site.geometry)) {
+    set(p->p, out->mutable_point());
+  } else if (const auto* seg = std::get_if<SegmentSite>(&site.geometry)) {
+    set(seg->a, out->mutable_segment()->mutable_a());
+    set(seg->b, out->mutable_segment()->mutable_b());
+  } else if (const auto* l = std::get_if<PolylineSite>(&site.geometry)) {
+    for (Vec2 q : l->points) set(q, out->mutable_polyline()->add_points());
+  } else if (const auto* poly = std::get_if<PolygonSite>(&site.geometry)) {
+    for (Vec2 q : poly->vertices) set(q, out->mutable_polygon()->add_vertices());
+    out->mutable_polygon()->set_side(poly->side == Side::kOutside  ? v1::Polygon::OUTSIDE
+                                     : poly->side == Side::kInside ? v1::Polygon::INSIDE
+                                                                   : v1::Polygon::SIDE_UNSPECIFIED);
+  } else if (const auto* b = std::get_if<BezierSite>(&site.geometry)) {
+    for (Vec2 q : b->control) set(q, out->mutable_bezier()->add_control_points());
+    out->mutable_bezier()->set_tolerance(b->tolerance);
+  }
+  if (site.additive != 0) out->set_additive_weight(site.additive);
+  if (site.multiplicative != 1) out->set_multiplicative_weight(site.multiplicative);
+  if (std::isfinite(site.max_distance)) out->set_max_distance(site.max_distance);
 }
 
 void ToProto(const Scene& scene, v1::Scene* out) {
@@ -239,6 +372,7 @@ void ToProto(const Scene& scene, v1::Scene* out) {
   out->set_rendered_version(scene.frame()->version());
   out->set_cone_triangles(s.cone_triangles);
   out->set_render_mode(s.mode == RenderMode::kExact ? v1::EXACT : v1::MESH);
+  out->set_diagram(s.diagram == Diagram::kFarthest ? v1::FARTHEST : v1::NEAREST);
 }
 
 grpc::Status ToGrpc(const absl::Status& status) {

@@ -25,7 +25,13 @@ grpc::Status ValidateSceneId(const std::string& id, const ServerLimits& limits,
 grpc::Status ToSceneSettings(const v1::CreateSceneRequest& request, const ServerLimits& limits,
                              SceneSettings* settings);
 
-// Checks every site (ids non-empty, short, distinct; geometry set; coordinates finite).
+// Checks one site (`field` names it in messages, e.g. "sites[3]") and converts it: geometry
+// set with enough points, coordinates finite, weights and max_distance in range. Bezier
+// curves are flattened here.
+grpc::Status ToSite(const v1::Site& site, const std::string& field, const ServerLimits& limits,
+                    Site* out);
+
+// Checks every site (ids non-empty, short, distinct; each as ToSite).
 grpc::Status ToSites(const v1::UpsertSitesRequest& request, const ServerLimits& limits,
                      std::vector<Site>* sites);
 

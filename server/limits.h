@@ -13,6 +13,7 @@ struct ServerLimits {
   size_t max_sites_per_scene = 1'000'000;
   size_t max_sites_per_request = 100'000;
   size_t max_points_per_query = 1'000'000;
+  size_t max_vertices_per_site = 100'000;    // polyline points, polygon vertices
   size_t max_site_id_bytes = 256;
   size_t max_scene_id_chars = 128;
   uint32_t max_page_size = 10'000;

@@ -48,6 +48,7 @@ constexpr const char* kUsage = R"(usage: gvd-server [flags]
   --max-side-px N             largest width_px or height_px (default 8192)
   --max-points-per-query N    (default 1000000)
   --max-sites-per-request N   sites (or ids) in one UpsertSites or DeleteSites (default 100000)
+  --max-vertices-per-site N   points of one polyline or polygon (default 100000)
   --max-message-bytes N       gRPC message size limit (default 268435456)
   --metrics-listen HOST:PORT  serve Prometheus metrics at http://HOST:PORT/metrics (default off)
   --tokens FILE               require bearer tokens: one "TOKEN read" or "TOKEN write" per line
@@ -163,6 +164,7 @@ Flags ParseFlags(int argc, char** argv) {
     else if (arg == "--max-side-px") ParseCount(arg, value, &f.limits.max_side_px);
     else if (arg == "--max-points-per-query") ParseCount(arg, value, &f.limits.max_points_per_query);
     else if (arg == "--max-sites-per-request") ParseCount(arg, value, &f.limits.max_sites_per_request);
+    else if (arg == "--max-vertices-per-site") ParseCount(arg, value, &f.limits.max_vertices_per_site);
     else if (arg == "--max-message-bytes") ParseCount(arg, value, &f.limits.max_message_bytes);
     else Die(absl::StrCat("unknown flag ", arg));
   }

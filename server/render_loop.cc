@@ -91,7 +91,8 @@ void RenderLoop::Run(DevicePreference preference) {
     absl::StatusOr<std::shared_ptr<const Frame>> frame;
     Scene::Changes changes;
     if (!slot.second) {
-      auto raster = SceneRaster::Create(settings.grid, settings.eps, settings.mode);
+      auto raster = SceneRaster::Create(settings.grid, settings.eps, settings.mode,
+                                        settings.diagram);
       if (raster.ok()) {
         slot = {scene, std::move(*raster)};
         changes = scene->TakeChanges(/*all=*/true);

@@ -52,6 +52,7 @@ absl::StatusOr<uint64_t> Scene::Upsert(std::vector<Site> sites, size_t max_sites
     if (it != slot_of_.end()) {
       slot = it->second;
       index_.Remove(slot, slots_.get(slot)->geometry);
+      non_plain_ -= !slots_.get(slot)->plain();
     } else {
       if (!free_.empty()) {
         slot = free_.back();
@@ -62,6 +63,7 @@ absl::StatusOr<uint64_t> Scene::Upsert(std::vector<Site> sites, size_t max_sites
       slot_of_.emplace(s.id, slot);
     }
     index_.Insert(slot, s.geometry);
+    non_plain_ += !s.plain();
     slots_.Set(slot, std::move(s));
   }
   return ++version_;
@@ -83,6 +85,7 @@ absl::StatusOr<uint64_t> Scene::Delete(const std::vector<std::string>& ids,
     auto it = slot_of_.find(i);
     uint32_t slot = it->second;
     index_.Remove(slot, slots_.get(slot)->geometry);
+    non_plain_ -= !slots_.get(slot)->plain();
     slots_.Set(slot, std::nullopt);
     free_.push_back(slot);
     slot_of_.erase(it);
@@ -108,7 +111,16 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
   auto frame = frame_.load();
   const bool fresh = frame->version() == version_ && !frame->empty();
   const Window& window = settings_.grid.window;
+  // With only plain sites, the nearest site is the nearest by distance: the frame and the
+  // spatial index find it. Otherwise (weights, max_distance, sides, FARTHEST) every site is
+  // scored.
+  const bool plain = non_plain_ == 0 && settings_.diagram == Diagram::kNearest;
   answers->resize(points.size());
+  auto answer = [&](Vec2 q, uint32_t slot, double value) {
+    const Site* site = slots_.get(slot);
+    FeatureHit f = NearestFeature(q, site->geometry);
+    return ExactAnswer{site->id, value, f.kind, f.index, true};
+  };
   // Large batches are split across cores, all under this one shared lock (one version).
   ParallelFor(points.size(), 8192, [&](size_t begin, size_t end) {
     std::vector<uint32_t> nearer;
@@ -118,25 +130,45 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
         return;
       }
       const Vec2 q = points[i];
+      if (!plain) {
+        uint32_t best = 0;
+        double value = 0;
+        bool found = false;
+        for (uint32_t s = 0; s < slots_.size(); ++s) {
+          const Site* site = slots_.get(s);
+          if (site == nullptr) continue;
+          double v = SiteValue(q, *site);
+          if (std::isfinite(v) && (!found || Beats(settings_.diagram, v, value))) {
+            best = s;
+            value = v;
+            found = true;
+          }
+        }
+        (*answers)[i] = found ? answer(q, best, value) : ExactAnswer{};
+        continue;
+      }
       std::optional<NearestAnswer> raster;
       if (fresh && window.Contains(q)) raster = frame->Nearest(q);
       if (!raster) {
         ExactNearest best = index_.Nearest(q, slots_);
-        (*answers)[i] = {slots_.get(static_cast<uint32_t>(best.index))->id, best.distance};
+        (*answers)[i] = answer(q, static_cast<uint32_t>(best.index), best.distance);
         continue;
       }
       // The frame's site exists at this version, at exactly this distance from q (its slots
       // are the render thread's, so it is carried by id): only sites the index finds within
       // that radius can be nearer.
-      ExactAnswer best{frame->sites().get(raster->site_index)->id, raster->distance};
+      uint32_t best = slot_of_.find(frame->sites().get(raster->site_index)->id)->second;
+      double distance = raster->distance;
       nearer.clear();
-      index_.Within(q, best.distance, &nearer);
+      index_.Within(q, distance, &nearer);
       for (uint32_t s : nearer) {
-        const Site* site = slots_.get(s);
-        double d = ExactDistance(q, site->geometry);
-        if (d < best.distance) best = {site->id, d};
+        double d = ExactDistance(q, slots_.get(s)->geometry);
+        if (d < distance) {
+          best = s;
+          distance = d;
+        }
       }
-      (*answers)[i] = std::move(best);
+      (*answers)[i] = answer(q, best, distance);
     }
   });
   if (stop) return 0;
@@ -161,14 +193,14 @@ Scene::Changes Scene::TakeChanges(bool all) {
   out.version = version_;
   if (all) {
     out.changes.reserve(slot_of_.size());
-    for (const auto& [id, slot] : slot_of_) out.changes.push_back({id, slots_.get(slot)->geometry});
+    for (const auto& [id, slot] : slot_of_) out.changes.push_back({id, *slots_.get(slot)});
   } else {
     out.changes.reserve(changed_.size());
     for (const auto& id : changed_) {
       auto it = slot_of_.find(id);
       out.changes.push_back({id, it == slot_of_.end()
                                      ? std::nullopt
-                                     : std::optional<Geometry>(slots_.get(it->second)->geometry)});
+                                     : std::optional<Site>(*slots_.get(it->second))});
     }
   }
   changed_.clear();

@@ -28,6 +28,7 @@ struct SceneSettings {
   double eps = 0;        // the distance meshes' error bound, scene units (never 0)
   uint32_t cone_triangles = 0;  // for sites inside the window
   RenderMode mode = RenderMode::kMesh;
+  Diagram diagram = Diagram::kNearest;
 };
 
 // Called exactly once: with a frame of at least the awaited version, or with the reason
@@ -63,14 +64,20 @@ class Scene {
   uint64_t version() const;
   size_t site_count() const;
 
-  // Exact nearest sites at the current version, which it returns. When the latest frame is
-  // of that version and q lies in the window, the frame's answer bounds the search (paper
-  // sec. 6.3: the raster's site is an upper bound) and the spatial index supplies every site
-  // within it; otherwise the index alone finds the nearest. Concurrent calls do not block
-  // each other. CONTRACT: the scene has sites.
+  // Exact best sites at the current version, which it returns. In a NEAREST scene of plain
+  // sites: when the latest frame is of that version and q lies in the window, the frame's
+  // answer bounds the search (paper sec. 6.3: the raster's site is an upper bound) and the
+  // spatial index supplies every site within it; otherwise the index alone finds the nearest.
+  // Scenes with weighted, bounded or one-sided sites, and FARTHEST scenes, score every site
+  // (O(sites) per point). Concurrent calls do not block each other.
+  // CONTRACT: the scene has sites.
+  // found = false: no site is a candidate at the point (site_id empty).
   struct ExactAnswer {
     std::string site_id;
-    double distance = 0;
+    double distance = INFINITY;
+    FeatureKind feature_kind = FeatureKind::kVertex;
+    uint32_t feature_index = 0;
+    bool found = false;
   };
   // `cancelled`, when given, is polled every few thousand points; once it says true the
   // answers are left incomplete and the call returns 0.
@@ -131,6 +138,7 @@ class Scene {
   SlotTable slots_;
   std::vector<uint32_t> free_;
   SiteIndex index_;
+  size_t non_plain_ = 0;  // live sites that are not Site::plain()
   std::set<std::string> changed_;  // since the last TakeChanges
   uint64_t next_token_ = 1;
   std::map<uint64_t, Waiter> waiters_;

@@ -66,11 +66,22 @@ using grpc::StatusCode;
 
 // One answer, pointing into storage its NearestJob keeps alive.
 struct AnswerRow {
-  const std::string* site_id;
+  const std::string* site_id;  // null: no site is a candidate at the point
   double distance;
   double error_bound;
   bool exact;
+  FeatureKind feature_kind;
+  uint32_t feature_index;
 };
+
+v1::FeatureKind ToProto(FeatureKind k) {
+  switch (k) {
+    case FeatureKind::kVertex: return v1::VERTEX;
+    case FeatureKind::kEdge: return v1::EDGE;
+    case FeatureKind::kCurve: return v1::CURVE;
+  }
+  return v1::FEATURE_KIND_UNSPECIFIED;
+}
 
 // Writes rows [begin, end) into the response: as NearestSite results, or packed.
 void Fill(const std::vector<AnswerRow>& rows, size_t begin, size_t end, bool packed,
@@ -80,10 +91,18 @@ void Fill(const std::vector<AnswerRow>& rows, size_t begin, size_t end, bool pac
     results->Reserve(static_cast<int>(end - begin));
     for (size_t i = begin; i < end; ++i) {
       v1::NearestSite* r = results->Add();
+      if (rows[i].site_id == nullptr) {
+        r->set_empty(true);
+        r->set_distance(INFINITY);
+        r->set_exact(true);
+        continue;
+      }
       r->set_site_id(*rows[i].site_id);
       r->set_distance(rows[i].distance);
       r->set_error_bound(rows[i].error_bound);
       r->set_exact(rows[i].exact);
+      r->set_feature_index(rows[i].feature_index);
+      r->set_feature_kind(ToProto(rows[i].feature_kind));
     }
     return;
   }
@@ -93,14 +112,23 @@ void Fill(const std::vector<AnswerRow>& rows, size_t begin, size_t end, bool pac
   p->mutable_distance()->Reserve(n);
   p->mutable_error_bound()->Reserve(n);
   p->mutable_exact()->Reserve(n);
+  p->mutable_feature_index()->Reserve(n);
+  p->mutable_feature_kind()->Reserve(n);
   std::unordered_map<const std::string*, uint32_t> ref;
   for (size_t i = begin; i < end; ++i) {
-    auto [it, fresh] = ref.emplace(rows[i].site_id, static_cast<uint32_t>(ref.size()));
-    if (fresh) p->add_site_ids(*rows[i].site_id);
-    p->add_site(it->second);
-    p->add_distance(rows[i].distance);
+    if (rows[i].site_id == nullptr) {
+      p->add_site(UINT32_MAX);
+      p->add_distance(INFINITY);
+    } else {
+      auto [it, fresh] = ref.emplace(rows[i].site_id, static_cast<uint32_t>(ref.size()));
+      if (fresh) p->add_site_ids(*rows[i].site_id);
+      p->add_site(it->second);
+      p->add_distance(rows[i].distance);
+    }
     p->add_error_bound(rows[i].error_bound);
     p->add_exact(rows[i].exact);
+    p->add_feature_index(rows[i].feature_index);
+    p->add_feature_kind(ToProto(rows[i].feature_kind));
   }
 }
 
@@ -127,7 +155,10 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
         return;
       }
       rows_.reserve(exact_answers_.size());
-      for (const auto& a : exact_answers_) rows_.push_back({&a.site_id, a.distance, 0, true});
+      for (const auto& a : exact_answers_) {
+        rows_.push_back({a.found ? &a.site_id : nullptr, a.distance, 0, true, a.feature_kind,
+                         a.feature_index});
+      }
       done_(Status::OK);
       return;
     }
@@ -178,8 +209,15 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
           missing = true;
           return;
         }
-        rows_[i] = {&frame_->sites().get(a->site_index)->id, a->distance, a->error_bound,
-                    a->error_bound == 0};
+        if (!a->found) {
+          rows_[i] = {nullptr, INFINITY, 0, true, FeatureKind::kVertex, 0};
+          continue;
+        }
+        const Site& site = *frame_->sites().get(a->site_index);
+        FeatureHit f = std::holds_alternative<PointSite>(site.geometry)
+                           ? FeatureHit{}
+                           : NearestFeature(query_.points[i], site.geometry);
+        rows_[i] = {&site.id, a->distance, a->error_bound, a->error_bound == 0, f.kind, f.index};
       }
     });
     if (cancelled) {

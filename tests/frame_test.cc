@@ -32,7 +32,7 @@ std::shared_ptr<const Frame> EmulatedFrame(const Grid& grid, std::vector<Site> s
       dist[size_t{j} * grid.width + i] = static_cast<float>(best);
     }
   }
-  ErrorModel error{k, INFINITY, 0, 0x1p-22};  // float storage of D
+  ErrorModel error{Diagram::kNearest, k, INFINITY, 0, 0x1p-22};  // float storage of D
   return std::make_shared<const Frame>(grid, 1, 1, error, ids.data(), dist.data(),
                                        SlotTable(sites), sites.size());
 }
