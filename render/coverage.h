@@ -21,12 +21,6 @@ struct Coverage {
   uint64_t pairs = 0;    // (tile, candidate site) pairs examined
 };
 
-// How far beyond a site's max_distance, and beyond the side of a polygon it excludes, its
-// distance function is still drawn: two pixel diagonals. A site that is a candidate at a
-// query point q is then drawn at the four pixel centres around q, which is what Frame's
-// bounds rest on; an empty pixel centre proves that no site is a candidate near it.
-inline double DrawMargin(const Grid& grid) { return 2 * grid.pixel_diagonal(); }
-
 // The tile side that ComputeCoverage uses by default for n sites on the grid: about twice the
 // mean spacing of the sites, in pixels, within [4, 64].
 uint32_t DefaultTilePx(const Grid& grid, size_t n);

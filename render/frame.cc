@@ -101,6 +101,27 @@ std::optional<NearestAnswer> Frame::Nearest(Vec2 q) const {
 
   NearestAnswer best;
   best.found = false;
+  auto score_all = [&] {
+    for (uint32_t s = 0; s < sites_.size(); ++s) {
+      const Site* site = sites_.get(s);
+      if (site == nullptr) continue;
+      double value = SiteValue(q, *site);
+      if (std::isfinite(value) && (!best.found || Beats(diagram, value, best.distance))) {
+        best = {s, value, 0, true};
+      }
+    }
+    best.error_bound = error_.curve;
+    return best;
+  };
+  // Far outside the window, a site that is a candidate at q need not be present at the
+  // centres nearest to q.
+  if (error_.limited_presence) {
+    for (uint32_t i : {i0, i1}) {
+      for (uint32_t j : {j0, j1}) {
+        if (Distance(q, grid_.Center(i, j)) > DrawMargin(grid_) / 2) return score_all();
+      }
+    }
+  }
   // No site's value at q beats this.
   double limit = nearest ? -INFINITY : INFINITY;
   const uint32_t is[2] = {i0, i1}, js[2] = {j0, j1};
@@ -125,20 +146,9 @@ std::optional<NearestAnswer> Frame::Nearest(Vec2 q) const {
       }
     }
   }
-  if (!best.found) {
-    // Every centre holds a site, none a candidate at q: q lies within a few pixels of some
-    // site's max_distance or side. Score them all.
-    for (uint32_t s = 0; s < sites_.size(); ++s) {
-      const Site* site = sites_.get(s);
-      if (site == nullptr) continue;
-      double value = SiteValue(q, *site);
-      if (std::isfinite(value) && (!best.found || Beats(diagram, value, best.distance))) {
-        best = {s, value, 0, true};
-      }
-    }
-    best.error_bound = error_.curve;
-    return best;
-  }
+  // Every centre holds a site, none a candidate at q: q lies within a few pixels of some
+  // site's max_distance or side. Score them all.
+  if (!best.found) return score_all();
   best.error_bound =
       std::max(0.0, nearest ? best.distance - limit : limit - best.distance) + error_.curve;
   return best;

@@ -32,6 +32,9 @@ struct ErrorModel {
   double relative_slack = 0;  // float depth and interpolation rounding, relative to D
   double lipschitz = 1;       // the largest multiplicative weight of any site
   double curve = 0;           // the largest Bezier tolerance * weight, added to every bound
+  // Some site has a max_distance or a side: it is present (drawn) only within DrawMargin of
+  // where it is a candidate.
+  bool limited_presence = false;
 
   double Slack(double d) const { return absolute_slack + relative_slack * d; }
   // A lower bound on v_B(p) for every site B present at p, given the least stored value D
@@ -105,7 +108,8 @@ class Frame {
   // API). Uses the up to four pixel centres around q: each stored site is a candidate, scored
   // exactly; each stored value bounds every site present there. An empty centre proves that
   // no site is a candidate at q. O(1), except where none of the stored sites is a candidate
-  // at q (within a few pixels of a max_distance or a side): then every site is scored.
+  // at q (within a few pixels of a max_distance or a side), or where q lies farther than
+  // DrawMargin outside the window in a scene with limited presence: then every site is scored.
   // Returns nullopt when the frame is empty. q may lie anywhere; outside the window the
   // bound grows with the distance to the nearest pixel centre.
   std::optional<NearestAnswer> Nearest(Vec2 q) const;

@@ -99,6 +99,13 @@ struct Grid {
   }
 };
 
+// How far beyond a site's max_distance, and beyond the side of a polygon it excludes, its
+// distance function is still drawn: two pixel diagonals. A site that is a candidate at a
+// query point q is then drawn at the four pixel centres around q (within one diagonal of
+// q), which is what Frame's bounds rest on; an empty pixel centre proves that no site is a
+// candidate near it.
+inline double DrawMargin(const Grid& grid) { return 2 * grid.pixel_diagonal(); }
+
 inline double Window::FarthestDistance(Vec2 p) const {
   double dx = std::max(std::abs(p.x - min_x), std::abs(p.x - max_x));
   double dy = std::max(std::abs(p.y - min_y), std::abs(p.y - max_y));

@@ -50,6 +50,10 @@ absl::StatusOr<std::unique_ptr<SceneRaster>> SceneRaster::Create(const Grid& gri
 
 void SceneRaster::Account(const Site& site) {
   max_weight_ = std::max(max_weight_, site.multiplicative);
+  const auto* poly = std::get_if<PolygonSite>(&site.geometry);
+  if (std::isfinite(site.max_distance) || (poly && poly->side != Side::kBoth)) {
+    limited_presence_ = true;
+  }
   if (const auto* b = std::get_if<BezierSite>(&site.geometry)) {
     curve_slack_ = std::max(curve_slack_, b->tolerance * site.multiplicative);
   }
@@ -76,6 +80,7 @@ void SceneRaster::Publish(uint64_t version, PixelRect rect, const std::vector<ui
   error.relative_slack = 0x1p-18;
   error.lipschitz = max_weight_;
   error.curve = curve_slack_;
+  error.limited_presence = limited_presence_;
   if (rect == grid_.all() || frame_ == nullptr || frame_->empty()) {  // a full render
     frame_ = std::make_shared<const Frame>(grid_, version, eps_, error, ids.data(),
                                            distances.data(), slots_, slot_of_.size());
@@ -98,6 +103,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
   max_weight_ = 1;
   curve_slack_ = 0;
   coordinate_scale_ = 0;
+  limited_presence_ = false;
   extent_.assign(slots_.size(), -1);
   for (uint32_t s = 0; s < slots_.size(); ++s) {
     const Site* site = slots_.get(s);

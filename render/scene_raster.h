@@ -85,6 +85,7 @@ class SceneRaster {
   double max_weight_ = 1;
   double curve_slack_ = 0;
   double coordinate_scale_ = 0;
+  bool limited_presence_ = false;
   std::shared_ptr<const Frame> frame_;
 };
 

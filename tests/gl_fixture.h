@@ -1,0 +1,42 @@
+// A GoogleTest fixture with one EGL context and rasterizer per suite (llvmpipe when there is
+// no GPU); tests skip when no context can be made.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "render/context.h"
+#include "render/raster.h"
+
+namespace gvd {
+
+class GlTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    auto ctx = GlContext::Create(DevicePreference::kAuto);
+    if (!ctx.ok()) {
+      skip_reason_ = new std::string(ctx.status().ToString());
+      return;
+    }
+    context_ = ctx->release();
+    auto r = Rasterizer::Create();
+    ASSERT_TRUE(r.ok()) << r.status();
+    rasterizer_ = r->release();
+  }
+  static void TearDownTestSuite() {
+    delete rasterizer_;
+    delete context_;
+    rasterizer_ = nullptr;
+    context_ = nullptr;
+  }
+  void SetUp() override {
+    if (context_ == nullptr) GTEST_SKIP() << "no EGL context: " << *skip_reason_;
+  }
+
+  static inline GlContext* context_ = nullptr;
+  static inline Rasterizer* rasterizer_ = nullptr;
+  static inline std::string* skip_reason_ = nullptr;
+};
+
+}  // namespace gvd
