@@ -108,6 +108,11 @@ grpc::Status Client::FindNearestStream(const v1::FindNearestRequest& request,
   return reader->Finish();
 }
 
+grpc::Status Client::RenderImage(const v1::RenderImageRequest& request,
+                                 v1::RenderImageResponse* response) {
+  return stub_->RenderImage(Context().get(), request, response);
+}
+
 bool Client::WaitForConnected(std::chrono::milliseconds timeout) {
   return channel_->WaitForConnected(std::chrono::system_clock::now() + timeout);
 }

@@ -1,4 +1,5 @@
 // gvd: the command-line client of gvd-server.
+#include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
 #include <grpcpp/create_channel.h>
 #include <grpcpp/security/credentials.h>
@@ -8,6 +9,7 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -25,16 +27,32 @@ constexpr const char* kUsage = R"(usage: gvd [--server HOST:PORT] [--scene ID] [
 
 Scenes:
   gvd scene create ID --window MIN_X,MIN_Y,MAX_X,MAX_Y --size WIDTHxHEIGHT [--max-error E]
-                     [--render-mode mesh|exact]
+                     [--render-mode mesh|exact] [--diagram nearest|farthest]
   gvd scene get ID
   gvd scene ls
   gvd scene rm ID
 Sites (of the scene named by --scene, default "default"):
-  gvd sites add ID X Y [ID X Y ...]
+  gvd sites add ID X Y [ID X Y ...]              points
+  gvd sites add segment ID X,Y X,Y
+  gvd sites add polyline ID X,Y X,Y [X,Y ...]
+  gvd sites add polygon ID X,Y X,Y X,Y [X,Y ...] [--side outside|inside]
+  gvd sites add bezier ID X,Y X,Y X,Y [X,Y] [--tolerance T]
+      any of them with [--additive A] [--multiplicative M] [--max-distance R]
   gvd sites add --file PATH   JSON: [{"id": "a", "point": {"x": 1, "y": 2}}, ...] or
-                              {"sites": [...]}; or text lines "ID X Y"; PATH - reads stdin
+                              {"sites": [...]} (every kind: "segment", "polyline",
+                              "polygon", "bezier", as in the API); GeoJSON: a
+                              FeatureCollection of Point, LineString and Polygon (outer
+                              ring) features, id from the feature's "id" or properties.id,
+                              weights from properties additive_weight,
+                              multiplicative_weight, max_distance, side; or text lines
+                              "ID X Y"; PATH - reads stdin
   gvd sites rm ID [ID ...]
   gvd sites ls
+Images:
+  gvd render SCENE -o OUT [--layer ids|features|distance] [--format png|exr]
+             [--window MIN_X,MIN_Y,MAX_X,MAX_Y] [--draw-sites] [--min-version V]
+      writes the scene's frame once its current version is rendered (or from
+      --min-version V on); the format follows OUT's extension unless given
 Health:
   gvd health           the server's grpc.health.v1 status; exit 0 when SERVING
 
@@ -80,12 +98,17 @@ Args ParseArgs(int argc, char** argv) {
       std::fputs(kUsage, stdout);
       std::exit(0);
     }
+    if (arg == "-o") arg = "--output";
     if (arg.rfind("--", 0) != 0) {  // "-3.5" is a number, not a flag
       a.words.push_back(arg);
       continue;
     }
     if (arg == "--json" || arg == "--exact") {
       (arg == "--json" ? a.json : a.exact) = true;
+      continue;
+    }
+    if (arg == "--draw-sites") {
+      a.options[arg] = "1";
       continue;
     }
     std::string value;
@@ -108,7 +131,10 @@ Args ParseArgs(int argc, char** argv) {
         Usage(absl::StrCat("--timeout needs a positive number of seconds, not \"", value, "\""));
       }
     } else if (arg == "--window" || arg == "--size" || arg == "--max-error" || arg == "--file" ||
-               arg == "--min-version" || arg == "--render-mode") {
+               arg == "--min-version" || arg == "--render-mode" || arg == "--diagram" ||
+               arg == "--side" || arg == "--tolerance" || arg == "--additive" ||
+               arg == "--multiplicative" || arg == "--max-distance" || arg == "--output" ||
+               arg == "--layer" || arg == "--format") {
       a.options[arg] = value;
     } else {
       Usage(absl::StrCat("unknown flag ", arg));
@@ -161,7 +187,93 @@ void PrintScene(const gvd::v1::Scene& s) {
             << s.site_count() << " sites, rendered version " << s.rendered_version() << "\n";
 }
 
-// Reads sites from JSON (an array of Site, or {"sites": [...]}) or from "ID X Y" lines.
+// Sites from a GeoJSON FeatureCollection: Point, LineString (a polyline, or a segment
+// with two points) and Polygon (its outer ring; the closing repeat of the first point is
+// dropped) features.
+bool ReadGeoJson(const std::string& text, const std::string& path,
+                 gvd::v1::UpsertSitesRequest* request, std::string* error) {
+  using google::protobuf::ListValue;
+  using google::protobuf::Struct;
+  using google::protobuf::Value;
+  Struct doc;
+  if (auto st = google::protobuf::util::JsonStringToMessage(text, &doc); !st.ok()) {
+    *error = absl::StrCat(path, ": ", st.message().as_string());
+    return false;
+  }
+  auto fail = [&](size_t i, const std::string& why) {
+    *error = absl::StrCat(path, ": features[", i, "]: ", why);
+    return false;
+  };
+  auto point = [](const Value& v, gvd::v1::Point* p) {
+    const ListValue& c = v.list_value();
+    if (c.values_size() < 2 || !c.values(0).has_number_value() || !c.values(1).has_number_value()) {
+      return false;
+    }
+    p->set_x(c.values(0).number_value());
+    p->set_y(c.values(1).number_value());
+    return true;
+  };
+  const auto& features = doc.fields().at("features").list_value();
+  for (int i = 0; i < features.values_size(); ++i) {
+    const Struct& f = features.values(i).struct_value();
+    auto field = [&](const Struct& s, const std::string& k) -> const Value* {
+      auto it = s.fields().find(k);
+      return it == s.fields().end() ? nullptr : &it->second;
+    };
+    const Value* geometry = field(f, "geometry");
+    const Value* props = field(f, "properties");
+    const Struct empty;
+    const Struct& p = props && props->has_struct_value() ? props->struct_value() : empty;
+    auto* site = request->add_sites();
+    const Value* id = field(f, "id");
+    if (!id) id = field(p, "id");
+    if (!id) return fail(i, "no id (set the feature's \"id\" or properties.id)");
+    site->set_id(id->has_number_value() ? Num(id->number_value()) : id->string_value());
+    if (!geometry || !geometry->has_struct_value()) return fail(i, "no geometry");
+    const Value* type = field(geometry->struct_value(), "type");
+    const Value* coords = field(geometry->struct_value(), "coordinates");
+    if (!type || !coords) return fail(i, "geometry needs type and coordinates");
+    const std::string& t = type->string_value();
+    bool ok = true;
+    if (t == "Point") {
+      ok = point(*coords, site->mutable_point());
+    } else if (t == "LineString") {
+      for (const Value& v : coords->list_value().values()) {
+        ok = ok && point(v, site->mutable_polyline()->add_points());
+      }
+    } else if (t == "Polygon") {
+      if (coords->list_value().values_size() != 1) {
+        return fail(i, "polygons with holes are not supported: give the outer ring only");
+      }
+      auto* poly = site->mutable_polygon();
+      for (const Value& v : coords->list_value().values(0).list_value().values()) {
+        ok = ok && point(v, poly->add_vertices());
+      }
+      int n = poly->vertices_size();
+      if (n > 1 && poly->vertices(0).x() == poly->vertices(n - 1).x() &&
+          poly->vertices(0).y() == poly->vertices(n - 1).y()) {
+        poly->mutable_vertices()->RemoveLast();
+      }
+      if (const Value* side = field(p, "side")) {
+        const std::string& sv = side->string_value();
+        if (sv == "outside") poly->set_side(gvd::v1::Polygon::OUTSIDE);
+        else if (sv == "inside") poly->set_side(gvd::v1::Polygon::INSIDE);
+        else if (!sv.empty()) return fail(i, "properties.side must be \"outside\" or \"inside\"");
+      }
+    } else {
+      return fail(i, absl::StrCat("geometry type ", t, " is not supported (Point, LineString, Polygon)"));
+    }
+    if (!ok) return fail(i, "coordinates must be [x, y] numbers");
+    if (const Value* v = field(p, "additive_weight")) site->set_additive_weight(v->number_value());
+    if (const Value* v = field(p, "multiplicative_weight")) {
+      site->set_multiplicative_weight(v->number_value());
+    }
+    if (const Value* v = field(p, "max_distance")) site->set_max_distance(v->number_value());
+  }
+  return true;
+}
+
+// Reads sites from JSON (an array of Site, or {"sites": [...]}), GeoJSON, or "ID X Y" lines.
 bool ReadSites(const std::string& path, gvd::v1::UpsertSitesRequest* request, std::string* error) {
   std::stringstream buffer;
   if (path == "-") {
@@ -176,6 +288,10 @@ bool ReadSites(const std::string& path, gvd::v1::UpsertSitesRequest* request, st
   }
   std::string text = buffer.str();
   size_t first = text.find_first_not_of(" \t\r\n");
+  if (first != std::string::npos && text[first] == '{' &&
+      text.find("\"FeatureCollection\"") != std::string::npos) {
+    return ReadGeoJson(text, path, request, error);
+  }
   if (first != std::string::npos && (text[first] == '[' || text[first] == '{')) {
     std::string json = text[first] == '[' ? absl::StrCat("{\"sites\": ", text, "}") : text;
     auto st = google::protobuf::util::JsonStringToMessage(json, request);
@@ -255,6 +371,10 @@ int Run(const Args& a) {
         if (*m != "mesh" && *m != "exact") Usage("--render-mode must be mesh or exact");
         r.set_render_mode(*m == "exact" ? gvd::v1::EXACT : gvd::v1::MESH);
       }
+      if (const std::string* d = option("--diagram")) {
+        if (*d != "nearest" && *d != "farthest") Usage("--diagram must be nearest or farthest");
+        r.set_diagram(*d == "farthest" ? gvd::v1::FARTHEST : gvd::v1::NEAREST);
+      }
       gvd::v1::Scene scene;
       if (auto s = client->CreateScene(r, &scene); !s.ok()) return Fail(s);
       a.json ? PrintJson(scene) : PrintScene(scene);
@@ -296,14 +416,55 @@ int Run(const Args& a) {
         }
       }
       r.set_scene_id(a.scene);  // after ReadSites: parsing JSON resets the message
-      if ((w.size() - 2) % 3 != 0) Usage("sites add takes triples ID X Y");
-      for (size_t i = 2; i + 2 < w.size(); i += 3) {
+      static const std::set<std::string> kKinds = {"segment", "polyline", "polygon", "bezier"};
+      if (w.size() >= 3 && kKinds.count(w[2])) {
+        if (w.size() < 5) Usage(absl::StrCat("sites add ", w[2], " needs ID and points X,Y"));
         auto* site = r.add_sites();
-        site->set_id(w[i]);
-        site->mutable_point()->set_x(Number(w[i + 1], "X"));
-        site->mutable_point()->set_y(Number(w[i + 2], "Y"));
+        site->set_id(w[3]);
+        std::vector<gvd::v1::Point> pts;
+        for (size_t i = 4; i < w.size(); ++i) {
+          std::vector<std::string> xy = absl::StrSplit(w[i], ',');
+          if (xy.size() != 2) Usage(absl::StrCat("points are X,Y, not \"", w[i], "\""));
+          pts.emplace_back();
+          pts.back().set_x(Number(xy[0], "X"));
+          pts.back().set_y(Number(xy[1], "Y"));
+        }
+        if (w[2] == "segment") {
+          if (pts.size() != 2) Usage("sites add segment ID X,Y X,Y");
+          *site->mutable_segment()->mutable_a() = pts[0];
+          *site->mutable_segment()->mutable_b() = pts[1];
+        } else if (w[2] == "polyline") {
+          for (auto& q : pts) *site->mutable_polyline()->add_points() = q;
+        } else if (w[2] == "polygon") {
+          for (auto& q : pts) *site->mutable_polygon()->add_vertices() = q;
+          if (const std::string* side = option("--side")) {
+            if (*side != "outside" && *side != "inside") Usage("--side must be outside or inside");
+            site->mutable_polygon()->set_side(*side == "outside" ? gvd::v1::Polygon::OUTSIDE
+                                                                 : gvd::v1::Polygon::INSIDE);
+          }
+        } else {
+          for (auto& q : pts) *site->mutable_bezier()->add_control_points() = q;
+          if (const std::string* t = option("--tolerance")) {
+            site->mutable_bezier()->set_tolerance(Number(*t, "--tolerance"));
+          }
+        }
+      } else {
+        if ((w.size() - 2) % 3 != 0) Usage("sites add takes triples ID X Y");
+        for (size_t i = 2; i + 2 < w.size(); i += 3) {
+          auto* site = r.add_sites();
+          site->set_id(w[i]);
+          site->mutable_point()->set_x(Number(w[i + 1], "X"));
+          site->mutable_point()->set_y(Number(w[i + 2], "Y"));
+        }
       }
-      if (r.sites_size() == 0) Usage("sites add needs ID X Y triples or --file");
+      if (r.sites_size() == 0) Usage("sites add needs ID X Y triples, a kind, or --file");
+      for (auto& site : *r.mutable_sites()) {
+        if (const std::string* v = option("--additive")) site.set_additive_weight(Number(*v, "--additive"));
+        if (const std::string* v = option("--multiplicative")) {
+          site.set_multiplicative_weight(Number(*v, "--multiplicative"));
+        }
+        if (const std::string* v = option("--max-distance")) site.set_max_distance(Number(*v, "--max-distance"));
+      }
       uint64_t version = 0;
       if (auto s = client->UpsertSites(r, &version); !s.ok()) return Fail(s);
       std::cout << "upserted " << r.sites_size() << " sites; scene " << a.scene << " is at version "
@@ -330,7 +491,28 @@ int Run(const Args& a) {
         return 0;
       }
       for (const auto& s : sites) {
-        std::cout << s.id() << "\t" << Num(s.point().x()) << "\t" << Num(s.point().y()) << "\n";
+        if (s.has_point()) {
+          std::cout << s.id() << "\t" << Num(s.point().x()) << "\t" << Num(s.point().y()) << "\n";
+          continue;
+        }
+        std::vector<gvd::v1::Point> pts;
+        std::string kind;
+        if (s.has_segment()) {
+          kind = "segment";
+          pts = {s.segment().a(), s.segment().b()};
+        } else if (s.has_polyline()) {
+          kind = "polyline";
+          pts.assign(s.polyline().points().begin(), s.polyline().points().end());
+        } else if (s.has_polygon()) {
+          kind = "polygon";
+          pts.assign(s.polygon().vertices().begin(), s.polygon().vertices().end());
+        } else if (s.has_bezier()) {
+          kind = "bezier";
+          pts.assign(s.bezier().control_points().begin(), s.bezier().control_points().end());
+        }
+        std::cout << s.id() << "\t" << kind;
+        for (const auto& q : pts) std::cout << "\t" << Num(q.x()) << "," << Num(q.y());
+        std::cout << "\n";
       }
       return 0;
     }
@@ -375,13 +557,70 @@ int Run(const Args& a) {
       PrintJson(response);
       return 0;
     }
-    std::cout << "x\ty\tsite\tdistance\terror_bound\texact\n";
+    std::cout << "x\ty\tsite\tdistance\terror_bound\texact\tfeature\n";
     for (int i = 0; i < response.results_size(); ++i) {
       const auto& n = response.results(i);
-      std::cout << Num(r.points(i).x()) << "\t" << Num(r.points(i).y()) << "\t" << n.site_id()
-                << "\t" << Num(n.distance()) << "\t" << Num(n.error_bound()) << "\t"
-                << (n.exact() ? "yes" : "no") << "\n";
+      std::cout << Num(r.points(i).x()) << "\t" << Num(r.points(i).y()) << "\t";
+      if (n.empty()) {
+        std::cout << "(none)\tinf\t0\tyes\t-\n";
+        continue;
+      }
+      std::string kind = n.feature_kind() == gvd::v1::EDGE    ? "edge"
+                         : n.feature_kind() == gvd::v1::CURVE ? "curve"
+                                                              : "vertex";
+      std::cout << n.site_id() << "\t" << Num(n.distance()) << "\t" << Num(n.error_bound())
+                << "\t" << (n.exact() ? "yes" : "no") << "\t" << kind << " "
+                << n.feature_index() << "\n";
     }
+    return 0;
+  }
+
+  if (w[0] == "render") {
+    need(2, "render SCENE -o OUT [--layer ids|features|distance] [--format png|exr]");
+    const std::string* out = option("--output");
+    if (!out) Usage("render needs -o OUT");
+    gvd::v1::RenderImageRequest r;
+    r.set_scene_id(w[1]);
+    std::string layer = option("--layer") ? *option("--layer") : "ids";
+    if (layer == "ids") r.set_layer(gvd::v1::RenderImageRequest::IDS);
+    else if (layer == "features") r.set_layer(gvd::v1::RenderImageRequest::FEATURES);
+    else if (layer == "distance") r.set_layer(gvd::v1::RenderImageRequest::DISTANCE);
+    else Usage("--layer must be ids, features or distance");
+    std::string format = option("--format") ? *option("--format")
+                         : out->size() > 4 && out->substr(out->size() - 4) == ".exr" ? "exr"
+                                                                                     : "png";
+    if (format != "png" && format != "exr") Usage("--format must be png or exr");
+    r.set_format(format == "exr" ? gvd::v1::RenderImageRequest::EXR
+                                 : gvd::v1::RenderImageRequest::PNG);
+    if (const std::string* window = option("--window")) {
+      std::vector<std::string> c = absl::StrSplit(*window, ',');
+      if (c.size() != 4) Usage(absl::StrCat("--window needs MIN_X,MIN_Y,MAX_X,MAX_Y, not ", *window));
+      r.mutable_window()->set_min_x(Number(c[0], "--window MIN_X"));
+      r.mutable_window()->set_min_y(Number(c[1], "--window MIN_Y"));
+      r.mutable_window()->set_max_x(Number(c[2], "--window MAX_X"));
+      r.mutable_window()->set_max_y(Number(c[3], "--window MAX_Y"));
+    }
+    r.set_draw_sites(option("--draw-sites") != nullptr);
+    if (const std::string* v = option("--min-version")) {
+      uint64_t mv;
+      if (!absl::SimpleAtoi(*v, &mv)) Usage("--min-version needs a version number");
+      r.set_min_version(mv);
+    } else {  // the scene as it is now, once rendered
+      gvd::v1::Scene scene;
+      if (auto s = client->GetScene(w[1], &scene); !s.ok()) return Fail(s);
+      r.set_min_version(scene.version());
+    }
+    gvd::v1::RenderImageResponse response;
+    if (auto s = client->RenderImage(r, &response); !s.ok()) return Fail(s);
+    std::ofstream file(*out, std::ios::binary);
+    file.write(response.image().data(), static_cast<std::streamsize>(response.image().size()));
+    if (!file) {
+      std::fprintf(stderr, "gvd: cannot write %s\n", out->c_str());
+      return 1;
+    }
+    std::cout << "wrote " << *out << ": " << response.width_px() << "x" << response.height_px()
+              << " " << layer << " of scene " << w[1] << " at version " << response.version()
+              << "\n";
     return 0;
   }
   Usage(absl::StrCat("unknown command \"", absl::StrJoin(w, " "), "\""));

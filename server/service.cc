@@ -1,6 +1,7 @@
 #include "server/service.h"
 
 #include "absl/strings/str_cat.h"
+#include "render/image.h"
 #include "server/convert.h"
 #include "render/parallel.h"
 #include "server/log.h"
@@ -57,6 +58,8 @@ struct NearestQuery {
   std::vector<Vec2> points;
   bool exact = false;
   uint64_t min_version = 0;
+  // When set, the job hands the frame to this instead of answering points (RenderImage).
+  std::function<grpc::Status(const Frame&)> on_frame;
 };
 
 namespace {
@@ -196,6 +199,10 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
       return;
     }
     version_ = frame_->version();
+    if (query_.on_frame) {
+      done_(query_.on_frame(*frame_));
+      return;
+    }
     rows_.resize(query_.points.size());
     std::atomic<bool> missing{false}, cancelled{false};
     ParallelFor(rows_.size(), 8192, [&](size_t begin, size_t end) {
@@ -266,6 +273,22 @@ class NearestUnaryReactor final : public grpc::ServerUnaryReactor {
   std::shared_ptr<NearestJob> job_;
   bool packed_;
   v1::FindNearestResponse* response_;
+};
+
+// RenderImage: waits for its frame like a query, then encodes it (NearestQuery::on_frame).
+class ImageReactor final : public grpc::ServerUnaryReactor {
+ public:
+  explicit ImageReactor(NearestQuery query) : job_(std::make_shared<NearestJob>(std::move(query))) {}
+  // After Start, this object may already be finished and deleted.
+  void Start() {
+    auto job = job_;
+    job->Start([this](const Status& s) { Finish(s); });
+  }
+  void OnCancel() override { job_->Cancel(); }
+  void OnDone() override { delete this; }
+
+ private:
+  std::shared_ptr<NearestJob> job_;
 };
 
 class NearestStreamReactor final : public grpc::ServerWriteReactor<v1::FindNearestResponse> {
@@ -615,6 +638,93 @@ grpc::ServerWriteReactor<v1::FindNearestResponse>* VoronoiService::FindNearestSt
   } else {
     reactor->Start();
   }
+  return reactor;
+}
+
+}  // namespace gvd
+
+namespace gvd {
+
+grpc::ServerUnaryReactor* VoronoiService::RenderImage(grpc::CallbackServerContext* ctx,
+                                                      const v1::RenderImageRequest* request,
+                                                      v1::RenderImageResponse* response) {
+  NearestQuery query;
+  query.scope = std::make_shared<CallScope>(this, "RenderImage");
+  query.ctx = ctx;
+  if (auto s = Admit(ctx, false); !s.ok()) return query.scope->Done(ctx, s);
+  if (auto s = Lookup(request->scene_id(), &query.scene); !s.ok()) return query.scope->Done(ctx, s);
+  ImageOptions options;
+  switch (request->layer()) {
+    case v1::RenderImageRequest::LAYER_UNSPECIFIED:
+    case v1::RenderImageRequest::IDS: options.layer = ImageLayer::kIds; break;
+    case v1::RenderImageRequest::FEATURES: options.layer = ImageLayer::kFeatures; break;
+    case v1::RenderImageRequest::DISTANCE: options.layer = ImageLayer::kDistance; break;
+    default:
+      return query.scope->Done(
+          ctx, Status(StatusCode::INVALID_ARGUMENT,
+                      absl::StrCat("layer is ", request->layer(),
+                                   "; it must be IDS, FEATURES or DISTANCE")));
+  }
+  switch (request->format()) {
+    case v1::RenderImageRequest::FORMAT_UNSPECIFIED:
+    case v1::RenderImageRequest::PNG: options.format = ImageFormat::kPng; break;
+    case v1::RenderImageRequest::EXR: options.format = ImageFormat::kExr; break;
+    default:
+      return query.scope->Done(
+          ctx, Status(StatusCode::INVALID_ARGUMENT,
+                      absl::StrCat("format is ", request->format(), "; it must be PNG or EXR")));
+  }
+  if (options.format == ImageFormat::kExr && options.layer != ImageLayer::kDistance) {
+    return query.scope->Done(
+        ctx, Status(StatusCode::INVALID_ARGUMENT, "format EXR holds the DISTANCE layer only"));
+  }
+  if (options.format == ImageFormat::kExr && request->draw_sites()) {
+    return query.scope->Done(ctx,
+                             Status(StatusCode::INVALID_ARGUMENT, "draw_sites needs format PNG"));
+  }
+  options.draw_sites = request->draw_sites();
+  const Grid& grid = query.scene->settings().grid;
+  options.rect = grid.all();
+  if (request->has_window()) {
+    const v1::Window& w = request->window();
+    for (double v : {w.min_x(), w.min_y(), w.max_x(), w.max_y()}) {
+      if (!std::isfinite(v)) {
+        return query.scope->Done(ctx, Status(StatusCode::INVALID_ARGUMENT,
+                                             absl::StrCat("window holds ", FormatNumber(v),
+                                                          "; coordinates must be finite")));
+      }
+    }
+    options.rect = grid.CentresIn({w.min_x(), w.min_y()}, {w.max_x(), w.max_y()});
+    if (options.rect.empty()) {
+      return query.scope->Done(
+          ctx, Status(StatusCode::INVALID_ARGUMENT,
+                      absl::StrCat("window [", FormatNumber(w.min_x()), ", ",
+                                   FormatNumber(w.max_x()), "] x [", FormatNumber(w.min_y()),
+                                   ", ", FormatNumber(w.max_y()),
+                                   "] holds no pixel centre of the scene")));
+    }
+  }
+  uint64_t version = query.scene->version();
+  query.min_version = request->min_version();
+  if (query.min_version > version) {
+    return query.scope->Done(
+        ctx, Status(StatusCode::OUT_OF_RANGE,
+                    absl::StrCat("min_version ", query.min_version, " is ahead of scene \"",
+                                 query.scene->id(), "\", which is at version ", version)));
+  }
+  if (query.scene->frame()->empty() && query.scene->site_count() > 0) query.min_version = version;
+  query.on_frame = [options, response](const Frame& frame) {
+    auto image = EncodeImage(frame, options);
+    if (!image.ok()) return ToGrpc(image.status());
+    response->set_image(image->bytes.data(), image->bytes.size());
+    response->set_mime_type(image->mime_type);
+    response->set_width_px(image->width);
+    response->set_height_px(image->height);
+    response->set_version(frame.version());
+    return Status::OK;
+  };
+  auto* reactor = new ImageReactor(std::move(query));
+  reactor->Start();
   return reactor;
 }
 

@@ -67,6 +67,9 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
                                         v1::FindNearestResponse* response) override;
   grpc::ServerWriteReactor<v1::FindNearestResponse>* FindNearestStream(
       grpc::CallbackServerContext* ctx, const v1::FindNearestRequest* request) override;
+  grpc::ServerUnaryReactor* RenderImage(grpc::CallbackServerContext* ctx,
+                                        const v1::RenderImageRequest* request,
+                                        v1::RenderImageResponse* response) override;
 
  private:
   // Validates a FindNearest request and resolves its scene, points and mode.

@@ -49,6 +49,9 @@ class Client {
   grpc::Status FindNearestStream(const v1::FindNearestRequest& request,
                                  std::vector<v1::FindNearestResponse>* chunks);
 
+  grpc::Status RenderImage(const v1::RenderImageRequest& request,
+                           v1::RenderImageResponse* response);
+
   // Waits until the server answers or `timeout` passes; true when connected.
   bool WaitForConnected(std::chrono::milliseconds timeout);
 
