@@ -32,6 +32,16 @@ bool PresentOnDisc(const Site& s, double d, double h, double margin) {
   return poly == nullptr || poly->side == Side::kBoth;
 }
 
+// False when the site is a polygon restricted to its inside whose box, grown by the margin,
+// misses the cell: it is present nowhere there.
+bool InsideReach(const Site& s, const Window& cell, double margin) {
+  const auto* poly = std::get_if<PolygonSite>(&s.geometry);
+  if (poly == nullptr || poly->side != Side::kInside) return true;
+  Window b = BoundingBox(s.geometry);
+  return b.min_x - margin <= cell.max_x && cell.min_x <= b.max_x + margin &&
+         b.min_y - margin <= cell.max_y && cell.min_y <= b.max_y + margin;
+}
+
 }  // namespace
 
 uint32_t DefaultTilePx(const Grid& grid, size_t n) {
@@ -113,6 +123,7 @@ Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteInd
         double lower = s.multiplicative * std::max(0.0, dist[k] - h) + s.additive;
         if (lower > upper * (1 + 1e-12)) continue;
         if (dist[k] - h > (s.max_distance + margin) * (1 + 1e-12)) continue;  // absent on C
+        if (!InsideReach(s, cell, margin)) continue;
         const PointSite* p = PlainPoint(s);
         if (p && p1 && &s != s1 && !BeatsSomewhere(p->p, p1->p, cell)) continue;
         cov.radius[slot] = std::max(cov.radius[slot], radius_for(s, cell));

@@ -38,7 +38,8 @@ uint32_t DefaultTilePx(const Grid& grid, size_t n);
 // gives U = m1 (d(c, s1) + h) + a1 >= v_s1(p) for every p of C; the least such U is taken over
 // the nearest site to c and the sites within reach of it. A site s best at some p of C has
 // v_s(p) <= U, so m_s max(0, d(c, s) - h) + a_s <= U: the others are dropped, as are sites
-// not present anywhere near C. For plain point sites s and s1, s must also be at least as near
+// not present anywhere near C (beyond max_distance + margin, or an inside-only polygon whose
+// box, grown by the margin, misses C). For plain point sites s and s1, s must also be at least as near
 // as s1 at p: p lies in the half-plane {x : |x s| <= |x s1|}; as C is convex, some corner of C
 // lies in it too, and sites with no corner there are dropped. Every remaining candidate gets
 // radius >= max over C of d(., s) (capped at its presence, max_distance + DrawMargin), so

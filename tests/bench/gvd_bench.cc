@@ -85,6 +85,70 @@ BENCHMARK(BM_Render)
     ->MinTime(1)
     ->UseRealTime();
 
+// 1''. Full render at 1024x1024 of 1,000 sites of one kind; range(0): 0 segment, 1 polyline
+// (8 points), 2 polygon (6 vertices), 3 polygon inside only, 4 cubic Bezier (tolerance
+// 1/4 pixel), 5 points with weights and max_distance, 6 points in a FARTHEST diagram (100
+// sites); range(1): 0 mesh, 1 exact. Each site spans about 5% of the window.
+void BM_RenderKind(benchmark::State& state) {
+  Gl& gl = Gl::Get();
+  if (!gl.context) return state.SkipWithError("no EGL context");
+  const int kind = static_cast<int>(state.range(0));
+  const RenderMode mode = state.range(1) ? RenderMode::kExact : RenderMode::kMesh;
+  Grid grid{kUnit, 1024, 1024};
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(0, 1), d(-0.025, 0.025);
+  auto near = [&](Vec2 c) { return Vec2{c.x + d(rng), c.y + d(rng)}; };
+  SiteTable sites;
+  const int n = kind == 6 ? 100 : 1000;
+  for (int i = 0; i < n; ++i) {
+    Vec2 c{u(rng), u(rng)};
+    Site s{std::to_string(i), PointSite{c}};
+    switch (kind) {
+      case 0: s.geometry = SegmentSite{near(c), near(c)}; break;
+      case 1: {
+        PolylineSite l;
+        for (int k = 0; k < 8; ++k) l.points.push_back(near(c));
+        s.geometry = l;
+        break;
+      }
+      case 2:
+      case 3: {
+        PolygonSite poly;
+        for (int k = 0; k < 6; ++k) {
+          double t = 2 * M_PI * k / 6, r = 0.01 + 0.015 * u(rng);
+          poly.vertices.push_back({c.x + r * std::cos(t), c.y + r * std::sin(t)});
+        }
+        if (kind == 3) poly.side = Side::kInside;
+        s.geometry = poly;
+        break;
+      }
+      case 4: s.geometry = MakeBezier({near(c), near(c), near(c), near(c)}, grid.pixel_size() / 4); break;
+      case 5:
+        s.multiplicative = 0.5 + u(rng);
+        s.additive = 0.01 * u(rng);
+        s.max_distance = 0.05;
+        break;
+      default: break;
+    }
+    sites.push_back(s);
+  }
+  const Diagram diagram = kind == 6 ? Diagram::kFarthest : Diagram::kNearest;
+  RenderStats stats;
+  for (auto _ : state) {
+    auto frame = gl.rasterizer->Render(grid, grid.pixel_size(), 1, sites, &stats, mode, diagram);
+    benchmark::DoNotOptimize(frame);
+  }
+  static const char* kNames[] = {"segment",      "polyline8", "polygon6", "polygon6-inside",
+                                 "cubic-bezier", "weighted-bounded-point", "farthest-point"};
+  state.counters["fill"] = stats.fill_ratio;
+  state.SetLabel(std::string(kNames[kind]) + " " + gl.context->info().gl_renderer);
+}
+BENCHMARK(BM_RenderKind)
+    ->ArgsProduct({{0, 1, 2, 3, 4, 5, 6}, {0, 1}})
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(0.5)
+    ->UseRealTime();
+
 #ifdef GVD_BENCH_OPENCV
 // 1'. OpenCV's Voronoi: cv::distanceTransform with labels (DIST_LABEL_PIXEL, L2, 5x5 mask)
 // over the same sites snapped to pixels.
