@@ -58,7 +58,7 @@ TEST_F(CliTest, TourFromTheReadme) {
   std::istringstream lines(r.out);
   std::string header, line;
   std::getline(lines, header);
-  EXPECT_EQ(header, "x\ty\tsite\tdistance\terror_bound\texact");
+  EXPECT_EQ(header, "x\ty\tsite\tdistance\terror_bound\texact\tfeature");
   struct Expect {
     double x, y;
     const char* site;
@@ -79,7 +79,7 @@ TEST_F(CliTest, TourFromTheReadme) {
   }
   r = Gvd("--scene demo nearest 45 80 --exact");
   EXPECT_NE(r.out.find("45\t80\tc\t" ), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("\t0\tyes\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\t0\tyes\tvertex 0\n"), std::string::npos) << r.out;
   r = Gvd("scene ls");
   EXPECT_NE(r.out.find("scene demo:"), std::string::npos) << r.out;
   r = Gvd("--scene demo sites ls");
@@ -93,6 +93,44 @@ TEST_F(CliTest, TourFromTheReadme) {
   r = Gvd("scene get demo");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("gvd: NOT_FOUND: scene \"demo\" does not exist"), std::string::npos) << r.out;
+}
+
+// Every kind from arguments and from GeoJSON; an image of the scene from `gvd render`.
+TEST_F(CliTest, EveryKindAndAnImage) {
+  ASSERT_EQ(Gvd("scene create kinds --window 0,0,10,10 --size 128x128").exit_code, 0);
+  for (const char* add : {"segment s 1,1 4,2", "polyline l 1,8 3,9 5,8",
+                          "polygon g 6,1 9,1 8,4 --side outside",
+                          "bezier b 6,6 7,9 9,5 9,9 --tolerance 0.01",
+                          "p 5 5 --multiplicative 2 --max-distance 3"}) {
+    Result r = Gvd(std::string("--scene kinds sites add ") + add);
+    ASSERT_EQ(r.exit_code, 0) << add << ": " << r.out;
+  }
+  std::string geo = WriteFile("kinds.geojson", R"({"type": "FeatureCollection", "features": [
+    {"type": "Feature", "id": "gp", "geometry": {"type": "Point", "coordinates": [2, 5]}},
+    {"type": "Feature", "properties": {"id": "gl", "additive_weight": 0.5},
+     "geometry": {"type": "LineString", "coordinates": [[0, 0], [1, 3]]}},
+    {"type": "Feature", "properties": {"id": "gg", "side": "inside"},
+     "geometry": {"type": "Polygon", "coordinates": [[[3, 3], [5, 3], [4, 5], [3, 3]]]}}]})");
+  Result r = Gvd("--scene kinds sites add --file " + geo);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  r = Gvd("--scene kinds sites ls");
+  EXPECT_NE(r.out.find("g\tpolygon\t6,1\t9,1\t8,4\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("gg\tpolygon\t3,3\t5,3\t4,5\n"), std::string::npos) << r.out;
+  r = Gvd("--scene kinds nearest 2.5 1.4 --exact");
+  EXPECT_NE(r.out.find("\ts\t"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\tedge 0\n"), std::string::npos) << r.out;
+  std::string png = server_->dir() + "/kinds.png";
+  r = Gvd("render kinds -o " + png + " --layer features --draw-sites");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  std::ifstream in(png, std::ios::binary);
+  std::string magic(8, '\0');
+  in.read(magic.data(), 8);
+  EXPECT_EQ(magic, "\x89PNG\r\n\x1a\n");
+  r = Gvd("render kinds -o " + server_->dir() + "/kinds.exr --layer ids");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("INVALID_ARGUMENT: format EXR holds the DISTANCE layer only"),
+            std::string::npos)
+      << r.out;
 }
 
 TEST_F(CliTest, SitesFromJsonAndTextFiles) {
