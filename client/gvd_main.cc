@@ -149,6 +149,16 @@ double Number(const std::string& word, const std::string& what) {
   return v;
 }
 
+// --window MIN_X,MIN_Y,MAX_X,MAX_Y.
+void ParseWindow(const std::string& text, gvd::v1::Window* w) {
+  std::vector<std::string> c = absl::StrSplit(text, ',');
+  if (c.size() != 4) Usage(absl::StrCat("--window needs MIN_X,MIN_Y,MAX_X,MAX_Y, not ", text));
+  w->set_min_x(Number(c[0], "--window MIN_X"));
+  w->set_min_y(Number(c[1], "--window MIN_Y"));
+  w->set_max_x(Number(c[2], "--window MAX_X"));
+  w->set_max_y(Number(c[3], "--window MAX_Y"));
+}
+
 int Fail(const grpc::Status& s) {
   static const char* kNames[] = {"OK", "CANCELLED", "UNKNOWN", "INVALID_ARGUMENT",
                                  "DEADLINE_EXCEEDED", "NOT_FOUND", "ALREADY_EXISTS",
@@ -353,12 +363,7 @@ int Run(const Args& a) {
       const std::string* window = option("--window");
       const std::string* size = option("--size");
       if (!window || !size) Usage("scene create needs --window and --size");
-      std::vector<std::string> c = absl::StrSplit(*window, ',');
-      if (c.size() != 4) Usage(absl::StrCat("--window needs MIN_X,MIN_Y,MAX_X,MAX_Y, not ", *window));
-      r.mutable_window()->set_min_x(Number(c[0], "--window MIN_X"));
-      r.mutable_window()->set_min_y(Number(c[1], "--window MIN_Y"));
-      r.mutable_window()->set_max_x(Number(c[2], "--window MAX_X"));
-      r.mutable_window()->set_max_y(Number(c[3], "--window MAX_Y"));
+      ParseWindow(*window, r.mutable_window());
       std::vector<std::string> wh = absl::StrSplit(*size, 'x');
       uint32_t width, height;
       if (wh.size() != 2 || !absl::SimpleAtoi(wh[0], &width) || !absl::SimpleAtoi(wh[1], &height)) {
@@ -592,14 +597,7 @@ int Run(const Args& a) {
     if (format != "png" && format != "exr") Usage("--format must be png or exr");
     r.set_format(format == "exr" ? gvd::v1::RenderImageRequest::EXR
                                  : gvd::v1::RenderImageRequest::PNG);
-    if (const std::string* window = option("--window")) {
-      std::vector<std::string> c = absl::StrSplit(*window, ',');
-      if (c.size() != 4) Usage(absl::StrCat("--window needs MIN_X,MIN_Y,MAX_X,MAX_Y, not ", *window));
-      r.mutable_window()->set_min_x(Number(c[0], "--window MIN_X"));
-      r.mutable_window()->set_min_y(Number(c[1], "--window MIN_Y"));
-      r.mutable_window()->set_max_x(Number(c[2], "--window MAX_X"));
-      r.mutable_window()->set_max_y(Number(c[3], "--window MAX_Y"));
-    }
+    if (const std::string* window = option("--window")) ParseWindow(*window, r.mutable_window());
     r.set_draw_sites(option("--draw-sites") != nullptr);
     if (const std::string* v = option("--min-version")) {
       uint64_t mv;

@@ -69,22 +69,26 @@ void main() { o_site = v_site; }
 )";
 
 // Per-fragment sites, instanced quads: `rect` = (x0, y0, x1, y1), `weight` = (m, a, reach),
-// `info` = (site, first segment, segment count, side: 0 both, 1 outside, 2 inside). The
+// `first` = the site's first segment (also in the buffer), `info` = (site, index of the first
+// segment, segment count, side: 0 both, 1 outside, 2 inside). The
 // fragment takes the least distance over the site's segments (a point is one of length 0),
 // tests the polygon's side by the even-odd rule, and writes m d + a as depth.
 constexpr const char* kExactVertexShader = R"(#version 450 core
 layout(location = 0) in vec3 unit;
 layout(location = 1) in vec4 rect;
 layout(location = 2) in vec3 weight;
-layout(location = 3) in uvec4 info;
+layout(location = 3) in vec4 first;
+layout(location = 4) in uvec4 info;
 uniform vec2 u_scale;
 flat out uvec4 v_info;
 flat out vec3 v_weight;
+flat out vec4 v_first;
 void main() {
   vec2 p = mix(rect.xy, rect.zw, unit.xy);
   gl_Position = vec4(p * u_scale - 1.0, 0.0, 1.0);
   v_info = info;
   v_weight = weight;
+  v_first = first;
 }
 )";
 
@@ -92,25 +96,27 @@ constexpr const char* kExactFragmentShader = R"(#version 450 core
 layout(std430, binding = 0) readonly buffer Segments { vec4 segments[]; };
 flat in uvec4 v_info;
 flat in vec3 v_weight;
+flat in vec4 v_first;
 uniform vec2 u_pixel;
 uniform float u_inv_depth;
 uniform float u_margin;
 layout(location = 0) out uint o_site;
-void main() {
-  vec2 p = gl_FragCoord.xy * u_pixel;
-  float d = 3.0e38;
-  bool inside = false;
-  for (uint i = v_info.y; i < v_info.y + v_info.z; ++i) {
-    vec4 s = segments[i];
-    vec2 ab = s.zw - s.xy, ap = p - s.xy;
-    float len2 = dot(ab, ab);
-    float t = len2 > 0.0 ? clamp(dot(ap, ab) / len2, 0.0, 1.0) : 0.0;
-    d = min(d, length(ap - t * ab));
-    if ((s.y > p.y) != (s.w > p.y) &&
-        p.x < s.x + (p.y - s.y) / (s.w - s.y) * (s.z - s.x)) {
-      inside = !inside;
-    }
+vec2 p;
+float d = 3.0e38;
+bool inside = false;
+void visit(vec4 s) {
+  vec2 ab = s.zw - s.xy, ap = p - s.xy;
+  float len2 = dot(ab, ab);
+  float t = len2 > 0.0 ? clamp(dot(ap, ab) / len2, 0.0, 1.0) : 0.0;
+  d = min(d, length(ap - t * ab));
+  if ((s.y > p.y) != (s.w > p.y) && p.x < s.x + (p.y - s.y) / (s.w - s.y) * (s.z - s.x)) {
+    inside = !inside;
   }
+}
+void main() {
+  p = gl_FragCoord.xy * u_pixel;
+  visit(v_first);  // a point's only segment comes with the instance: no buffer read
+  for (uint i = v_info.y + 1u; i < v_info.y + v_info.z; ++i) visit(segments[i]);
   if (d > v_weight.z) discard;
   if (v_info.w != 0u && d > u_margin && inside != (v_info.w == 2u)) discard;
   gl_FragDepth = (v_weight.x * d + v_weight.y) * u_inv_depth;
@@ -346,7 +352,7 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
     uint32_t site;
   };
   struct Quad {
-    float x0, y0, x1, y1, m, a, reach;
+    float x0, y0, x1, y1, m, a, reach, ax, ay, bx, by;
     uint32_t site, first, count, side;
   };
   std::map<uint32_t, std::vector<Cone>> cones;  // by triangle count
@@ -375,8 +381,9 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
         side = poly->side == Side::kOutside ? 1 : poly->side == Side::kInside ? 2 : 0;
       }
       Vec2 lo = rel({b.min_x - r, b.min_y - r}), hi = rel({b.max_x + r, b.max_y + r});
-      quads.push_back({float(lo.x), float(lo.y), float(hi.x), float(hi.y), m, a, float(r), id,
-                       first, count, side});
+      const float* s0 = &segments[size_t{first} * 4];
+      quads.push_back({float(lo.x), float(lo.y), float(hi.x), float(hi.y), m, a, float(r), s0[0],
+                       s0[1], s0[2], s0[3], id, first, count, side});
       continue;
     }
     const float rho = static_cast<float>(shape.extent);
@@ -441,7 +448,7 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
     glVertexAttribDivisor(location, 1);
   };
   glBindVertexArray(vao_);
-  for (GLuint location = 0; location < 4; ++location) glDisableVertexAttribArray(location);
+  for (GLuint location = 0; location < 5; ++location) glDisableVertexAttribArray(location);
   if (!cones.empty()) {
     use(cone_);
     for (const auto& [n, list] : cones) {
@@ -464,7 +471,7 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
     glBufferData(GL_SHADER_STORAGE_BUFFER, segments.size() * sizeof(float), segments.data(),
                  GL_STREAM_DRAW);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, segments_);
-    bind(quad_, quads.data(), quads.size(), sizeof(Quad), {4, 3}, 4);
+    bind(quad_, quads.data(), quads.size(), sizeof(Quad), {4, 3, 4}, 4);
     glDrawArraysInstanced(GL_TRIANGLES, 0, 6, static_cast<GLsizei>(quads.size()));
   }
   glDisable(GL_SCISSOR_TEST);

@@ -11,33 +11,13 @@
 #include "render/exact.h"
 #include "render/mesh.h"
 #include "render/raster.h"
+#include "tests/gl_fixture.h"
 
 namespace gvd {
 namespace {
 
-class RenderGLTest : public ::testing::Test {
+class RenderGLTest : public GlTest {
  protected:
-  static void SetUpTestSuite() {
-    auto ctx = GlContext::Create(DevicePreference::kAuto);
-    if (!ctx.ok()) {
-      skip_reason_ = new std::string(ctx.status().ToString());
-      return;
-    }
-    context_ = ctx->release();
-    auto r = Rasterizer::Create();
-    ASSERT_TRUE(r.ok()) << r.status();
-    rasterizer_ = r->release();
-  }
-  static void TearDownTestSuite() {
-    delete rasterizer_;
-    delete context_;
-    rasterizer_ = nullptr;
-    context_ = nullptr;
-  }
-  void SetUp() override {
-    if (context_ == nullptr) GTEST_SKIP() << "no EGL context: " << *skip_reason_;
-  }
-
   // Renders from scratch; the frame's slot i holds sites[i] (ids are distinct).
   std::shared_ptr<const Frame> Render(const Grid& grid, double eps, const std::vector<Site>& sites,
                                       RenderStats* stats = nullptr,
@@ -97,9 +77,6 @@ class RenderGLTest : public ::testing::Test {
     return sites;
   }
 
-  static inline GlContext* context_ = nullptr;
-  static inline Rasterizer* rasterizer_ = nullptr;
-  static inline std::string* skip_reason_ = nullptr;
 };
 
 TEST_F(RenderGLTest, ContextReportsItsDevice) {
