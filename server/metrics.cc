@@ -4,6 +4,7 @@
 #include <prometheus/counter.h>
 #include <prometheus/exposer.h>
 #include <prometheus/family.h>
+#include <prometheus/gauge.h>
 #include <prometheus/histogram.h>
 #include <prometheus/metric_family.h>
 #include <prometheus/registry.h>
@@ -85,6 +86,10 @@ Metrics::Metrics()
                     .Name("gvd_rpc_total")
                     .Help("Calls finished, by method and status code.")
                     .Register(*registry_);
+  rpc_in_flight_ = &prometheus::BuildGauge()
+                        .Name("gvd_rpc_in_flight")
+                        .Help("Calls begun and not yet finished, by method.")
+                        .Register(*registry_);
   render_seconds_ = &prometheus::BuildHistogram()
                          .Name("gvd_render_seconds")
                          .Help("Renders, from taking the changes to the frame (readback "
@@ -119,6 +124,14 @@ absl::StatusOr<int> Metrics::Serve(const std::string& address, SceneSampler samp
   exposer_->RegisterCollectable(scenes_);
   auto ports = exposer_->GetListeningPorts();
   return ports.empty() ? 0 : ports[0];
+}
+
+void Metrics::RpcStarted(const std::string& method) {
+  rpc_in_flight_->Add({{"method", method}}).Increment();
+}
+
+void Metrics::RpcEnded(const std::string& method) {
+  rpc_in_flight_->Add({{"method", method}}).Decrement();
 }
 
 void Metrics::ObserveRpc(const std::string& method, grpc::StatusCode code, double seconds) {

@@ -16,6 +16,7 @@ class Registry;
 template <class T>
 class Family;
 class Counter;
+class Gauge;
 class Histogram;
 }  // namespace prometheus
 
@@ -38,6 +39,9 @@ class Metrics {
   // Serves /metrics on `address` (HOST:PORT; port 0 picks one). Returns the bound port.
   absl::StatusOr<int> Serve(const std::string& address, SceneSampler sampler);
 
+  // A call of `method` began, or ended (gvd_rpc_in_flight).
+  void RpcStarted(const std::string& method);
+  void RpcEnded(const std::string& method);
   void ObserveRpc(const std::string& method, grpc::StatusCode code, double seconds);
   void ObserveRender(bool full, double render_seconds, double readback_seconds, double pixels);
   void ObserveCommit(double seconds);
@@ -49,6 +53,7 @@ class Metrics {
   std::unique_ptr<prometheus::Exposer> exposer_;
   prometheus::Family<prometheus::Histogram>* rpc_seconds_;
   prometheus::Family<prometheus::Counter>* rpc_total_;
+  prometheus::Family<prometheus::Gauge>* rpc_in_flight_;
   prometheus::Family<prometheus::Histogram>* render_seconds_;
   prometheus::Histogram* readback_seconds_;
   prometheus::Family<prometheus::Counter>* rendered_pixels_;

@@ -1,6 +1,7 @@
 #include "server/scene.h"
 
 #include <atomic>
+#include <algorithm>
 #include <chrono>
 
 #include "absl/status/status.h"
@@ -121,11 +122,15 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
     FeatureHit f = NearestFeature(q, site->geometry);
     return ExactAnswer{site->id, value, f.kind, f.index, true};
   };
+  // Cancellation is checked about every million site evaluations: every 4,096 points when
+  // the index answers, more often when each point scores every site.
+  const size_t check_every =
+      plain ? 4096 : std::max<size_t>(1, (size_t{1} << 20) / std::max<uint32_t>(1, slots_.size()));
   // Large batches are split across cores, all under this one shared lock (one version).
   ParallelFor(points.size(), 8192, [&](size_t begin, size_t end) {
     std::vector<uint32_t> nearer;
     for (size_t i = begin; i < end; ++i) {
-      if (i % 4096 == 0 && cancelled && (stop || cancelled())) {
+      if (i % check_every == 0 && cancelled && (stop || cancelled())) {
         stop = true;
         return;
       }

@@ -19,9 +19,11 @@ class CallScope {
   CallScope(const VoronoiService* s, const char* method)
       : s_(s), method_(method), start_(std::chrono::steady_clock::now()) {
     ++s_->in_flight_;
+    if (s_->metrics_) s_->metrics_->RpcStarted(method_);
   }
   ~CallScope() {
     Record(grpc::Status::OK);  // a call that ended without a recorded status
+    if (s_->metrics_) s_->metrics_->RpcEnded(method_);
     --s_->in_flight_;
   }
   CallScope(const CallScope&) = delete;
