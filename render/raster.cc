@@ -3,6 +3,7 @@
 #define GL_GLEXT_PROTOTYPES
 #include <GL/glcorearb.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <numbers>
@@ -98,6 +99,7 @@ flat in uvec4 v_info;
 flat in vec3 v_weight;
 flat in vec4 v_first;
 uniform vec2 u_pixel;
+uniform vec2 u_origin;
 uniform float u_inv_depth;
 uniform float u_margin;
 layout(location = 0) out uint o_site;
@@ -114,7 +116,7 @@ void visit(vec4 s) {
   }
 }
 void main() {
-  p = gl_FragCoord.xy * u_pixel;
+  p = (gl_FragCoord.xy - u_origin) * u_pixel;  // the grid's pixel (0, 0) is at u_origin
   visit(v_first);  // a point's only segment comes with the instance: no buffer read
   for (uint i = v_info.y + 1u; i < v_info.y + v_info.z; ++i) visit(segments[i]);
   if (d > v_weight.z) discard;
@@ -210,6 +212,7 @@ absl::StatusOr<Rasterizer::Program> Rasterizer::Link(const char* vertex, const c
   p.u_inv_depth = glGetUniformLocation(p.id, "u_inv_depth");
   p.u_pixel = glGetUniformLocation(p.id, "u_pixel");
   p.u_margin = glGetUniformLocation(p.id, "u_margin");
+  p.u_origin = glGetUniformLocation(p.id, "u_origin");
   return p;
 }
 
@@ -313,21 +316,31 @@ void ForEachPiece(const Geometry& geometry, F&& f, G&& g) {
 SiteShape Rasterizer::Shape(const Grid& grid, const DrawParams& params, const Site& site,
                             double radius) const {
   // A sixteenth of a pixel beyond the proven radius keeps centres on the edge inside,
-  // whatever the rasterizer's snapping (1/256 pixel). Scaled by extent = r * k, a fan covers
-  // radius r; the factor 1 + 2^-20 absorbs the rounding of the float ring vertices, which
-  // can fall a few ulps inside the unit circle.
-  const double r = radius + grid.pixel_size() / 16;
+  // whatever the rasterizer's snapping (1/256 pixel), and 2^-18 of the largest float
+  // coordinate involved keeps them inside whatever the rounding of positions and distances
+  // (which dominates in deep zoom windows). Scaled by extent = r * k, a fan covers radius r;
+  // the factor 1 + 2^-20 absorbs the rounding of the float ring vertices, which can fall a
+  // few ulps inside the unit circle.
+  const Window box = BoundingBox(site.geometry);
+  const Window& w = grid.window;
+  const double scale = std::max({std::abs(box.min_x - w.min_x), std::abs(box.max_x - w.min_x),
+                                 std::abs(box.min_y - w.min_y), std::abs(box.max_y - w.min_y),
+                                 w.width(), w.height()}) +
+                       radius;
+  const double r = radius + grid.pixel_size() / 16 + scale * 0x1p-18;
   SiteShape shape;
   const double m = site.multiplicative, a = site.additive;
   if (PerFragment(params, site)) {
-    Window b = BoundingBox(site.geometry);
     shape.per_fragment = true;
     shape.extent = r;
-    shape.area = (b.width() + 2 * r) * (b.height() + 2 * r);
+    shape.area = (box.width() + 2 * r) * (box.height() + 2 * r);
   } else {
-    shape.segments = SegmentBucket(ConeSegments(r + params.eps, params.eps));
+    const uint32_t needed = ConeSegments(r + params.eps, params.eps);
+    shape.segments = SegmentBucket(needed);
     shape.overestimate = 1 / std::cos(std::numbers::pi / shape.segments);
     shape.extent = r * shape.overestimate * (1 + 0x1p-20);
+    shape.excess = needed > kMaxConeSegments ? m * (shape.overestimate - 1) * shape.extent
+                                             : m * params.eps;
     ForEachPiece(
         site.geometry, [&](Vec2) { shape.area += std::numbers::pi * r * r; },
         [&](Vec2 p, Vec2 q) { shape.area += 2 * r * Distance(p, q); });
@@ -338,9 +351,10 @@ SiteShape Rasterizer::Shape(const Grid& grid, const DrawParams& params, const Si
 
 absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelRect scissor,
                               bool clear, const SlotTable& sites,
-                              const std::vector<SiteDraw>& draws, RenderTarget& target) {
-  if (target.width() != grid.width || target.height() != grid.height) {
-    return absl::InternalError("render target does not match the grid");
+                              const std::vector<SiteDraw>& draws, RenderTarget& target,
+                              uint32_t x0, uint32_t y0) {
+  if (uint64_t{x0} + grid.width > target.width() || uint64_t{y0} + grid.height > target.height()) {
+    return absl::InternalError("the grid does not fit in the render target");
   }
   if (scissor.empty()) return absl::OkStatus();
   struct Cone {
@@ -400,9 +414,9 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
         });
   }
   glBindFramebuffer(GL_FRAMEBUFFER, target.framebuffer());
-  glViewport(0, 0, grid.width, grid.height);
+  glViewport(x0, y0, grid.width, grid.height);
   glEnable(GL_SCISSOR_TEST);
-  glScissor(scissor.x0, scissor.y0, scissor.width(), scissor.height());
+  glScissor(x0 + scissor.x0, y0 + scissor.y0, scissor.width(), scissor.height());
   glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
   glEnable(GL_DEPTH_TEST);
   const bool farthest = params.diagram == Diagram::kFarthest;
@@ -467,6 +481,7 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
     glUniform2f(exact_.u_pixel, static_cast<float>(grid.pixel_width()),
                 static_cast<float>(grid.pixel_height()));
     glUniform1f(exact_.u_margin, static_cast<float>(DrawMargin(grid)));
+    glUniform2f(exact_.u_origin, static_cast<float>(x0), static_cast<float>(y0));
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, segments_);
     glBufferData(GL_SHADER_STORAGE_BUFFER, segments.size() * sizeof(float), segments.data(),
                  GL_STREAM_DRAW);
@@ -494,6 +509,49 @@ absl::Status Rasterizer::ReadBack(RenderTarget& target, PixelRect rect, double d
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   for (float& d : *distances) d = static_cast<float>(d * depth_scale);
   return GlError("reading back the frame");
+}
+
+void ErrorTally::Live(const Site& site) {
+  max_weight_ = std::max(max_weight_, site.multiplicative);
+  const auto* poly = std::get_if<PolygonSite>(&site.geometry);
+  if (std::isfinite(site.max_distance) || (poly && poly->side != Side::kBoth)) {
+    limited_presence_ = true;
+  }
+  if (const auto* b = std::get_if<BezierSite>(&site.geometry)) {
+    curve_slack_ = std::max(curve_slack_, b->tolerance * site.multiplicative);
+  }
+}
+
+void ErrorTally::Drawn(const Grid& grid, const Site& site, const SiteShape& shape) {
+  overestimate_ = std::max(overestimate_, shape.overestimate);
+  excess_ = std::max(excess_, shape.excess);
+  // How large the float coordinates of the drawn site get, relative to the window's min
+  // corner: its geometry and the reach of its pieces.
+  Window b = BoundingBox(site.geometry);
+  double x = std::max(std::abs(b.min_x - grid.window.min_x), std::abs(b.max_x - grid.window.min_x));
+  double y = std::max(std::abs(b.min_y - grid.window.min_y), std::abs(b.max_y - grid.window.min_y));
+  coordinate_scale_ = std::max(coordinate_scale_, std::max({x, y, grid.window.width(),
+                                                            grid.window.height()}) +
+                                                      shape.extent);
+}
+
+ErrorModel ErrorTally::Model(const Grid& grid, const DrawParams& params) const {
+  // Vertices snap to 1/256 pixel (GL_SUBPIXEL_BITS = 8 on llvmpipe and NVIDIA), which moves a
+  // cone's surface by at most 1/256 pixel diagonal, as its slope is at most k ~ 1: we allow
+  // 1/64. Float interpolation and depth storage err by a few ulps of the depth range and of D.
+  // Positions are floats relative to the window's min corner, so distances err by a few ulps
+  // of the largest coordinate or reach drawn. A weight scales all of it.
+  ErrorModel error;
+  error.diagram = params.diagram;
+  error.overestimate = overestimate_;
+  error.max_excess =
+      params.mode == RenderMode::kExact ? 0 : std::max(params.eps * max_weight_, excess_);
+  error.absolute_slack = (grid.pixel_diagonal() / 64 + coordinate_scale_ * 0x1p-18) * max_weight_;
+  error.relative_slack = 0x1p-18;
+  error.lipschitz = max_weight_;
+  error.curve = curve_slack_;
+  error.limited_presence = limited_presence_;
+  return error;
 }
 
 absl::StatusOr<std::shared_ptr<const Frame>> Rasterizer::Render(const Grid& grid, double eps,

@@ -72,6 +72,10 @@ struct SiteShape {
   uint32_t segments = 0;    // triangles in each of its fans (0 when none)
   double area = 0;          // the area its pieces cover
   bool per_fragment = false;  // drawn as a quad evaluated per fragment
+  // A bound on height - value over what is drawn: m * eps for fans with enough triangles;
+  // m * (k - 1) * extent for a fan that would need more than kMaxConeSegments (a site far
+  // from a small window); 0 per fragment.
+  double excess = 0;
 };
 
 // The fixed parameters of one scene's draws.
@@ -80,6 +84,27 @@ struct DrawParams {
   RenderMode mode = RenderMode::kMesh;
   Diagram diagram = Diagram::kNearest;
   double depth_scale = 1;  // depth = value / depth_scale
+};
+
+// What a frame's ErrorModel needs to know of the sites drawn into it: the largest weight,
+// fan overestimate and excess, Bezier tolerance, coordinate magnitude, and whether presence
+// is limited. Reset before a render from scratch; later draws only widen it.
+class ErrorTally {
+ public:
+  void Reset() { *this = ErrorTally(); }
+  // A site that is live in the frame (drawn or not).
+  void Live(const Site& site);
+  // A site drawn with `shape` on `grid`.
+  void Drawn(const Grid& grid, const Site& site, const SiteShape& shape);
+  ErrorModel Model(const Grid& grid, const DrawParams& params) const;
+
+ private:
+  double overestimate_ = 1;
+  double max_weight_ = 1;
+  double curve_slack_ = 0;
+  double coordinate_scale_ = 0;  // relative to the window's min corner
+  double excess_ = 0;            // beyond eps * weight, from fans with capped triangle counts
+  bool limited_presence_ = false;
 };
 
 // Compiled shaders and mesh buffers. Not thread-safe; use on the context's thread.
@@ -95,10 +120,12 @@ class Rasterizer {
                   double radius) const;
 
   // Draws the sites' distance functions into `target` inside `scissor` (clearing it first
-  // when `clear`). CONTRACT: every shape's max_value <= params.depth_scale.
+  // when `clear`). The grid's pixel (0, 0) is the target's pixel (x0, y0); the scissor is in
+  // grid pixels. CONTRACT: every shape's max_value <= params.depth_scale; the grid, placed
+  // at (x0, y0), fits in the target.
   absl::Status Draw(const Grid& grid, const DrawParams& params, PixelRect scissor, bool clear,
                     const SlotTable& sites, const std::vector<SiteDraw>& draws,
-                    RenderTarget& target);
+                    RenderTarget& target, uint32_t x0 = 0, uint32_t y0 = 0);
 
   // Reads `rect` of the target: ids, and distances (depth * depth_scale), row-major.
   absl::Status ReadBack(RenderTarget& target, PixelRect rect, double depth_scale,
@@ -119,7 +146,7 @@ class Rasterizer {
 
   struct Program {
     unsigned id = 0;
-    int u_scale = -1, u_inv_depth = -1, u_pixel = -1, u_margin = -1;
+    int u_scale = -1, u_inv_depth = -1, u_pixel = -1, u_margin = -1, u_origin = -1;
   };
   static absl::StatusOr<Program> Link(const char* vertex, const char* fragment);
 

@@ -28,15 +28,6 @@ double NearestDistance(const Window& box, const Geometry& g) {
   return std::hypot(dx, dy);  // a lower bound; exact for points
 }
 
-// How large the float coordinates of a drawn site get, relative to the window's min corner:
-// its geometry and the reach of its pieces.
-double CoordinateScale(const Grid& grid, const Geometry& g, const SiteShape& shape) {
-  Window b = BoundingBox(g);
-  double x = std::max(std::abs(b.min_x - grid.window.min_x), std::abs(b.max_x - grid.window.min_x));
-  double y = std::max(std::abs(b.min_y - grid.window.min_y), std::abs(b.max_y - grid.window.min_y));
-  return std::max({x, y, grid.window.width(), grid.window.height()}) + shape.extent;
-}
-
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<SceneRaster>> SceneRaster::Create(const Grid& grid, double eps,
@@ -48,17 +39,6 @@ absl::StatusOr<std::unique_ptr<SceneRaster>> SceneRaster::Create(const Grid& gri
       new SceneRaster(grid, eps, mode, diagram, std::move(*target)));
 }
 
-void SceneRaster::Account(const Site& site) {
-  max_weight_ = std::max(max_weight_, site.multiplicative);
-  const auto* poly = std::get_if<PolygonSite>(&site.geometry);
-  if (std::isfinite(site.max_distance) || (poly && poly->side != Side::kBoth)) {
-    limited_presence_ = true;
-  }
-  if (const auto* b = std::get_if<BezierSite>(&site.geometry)) {
-    curve_slack_ = std::max(curve_slack_, b->tolerance * site.multiplicative);
-  }
-}
-
 PixelRect SceneRaster::Reach(const Geometry& g, double extent) const {
   Window b = BoundingBox(g);
   return grid_.CentresIn({b.min_x - extent, b.min_y - extent}, {b.max_x + extent, b.max_y + extent});
@@ -66,21 +46,7 @@ PixelRect SceneRaster::Reach(const Geometry& g, double extent) const {
 
 void SceneRaster::Publish(uint64_t version, PixelRect rect, const std::vector<uint32_t>& ids,
                           const std::vector<float>& distances) {
-  // Vertices snap to 1/256 pixel (GL_SUBPIXEL_BITS = 8 on llvmpipe and NVIDIA), which moves a
-  // cone's surface by at most 1/256 pixel diagonal, as its slope is at most k ~ 1: we allow
-  // 1/64. Float interpolation and depth storage err by a few ulps of the depth range and of D.
-  // Positions are floats relative to the window's min corner, so distances err by a few ulps
-  // of the largest coordinate or reach drawn. A weight scales all of it.
-  ErrorModel error;
-  error.diagram = params_.diagram;
-  error.overestimate = overestimate_;
-  error.max_excess = params_.mode == RenderMode::kExact ? 0 : eps_ * max_weight_;
-  error.absolute_slack =
-      (grid_.pixel_diagonal() / 64 + coordinate_scale_ * 0x1p-18) * max_weight_;
-  error.relative_slack = 0x1p-18;
-  error.lipschitz = max_weight_;
-  error.curve = curve_slack_;
-  error.limited_presence = limited_presence_;
+  const ErrorModel error = tally_.Model(grid_, params_);
   if (rect == grid_.all() || frame_ == nullptr || frame_->empty()) {  // a full render
     frame_ = std::make_shared<const Frame>(grid_, version, eps_, error, ids.data(),
                                            distances.data(), slots_, slot_of_.size());
@@ -99,24 +65,19 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
   std::vector<SiteDraw> draws;
   double max_value = 0, area = 0;
   uint32_t max_segments = 0;
-  overestimate_ = 1;
-  max_weight_ = 1;
-  curve_slack_ = 0;
-  coordinate_scale_ = 0;
-  limited_presence_ = false;
+  tally_.Reset();
   extent_.assign(slots_.size(), -1);
   for (uint32_t s = 0; s < slots_.size(); ++s) {
     const Site* site = slots_.get(s);
     if (site == nullptr) continue;
-    Account(*site);
+    tally_.Live(*site);
     if (cov.radius[s] < 0) continue;
     draws.push_back({s, cov.radius[s]});
     SiteShape shape = rasterizer.Shape(grid_, params_, *site, cov.radius[s]);
     extent_[s] = shape.extent;
     max_value = std::max(max_value, shape.max_value);
-    overestimate_ = std::max(overestimate_, shape.overestimate);
     max_segments = std::max(max_segments, shape.segments);
-    coordinate_scale_ = std::max(coordinate_scale_, CoordinateScale(grid_, site->geometry, shape));
+    tally_.Drawn(grid_, *site, shape);
     area += shape.area;
   }
   // Headroom: later increments may draw values up to twice this render's largest (or four
@@ -219,7 +180,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
     return RenderAll(rasterizer, version, stats);
   }
   if (params_.diagram == Diagram::kFarthest) return RenderAll(rasterizer, version, stats);
-  for (uint32_t s : placed) Account(*slots_.get(s));
+  for (uint32_t s : placed) tally_.Live(*slots_.get(s));
 
   // Past a few dozen windows, finding and merging them costs more than drawing everything.
   constexpr size_t kMaxWindows = 64;
@@ -314,9 +275,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(Rasterizer& rast
   if (max_value > params_.depth_scale) return RenderAll(rasterizer, version, stats);  // rescale
   for (const auto& [slot, shape] : shapes) {
     extent_[slot] = std::max(extent_[slot], shape.extent);
-    overestimate_ = std::max(overestimate_, shape.overestimate);
-    coordinate_scale_ =
-        std::max(coordinate_scale_, CoordinateScale(grid_, slots_.get(slot)->geometry, shape));
+    tally_.Drawn(grid_, *slots_.get(slot), shape);
   }
   double draw_seconds = 0, readback_seconds = 0;
   PixelRect all_windows;

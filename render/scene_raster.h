@@ -63,9 +63,6 @@ class SceneRaster {
   void Publish(uint64_t version, PixelRect rect, const std::vector<uint32_t>& ids,
                const std::vector<float>& distances);
 
-  // Widens the error model's site-dependent terms for a site now live.
-  void Account(const Site& site);
-
   const Grid grid_;
   const double eps_;
   DrawParams params_;  // depth_scale: fixed between full renders, so old depths stay comparable
@@ -78,14 +75,7 @@ class SceneRaster {
   std::vector<double> extent_;  // per slot: how far its drawn fan reaches; < 0: not drawn
 
   bool valid_ = false;          // the target holds the diagram of slots_
-  // Since the last full render: the largest k drawn, and over the sites live at some point,
-  // the largest multiplicative weight, Bezier tolerance * weight, and coordinate magnitude
-  // (relative to the window's min corner).
-  double overestimate_ = 1;
-  double max_weight_ = 1;
-  double curve_slack_ = 0;
-  double coordinate_scale_ = 0;
-  bool limited_presence_ = false;
+  ErrorTally tally_;            // since the last full render, over the sites live at some point
   std::shared_ptr<const Frame> frame_;
 };
 
