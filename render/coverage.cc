@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <unordered_map>
 
 #include "render/exact.h"
 
@@ -49,39 +50,48 @@ uint32_t DefaultTilePx(const Grid& grid, size_t n) {
   return static_cast<uint32_t>(std::clamp(2 * spacing, 4.0, 64.0));
 }
 
-Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
-                         PixelRect region, uint32_t tile_px, Diagram diagram) {
-  Coverage cov;
-  cov.radius.assign(sites.size(), -1);
-  cov.tile_px = tile_px ? tile_px : DefaultTilePx(grid, index.size());
+LeastWeights FindLeastWeights(const SlotTable& sites) {
+  LeastWeights least;
+  for (uint32_t s = 0; s < sites.size(); ++s) {
+    if (const Site* site = sites.get(s)) {
+      least.multiplicative = std::min(least.multiplicative, site->multiplicative);
+      least.additive = std::min(least.additive, site->additive);
+    }
+  }
+  return least;
+}
+
+namespace {
+
+// The proof of ComputeCoverage, tile by tile: calls keep(slot, radius) for every site that
+// must cover some pixel centre of a tile, with the radius that tile needs (a site may be
+// kept by several tiles). Returns the tile side used.
+template <class Keep>
+uint32_t CoverTiles(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
+                    const LeastWeights& least, PixelRect region, uint32_t tile_px,
+                    Diagram diagram, Keep&& keep) {
+  tile_px = tile_px ? tile_px : DefaultTilePx(grid, index.size());
   const double margin = DrawMargin(grid);
   // The margin absorbs rounding differences between these bounds and distances computed
   // elsewhere (a few ulps), so a radius can never fall short of them.
   auto radius_for = [&](const Site& s, const Window& box) {
     return std::min(FarthestDistance(box, s.geometry) * (1 + 0x1p-40), s.max_distance + margin);
   };
-  if (region.empty()) return cov;
+  if (region.empty()) return tile_px;
   if (diagram == Diagram::kFarthest) {
     Vec2 lo = grid.Center(region.x0, region.y0), hi = grid.Center(region.x1 - 1, region.y1 - 1);
     Window box{lo.x, lo.y, hi.x, hi.y};
     for (uint32_t s = 0; s < sites.size(); ++s) {
-      if (const Site* site = sites.get(s)) cov.radius[s] = radius_for(*site, box);
-      ++cov.pairs;
+      if (const Site* site = sites.get(s)) keep(s, radius_for(*site, box));
     }
-    return cov;
+    return tile_px;
   }
-  double min_m = INFINITY, min_a = INFINITY;
-  for (uint32_t s = 0; s < sites.size(); ++s) {
-    if (const Site* site = sites.get(s)) {
-      min_m = std::min(min_m, site->multiplicative);
-      min_a = std::min(min_a, site->additive);
-    }
-  }
+  const double min_m = least.multiplicative, min_a = least.additive;
   std::vector<uint32_t> candidates;
-  for (uint32_t ty = region.y0; ty < region.y1; ty += cov.tile_px) {
-    for (uint32_t tx = region.x0; tx < region.x1; tx += cov.tile_px) {
-      uint32_t x1 = std::min(tx + cov.tile_px, region.x1) - 1;
-      uint32_t y1 = std::min(ty + cov.tile_px, region.y1) - 1;
+  for (uint32_t ty = region.y0; ty < region.y1; ty += tile_px) {
+    for (uint32_t tx = region.x0; tx < region.x1; tx += tile_px) {
+      uint32_t x1 = std::min(tx + tile_px, region.x1) - 1;
+      uint32_t y1 = std::min(ty + tile_px, region.y1) - 1;
       Vec2 lo = grid.Center(tx, ty), hi = grid.Center(x1, y1);
       Window cell{lo.x, lo.y, hi.x, hi.y};
       Vec2 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2};
@@ -126,12 +136,41 @@ Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteInd
         if (!InsideReach(s, cell, margin)) continue;
         const PointSite* p = PlainPoint(s);
         if (p && p1 && &s != s1 && !BeatsSomewhere(p->p, p1->p, cell)) continue;
-        cov.radius[slot] = std::max(cov.radius[slot], radius_for(s, cell));
-        ++cov.pairs;
+        keep(slot, radius_for(s, cell));
       }
     }
   }
+  return tile_px;
+}
+
+}  // namespace
+
+Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
+                         PixelRect region, uint32_t tile_px, Diagram diagram) {
+  Coverage cov;
+  cov.radius.assign(sites.size(), -1);
+  cov.tile_px = CoverTiles(grid, sites, index, FindLeastWeights(sites), region, tile_px, diagram,
+                           [&](uint32_t slot, double radius) {
+                             cov.radius[slot] = std::max(cov.radius[slot], radius);
+                             ++cov.pairs;
+                           });
   return cov;
+}
+
+std::vector<std::pair<uint32_t, double>> SparseCoverage(const Grid& grid, const SlotTable& sites,
+                                                        const SiteIndex& index,
+                                                        const LeastWeights& least,
+                                                        PixelRect region, uint32_t tile_px,
+                                                        Diagram diagram) {
+  std::unordered_map<uint32_t, double> radius;
+  CoverTiles(grid, sites, index, least, region, tile_px, diagram,
+             [&](uint32_t slot, double r) {
+               auto [it, fresh] = radius.emplace(slot, r);
+               if (!fresh) it->second = std::max(it->second, r);
+             });
+  std::vector<std::pair<uint32_t, double>> out(radius.begin(), radius.end());
+  std::sort(out.begin(), out.end());
+  return out;
 }
 
 }  // namespace gvd

@@ -79,6 +79,16 @@ std::shared_ptr<const Frame> Frame::Empty(Grid grid, uint64_t version, double ep
   return std::shared_ptr<const Frame>(new Frame(grid, version, eps));
 }
 
+const Frame::SiteLookup& Frame::lookup() const {
+  std::call_once(lookup_once_, [this] {
+    auto l = std::make_unique<SiteLookup>();
+    l->index = SiteIndex::Build(sites_);
+    l->least = FindLeastWeights(sites_);
+    lookup_ = std::move(l);
+  });
+  return *lookup_;
+}
+
 void Frame::PixelOf(Vec2 p, uint32_t* i, uint32_t* j) const {
   Vec2 c = grid_.ToPixel(p);
   auto nearest = [](double v, uint32_t n) -> uint32_t {

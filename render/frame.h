@@ -5,12 +5,15 @@
 #include <algorithm>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <vector>
 
 #include "render/exact.h"
 #include "render/geometry.h"
 #include "render/site.h"
+#include "render/coverage.h"
+#include "render/site_index.h"
 
 namespace gvd {
 
@@ -101,6 +104,14 @@ class Frame {
     return tiles_[ty * tiles_x() + tx] == other.tiles_[ty * tiles_x() + tx];
   }
 
+  // The frame's sites in a spatial index, with their least weights: built on the first call
+  // (O(n log n)) and kept with the frame. Thread-safe. CONTRACT: the frame is not empty.
+  struct SiteLookup {
+    SiteIndex index;
+    LeastWeights least;
+  };
+  const SiteLookup& lookup() const;
+
   // The pixel whose centre is nearest to p (clamped to the grid).
   void PixelOf(Vec2 p, uint32_t* i, uint32_t* j) const;
 
@@ -131,6 +142,8 @@ class Frame {
   std::vector<std::shared_ptr<const Tile>> tiles_;
   SlotTable sites_;
   size_t site_count_ = 0;
+  mutable std::once_flag lookup_once_;
+  mutable std::unique_ptr<SiteLookup> lookup_;
 };
 
 }  // namespace gvd
