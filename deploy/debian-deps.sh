@@ -11,7 +11,7 @@ gvd_packages() {
         libegl-dev libopengl-dev libegl1 libopengl0 libegl-mesa0 libgl1-mesa-dri
       ;;
     test)
-      echo libgtest-dev libgmock-dev libbenchmark-dev libnanoflann-dev openssl \
+      echo libgtest-dev libgmock-dev libbenchmark-dev libnanoflann-dev libqhull-dev openssl \
         shellcheck yamllint python3-yaml
       ;;
     *)
