@@ -113,6 +113,34 @@ grpc::Status Client::RenderImage(const v1::RenderImageRequest& request,
   return stub_->RenderImage(Context().get(), request, response);
 }
 
+grpc::Status Client::GetBoundaries(const v1::GetBoundariesRequest& request, v1::GetBoundariesResponse* response) {
+  return stub_->GetBoundaries(Context().get(), request, response);
+}
+
+grpc::Status Client::GetNeighbors(const v1::GetNeighborsRequest& request, v1::GetNeighborsResponse* response) {
+  return stub_->GetNeighbors(Context().get(), request, response);
+}
+
+grpc::Status Client::GetDelaunay(const v1::GetDelaunayRequest& request, v1::GetDelaunayResponse* response) {
+  return stub_->GetDelaunay(Context().get(), request, response);
+}
+
+grpc::Status Client::RenderWindow(const v1::RenderWindowRequest& request, v1::RenderWindowResponse* response) {
+  return stub_->RenderWindow(Context().get(), request, response);
+}
+
+grpc::Status Client::GetClearanceField(const v1::GetClearanceFieldRequest& request, v1::GetClearanceFieldResponse* response) {
+  return stub_->GetClearanceField(Context().get(), request, response);
+}
+
+grpc::Status Client::PlanPath(const v1::PlanPathRequest& request, v1::PlanPathResponse* response) {
+  return stub_->PlanPath(Context().get(), request, response);
+}
+
+grpc::Status Client::Pick(const v1::PickRequest& request, v1::PickResponse* response) {
+  return stub_->Pick(Context().get(), request, response);
+}
+
 bool Client::WaitForConnected(std::chrono::milliseconds timeout) {
   return channel_->WaitForConnected(std::chrono::system_clock::now() + timeout);
 }

@@ -26,35 +26,42 @@ uint32_t Shown(const Frame& f, uint32_t i, uint32_t j) {
   return std::isfinite(SiteValue(f.grid().Center(i, j), *f.sites().get(id - 1))) ? id : 0;
 }
 
-// Draws the sites' segments (and points, as 3x3 dots) in white over an RGB image of the
-// rect, row 0 at the top.
-void DrawSites(const Frame& f, const PixelRect& rect, std::vector<uint8_t>* rgb) {
-  const Grid& g = f.grid();
+// Plots segment ab (scene units) over an RGB image of the rect, row 0 at the top, in `colour`,
+// `thick` pixels wide (a point as a dot of 3 pixels or `thick`, whichever is more).
+void DrawSegment(const Grid& g, const PixelRect& rect, Vec2 a, Vec2 b, const uint8_t colour[3],
+                 int thick, std::vector<uint8_t>* rgb) {
   const uint32_t w = rect.width(), h = rect.height();
   auto plot = [&](double x, double y) {  // continuous pixel coordinates
     long i = std::lround(std::floor(x)) - rect.x0, j = std::lround(std::floor(y)) - rect.y0;
     if (i < 0 || j < 0 || i >= long(w) || j >= long(h)) return;
     size_t at = (size_t(h - 1 - j) * w + i) * 3;
-    (*rgb)[at] = (*rgb)[at + 1] = (*rgb)[at + 2] = 255;
+    for (int c = 0; c < 3; ++c) (*rgb)[at + c] = colour[c];
   };
+  Vec2 pa = g.ToPixel(a), pb = g.ToPixel(b);
+  double len = Distance(pa, pb);
+  const int r = len == 0 ? std::max(1, thick / 2) : thick / 2;
+  auto dot = [&](Vec2 p) {
+    for (int dx = -r; dx <= r; ++dx) {
+      for (int dy = -r; dy <= r; ++dy) plot(p.x + dx, p.y + dy);
+    }
+  };
+  if (len == 0) {
+    dot(pa);
+    return;
+  }
+  // Clip the walk to the image (segments may reach far outside it).
+  double steps = std::min(len * 2, 4.0 * (g.width + g.height) + 8);
+  for (double k = 0; k <= steps; ++k) dot(pa + (k / steps) * (pb - pa));
+}
+
+// Draws the sites' segments (and points, as 3x3 dots) in white.
+void DrawSites(const Frame& f, const PixelRect& rect, std::vector<uint8_t>* rgb) {
+  static constexpr uint8_t kWhite[3] = {255, 255, 255};
   for (uint32_t s = 0; s < f.sites().size(); ++s) {
     const Site* site = f.sites().get(s);
     if (site == nullptr) continue;
     ForEachSegment(site->geometry, [&](Vec2 a, Vec2 b) {
-      Vec2 pa = g.ToPixel(a), pb = g.ToPixel(b);
-      double len = Distance(pa, pb);
-      if (len == 0) {
-        for (int dx = -1; dx <= 1; ++dx) {
-          for (int dy = -1; dy <= 1; ++dy) plot(pa.x + dx, pa.y + dy);
-        }
-        return;
-      }
-      // Clip the walk to the image (segments may reach far outside it).
-      double steps = std::min(len * 2, 4.0 * (g.width + g.height) + 8);
-      for (double k = 0; k <= steps; ++k) {
-        Vec2 p = pa + (k / steps) * (pb - pa);
-        plot(p.x, p.y);
-      }
+      DrawSegment(f.grid(), rect, a, b, kWhite, 1, rgb);
     });
   }
 }
@@ -144,15 +151,20 @@ absl::StatusOr<EncodedImage> EncodeImage(const Frame& f, const ImageOptions& o) 
       }
     }
   }
-  if (o.draw_sites) {
-    if (!png) return absl::InvalidArgumentError("draw_sites needs format PNG");
+  if (o.draw_sites || !o.polyline.empty()) {
+    if (!png) return absl::InvalidArgumentError("draw_sites and polyline need format PNG");
     if (rgb.empty()) {  // a distance layer: grey to RGB
       rgb.resize(size_t{w} * h * 3);
       for (size_t k = 0; k < grey.size(); ++k) rgb[3 * k] = rgb[3 * k + 1] = rgb[3 * k + 2] = grey[k] >> 8;
       spec = OIIO::ImageSpec(int(w), int(h), 3, OIIO::TypeDesc::UINT8);
       grey.clear();
     }
-    DrawSites(f, rect, &rgb);
+    if (o.draw_sites) DrawSites(f, rect, &rgb);
+    static constexpr uint8_t kRed[3] = {255, 32, 32};
+    const int thick = std::max<int>(3, std::min(w, h) / 256 * 2 + 1);
+    for (size_t k = 1; k < o.polyline.size(); ++k) {
+      DrawSegment(f.grid(), rect, o.polyline[k - 1], o.polyline[k], kRed, thick, &rgb);
+    }
   }
   OIIO::Filesystem::IOVecOutput proxy(out.bytes);
   const std::string name = png ? "image.png" : "image.exr";

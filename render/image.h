@@ -18,6 +18,7 @@ struct ImageOptions {
   ImageFormat format = ImageFormat::kPng;
   PixelRect rect;           // the pixels to show; CONTRACT: not empty, inside the grid
   bool draw_sites = false;  // the sites' geometry in white on top (PNG)
+  std::vector<Vec2> polyline;  // drawn in red on top (PNG): a planned path, say
 };
 
 struct EncodedImage {

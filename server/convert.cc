@@ -65,35 +65,9 @@ Status ToSceneSettings(const v1::CreateSceneRequest& r, const ServerLimits& limi
                        SceneSettings* settings) {
   if (auto s = ValidateSceneId(r.scene_id(), limits); !s.ok()) return s;
   if (!r.has_window()) return Invalid("window is not set");
-  const v1::Window& w = r.window();
-  for (auto [v, name] : {std::pair{w.min_x(), "window.min_x"}, {w.min_y(), "window.min_y"},
-                         {w.max_x(), "window.max_x"}, {w.max_y(), "window.max_y"}}) {
-    if (auto s = CheckFinite(v, name); !s.ok()) return s;
-  }
-  if (!(w.min_x() < w.max_x())) {
-    return Invalid(absl::StrCat("window.min_x ", FormatNumber(w.min_x()),
-                                " must be less than window.max_x ", FormatNumber(w.max_x())));
-  }
-  if (!(w.min_y() < w.max_y())) {
-    return Invalid(absl::StrCat("window.min_y ", FormatNumber(w.min_y()),
-                                " must be less than window.max_y ", FormatNumber(w.max_y())));
-  }
-  if (!std::isfinite(w.max_x() - w.min_x()) || !std::isfinite(w.max_y() - w.min_y())) {
-    return Invalid("window is too large: its width or height overflows a double");
-  }
-  for (auto [v, name] : {std::pair{r.width_px(), "width_px"}, {r.height_px(), "height_px"}}) {
-    if (v == 0 || v > limits.max_side_px) {
-      return Invalid(absl::StrCat(name, " is ", v, "; it must be 1 to ", limits.max_side_px,
-                                  " (--max-side-px)"));
-    }
-  }
-  uint64_t pixels = uint64_t{r.width_px()} * r.height_px();
-  if (pixels > limits.max_scene_pixels) {
-    return Status(StatusCode::RESOURCE_EXHAUSTED,
-                  absl::StrCat("width_px x height_px is ", pixels, " pixels; the limit is ",
-                               limits.max_scene_pixels, " (--max-side-px squared)"));
-  }
-  Grid grid{{w.min_x(), w.min_y(), w.max_x(), w.max_y()}, r.width_px(), r.height_px()};
+  Grid grid;
+  if (auto s = ToWindow(r.window(), "window", &grid.window); !s.ok()) return s;
+  if (auto s = ToGridSize(r.width_px(), r.height_px(), limits, &grid); !s.ok()) return s;
   double eps = r.max_error();
   if (!std::isfinite(eps) || eps < 0) {
     return Invalid(absl::StrCat("max_error is ", FormatNumber(eps),
@@ -359,11 +333,7 @@ void ToProto(const Site& site, v1::Site* out) {
 void ToProto(const Scene& scene, v1::Scene* out) {
   const SceneSettings& s = scene.settings();
   out->set_scene_id(s.id);
-  v1::Window* w = out->mutable_window();
-  w->set_min_x(s.grid.window.min_x);
-  w->set_min_y(s.grid.window.min_y);
-  w->set_max_x(s.grid.window.max_x);
-  w->set_max_y(s.grid.window.max_y);
+  ToProto(s.grid.window, out->mutable_window());
   out->set_width_px(s.grid.width);
   out->set_height_px(s.grid.height);
   out->set_max_error(s.eps);
@@ -378,6 +348,70 @@ void ToProto(const Scene& scene, v1::Scene* out) {
 grpc::Status ToGrpc(const absl::Status& status) {
   if (status.ok()) return Status::OK;
   return Status(static_cast<StatusCode>(status.code()), std::string(status.message()));
+}
+
+grpc::Status ToPixelRect(const v1::Window& w, const Grid& grid, PixelRect* rect) {
+  for (double v : {w.min_x(), w.min_y(), w.max_x(), w.max_y()}) {
+    if (!std::isfinite(v)) {
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                          absl::StrCat("window holds ", FormatNumber(v),
+                                       "; coordinates must be finite"));
+    }
+  }
+  *rect = grid.CentresIn({w.min_x(), w.min_y()}, {w.max_x(), w.max_y()});
+  if (rect->empty()) {
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                        absl::StrCat("window [", FormatNumber(w.min_x()), ", ",
+                                     FormatNumber(w.max_x()), "] x [", FormatNumber(w.min_y()),
+                                     ", ", FormatNumber(w.max_y()),
+                                     "] holds no pixel centre of the scene"));
+  }
+  return grpc::Status::OK;
+}
+
+grpc::Status ToWindow(const v1::Window& w, const std::string& field, Window* out) {
+  for (auto [v, name] : {std::pair{w.min_x(), ".min_x"}, {w.min_y(), ".min_y"},
+                         {w.max_x(), ".max_x"}, {w.max_y(), ".max_y"}}) {
+    if (auto s = CheckFinite(v, field + name); !s.ok()) return s;
+  }
+  if (!(w.min_x() < w.max_x())) {
+    return Invalid(absl::StrCat(field, ".min_x ", FormatNumber(w.min_x()), " must be less than ",
+                                field, ".max_x ", FormatNumber(w.max_x())));
+  }
+  if (!(w.min_y() < w.max_y())) {
+    return Invalid(absl::StrCat(field, ".min_y ", FormatNumber(w.min_y()), " must be less than ",
+                                field, ".max_y ", FormatNumber(w.max_y())));
+  }
+  if (!std::isfinite(w.max_x() - w.min_x()) || !std::isfinite(w.max_y() - w.min_y())) {
+    return Invalid(absl::StrCat(field, " is too large: its width or height overflows a double"));
+  }
+  *out = {w.min_x(), w.min_y(), w.max_x(), w.max_y()};
+  return grpc::Status::OK;
+}
+
+grpc::Status ToGridSize(uint32_t width, uint32_t height, const ServerLimits& limits, Grid* grid) {
+  for (auto [v, name] : {std::pair{width, "width_px"}, {height, "height_px"}}) {
+    if (v == 0 || v > limits.max_side_px) {
+      return Invalid(absl::StrCat(name, " is ", v, "; it must be 1 to ", limits.max_side_px,
+                                  " (--max-side-px)"));
+    }
+  }
+  uint64_t pixels = uint64_t{width} * height;
+  if (pixels > limits.max_scene_pixels) {
+    return Status(StatusCode::RESOURCE_EXHAUSTED,
+                  absl::StrCat("width_px x height_px is ", pixels, " pixels; the limit is ",
+                               limits.max_scene_pixels, " (--max-side-px squared)"));
+  }
+  grid->width = width;
+  grid->height = height;
+  return grpc::Status::OK;
+}
+
+void ToProto(const Window& w, v1::Window* out) {
+  out->set_min_x(w.min_x);
+  out->set_min_y(w.min_y);
+  out->set_max_x(w.max_x);
+  out->set_max_y(w.max_y);
 }
 
 }  // namespace gvd

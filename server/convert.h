@@ -44,7 +44,19 @@ grpc::Status ToSiteIds(const v1::DeleteSitesRequest& request, const ServerLimits
 grpc::Status ToQueryPoints(const v1::FindNearestRequest& request, const Window& window,
                            const ServerLimits& limits, std::vector<Vec2>* points, bool* outside);
 
+// The pixels of `grid` whose centres lie in the window `w` (a request's field "window"):
+// INVALID_ARGUMENT when w is not finite or holds no pixel centre.
+grpc::Status ToPixelRect(const v1::Window& w, const Grid& grid, PixelRect* rect);
+
+// A request's window of the plane, checked: finite, min < max on both axes, a width and
+// height that do not overflow (`field` names it in messages).
+grpc::Status ToWindow(const v1::Window& w, const std::string& field, Window* out);
+
+// width_px and height_px of a grid, checked against --max-side-px (and its square).
+grpc::Status ToGridSize(uint32_t width, uint32_t height, const ServerLimits& limits, Grid* grid);
+
 void ToProto(const Site& site, v1::Site* out);
+void ToProto(const Window& w, v1::Window* out);
 void ToProto(const Scene& scene, v1::Scene* out);
 
 // absl::Status from the render and scene layers to a gRPC status with the same code.

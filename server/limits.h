@@ -18,6 +18,8 @@ struct ServerLimits {
   size_t max_scene_id_chars = 128;
   uint32_t max_page_size = 10'000;
   int max_message_bytes = 256 << 20;         // gRPC receive and send
+  size_t analysis_threads = 2;               // workers for boundaries, neighbours, planning...
+  size_t max_queued_analyses = 64;           // calls waiting for a worker
 };
 
 }  // namespace gvd

@@ -50,6 +50,10 @@ constexpr const char* kUsage = R"(usage: gvd-server [flags]
   --max-sites-per-request N   sites (or ids) in one UpsertSites or DeleteSites (default 100000)
   --max-vertices-per-site N   points of one polyline or polygon (default 100000)
   --max-message-bytes N       gRPC message size limit (default 268435456)
+  --analysis-threads N        threads for boundaries, neighbours, Delaunay, zoom windows,
+                              clearance and planning (default 2)
+  --max-queued-analyses N     such calls waiting for a thread before RESOURCE_EXHAUSTED
+                              (default 64)
   --metrics-listen HOST:PORT  serve Prometheus metrics at http://HOST:PORT/metrics (default off)
   --tokens FILE               require bearer tokens: one "TOKEN read" or "TOKEN write" per line
   --tls-cert FILE, --tls-key FILE
@@ -166,6 +170,8 @@ Flags ParseFlags(int argc, char** argv) {
     else if (arg == "--max-sites-per-request") ParseCount(arg, value, &f.limits.max_sites_per_request);
     else if (arg == "--max-vertices-per-site") ParseCount(arg, value, &f.limits.max_vertices_per_site);
     else if (arg == "--max-message-bytes") ParseCount(arg, value, &f.limits.max_message_bytes);
+    else if (arg == "--analysis-threads") ParseCount(arg, value, &f.limits.analysis_threads);
+    else if (arg == "--max-queued-analyses") ParseCount(arg, value, &f.limits.max_queued_analyses);
     else Die(absl::StrCat("unknown flag ", arg));
   }
   f.limits.max_scene_pixels = uint64_t{f.limits.max_side_px} * f.limits.max_side_px;

@@ -1,6 +1,7 @@
 #include "server/render_loop.h"
 
 #include <chrono>
+#include <future>
 #include <map>
 
 #include "absl/strings/str_cat.h"
@@ -40,6 +41,28 @@ void RenderLoop::MarkDirty(std::shared_ptr<Scene> scene) {
   cv_.notify_all();
 }
 
+absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> RenderLoop::Zoom(
+    std::shared_ptr<const Frame> base, RenderMode mode, std::vector<Grid> grids) {
+  std::promise<absl::StatusOr<std::vector<std::shared_ptr<const Frame>>>> done;
+  auto result = done.get_future();
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (stopping_ || !started_ || !start_status_.ok()) {
+      return absl::UnavailableError("the render thread is not running");
+    }
+    tasks_.push_back([&, base = std::move(base), grids = std::move(grids)](
+                         Rasterizer* rasterizer, ZoomRenderer* zoom) {
+      if (rasterizer == nullptr) {
+        done.set_value(absl::UnavailableError("the server is shutting down"));
+        return;
+      }
+      done.set_value(zoom->Render(*rasterizer, *base, mode, grids));
+    });
+  }
+  cv_.notify_all();
+  return result.get();
+}
+
 void RenderLoop::Run(DevicePreference preference) {
   std::unique_ptr<GlContext> context;
   std::unique_ptr<Rasterizer> rasterizer;
@@ -68,16 +91,24 @@ void RenderLoop::Run(DevicePreference preference) {
   // One SceneRaster (GPU buffers and incremental state) per scene, kept between renders;
   // released when the scene is deleted or a render fails.
   std::map<const Scene*, std::pair<std::weak_ptr<Scene>, std::unique_ptr<SceneRaster>>> rasters;
+  ZoomRenderer zoom;
   while (true) {
     std::shared_ptr<Scene> scene;
+    std::deque<std::function<void(Rasterizer*, ZoomRenderer*)>> tasks;
     {
       std::unique_lock<std::mutex> lock(mu_);
-      cv_.wait(lock, [this] { return stopping_ || !queue_.empty(); });
+      cv_.wait(lock, [this] { return stopping_ || !queue_.empty() || !tasks_.empty(); });
       if (stopping_) break;
-      scene = std::move(queue_.front());
-      queue_.pop_front();
-      queued_.erase(scene.get());
+      tasks.swap(tasks_);
+      if (!queue_.empty()) {
+        scene = std::move(queue_.front());
+        queue_.pop_front();
+        queued_.erase(scene.get());
+      }
     }
+    // Zooms first (they are small, and a caller waits on each), then one scene.
+    for (auto& task : tasks) task(rasterizer.get(), &zoom);
+    if (!scene) continue;
     // Drop the state of scenes that are gone.
     for (auto it = rasters.begin(); it != rasters.end();) {
       auto owner = it->second.first.lock();
@@ -139,12 +170,15 @@ void RenderLoop::Run(DevicePreference preference) {
 
   // Whatever is still queued will not be rendered: release its waiters.
   std::deque<std::shared_ptr<Scene>> left;
+  std::deque<std::function<void(Rasterizer*, ZoomRenderer*)>> tasks;
   {
     std::lock_guard<std::mutex> lock(mu_);
     left.swap(queue_);
     queued_.clear();
+    tasks.swap(tasks_);
   }
   for (auto& s : left) s->FailWaiters(absl::UnavailableError("the server is shutting down"));
+  for (auto& task : tasks) task(nullptr, nullptr);
   rasters.clear();
   rasterizer.reset();
   context.reset();

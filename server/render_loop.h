@@ -6,6 +6,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <set>
@@ -13,6 +14,7 @@
 
 #include "absl/status/status.h"
 #include "render/context.h"
+#include "render/zoom.h"
 #include "server/metrics.h"
 #include "server/scene.h"
 
@@ -37,6 +39,13 @@ class RenderLoop {
   // Queues a render of the scene at its latest version. Thread-safe; never blocks on a render.
   void MarkDirty(std::shared_ptr<Scene> scene);
 
+  // Renders zoom windows of `base` (render/zoom.h) on the render thread, between scene
+  // renders, and waits for them. Thread-safe; never call it from the render thread. Fails
+  // with Unavailable once the loop stops.
+  absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> Zoom(std::shared_ptr<const Frame> base,
+                                                                 RenderMode mode,
+                                                                 std::vector<Grid> grids);
+
   // Renders are observed here from now on (null: none). Call before Start.
   void set_metrics(Metrics* metrics) { metrics_ = metrics; }
 
@@ -54,6 +63,9 @@ class RenderLoop {
   absl::Status start_status_;
   std::deque<std::shared_ptr<Scene>> queue_;
   std::set<const Scene*> queued_;
+  // Work for the GL context other than scene renders (zooms); each is told whether the loop
+  // still runs.
+  std::deque<std::function<void(Rasterizer*, ZoomRenderer*)>> tasks_;
 };
 
 }  // namespace gvd

@@ -6,6 +6,7 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
+#include "render/analysis.h"
 #include "render/exact.h"
 #include "render/parallel.h"
 
@@ -103,6 +104,55 @@ uint64_t Scene::version() const {
 size_t Scene::site_count() const {
   std::shared_lock<std::shared_mutex> lock(mu_);
   return slot_of_.size();
+}
+
+Scene::Picked Scene::Pick(Vec2 q, double max_distance) const {
+  std::shared_lock<std::shared_mutex> lock(mu_);
+  Picked p;
+  p.version = version_;
+  if (slot_of_.empty()) return p;
+  ExactNearest n = index_.Nearest(q, slots_);
+  if (!n.found() || n.distance > max_distance) return p;
+  const Site& site = *slots_.get(static_cast<uint32_t>(n.index));
+  FeatureHit f = NearestFeature(q, site.geometry);
+  p.found = true;
+  p.site_id = site.id;
+  p.distance = n.distance;
+  p.feature_kind = f.kind;
+  p.feature_index = f.index;
+  return p;
+}
+
+Scene::Hidden Scene::HiddenSites() const {
+  auto frame = frame_.load();
+  std::lock_guard<std::mutex> lock(hidden_mu_);
+  if (hidden_frame_ != frame.get()) {
+    hidden_ = {};
+    if (!frame->empty()) {
+      std::vector<uint32_t> slots =
+          gvd::HiddenSites(IdsOf(*frame, frame->grid().all()), frame->sites());
+      hidden_.count = slots.size();
+      for (size_t k = 0; k < slots.size() && k < kHiddenIds; ++k) {
+        hidden_.ids.push_back(frame->sites().get(slots[k])->id);
+      }
+    }
+    hidden_frame_ = frame.get();
+    hidden_keep_ = frame;  // keeps the address from being reused by another frame
+  }
+  return hidden_;
+}
+
+std::shared_ptr<const ClearanceField> Scene::Clearance(
+    const std::shared_ptr<const Frame>& frame) const {
+  {
+    std::lock_guard<std::mutex> lock(hidden_mu_);
+    if (clearance_frame_ == frame) return clearance_;
+  }
+  auto field = std::make_shared<const ClearanceField>(MakeClearanceField(*frame));
+  std::lock_guard<std::mutex> lock(hidden_mu_);
+  clearance_frame_ = frame;
+  clearance_ = field;
+  return field;
 }
 
 uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactAnswer>* answers,

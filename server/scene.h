@@ -16,6 +16,7 @@
 #include "absl/status/statusor.h"
 #include "render/frame.h"
 #include "render/geometry.h"
+#include "render/plan.h"
 #include "render/scene_raster.h"
 #include "render/site.h"
 #include "render/site_index.h"
@@ -84,6 +85,33 @@ class Scene {
   uint64_t NearestExact(const std::vector<Vec2>& points, std::vector<ExactAnswer>* answers,
                         const std::function<bool()>& cancelled = nullptr) const;
 
+  // The site whose geometry is nearest to q by Euclidean distance (weights, sides,
+  // max_distance and the diagram do not apply: selection, paper sec. 7.2), exact, at the
+  // current version; found = false when there are no sites or the nearest is farther than
+  // max_distance. O(log n).
+  struct Picked {
+    bool found = false;
+    std::string site_id;
+    double distance = 0;
+    FeatureKind feature_kind = FeatureKind::kVertex;
+    uint32_t feature_index = 0;
+    uint64_t version = 0;
+  };
+  Picked Pick(Vec2 q, double max_distance) const;
+
+  // Sites whose geometry meets the window but which hold no pixel of the latest frame (paper
+  // sec. 6.2): their number and the first `kHiddenIds` ids. Computed once per frame.
+  static constexpr size_t kHiddenIds = 16;
+  struct Hidden {
+    uint64_t count = 0;
+    std::vector<std::string> ids;
+  };
+  Hidden HiddenSites() const;
+
+  // The clearance field of `frame` (render/plan.h), kept for the latest frame asked about so
+  // that repeated plans on one frame compute it once.
+  std::shared_ptr<const ClearanceField> Clearance(const std::shared_ptr<const Frame>& frame) const;
+
   struct SitePage {
     std::vector<Site> sites;
     std::string last_id;  // id of the last site returned, when there are more
@@ -142,6 +170,13 @@ class Scene {
   std::set<std::string> changed_;  // since the last TakeChanges
   uint64_t next_token_ = 1;
   std::map<uint64_t, Waiter> waiters_;
+
+  mutable std::mutex hidden_mu_;  // guards the two below
+  mutable const Frame* hidden_frame_ = nullptr;  // the frame `hidden_` describes
+  mutable std::shared_ptr<const Frame> hidden_keep_;
+  mutable Hidden hidden_;
+  mutable std::shared_ptr<const Frame> clearance_frame_;  // guarded by hidden_mu_
+  mutable std::shared_ptr<const ClearanceField> clearance_;
 };
 
 }  // namespace gvd

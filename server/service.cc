@@ -1,5 +1,8 @@
 #include "server/service.h"
 
+#include "server/call_scope.h"
+#include "server/frame_job.h"
+
 #include "absl/strings/str_cat.h"
 #include "render/image.h"
 #include "server/convert.h"
@@ -12,81 +15,10 @@
 
 namespace gvd {
 
-// Counts a call in flight for as long as it lives, and records its method, status and
-// duration in the metrics when it ends.
-class CallScope {
- public:
-  CallScope(const VoronoiService* s, const char* method)
-      : s_(s), method_(method), start_(std::chrono::steady_clock::now()) {
-    ++s_->in_flight_;
-    if (s_->metrics_) s_->metrics_->RpcStarted(method_);
-  }
-  ~CallScope() {
-    Record(grpc::Status::OK);  // a call that ended without a recorded status
-    if (s_->metrics_) s_->metrics_->RpcEnded(method_);
-    --s_->in_flight_;
-  }
-  CallScope(const CallScope&) = delete;
-  CallScope& operator=(const CallScope&) = delete;
-
-  // Records the call's status and duration, once, before the status goes out (so that a
-  // client that has its answer finds it in the metrics).
-  void Record(const grpc::Status& s) {
-    if (recorded_.exchange(true) || !s_->metrics_) return;
-    s_->metrics_->ObserveRpc(
-        method_, s.error_code(),
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count());
-  }
-  // Finishes a unary call with `status`, recording it.
-  grpc::ServerUnaryReactor* Done(grpc::CallbackServerContext* ctx, const grpc::Status& status) {
-    Record(status);
-    auto* reactor = ctx->DefaultReactor();
-    reactor->Finish(status);
-    return reactor;
-  }
-
- private:
-  const VoronoiService* s_;
-  const char* method_;
-  std::chrono::steady_clock::time_point start_;
-  std::atomic<bool> recorded_{false};
-};
-
-// A validated FindNearest request.
-struct NearestQuery {
-  std::shared_ptr<CallScope> scope;  // the call stays in flight while the query lives
-  grpc::CallbackServerContext* ctx = nullptr;  // valid while the call lives
-  std::shared_ptr<Scene> scene;
-  std::vector<Vec2> points;
-  bool exact = false;
-  uint64_t min_version = 0;
-  // When set, the job hands the frame to this instead of answering points (RenderImage).
-  std::function<grpc::Status(const Frame&)> on_frame;
-};
-
 namespace {
 
 using grpc::Status;
 using grpc::StatusCode;
-
-// One answer, pointing into storage its NearestJob keeps alive.
-struct AnswerRow {
-  const std::string* site_id;  // null: no site is a candidate at the point
-  double distance;
-  double error_bound;
-  bool exact;
-  FeatureKind feature_kind;
-  uint32_t feature_index;
-};
-
-v1::FeatureKind ToProto(FeatureKind k) {
-  switch (k) {
-    case FeatureKind::kVertex: return v1::VERTEX;
-    case FeatureKind::kEdge: return v1::EDGE;
-    case FeatureKind::kCurve: return v1::CURVE;
-  }
-  return v1::FEATURE_KIND_UNSPECIFIED;
-}
 
 // Writes rows [begin, end) into the response: as NearestSite results, or packed.
 void Fill(const std::vector<AnswerRow>& rows, size_t begin, size_t end, bool packed,
@@ -137,120 +69,6 @@ void Fill(const std::vector<AnswerRow>& rows, size_t begin, size_t end, bool pac
   }
 }
 
-// Resolves a query's answers: at once when they are exact or the latest frame is new
-// enough, else when the render thread publishes the awaited version. The frame callback and
-// Cancel race safely: whichever removes the waiter from the scene finishes the job.
-class NearestJob : public std::enable_shared_from_this<NearestJob> {
- public:
-  explicit NearestJob(NearestQuery query) : query_(std::move(query)) {}
-
-  // Calls done exactly once; `rows()` and `version()` are valid once it has been called
-  // with OK.
-  void Start(std::function<void(const Status&)> done) {
-    auto self = shared_from_this();  // done() may release the job's last other owner
-    done_ = [this, done = std::move(done)](const Status& s) {
-      query_.scope->Record(s);
-      done(s);
-    };
-    if (query_.exact) {
-      version_ = query_.scene->NearestExact(query_.points, &exact_answers_,
-                                            [this] { return query_.ctx->IsCancelled(); });
-      if (version_ == 0) {
-        done_(Status(StatusCode::CANCELLED, "the call was cancelled"));
-        return;
-      }
-      rows_.reserve(exact_answers_.size());
-      for (const auto& a : exact_answers_) {
-        rows_.push_back({a.found ? &a.site_id : nullptr, a.distance, 0, true, a.feature_kind,
-                         a.feature_index});
-      }
-      done_(Status::OK);
-      return;
-    }
-    uint64_t token = query_.scene->WhenRendered(
-        query_.min_version, [self](auto frame) { self->OnFrame(frame); });
-    std::lock_guard<std::mutex> lock(mu_);
-    token_ = token;
-    if (cancelled_) query_.scene->Cancel(token, absl::CancelledError("call cancelled"));
-  }
-
-  void Cancel() {
-    std::lock_guard<std::mutex> lock(mu_);
-    cancelled_ = true;
-    if (token_ != 0) {
-      query_.scene->Cancel(token_, absl::DeadlineExceededError(
-                                       "cancelled or past its deadline while waiting for the "
-                                       "scene's min_version to be rendered"));
-    }
-  }
-
-  const std::vector<AnswerRow>& rows() const { return rows_; }
-  uint64_t version() const { return version_; }
-
- private:
-  void OnFrame(const absl::StatusOr<std::shared_ptr<const Frame>>& frame) {
-    if (!frame.ok()) {
-      done_(ToGrpc(frame.status()));
-      return;
-    }
-    frame_ = *frame;
-    if (frame_->empty()) {
-      done_(Status(StatusCode::FAILED_PRECONDITION,
-                   absl::StrCat("scene \"", query_.scene->id(), "\" has no sites at version ",
-                                frame_->version())));
-      return;
-    }
-    version_ = frame_->version();
-    if (query_.on_frame) {
-      done_(query_.on_frame(*frame_));
-      return;
-    }
-    rows_.resize(query_.points.size());
-    std::atomic<bool> missing{false}, cancelled{false};
-    ParallelFor(rows_.size(), 8192, [&](size_t begin, size_t end) {
-      for (size_t i = begin; i < end; ++i) {
-        if (i % 4096 == 0 && (cancelled || query_.ctx->IsCancelled())) {
-          cancelled = true;
-          return;
-        }
-        auto a = frame_->Nearest(query_.points[i]);
-        if (!a) {
-          missing = true;
-          return;
-        }
-        if (!a->found) {
-          rows_[i] = {nullptr, INFINITY, 0, true, FeatureKind::kVertex, 0};
-          continue;
-        }
-        const Site& site = *frame_->sites().get(a->site_index);
-        FeatureHit f = std::holds_alternative<PointSite>(site.geometry)
-                           ? FeatureHit{}
-                           : NearestFeature(query_.points[i], site.geometry);
-        rows_[i] = {&site.id, a->distance, a->error_bound, a->error_bound == 0, f.kind, f.index};
-      }
-    });
-    if (cancelled) {
-      done_(Status(StatusCode::CANCELLED, "the call was cancelled"));
-      return;
-    }
-    if (missing) {
-      done_(Status(StatusCode::INTERNAL, "frame has no site at a query point"));
-      return;
-    }
-    done_(Status::OK);
-  }
-
-  NearestQuery query_;
-  std::function<void(const Status&)> done_;
-  std::shared_ptr<const Frame> frame_;  // owns the ids the rows point to
-  std::vector<Scene::ExactAnswer> exact_answers_;
-  std::vector<AnswerRow> rows_;
-  uint64_t version_ = 0;
-  std::mutex mu_;
-  uint64_t token_ = 0;
-  bool cancelled_ = false;
-};
-
 class NearestUnaryReactor final : public grpc::ServerUnaryReactor {
  public:
   NearestUnaryReactor(NearestQuery query, bool packed, v1::FindNearestResponse* response)
@@ -275,22 +93,6 @@ class NearestUnaryReactor final : public grpc::ServerUnaryReactor {
   std::shared_ptr<NearestJob> job_;
   bool packed_;
   v1::FindNearestResponse* response_;
-};
-
-// RenderImage: waits for its frame like a query, then encodes it (NearestQuery::on_frame).
-class ImageReactor final : public grpc::ServerUnaryReactor {
- public:
-  explicit ImageReactor(NearestQuery query) : job_(std::make_shared<NearestJob>(std::move(query))) {}
-  // After Start, this object may already be finished and deleted.
-  void Start() {
-    auto job = job_;
-    job->Start([this](const Status& s) { Finish(s); });
-  }
-  void OnCancel() override { job_->Cancel(); }
-  void OnDone() override { delete this; }
-
- private:
-  std::shared_ptr<NearestJob> job_;
 };
 
 class NearestStreamReactor final : public grpc::ServerWriteReactor<v1::FindNearestResponse> {
@@ -344,7 +146,8 @@ class NearestStreamReactor final : public grpc::ServerWriteReactor<v1::FindNeare
 
 VoronoiService::VoronoiService(RenderLoop* renderer, Store* store, ServerLimits limits,
                                const TokenAuth* auth, Metrics* metrics)
-    : renderer_(renderer), store_(store), limits_(limits), auth_(auth), metrics_(metrics) {}
+    : renderer_(renderer), store_(store), limits_(limits), auth_(auth), metrics_(metrics),
+      workers_(limits.analysis_threads, limits.max_queued_analyses) {}
 
 void VoronoiService::ObserveCommit() const {
   if (metrics_) metrics_->ObserveCommit(store_->last_commit_seconds());
@@ -476,6 +279,9 @@ grpc::ServerUnaryReactor* VoronoiService::GetScene(grpc::CallbackServerContext* 
   std::shared_ptr<Scene> scene;
   if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return scope.Done(ctx, s);
   ToProto(*scene, response);
+  Scene::Hidden hidden = scene->HiddenSites();
+  response->set_hidden_site_count(hidden.count);
+  for (const std::string& id : hidden.ids) response->add_hidden_site_ids(id);
   return scope.Done(ctx, Status::OK);
 }
 
@@ -591,22 +397,26 @@ Status VoronoiService::ParseNearest(const v1::FindNearestRequest& request,
       !s.ok()) {
     return s;
   }
+  if (auto s = WaitFor(request.min_version(), query); !s.ok()) return s;
+  query->exact = request.exact() || outside;
+  if (query->exact && query->scene->site_count() == 0) {
+    return Status(StatusCode::FAILED_PRECONDITION,
+                  absl::StrCat("scene \"", query->scene->id(), "\" has no sites at version ",
+                               query->scene->version()));
+  }
+  return Status::OK;
+}
+
+Status VoronoiService::WaitFor(uint64_t requested, NearestQuery* query) const {
   uint64_t version = query->scene->version();
-  query->min_version = request.min_version();
-  if (query->min_version > version) {
+  if (requested > version) {
     return Status(StatusCode::OUT_OF_RANGE,
-                  absl::StrCat("min_version ", query->min_version, " is ahead of scene \"",
+                  absl::StrCat("min_version ", requested, " is ahead of scene \"",
                                query->scene->id(), "\", which is at version ", version));
   }
-  query->exact = request.exact() || outside;
-  if (query->exact) {
-    if (query->scene->site_count() == 0) {
-      return Status(StatusCode::FAILED_PRECONDITION,
-                    absl::StrCat("scene \"", query->scene->id(), "\" has no sites at version ",
-                                 version));
-    }
-  } else if (query->scene->frame()->empty() && query->scene->site_count() > 0) {
-    // A scene whose first render is under way waits for it rather than answering "no sites".
+  query->min_version = requested;
+  // A scene whose first render is under way waits for it rather than answering "no sites".
+  if (query->scene->frame()->empty() && query->scene->site_count() > 0) {
     query->min_version = version;
   }
   return Status::OK;
@@ -688,33 +498,24 @@ grpc::ServerUnaryReactor* VoronoiService::RenderImage(grpc::CallbackServerContex
   const Grid& grid = query.scene->settings().grid;
   options.rect = grid.all();
   if (request->has_window()) {
-    const v1::Window& w = request->window();
-    for (double v : {w.min_x(), w.min_y(), w.max_x(), w.max_y()}) {
-      if (!std::isfinite(v)) {
-        return query.scope->Done(ctx, Status(StatusCode::INVALID_ARGUMENT,
-                                             absl::StrCat("window holds ", FormatNumber(v),
-                                                          "; coordinates must be finite")));
-      }
-    }
-    options.rect = grid.CentresIn({w.min_x(), w.min_y()}, {w.max_x(), w.max_y()});
-    if (options.rect.empty()) {
-      return query.scope->Done(
-          ctx, Status(StatusCode::INVALID_ARGUMENT,
-                      absl::StrCat("window [", FormatNumber(w.min_x()), ", ",
-                                   FormatNumber(w.max_x()), "] x [", FormatNumber(w.min_y()),
-                                   ", ", FormatNumber(w.max_y()),
-                                   "] holds no pixel centre of the scene")));
+    if (auto s = ToPixelRect(request->window(), grid, &options.rect); !s.ok()) {
+      return query.scope->Done(ctx, s);
     }
   }
-  uint64_t version = query.scene->version();
-  query.min_version = request->min_version();
-  if (query.min_version > version) {
-    return query.scope->Done(
-        ctx, Status(StatusCode::OUT_OF_RANGE,
-                    absl::StrCat("min_version ", query.min_version, " is ahead of scene \"",
-                                 query.scene->id(), "\", which is at version ", version)));
+  for (int k = 0; k < request->polyline_size(); ++k) {
+    const v1::Point& p = request->polyline(k);
+    if (!std::isfinite(p.x()) || !std::isfinite(p.y())) {
+      return query.scope->Done(ctx, Status(StatusCode::INVALID_ARGUMENT,
+                                           absl::StrCat("polyline[", k, "] is (", FormatNumber(p.x()),
+                                                        ", ", FormatNumber(p.y()),
+                                                        "); coordinates must be finite")));
+    }
+    options.polyline.push_back({p.x(), p.y()});
   }
-  if (query.scene->frame()->empty() && query.scene->site_count() > 0) query.min_version = version;
+  if (!options.polyline.empty() && options.format == ImageFormat::kExr) {
+    return query.scope->Done(ctx, Status(StatusCode::INVALID_ARGUMENT, "polyline needs format PNG"));
+  }
+  if (auto s = WaitFor(request->min_version(), &query); !s.ok()) return query.scope->Done(ctx, s);
   query.on_frame = [options, response](const Frame& frame) {
     auto image = EncodeImage(frame, options);
     if (!image.ok()) return ToGrpc(image.status());
@@ -725,7 +526,7 @@ grpc::ServerUnaryReactor* VoronoiService::RenderImage(grpc::CallbackServerContex
     response->set_version(frame.version());
     return Status::OK;
   };
-  auto* reactor = new ImageReactor(std::move(query));
+  auto* reactor = new FrameReactor(std::move(query));
   reactor->Start();
   return reactor;
 }

@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -17,6 +18,7 @@
 #include "server/render_loop.h"
 #include "server/scene.h"
 #include "server/store.h"
+#include "server/workers.h"
 
 namespace gvd {
 
@@ -71,12 +73,46 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
                                         const v1::RenderImageRequest* request,
                                         v1::RenderImageResponse* response) override;
 
+  // Structure and applications (server/analysis_service.cc).
+  grpc::ServerUnaryReactor* GetBoundaries(grpc::CallbackServerContext* ctx,
+                                          const v1::GetBoundariesRequest* request,
+                                          v1::GetBoundariesResponse* response) override;
+  grpc::ServerUnaryReactor* GetNeighbors(grpc::CallbackServerContext* ctx,
+                                         const v1::GetNeighborsRequest* request,
+                                         v1::GetNeighborsResponse* response) override;
+  grpc::ServerUnaryReactor* GetDelaunay(grpc::CallbackServerContext* ctx,
+                                        const v1::GetDelaunayRequest* request,
+                                        v1::GetDelaunayResponse* response) override;
+  grpc::ServerUnaryReactor* RenderWindow(grpc::CallbackServerContext* ctx,
+                                         const v1::RenderWindowRequest* request,
+                                         v1::RenderWindowResponse* response) override;
+  grpc::ServerUnaryReactor* GetClearanceField(grpc::CallbackServerContext* ctx,
+                                              const v1::GetClearanceFieldRequest* request,
+                                              v1::GetClearanceFieldResponse* response) override;
+  grpc::ServerUnaryReactor* PlanPath(grpc::CallbackServerContext* ctx,
+                                     const v1::PlanPathRequest* request,
+                                     v1::PlanPathResponse* response) override;
+  grpc::ServerUnaryReactor* Pick(grpc::CallbackServerContext* ctx, const v1::PickRequest* request,
+                                 v1::PickResponse* response) override;
+
  private:
   // Validates a FindNearest request and resolves its scene, points and mode.
   grpc::Status ParseNearest(const v1::FindNearestRequest& request, NearestQuery* query) const;
 
   // The scene, or NOT_FOUND naming it (after validating the id).
   grpc::Status Lookup(const std::string& scene_id, std::shared_ptr<Scene>* scene) const;
+
+  // Sets the version a call waits for: `requested`, or the current one while the scene's
+  // first render is under way. OUT_OF_RANGE when the scene has not reached `requested`.
+  grpc::Status WaitFor(uint64_t requested, NearestQuery* query) const;
+
+  // Starts an analysis call: validates and resolves its scene (into query), waits for the
+  // frame, then runs `work` on a worker thread (RESOURCE_EXHAUSTED when too many wait). The
+  // work may render zoom windows through renderer_.
+  grpc::ServerUnaryReactor* StartAnalysis(
+      const char* method, grpc::CallbackServerContext* ctx, const std::string& scene_id,
+      uint64_t min_version, std::function<grpc::Status(NearestQuery*)> validate,
+      std::function<grpc::Status(const std::shared_ptr<const Frame>&, const Scene&)> work);
 
   // UNAVAILABLE until Load() has run (and once draining); then the token check, if any.
   grpc::Status Admit(grpc::CallbackServerContext* ctx, bool write) const;
@@ -94,6 +130,7 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   friend class CallScope;
   mutable std::mutex mu_;  // guards scenes_
   std::map<std::string, std::shared_ptr<Scene>> scenes_;
+  WorkerPool workers_;  // last: its threads stop before the rest goes
 };
 
 }  // namespace gvd

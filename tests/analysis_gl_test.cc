@@ -14,10 +14,8 @@
 #include "render/zoom.h"
 #include "tests/gl_fixture.h"
 #include "tests/pixel_oracle.h"
+#include "tests/qhull_delaunay.h"
 
-extern "C" {
-#include <libqhull_r/qhull_ra.h>
-}
 
 namespace gvd {
 namespace {
@@ -162,42 +160,6 @@ TEST_F(AnalysisGLTest, ContinuationMissesAnIslandInsideAConcaveSite) {
   }
 }
 
-// Qhull's Delaunay edges of the points (indices into pts).
-std::set<std::pair<uint32_t, uint32_t>> QhullEdges(const std::vector<Vec2>& pts,
-                                                   std::vector<std::array<uint32_t, 3>>* tris) {
-  std::vector<coordT> coords;
-  for (Vec2 p : pts) coords.insert(coords.end(), {p.x, p.y});
-  qhT qh_qh;
-  qhT* qh = &qh_qh;
-  qh_zero(qh, stderr);
-  char flags[] = "qhull d Qt Qbb Qc Qz";
-  std::set<std::pair<uint32_t, uint32_t>> edges;
-  int code = qh_new_qhull(qh, 2, static_cast<int>(pts.size()), coords.data(), False, flags,
-                          nullptr, stderr);
-  EXPECT_EQ(code, 0);
-  if (code == 0) {
-    facetT* facet;
-    vertexT *vertex, **vertexp;
-    FORALLfacets {
-      if (facet->upperdelaunay) continue;
-      std::vector<uint32_t> v;
-      FOREACHvertex_(facet->vertices) v.push_back(qh_pointid(qh, vertex->point));
-      if (v.size() != 3) continue;
-      tris->push_back({v[0], v[1], v[2]});
-      for (int a = 0; a < 3; ++a) {
-        uint32_t x = v[a], y = v[(a + 1) % 3];
-        if (x < uint32_t(pts.size()) && y < uint32_t(pts.size())) {
-          edges.insert({std::min(x, y), std::max(x, y)});
-        }
-      }
-    }
-  }
-  qh_freeqhull(qh, !qh_ALL);
-  int curlong, totlong;
-  qh_memfreeshort(qh, &curlong, &totlong);
-  return edges;
-}
-
 Vec2 Circumcentre(Vec2 a, Vec2 b, Vec2 c) {
   double d = 2 * (a.x * (b.y - c.y) + b.x * (c.y - a.y) + c.x * (a.y - b.y));
   double a2 = Dot(a, a), b2 = Dot(b, b), c2 = Dot(c, c);
@@ -315,7 +277,7 @@ TEST_F(AnalysisGLTest, DelaunayMatchesQhull) {
       sites.push_back({std::to_string(i), PointSite{pts[i]}});
     }
     std::vector<std::array<uint32_t, 3>> tris;
-    auto qhull = QhullEdges(pts, &tris);
+    auto qhull = testing::QhullEdges(pts, &tris);
     auto window_px = VoronoiEdgeLengths(pts, tris, grid.window);
     auto sampled_px = VoronoiEdgeLengths(pts, tris, centres);
     for (auto* m : {&window_px, &sampled_px}) {

@@ -8,42 +8,14 @@
 #include "gvd/client.h"
 #include "render/exact.h"
 #include "server_process.h"
+#include "test_scenes.h"
 
 namespace gvd {
 namespace {
 
 using grpc::StatusCode;
-
-void SetPoint(Vec2 p, v1::Point* out) {
-  out->set_x(p.x);
-  out->set_y(p.y);
-}
-
-// The API's form of a render-layer site (Bezier: its control points and tolerance).
-v1::Site ToProtoSite(const Site& s) {
-  v1::Site out;
-  out.set_id(s.id);
-  if (const auto* p = std::get_if<PointSite>(&s.geometry)) {
-    SetPoint(p->p, out.mutable_point());
-  } else if (const auto* seg = std::get_if<SegmentSite>(&s.geometry)) {
-    SetPoint(seg->a, out.mutable_segment()->mutable_a());
-    SetPoint(seg->b, out.mutable_segment()->mutable_b());
-  } else if (const auto* l = std::get_if<PolylineSite>(&s.geometry)) {
-    for (Vec2 q : l->points) SetPoint(q, out.mutable_polyline()->add_points());
-  } else if (const auto* poly = std::get_if<PolygonSite>(&s.geometry)) {
-    for (Vec2 q : poly->vertices) SetPoint(q, out.mutable_polygon()->add_vertices());
-    out.mutable_polygon()->set_side(poly->side == Side::kOutside  ? v1::Polygon::OUTSIDE
-                                    : poly->side == Side::kInside ? v1::Polygon::INSIDE
-                                                                  : v1::Polygon::SIDE_UNSPECIFIED);
-  } else if (const auto* b = std::get_if<BezierSite>(&s.geometry)) {
-    for (Vec2 q : b->control) SetPoint(q, out.mutable_bezier()->add_control_points());
-    out.mutable_bezier()->set_tolerance(b->tolerance);
-  }
-  out.set_additive_weight(s.additive);
-  out.set_multiplicative_weight(s.multiplicative);
-  if (std::isfinite(s.max_distance)) out.set_max_distance(s.max_distance);
-  return out;
-}
+using testing::SetPoint;
+using testing::ToProtoSite;
 
 // A scene of every kind, with weights, max_distance and sides.
 std::vector<Site> MixedSites(uint64_t seed) {

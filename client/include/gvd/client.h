@@ -52,6 +52,22 @@ class Client {
   grpc::Status RenderImage(const v1::RenderImageRequest& request,
                            v1::RenderImageResponse* response);
 
+  // Structure of the diagram (paper sec. 5, 6.2).
+  grpc::Status GetBoundaries(const v1::GetBoundariesRequest& request,
+                             v1::GetBoundariesResponse* response);
+  grpc::Status GetNeighbors(const v1::GetNeighborsRequest& request,
+                            v1::GetNeighborsResponse* response);
+  grpc::Status GetDelaunay(const v1::GetDelaunayRequest& request,
+                           v1::GetDelaunayResponse* response);
+  grpc::Status RenderWindow(const v1::RenderWindowRequest& request,
+                            v1::RenderWindowResponse* response);
+
+  // Applications (paper sec. 7).
+  grpc::Status GetClearanceField(const v1::GetClearanceFieldRequest& request,
+                                 v1::GetClearanceFieldResponse* response);
+  grpc::Status PlanPath(const v1::PlanPathRequest& request, v1::PlanPathResponse* response);
+  grpc::Status Pick(const v1::PickRequest& request, v1::PickResponse* response);
+
   // Waits until the server answers or `timeout` passes; true when connected.
   bool WaitForConnected(std::chrono::milliseconds timeout);
 

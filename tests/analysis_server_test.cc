@@ -1,0 +1,497 @@
+// Boundaries, neighbours, Delaunay, zoom windows, clearance, planning and picking through the
+// real gvd-server, against the exact oracle; bad input refused by name.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+#include <random>
+#include <set>
+
+#include "gvd/client.h"
+#include "render/exact.h"
+#include "server_process.h"
+#include "test_scenes.h"
+#include "tests/maze.h"
+#include "tests/qhull_delaunay.h"
+
+namespace gvd {
+namespace {
+
+using grpc::StatusCode;
+using testing::ToProtoSite;
+
+class AnalysisServerTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    server_ = new testing::ServerProcess(GVD_SERVER_PATH, {"--max-side-px", "4096"});
+    ASSERT_TRUE(server_->error().empty()) << server_->error();
+    client_ = Client::Connect(server_->address()).release();
+    ASSERT_TRUE(client_->WaitForConnected(std::chrono::seconds(10)));
+  }
+  static void TearDownTestSuite() {
+    delete client_;
+    int status = server_->Stop();
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << server_->log();
+    delete server_;
+  }
+  // A scene over the unit square at size x size pixels.
+  static void Create(const std::string& id, uint32_t size, v1::Diagram diagram = v1::NEAREST,
+                     v1::RenderMode mode = v1::MESH) {
+    v1::CreateSceneRequest r = testing::UnitScene(id, size, size);
+    r.set_diagram(diagram);
+    r.set_render_mode(mode);
+    v1::Scene scene;
+    auto s = client_->CreateScene(r, &scene);
+    ASSERT_TRUE(s.ok()) << s.error_message();
+  }
+  static uint64_t Upsert(const std::string& scene, const SiteTable& sites) {
+    v1::UpsertSitesRequest r;
+    r.set_scene_id(scene);
+    for (const Site& s : sites) *r.add_sites() = ToProtoSite(s);
+    uint64_t version = 0;
+    auto st = client_->UpsertSites(r, &version);
+    EXPECT_TRUE(st.ok()) << st.error_message();
+    return version;
+  }
+  static SiteTable RandomPoints(int n, uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0, 1);
+    SiteTable sites;
+    for (int i = 0; i < n; ++i) sites.push_back({"p" + std::to_string(i), PointSite{{u(rng), u(rng)}}});
+    return sites;
+  }
+  static inline testing::ServerProcess* server_ = nullptr;
+  static inline Client* client_ = nullptr;
+};
+
+const Site& ById(const SiteTable& sites, const std::string& id) {
+  for (const Site& s : sites) {
+    if (s.id == id) return s;
+  }
+  static const Site kNone;
+  ADD_FAILURE() << "no site " << id;
+  return kNone;
+}
+
+// Delaunay of random points: every triangle's circumcircle is empty (checked against all
+// points), triangles are counter-clockwise, their edges are the neighbour pairs, and the
+// triangles cover the points' convex hull as Euler's formula says.
+TEST_F(AnalysisServerTest, DelaunayTrianglesHaveEmptyCircumcircles) {
+  Create("delaunay", 1024);
+  SiteTable sites = RandomPoints(300, 7);
+  uint64_t v = Upsert("delaunay", sites);
+  v1::GetDelaunayRequest r;
+  r.set_scene_id("delaunay");
+  r.set_min_version(v);
+  v1::GetDelaunayResponse d;
+  auto s = client_->GetDelaunay(r, &d);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  EXPECT_EQ(d.version(), v);
+  auto at = [&](const std::string& id) { return std::get<PointSite>(ById(sites, id).geometry).p; };
+  for (const auto& t : d.triangles()) {
+    Vec2 a = at(t.a()), b = at(t.b()), c = at(t.c());
+    EXPECT_GT((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x), 0) << "clockwise";
+    double det = 2 * (a.x * (b.y - c.y) + b.x * (c.y - a.y) + c.x * (a.y - b.y));
+    Vec2 o{(Dot(a, a) * (b.y - c.y) + Dot(b, b) * (c.y - a.y) + Dot(c, c) * (a.y - b.y)) / det,
+           (Dot(a, a) * (c.x - b.x) + Dot(b, b) * (a.x - c.x) + Dot(c, c) * (b.x - a.x)) / det};
+    double r2 = Distance(o, a);
+    for (const Site& p : sites) {
+      if (p.id == t.a() || p.id == t.b() || p.id == t.c()) continue;
+      ASSERT_GT(Distance(o, std::get<PointSite>(p.geometry).p), r2 * (1 - 1e-9))
+          << p.id << " lies inside the circumcircle of " << t.a() << " " << t.b() << " " << t.c();
+    }
+  }
+  // Every Delaunay triangle (Qhull's) whose circumcentre, its Voronoi vertex, lies in the
+  // window a pixel from its border or more is there.
+  std::vector<Vec2> pts;
+  for (const Site& p : sites) pts.push_back(std::get<PointSite>(p.geometry).p);
+  std::vector<std::array<uint32_t, 3>> tris;
+  testing::QhullEdges(pts, &tris);
+  std::set<std::set<std::string>> ours;
+  for (const auto& t : d.triangles()) ours.insert({t.a(), t.b(), t.c()});
+  size_t inside = 0;
+  for (const auto& t : tris) {
+    Vec2 a = pts[t[0]], b = pts[t[1]], c = pts[t[2]];
+    double det = 2 * (a.x * (b.y - c.y) + b.x * (c.y - a.y) + c.x * (a.y - b.y));
+    Vec2 o{(Dot(a, a) * (b.y - c.y) + Dot(b, b) * (c.y - a.y) + Dot(c, c) * (a.y - b.y)) / det,
+           (Dot(a, a) * (c.x - b.x) + Dot(b, b) * (a.x - c.x) + Dot(c, c) * (b.x - a.x)) / det};
+    const double margin = 1.0 / 1024;
+    if (o.x < margin || o.y < margin || o.x > 1 - margin || o.y > 1 - margin) continue;
+    ++inside;
+    EXPECT_TRUE(ours.count({sites[t[0]].id, sites[t[1]].id, sites[t[2]].id}))
+        << sites[t[0]].id << " " << sites[t[1]].id << " " << sites[t[2]].id;
+  }
+  EXPECT_GT(inside, 450u);
+  // The edges are GetNeighbors' pairs.
+  v1::GetNeighborsRequest nr;
+  nr.set_scene_id("delaunay");
+  v1::GetNeighborsResponse n;
+  ASSERT_TRUE(client_->GetNeighbors(nr, &n).ok());
+  ASSERT_EQ(n.pairs_size(), d.edges_size());
+  for (int k = 0; k < n.pairs_size(); ++k) {
+    EXPECT_EQ(n.pairs(k).site_a(), d.edges(k).site_a());
+    EXPECT_EQ(n.pairs(k).site_b(), d.edges(k).site_b());
+    EXPECT_LT(n.pairs(k).site_a(), n.pairs(k).site_b());
+  }
+  // One site's neighbours only.
+  nr.set_site_id("p0");
+  ASSERT_TRUE(client_->GetNeighbors(nr, &n).ok());
+  ASSERT_GE(n.pairs_size(), 2);
+  for (const auto& p : n.pairs()) EXPECT_TRUE(p.site_a() == "p0" || p.site_b() == "p0");
+}
+
+// Boundaries of random points: both methods find the same pixel pairs; each boundary is
+// between two neighbours and its inner points are equidistant from them.
+TEST_F(AnalysisServerTest, BoundariesByBothMethods) {
+  Create("bounds", 400, v1::NEAREST, v1::EXACT);
+  SiteTable sites = RandomPoints(40, 11);
+  uint64_t v = Upsert("bounds", sites);
+  v1::GetBoundariesRequest r;
+  r.set_scene_id("bounds");
+  r.set_min_version(v);
+  v1::GetBoundariesResponse full, walk;
+  ASSERT_TRUE(client_->GetBoundaries(r, &full).ok());
+  r.set_method(v1::GetBoundariesRequest::CONTINUATION);
+  ASSERT_TRUE(client_->GetBoundaries(r, &walk).ok());
+  EXPECT_EQ(full.boundary_pixel_pairs(), walk.boundary_pixel_pairs());
+  EXPECT_EQ(full.boundaries_size(), walk.boundaries_size());
+  EXPECT_LT(walk.cells_visited(), full.cells_visited());
+  // Crossings are located exactly where the two pixels' sites are right (in EXACT mode, all
+  // but float ties), else at the pixels' midpoint.
+  size_t exact = 0, points = 0;
+  for (const auto& b : full.boundaries()) {
+    ASSERT_FALSE(b.site_a().empty());
+    const Vec2 pa = std::get<PointSite>(ById(sites, b.site_a()).geometry).p;
+    const Vec2 pb = std::get<PointSite>(ById(sites, b.site_b()).geometry).p;
+    for (int k = 2; k + 3 < b.xy_size(); k += 2) {  // not the ends: junctions are means
+      Vec2 p{b.xy(k), b.xy(k + 1)};
+      double gap = std::abs(Distance(p, pa) - Distance(p, pb));
+      ++points;
+      exact += gap < 1e-12;
+      EXPECT_LT(gap, 2.0 / 400);
+    }
+  }
+  EXPECT_GT(exact, points * 99 / 100);
+  // A window of the scene: fewer boundaries, all inside it.
+  r.set_method(v1::GetBoundariesRequest::FULL_SCAN);
+  r.mutable_window()->set_min_x(0.25);
+  r.mutable_window()->set_min_y(0.25);
+  r.mutable_window()->set_max_x(0.5);
+  r.mutable_window()->set_max_y(0.5);
+  v1::GetBoundariesResponse part;
+  ASSERT_TRUE(client_->GetBoundaries(r, &part).ok());
+  EXPECT_LT(part.boundary_pixel_pairs(), full.boundary_pixel_pairs() / 4);
+  for (const auto& b : part.boundaries()) {
+    for (int k = 0; k + 1 < b.xy_size(); k += 2) {
+      EXPECT_TRUE(b.xy(k) > 0.24 && b.xy(k) < 0.51 && b.xy(k + 1) > 0.24 && b.xy(k + 1) < 0.51);
+    }
+  }
+}
+
+// A zoom window rendered by the server: every pixel's site is within 2 eps (at the zoom's
+// resolution) of the exact nearest, even for a window outside the scene's.
+TEST_F(AnalysisServerTest, ZoomWindowsAgainstTheOracle) {
+  Create("zoom", 256, v1::NEAREST, v1::EXACT);
+  SiteTable sites = RandomPoints(60, 3);
+  sites.push_back({"seg", SegmentSite{{0.1, 0.9}, {0.6, 0.7}}});
+  uint64_t v = Upsert("zoom", sites);
+  for (auto [x0, y0, x1, y1] : {std::tuple{0.4, 0.4, 0.43, 0.41}, {-0.5, 0.2, 0.1, 0.5}}) {
+    v1::RenderWindowRequest r;
+    r.set_scene_id("zoom");
+    r.mutable_window()->set_min_x(x0);
+    r.mutable_window()->set_min_y(y0);
+    r.mutable_window()->set_max_x(x1);
+    r.mutable_window()->set_max_y(y1);
+    r.set_width_px(120);
+    r.set_height_px(40);
+    r.set_min_version(v);
+    v1::RenderWindowResponse z;
+    auto s = client_->RenderWindow(r, &z);
+    ASSERT_TRUE(s.ok()) << s.error_message();
+    ASSERT_EQ(z.ids_size(), 120 * 40);
+    Grid g{{x0, y0, x1, y1}, 120, 40};
+    for (uint32_t j = 0; j < 40; ++j) {
+      for (uint32_t i = 0; i < 120; ++i) {
+        uint32_t id = z.ids(j * 120 + i);
+        ASSERT_GT(id, 0u);
+        const Site& site = ById(sites, z.site_ids(id - 1));
+        Vec2 p = g.Center(i, j);
+        ExactNearest truth = NearestBruteForce(p, sites);
+        ASSERT_LE(ExactDistance(p, site.geometry) - truth.distance, 2 * z.max_error() + 1e-6)
+            << "pixel " << i << "," << j;
+        EXPECT_NEAR(z.distances(j * 120 + i), ExactDistance(p, site.geometry), 1e-4);
+      }
+    }
+  }
+  // Without a size: the scene's own pixels over the window, from its frame.
+  v1::RenderWindowRequest r;
+  r.set_scene_id("zoom");
+  v1::RenderWindowResponse all;
+  ASSERT_TRUE(client_->RenderWindow(r, &all).ok());
+  EXPECT_EQ(all.width_px(), 256u);
+  EXPECT_EQ(all.ids_size(), 256 * 256);
+  EXPECT_EQ(all.window().max_x(), 1);
+}
+
+// The clearance field bounds the true clearance from below, within the meshes' error, and
+// is 0 inside a solid polygon.
+TEST_F(AnalysisServerTest, ClearanceFieldBoundsTheDistance) {
+  Create("clear", 128);
+  SiteTable sites = RandomPoints(10, 5);
+  sites.push_back({"block", PolygonSite{{{0.3, 0.3}, {0.6, 0.32}, {0.5, 0.6}}}});
+  uint64_t v = Upsert("clear", sites);
+  v1::GetClearanceFieldRequest r;
+  r.set_scene_id("clear");
+  r.set_min_version(v);
+  v1::GetClearanceFieldResponse c;
+  ASSERT_TRUE(client_->GetClearanceField(r, &c).ok());
+  ASSERT_EQ(c.clearance_size(), 128 * 128);
+  const Grid g{{0, 0, 1, 1}, 128, 128};
+  const auto& tri = std::get<PolygonSite>(sites.back().geometry).vertices;
+  size_t inside = 0;
+  for (uint32_t j = 0; j < 128; ++j) {
+    for (uint32_t i = 0; i < 128; ++i) {
+      Vec2 p = g.Center(i, j);
+      float got = c.clearance(j * 128 + i);
+      if (InsidePolygon(p, tri)) {
+        ++inside;
+        EXPECT_EQ(got, 0);
+        continue;
+      }
+      double truth = NearestBruteForce(p, sites).distance;
+      ASSERT_LE(got, truth * (1 + 1e-6)) << i << "," << j;
+      ASSERT_GE(got, truth - 2.5 * g.pixel_size()) << i << "," << j;
+    }
+  }
+  EXPECT_GT(inside, 500u);
+}
+
+// Paths through a maze served by the server; then a wall moves and the plan follows.
+TEST_F(AnalysisServerTest, PlansThroughAMazeAndReplansWhenWallsMove) {
+  Create("maze", 512);
+  const int k = 6;
+  SiteTable walls = testing::Maze(k, 4);
+  uint64_t v = Upsert("maze", walls);
+  const double half = 0.5 / k, px = 1.0 / 512;
+  v1::PlanPathRequest r;
+  r.set_scene_id("maze");
+  r.mutable_start()->set_x(half);
+  r.mutable_start()->set_y(half);
+  r.mutable_goal()->set_x(1 - half);
+  r.mutable_goal()->set_y(1 - half);
+  r.set_robot_radius(half - 3 * px);
+  r.set_min_version(v);
+  v1::PlanPathResponse plan;
+  auto s = client_->PlanPath(r, &plan);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  EXPECT_GE(plan.min_clearance(), r.robot_radius());
+  auto check = [&](const v1::PlanPathResponse& p, const SiteTable& sites) {
+    for (int n = 1; n < p.path_size(); ++n) {
+      Vec2 a{p.path(n - 1).x(), p.path(n - 1).y()}, b{p.path(n).x(), p.path(n).y()};
+      int steps = std::max(1, int(Distance(a, b) / px * 10));
+      for (int t = 0; t <= steps; ++t) {
+        Vec2 q = a + (double(t) / steps) * (b - a);
+        ASSERT_GE(NearestBruteForce(q, sites).distance, p.min_clearance() * (1 - 1e-9));
+      }
+    }
+  };
+  check(plan, walls);
+  // Wider than the corridors (the start's among them): NOT_FOUND, saying why.
+  r.set_robot_radius(half + px);
+  s = client_->PlanPath(r, &plan);
+  EXPECT_EQ(s.error_code(), StatusCode::NOT_FOUND);
+  EXPECT_NE(s.error_message().find("is within robot_radius"), std::string::npos) << s.error_message();
+  // A wall across the first cell's only way out: now there is no path at all...
+  v1::PlanPathResponse before;
+  r.set_robot_radius(0.01);
+  ASSERT_TRUE(client_->PlanPath(r, &before).ok());
+  SiteTable boxed = walls;
+  boxed.push_back({"lid", SegmentSite{{0, 2 * half}, {2 * half, 2 * half}}});
+  boxed.push_back({"side", SegmentSite{{2 * half, 0}, {2 * half, 2 * half}}});
+  v = Upsert("maze", {boxed[boxed.size() - 2], boxed.back()});
+  r.set_min_version(v);
+  s = client_->PlanPath(r, &plan);
+  EXPECT_EQ(s.error_code(), StatusCode::NOT_FOUND) << s.error_message();
+  // ...and once the lid moves away again, the plan is back, on the new version.
+  v1::UpsertSitesRequest move;
+  move.set_scene_id("maze");
+  *move.add_sites() = ToProtoSite({"lid", SegmentSite{{5, 5}, {5.1, 5}}});
+  ASSERT_TRUE(client_->UpsertSites(move, &v).ok());
+  r.set_min_version(v);
+  s = client_->PlanPath(r, &plan);
+  ASSERT_TRUE(s.ok()) << s.error_message();
+  EXPECT_EQ(plan.version(), v);
+  SiteTable now = boxed;
+  now[now.size() - 2] = {"lid", SegmentSite{{5, 5}, {5.1, 5}}};
+  check(plan, now);
+}
+
+// Pick: the site whose geometry is nearest by Euclidean distance, exactly, weights aside.
+TEST_F(AnalysisServerTest, PickIsTheExactNearestObject) {
+  Create("pick", 256);
+  SiteTable sites = RandomPoints(50, 9);
+  sites.push_back({"seg", SegmentSite{{0.2, 0.2}, {0.8, 0.3}}});
+  sites.push_back({"poly", PolygonSite{{{0.6, 0.6}, {0.9, 0.62}, {0.7, 0.9}}}});
+  Site heavy{"heavy", PointSite{{0.5, 0.5}}};
+  heavy.additive = 10;  // weights do not change what is picked
+  sites.push_back(heavy);
+  Upsert("pick", sites);
+  std::mt19937_64 rng(1);
+  std::uniform_real_distribution<double> u(-0.2, 1.2);
+  for (int k = 0; k < 2000; ++k) {
+    Vec2 q{u(rng), u(rng)};
+    v1::PickRequest r;
+    r.set_scene_id("pick");
+    r.mutable_point()->set_x(q.x);
+    r.mutable_point()->set_y(q.y);
+    v1::PickResponse p;
+    ASSERT_TRUE(client_->Pick(r, &p).ok());
+    ASSERT_TRUE(p.found());
+    double best = INFINITY;
+    for (const Site& s : sites) best = std::min(best, ExactDistance(q, s.geometry));
+    ASSERT_EQ(p.distance(), best);
+    ASSERT_EQ(ExactDistance(q, ById(sites, p.site_id()).geometry), best);
+    FeatureHit f = NearestFeature(q, ById(sites, p.site_id()).geometry);
+    EXPECT_EQ(p.feature_index(), f.index);
+    // Beyond max_distance: nothing.
+    r.set_max_distance(best * 0.999);
+    ASSERT_TRUE(client_->Pick(r, &p).ok());
+    ASSERT_FALSE(p.found());
+  }
+}
+
+// A site squeezed between pixel centres holds no pixel: GetScene counts it, GetNeighbors
+// finds it by zooming, with its ring of neighbours.
+TEST_F(AnalysisServerTest, HiddenSitesAreReportedAndRecovered) {
+  Create("hidden", 64);
+  const double r = 1.0 / 64 / 10;
+  const Vec2 c{0.5 + 0.3 / 64, 0.5 + 0.2 / 64};
+  SiteTable sites = {{"centre", PointSite{c}}, {"far", PointSite{{0.1, 0.1}}}};
+  for (int k = 0; k < 6; ++k) {
+    sites.push_back({"ring" + std::to_string(k),
+                     PointSite{{c.x + r * std::cos(k * M_PI / 3), c.y + r * std::sin(k * M_PI / 3)}}});
+  }
+  uint64_t v = Upsert("hidden", sites);
+  v1::GetNeighborsRequest nr;
+  nr.set_scene_id("hidden");
+  nr.set_min_version(v);
+  v1::GetNeighborsResponse n;
+  ASSERT_TRUE(client_->GetNeighbors(nr, &n).ok());
+  ASSERT_EQ(n.hidden_size(), 1);
+  EXPECT_EQ(n.hidden(0).site_id(), "centre");
+  EXPECT_TRUE(n.hidden(0).recovered());
+  std::set<std::string> around;
+  for (const auto& p : n.pairs()) {
+    if (p.site_a() == "centre") around.insert(p.site_b());
+    if (p.site_b() == "centre") around.insert(p.site_a());
+  }
+  EXPECT_EQ(around.size(), 6u);
+  EXPECT_GT(n.zoom_windows(), 0u);
+  v1::Scene scene;
+  ASSERT_TRUE(client_->GetScene("hidden", &scene).ok());
+  EXPECT_EQ(scene.hidden_site_count(), 1u);
+  ASSERT_EQ(scene.hidden_site_ids_size(), 1);
+  EXPECT_EQ(scene.hidden_site_ids(0), "centre");
+  // Coarse: the pixels as they are; the centre has no pairs at all.
+  nr.set_coarse(true);
+  ASSERT_TRUE(client_->GetNeighbors(nr, &n).ok());
+  EXPECT_FALSE(n.hidden(0).recovered());
+  for (const auto& p : n.pairs()) EXPECT_NE(p.site_a(), "centre");
+}
+
+TEST_F(AnalysisServerTest, BadInputIsRefusedByName) {
+  Create("bad", 64);
+  Create("far", 64, v1::FARTHEST);
+  SiteTable sites = {{"a", PointSite{{0.2, 0.2}}}, {"s", SegmentSite{{0.5, 0.5}, {0.7, 0.6}}}};
+  Upsert("bad", sites);
+  Upsert("far", sites);
+  auto expect = [](const grpc::Status& s, StatusCode code, const std::string& words) {
+    EXPECT_EQ(s.error_code(), code) << s.error_message();
+    EXPECT_NE(s.error_message().find(words), std::string::npos) << s.error_message();
+  };
+  {
+    v1::GetBoundariesRequest r;
+    v1::GetBoundariesResponse out;
+    r.set_scene_id("nope");
+    expect(client_->GetBoundaries(r, &out), StatusCode::NOT_FOUND, "\"nope\"");
+    r.set_scene_id("bad");
+    r.set_method(static_cast<v1::GetBoundariesRequest::Method>(7));
+    expect(client_->GetBoundaries(r, &out), StatusCode::INVALID_ARGUMENT, "method is 7");
+    r.set_method(v1::GetBoundariesRequest::FULL_SCAN);
+    r.mutable_window()->set_min_x(5);
+    r.mutable_window()->set_max_x(6);
+    r.mutable_window()->set_max_y(1);
+    expect(client_->GetBoundaries(r, &out), StatusCode::INVALID_ARGUMENT, "holds no pixel centre");
+    r.clear_window();
+    r.set_min_version(99);
+    expect(client_->GetBoundaries(r, &out), StatusCode::OUT_OF_RANGE, "min_version 99");
+  }
+  {
+    v1::GetNeighborsRequest r;
+    v1::GetNeighborsResponse out;
+    r.set_scene_id("bad");
+    r.set_site_id("ghost");
+    expect(client_->GetNeighbors(r, &out), StatusCode::NOT_FOUND, "\"ghost\"");
+  }
+  {
+    v1::GetDelaunayRequest r;
+    v1::GetDelaunayResponse out;
+    r.set_scene_id("bad");
+    expect(client_->GetDelaunay(r, &out), StatusCode::FAILED_PRECONDITION, "\"s\" is not a point");
+  }
+  {
+    v1::RenderWindowRequest r;
+    v1::RenderWindowResponse out;
+    r.set_scene_id("bad");
+    r.set_width_px(5000);
+    r.set_height_px(10);
+    expect(client_->RenderWindow(r, &out), StatusCode::INVALID_ARGUMENT, "--max-side-px");
+    r.set_width_px(10);
+    r.mutable_window()->set_min_x(1);
+    r.mutable_window()->set_max_x(0);
+    r.mutable_window()->set_max_y(1);
+    expect(client_->RenderWindow(r, &out), StatusCode::INVALID_ARGUMENT, "window.min_x 1");
+    r.mutable_window()->set_max_x(NAN);
+    expect(client_->RenderWindow(r, &out), StatusCode::INVALID_ARGUMENT, "window.max_x");
+  }
+  {
+    v1::GetClearanceFieldRequest r;
+    v1::GetClearanceFieldResponse out;
+    r.set_scene_id("far");
+    expect(client_->GetClearanceField(r, &out), StatusCode::FAILED_PRECONDITION, "FARTHEST");
+  }
+  {
+    v1::PlanPathRequest r;
+    v1::PlanPathResponse out;
+    r.set_scene_id("bad");
+    expect(client_->PlanPath(r, &out), StatusCode::INVALID_ARGUMENT, "start is not set");
+    r.mutable_start()->set_x(2);
+    r.mutable_goal()->set_x(0.5);
+    r.mutable_goal()->set_y(0.9);
+    expect(client_->PlanPath(r, &out), StatusCode::INVALID_ARGUMENT, "start (2, 0) lies outside");
+    r.mutable_start()->set_x(0.9);
+    r.mutable_start()->set_y(0.1);
+    r.set_robot_radius(-1);
+    expect(client_->PlanPath(r, &out), StatusCode::INVALID_ARGUMENT, "robot_radius is -1");
+    r.set_robot_radius(0.01);
+    r.mutable_goal()->set_x(0.2);
+    r.mutable_goal()->set_y(0.205);
+    expect(client_->PlanPath(r, &out), StatusCode::NOT_FOUND, "goal (0.2, 0.205) is within robot_radius");
+    r.set_scene_id("far");
+    expect(client_->PlanPath(r, &out), StatusCode::FAILED_PRECONDITION, "FARTHEST");
+  }
+  {
+    v1::PickRequest r;
+    v1::PickResponse out;
+    r.set_scene_id("bad");
+    expect(client_->Pick(r, &out), StatusCode::INVALID_ARGUMENT, "point is not set");
+    r.mutable_point()->set_x(INFINITY);
+    expect(client_->Pick(r, &out), StatusCode::INVALID_ARGUMENT, "inf");
+    r.mutable_point()->set_x(0);
+    r.set_max_distance(-2);
+    expect(client_->Pick(r, &out), StatusCode::INVALID_ARGUMENT, "max_distance is -2");
+  }
+}
+
+}  // namespace
+}  // namespace gvd
