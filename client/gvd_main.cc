@@ -19,73 +19,11 @@
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
 #include "grpc/health/v1/health.grpc.pb.h"
+#include "client/cli.h"
 #include "gvd/client.h"
 
+namespace gvd::cli {
 namespace {
-
-constexpr const char* kUsage = R"(usage: gvd [--server HOST:PORT] [--scene ID] [--json] [--timeout SECONDS] COMMAND
-
-Scenes:
-  gvd scene create ID --window MIN_X,MIN_Y,MAX_X,MAX_Y --size WIDTHxHEIGHT [--max-error E]
-                     [--render-mode mesh|exact] [--diagram nearest|farthest]
-  gvd scene get ID
-  gvd scene ls
-  gvd scene rm ID
-Sites (of the scene named by --scene, default "default"):
-  gvd sites add ID X Y [ID X Y ...]              points
-  gvd sites add segment ID X,Y X,Y
-  gvd sites add polyline ID X,Y X,Y [X,Y ...]
-  gvd sites add polygon ID X,Y X,Y X,Y [X,Y ...] [--side outside|inside]
-  gvd sites add bezier ID X,Y X,Y X,Y [X,Y] [--tolerance T]
-      any of them with [--additive A] [--multiplicative M] [--max-distance R]
-  gvd sites add --file PATH   JSON: [{"id": "a", "point": {"x": 1, "y": 2}}, ...] or
-                              {"sites": [...]} (every kind: "segment", "polyline",
-                              "polygon", "bezier", as in the API); GeoJSON: a
-                              FeatureCollection of Point, LineString and Polygon (outer
-                              ring) features, id from the feature's "id" or properties.id,
-                              weights from properties additive_weight,
-                              multiplicative_weight, max_distance, side; or text lines
-                              "ID X Y"; PATH - reads stdin
-  gvd sites rm ID [ID ...]
-  gvd sites ls
-Images:
-  gvd render SCENE -o OUT [--layer ids|features|distance] [--format png|exr]
-             [--window MIN_X,MIN_Y,MAX_X,MAX_Y] [--draw-sites] [--min-version V]
-      writes the scene's frame once its current version is rendered (or from
-      --min-version V on); the format follows OUT's extension unless given
-Health:
-  gvd health           the server's grpc.health.v1 status; exit 0 when SERVING
-
-Queries:
-  gvd nearest X Y [X Y ...] [--min-version V] [--exact]
-      prints, per point, the nearest site, its exact distance, and the error bound: no
-      site is closer than distance - error_bound; --exact certifies each answer exact
-
-Flags:
-  --server HOST:PORT   default 127.0.0.1:50051, or $GVD_SERVER
-  --scene ID           default "default", or $GVD_SCENE
-  --json               print responses as JSON
-  --timeout SECONDS    per call (default 30)
-  --token TOKEN        bearer token, or $GVD_TOKEN
-  --tls-ca FILE        use TLS, trusting this CA (PEM); --tls-cert FILE --tls-key FILE add a
-                       client certificate
-)";
-
-struct Args {
-  std::string server = "127.0.0.1:50051";
-  std::string scene = "default";
-  bool json = false;
-  bool exact = false;
-  double timeout = 30;
-  std::string token, tls_ca, tls_cert, tls_key;
-  std::map<std::string, std::string> options;  // command flags such as --window
-  std::vector<std::string> words;
-};
-
-[[noreturn]] void Usage(const std::string& message) {
-  std::fprintf(stderr, "gvd: %s\n\n%s", message.c_str(), kUsage);
-  std::exit(2);
-}
 
 Args ParseArgs(int argc, char** argv) {
   Args a;
@@ -107,7 +45,8 @@ Args ParseArgs(int argc, char** argv) {
       (arg == "--json" ? a.json : a.exact) = true;
       continue;
     }
-    if (arg == "--draw-sites") {
+    if (arg == "--draw-sites" || arg == "--coarse" || arg == "--adaptive" || arg == "--mean" ||
+        arg == "--embedded") {
       a.options[arg] = "1";
       continue;
     }
@@ -134,56 +73,15 @@ Args ParseArgs(int argc, char** argv) {
                arg == "--min-version" || arg == "--render-mode" || arg == "--diagram" ||
                arg == "--side" || arg == "--tolerance" || arg == "--additive" ||
                arg == "--multiplicative" || arg == "--max-distance" || arg == "--output" ||
-               arg == "--layer" || arg == "--format") {
+               arg == "--layer" || arg == "--format" || arg == "--method" || arg == "--from" ||
+               arg == "--to" || arg == "--radius" || arg == "--prefer" || arg == "--tiles" ||
+               arg == "--seed") {
       a.options[arg] = value;
     } else {
       Usage(absl::StrCat("unknown flag ", arg));
     }
   }
   return a;
-}
-
-double Number(const std::string& word, const std::string& what) {
-  double v;
-  if (!absl::SimpleAtod(word, &v)) Usage(absl::StrCat(what, " must be a number, not \"", word, "\""));
-  return v;
-}
-
-// --window MIN_X,MIN_Y,MAX_X,MAX_Y.
-void ParseWindow(const std::string& text, gvd::v1::Window* w) {
-  std::vector<std::string> c = absl::StrSplit(text, ',');
-  if (c.size() != 4) Usage(absl::StrCat("--window needs MIN_X,MIN_Y,MAX_X,MAX_Y, not ", text));
-  w->set_min_x(Number(c[0], "--window MIN_X"));
-  w->set_min_y(Number(c[1], "--window MIN_Y"));
-  w->set_max_x(Number(c[2], "--window MAX_X"));
-  w->set_max_y(Number(c[3], "--window MAX_Y"));
-}
-
-int Fail(const grpc::Status& s) {
-  static const char* kNames[] = {"OK", "CANCELLED", "UNKNOWN", "INVALID_ARGUMENT",
-                                 "DEADLINE_EXCEEDED", "NOT_FOUND", "ALREADY_EXISTS",
-                                 "PERMISSION_DENIED", "RESOURCE_EXHAUSTED", "FAILED_PRECONDITION",
-                                 "ABORTED", "OUT_OF_RANGE", "UNIMPLEMENTED", "INTERNAL",
-                                 "UNAVAILABLE", "DATA_LOSS", "UNAUTHENTICATED"};
-  int code = s.error_code();
-  std::fprintf(stderr, "gvd: %s: %s\n", code >= 0 && code <= 16 ? kNames[code] : "?",
-               s.error_message().c_str());
-  return 1;
-}
-
-void PrintJson(const google::protobuf::Message& m) {
-  std::string out;
-  google::protobuf::util::JsonPrintOptions options;
-  options.add_whitespace = true;
-  options.preserve_proto_field_names = true;
-  (void)google::protobuf::util::MessageToJsonString(m, &out, options);
-  std::cout << out;
-}
-
-// The shortest decimal form that reads back as v.
-std::string Num(double v) {
-  char buf[32];
-  return std::string(buf, std::to_chars(buf, buf + sizeof buf, v).ptr);
 }
 
 void PrintScene(const gvd::v1::Scene& s) {
@@ -346,6 +244,7 @@ int Run(const Args& a) {
   if (!a.tls_cert.empty()) options.tls_cert = read("--tls-cert", a.tls_cert);
   if (!a.tls_key.empty()) options.tls_key = read("--tls-key", a.tls_key);
   auto client = gvd::Client::Connect(a.server, options);
+  if (int rc = RunAnalysis(a, *client); rc >= 0) return rc;
   auto need = [&](size_t n, const char* form) {
     if (w.size() != n) Usage(absl::StrCat("usage: gvd ", form));
   };
@@ -625,5 +524,6 @@ int Run(const Args& a) {
 }
 
 }  // namespace
+}  // namespace gvd::cli
 
-int main(int argc, char** argv) { return Run(ParseArgs(argc, argv)); }
+int main(int argc, char** argv) { return gvd::cli::Run(gvd::cli::ParseArgs(argc, argv)); }

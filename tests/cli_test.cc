@@ -1,7 +1,12 @@
 // The gvd command-line tool against the real server: the README's tour, files, errors.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cstdio>
+#include <map>
+#include <random>
+#include <set>
+#include <vector>
 #include <fstream>
 #include <sstream>
 
@@ -172,6 +177,149 @@ TEST_F(CliTest, ErrorsAreReportedWithTheirStatus) {
   r = Gvd("frobnicate");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.out.find("unknown command"), std::string::npos) << r.out;
+}
+
+// The structure and planning commands on a small scene: their output is checked against
+// what the scene makes certain (three points: one triangle, three pairs).
+TEST_F(CliTest, StructurePlanningAndPicking) {
+  ASSERT_EQ(Gvd("scene create tri --window 0,0,1,1 --size 256x256").exit_code, 0);
+  ASSERT_EQ(Gvd("--scene tri sites add a 0.2 0.2 b 0.8 0.25 c 0.5 0.8").exit_code, 0);
+  Result r = Gvd("--scene tri neighbors --min-version 2");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("a b\na c\nb c\n"), std::string::npos) << r.out;
+  r = Gvd("--scene tri neighbors c");
+  EXPECT_NE(r.out.find("a c\nb c\n"), std::string::npos) << r.out;
+  r = Gvd("--scene tri delaunay");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("a b c\n"), std::string::npos) << r.out;
+  r = Gvd("--scene tri boundaries --method continuation");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("3 boundaries"), std::string::npos) << r.out;
+  r = Gvd("--scene tri pick 0.21 0.2");
+  {
+    std::istringstream f(r.out);
+    std::string site, kind;
+    double distance;
+    uint32_t index;
+    f >> site >> distance >> kind >> index;
+    EXPECT_EQ(site, "a") << r.out;
+    EXPECT_EQ(distance, Distance({0.21, 0.2}, {0.2, 0.2})) << r.out;
+    EXPECT_EQ(kind, "vertex");
+  }
+  r = Gvd("--scene tri pick 0.5 0.5 --max-distance 0.01");
+  EXPECT_EQ(r.out, "(nothing within reach)\n");
+  std::string path = server_->dir() + "/path.png";
+  r = Gvd("--scene tri plan --from 0.05,0.05 --to 0.95,0.95 --radius 0.05 -o " + path);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("clearance at least"), std::string::npos) << r.out;
+  std::ifstream in(path, std::ios::binary);
+  std::string magic(8, '\0');
+  in.read(magic.data(), 8);
+  EXPECT_EQ(magic, "\x89PNG\r\n\x1a\n");
+  r = Gvd("--scene tri plan --from 0.2,0.21 --to 0.9,0.9 --radius 0.05");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("NOT_FOUND: start (0.2, 0.21) is within robot_radius 0.05 of site \"a\""),
+            std::string::npos)
+      << r.out;
+  for (const char* out : {"/zoom.png", "/clearance.exr"}) {
+    std::string file = server_->dir() + out;
+    r = Gvd(std::string("--scene tri ") +
+            (out[1] == 'z' ? "zoom --window 0.4,0.2,0.6,0.3 --size 100x50 -o " : "clearance -o ") + file);
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    std::ifstream f(file, std::ios::binary);
+    std::string head(4, '\0');
+    f.read(head.data(), 4);
+    EXPECT_EQ(head, out[1] == 'z' ? std::string("\x89PNG") : std::string("\x76\x2f\x31\x01")) << out;
+  }
+}
+
+// A P6 PPM (which OpenImageIO reads and writes): width, height, then RGB bytes top row first.
+struct Ppm {
+  int w = 0, h = 0;
+  std::vector<unsigned char> rgb;
+  unsigned char* at(int x, int y) { return &rgb[(size_t(y) * w + x) * 3]; }
+};
+
+void WritePpm(const std::string& path, const Ppm& p) {
+  std::ofstream out(path, std::ios::binary);
+  out << "P6\n" << p.w << " " << p.h << "\n255\n";
+  out.write(reinterpret_cast<const char*>(p.rgb.data()), std::streamsize(p.rgb.size()));
+}
+
+Ppm ReadPpm(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string magic;
+  int max = 0;
+  Ppm p;
+  in >> magic >> p.w >> p.h >> max;
+  in.get();
+  p.rgb.resize(size_t(p.w) * p.h * 3);
+  in.read(reinterpret_cast<char*>(p.rgb.data()), std::streamsize(p.rgb.size()));
+  EXPECT_EQ(magic, "P6");
+  return p;
+}
+
+// An image with a smooth left half (a gradient) and a detailed right half (noise): a mosaic
+// keeps only colours of the image, one per tile; --adaptive puts its tiles where the detail
+// is; the server and the embedded renderer make the same mosaic.
+TEST_F(CliTest, MosaicsFromTheServerAndEmbedded) {
+  Ppm in{240, 160, {}};
+  in.rgb.resize(240 * 160 * 3);
+  std::mt19937 rng(2);
+  for (int y = 0; y < in.h; ++y) {
+    for (int x = 0; x < in.w; ++x) {
+      unsigned char* p = in.at(x, y);
+      if (x < in.w / 2) {
+        p[0] = static_cast<unsigned char>(x * 2);
+        p[1] = static_cast<unsigned char>(y);
+        p[2] = 90;
+      } else {
+        p[0] = static_cast<unsigned char>(rng() % 256);
+        p[1] = static_cast<unsigned char>(rng() % 256);
+        p[2] = static_cast<unsigned char>(rng() % 256);
+      }
+    }
+  }
+  const std::string src = server_->dir() + "/photo.ppm";
+  WritePpm(src, in);
+  auto colours = [](Ppm& p, int x0, int x1) {
+    std::set<std::array<unsigned char, 3>> c;
+    for (int y = 0; y < p.h; ++y) {
+      for (int x = x0; x < x1; ++x) c.insert({p.at(x, y)[0], p.at(x, y)[1], p.at(x, y)[2]});
+    }
+    return c;
+  };
+  std::set<std::array<unsigned char, 3>> all = colours(in, 0, in.w);
+  std::map<std::string, Ppm> made;
+  for (const char* flags : {"--embedded", "", "--adaptive --embedded"}) {
+    const std::string out = server_->dir() + "/mosaic" + std::to_string(made.size()) + ".ppm";
+    Result r = Gvd("mosaic " + src + " " + out + " --tiles 300 --seed 5 " + flags);
+    ASSERT_EQ(r.exit_code, 0) << flags << ": " << r.out;
+    EXPECT_NE(r.out.find("300"), std::string::npos) << r.out;
+    Ppm m = ReadPpm(out);
+    ASSERT_EQ(m.w, in.w);
+    ASSERT_EQ(m.h, in.h);
+    auto used = colours(m, 0, m.w);
+    EXPECT_LE(used.size(), 300u) << flags;
+    EXPECT_GT(used.size(), 200u) << flags;
+    for (const auto& c : used) ASSERT_TRUE(all.count(c)) << flags << ": a colour not in the image";
+    made[flags] = m;
+  }
+  EXPECT_EQ(made["--embedded"].rgb, made[""].rgb) << "server and embedded mosaics differ";
+  // Random tiles fall about evenly; adaptive ones crowd the noisy half.
+  Ppm& random = made["--embedded"];
+  Ppm& adaptive = made["--adaptive --embedded"];
+  size_t random_left = colours(random, 0, 100).size(), random_right = colours(random, 140, 240).size();
+  size_t adaptive_left = colours(adaptive, 0, 100).size(), adaptive_right = colours(adaptive, 140, 240).size();
+  EXPECT_LT(random_right, 2 * random_left);
+  EXPECT_GT(adaptive_right, 4 * adaptive_left);
+  // Tile means: the smooth half's tiles average a linear gradient, so they keep its colours
+  // near; a bad input name is a clear error.
+  Result r = Gvd("mosaic " + src + " " + server_->dir() + "/mean.ppm --tiles 50 --mean --embedded");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  r = Gvd("mosaic /nonexistent.png " + server_->dir() + "/x.png --embedded");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("cannot read /nonexistent.png"), std::string::npos) << r.out;
 }
 
 TEST_F(CliTest, HealthSaysServing) {

@@ -1,0 +1,58 @@
+// Shared by the gvd command-line tool's source files: its arguments, usage, parsing of
+// numbers, points and windows, and output.
+#pragma once
+
+#include <google/protobuf/message.h>
+#include <grpcpp/support/status.h>
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "gvd/client.h"
+#include "gvd/v1/voronoi.pb.h"
+
+namespace gvd::cli {
+
+struct Args {
+  std::string server = "127.0.0.1:50051";
+  std::string scene = "default";
+  bool json = false;
+  bool exact = false;
+  double timeout = 30;
+  std::string token, tls_ca, tls_cert, tls_key;
+  std::map<std::string, std::string> options;  // command flags such as --window
+  std::vector<std::string> words;
+};
+
+// Prints the message and the usage to stderr and exits with 2.
+[[noreturn]] void Usage(const std::string& message);
+// The usage text (gvd --help).
+extern const char* const kUsage;
+
+// The number in `word`, or Usage naming `what`.
+double Number(const std::string& word, const std::string& what);
+// MIN_X,MIN_Y,MAX_X,MAX_Y (of --window).
+void ParseWindow(const std::string& text, v1::Window* w);
+// X,Y (of a flag such as --from).
+void ParsePoint(const std::string& text, const std::string& flag, v1::Point* p);
+// WIDTHxHEIGHT in pixels (of --size).
+void ParseSize(const std::string& text, uint32_t* width, uint32_t* height);
+// The value of a command flag, or null.
+const std::string* Option(const Args& a, const char* name);
+// --min-version V, or 0.
+uint64_t MinVersion(const Args& a);
+
+// Prints "gvd: CODE: message" to stderr; returns 1.
+int Fail(const grpc::Status& s);
+void PrintJson(const google::protobuf::Message& m);
+// The shortest decimal form that reads back as v.
+std::string Num(double v);
+
+// The commands on a diagram's structure and its applications (cli_analysis.cc): boundaries,
+// neighbors, delaunay, zoom, clearance, plan, pick, mosaic. Returns the exit code, or -1 when
+// the command is none of them.
+int RunAnalysis(const Args& a, Client& client);
+
+}  // namespace gvd::cli

@@ -1,0 +1,59 @@
+// Voronoi mosaics of images (paper sec. 7.3): each tile a Voronoi region of a point site,
+// coloured from the image. Images go in and out through OpenImageIO.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "render/geometry.h"
+
+namespace gvd {
+
+// An image's pixels as floats, row-major from the top row, `channels` per pixel.
+struct Image {
+  uint32_t width = 0, height = 0, channels = 0;
+  std::vector<float> pixels;
+  std::string format;  // the file's pixel type (OpenImageIO's name), to write back alike
+
+  float at(uint32_t x, uint32_t row, uint32_t c) const {
+    return pixels[(size_t{row} * width + x) * channels + c];
+  }
+};
+
+absl::StatusOr<Image> ReadImage(const std::string& path);
+absl::Status WriteImage(const std::string& path, const Image& image);
+
+struct MosaicOptions {
+  uint32_t tiles = 1000;
+  // Sites drawn with density proportional to the image's gradient (plus a tenth of its mean,
+  // so that flat areas keep some tiles): more, smaller tiles where there is detail.
+  bool adaptive = false;
+  uint64_t seed = 1;
+  // Colour each tile with the mean of its pixels instead of the pixel at its site.
+  bool mean = false;
+};
+
+// The sites of a mosaic of `image`: in the plane of its grid, [0, width] x [0, height] with y
+// up (the image's top row is the grid's last), one point per tile.
+std::vector<Vec2> MosaicSites(const Image& image, const MosaicOptions& options);
+
+// Computes the discrete Voronoi diagram of `sites` on `grid`: per pixel, 1 + the index of
+// its nearest site (row-major from row 0, the bottom), or 0.
+using DiagramFn = std::function<absl::StatusOr<std::vector<uint32_t>>(
+    const Grid& grid, const std::vector<Vec2>& sites)>;
+
+// The mosaic of `image` on the diagram of `sites`: each pixel the colour of its tile.
+absl::StatusOr<Image> MakeMosaic(const Image& image, const std::vector<Vec2>& sites,
+                                 const std::vector<uint32_t>& ids, const MosaicOptions& options);
+
+// The grid of an image: its pixels, over [0, width] x [0, height].
+Grid ImageGrid(const Image& image);
+
+// The diagram rendered here, on this process's own EGL context (a GPU, else llvmpipe).
+absl::StatusOr<std::vector<uint32_t>> EmbeddedDiagram(const Grid& grid,
+                                                      const std::vector<Vec2>& sites);
+
+}  // namespace gvd
