@@ -134,6 +134,8 @@ std::optional<NearestAnswer> Frame::Nearest(Vec2 q) const {
   }
   // No site's value at q beats this.
   double limit = nearest ? -INFINITY : INFINITY;
+  double runner_up = nearest ? INFINITY : -INFINITY;
+  bool runner_up_none = true;
   const uint32_t is[2] = {i0, i1}, js[2] = {j0, j1};
   for (uint32_t a = 0; a < 2; ++a) {
     for (uint32_t b = 0; b < 2; ++b) {
@@ -152,7 +154,14 @@ std::optional<NearestAnswer> Frame::Nearest(Vec2 q) const {
       if (!std::isfinite(value)) continue;
       if (!best.found || Beats(diagram, value, best.distance) ||
           (value == best.distance && index < best.site_index)) {
+        if (best.found && (Beats(diagram, best.distance, runner_up) || runner_up_none)) {
+          runner_up = best.distance;
+          runner_up_none = false;
+        }
         best = {index, value, 0, true};
+      } else if (runner_up_none || Beats(diagram, value, runner_up)) {
+        runner_up = value;
+        runner_up_none = false;
       }
     }
   }
@@ -161,6 +170,38 @@ std::optional<NearestAnswer> Frame::Nearest(Vec2 q) const {
   if (!best.found) return score_all();
   best.error_bound =
       std::max(0.0, nearest ? best.distance - limit : limit - best.distance) + error_.curve;
+  best.runner_up = runner_up;
+  return best;
+}
+
+NearestAnswer Frame::Refine(Vec2 q, const NearestAnswer& answer) const {
+  NearestAnswer best = answer;
+  best.runner_up = error_.diagram == Diagram::kNearest ? INFINITY : -INFINITY;
+  auto consider = [&](uint32_t s) {
+    const Site* site = sites_.get(s);
+    if (site == nullptr || s == best.site_index) return;
+    double value = SiteValue(q, *site);
+    if (!std::isfinite(value)) return;
+    if (Beats(error_.diagram, value, best.distance) ||
+        (value == best.distance && s < best.site_index)) {
+      best.runner_up = best.distance;
+      best.site_index = s;
+      best.distance = value;
+    } else if (Beats(error_.diagram, value, best.runner_up)) {
+      best.runner_up = value;
+    }
+  };
+  if (error_.diagram == Diagram::kNearest) {
+    // A site beats value V only where m d + a < V, so d < (V - least a) / least m.
+    const SiteLookup& l = lookup();
+    std::vector<uint32_t> near;
+    l.index.Within(q, (answer.distance - l.least.additive) / l.least.multiplicative * (1 + 1e-12),
+                   &near);
+    for (uint32_t s : near) consider(s);
+  } else {
+    for (uint32_t s = 0; s < sites_.size(); ++s) consider(s);
+  }
+  best.error_bound = error_.curve;
   return best;
 }
 

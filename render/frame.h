@@ -3,6 +3,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -56,6 +57,12 @@ struct NearestAnswer {
   double distance = 0;      // that site's exact value at the query point
   double error_bound = 0;   // no site's value beats distance by more than error_bound
   bool found = true;        // false: no site is a candidate at the point (certain)
+  // The value at q of the best other site stored around q (+inf, or -inf in kFarthest, when
+  // there is none): when it is within error_bound of distance, either site may be the best.
+  double runner_up = INFINITY;
+  bool ambiguous() const {
+    return found && error_bound > 0 && std::abs(runner_up - distance) <= error_bound;
+  }
 };
 
 // Immutable once made; shared between threads by shared_ptr. Pixels live in square tiles
@@ -124,6 +131,12 @@ class Frame {
   // Returns nullopt when the frame is empty. q may lie anywhere; outside the window the
   // bound grows with the distance to the nearest pixel centre.
   std::optional<NearestAnswer> Nearest(Vec2 q) const;
+
+  // The exact best site at q among the frame's sites (certified: error_bound is only the
+  // Bezier flattening's tolerance, `curve`), given any answer with a finite value there:
+  // the sites that can beat it come from lookup() (kNearest), or are all scored (kFarthest).
+  // For answers that are ambiguous(): paper sec. 6.2, refining before answering.
+  NearestAnswer Refine(Vec2 q, const NearestAnswer& answer) const;
 
  private:
   Frame(Grid grid, uint64_t version, double eps) : grid_(grid), version_(version), eps_(eps) {}

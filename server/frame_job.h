@@ -26,6 +26,7 @@ struct NearestQuery {
   std::shared_ptr<Scene> scene;
   std::vector<Vec2> points;
   bool exact = false;
+  bool skip_refinement = false;  // leave ambiguous raster answers as they are
   uint64_t min_version = 0;
   // When set, the job hands the frame to this instead of answering points (RenderImage).
   std::function<grpc::Status(const Frame&)> on_frame;
@@ -140,6 +141,7 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
           missing = true;
           return;
         }
+        if (!query_.skip_refinement && a->ambiguous()) a = frame_->Refine(query_.points[i], *a);
         if (!a->found) {
           rows_[i] = {nullptr, INFINITY, 0, true, FeatureKind::kVertex, 0};
           continue;

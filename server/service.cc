@@ -399,6 +399,7 @@ Status VoronoiService::ParseNearest(const v1::FindNearestRequest& request,
   }
   if (auto s = WaitFor(request.min_version(), query); !s.ok()) return s;
   query->exact = request.exact() || outside;
+  query->skip_refinement = request.skip_refinement();
   if (query->exact && query->scene->site_count() == 0) {
     return Status(StatusCode::FAILED_PRECONDITION,
                   absl::StrCat("scene \"", query->scene->id(), "\" has no sites at version ",

@@ -399,6 +399,60 @@ TEST_F(AnalysisServerTest, HiddenSitesAreReportedAndRecovered) {
   for (const auto& p : n.pairs()) EXPECT_NE(p.site_a(), "centre");
 }
 
+// A coarse raster of many points leaves many answers ambiguous: the best two sites around the
+// query within the bound of each other. Those come back certified and right; asked to skip
+// the refinement, the raster's answers stay within their bound but are more often the wrong
+// site.
+TEST_F(AnalysisServerTest, AmbiguousAnswersAreRefined) {
+  {
+    // Meshes four pixels off: many pixels hold a close second.
+    v1::CreateSceneRequest c = testing::UnitScene("ambiguous", 64, 64);
+    c.set_max_error(4.0 / 64);
+    v1::Scene scene;
+    ASSERT_TRUE(client_->CreateScene(c, &scene).ok());
+  }
+  SiteTable sites = RandomPoints(400, 13);
+  uint64_t v = Upsert("ambiguous", sites);
+  std::mt19937_64 rng(14);
+  std::uniform_real_distribution<double> u(0, 1);
+  v1::FindNearestRequest r;
+  r.set_scene_id("ambiguous");
+  r.set_min_version(v);
+  std::vector<Vec2> qs;
+  for (int k = 0; k < 5000; ++k) {
+    qs.push_back({u(rng), u(rng)});
+    r.add_xy(qs.back().x);
+    r.add_xy(qs.back().y);
+  }
+  size_t wrong[2] = {0, 0}, certified[2] = {0, 0};
+  for (int skip : {0, 1}) {
+    r.set_skip_refinement(skip);
+    v1::FindNearestResponse a;
+    ASSERT_TRUE(client_->FindNearest(r, &a).ok());
+    const auto& p = a.packed();
+    for (size_t k = 0; k < qs.size(); ++k) {
+      ExactNearest truth = NearestBruteForce(qs[k], sites);
+      const double got = p.distance(int(k));
+      ASSERT_GE(got, truth.distance);
+      ASSERT_LE(got - truth.distance, p.error_bound(int(k)));
+      const bool right = got == truth.distance;
+      wrong[skip] += !right;
+      if (p.exact(int(k))) {
+        ++certified[skip];
+        ASSERT_TRUE(right) << "a certified answer is wrong at " << qs[k].x << "," << qs[k].y;
+      }
+    }
+  }
+  std::printf("of 5000 answers: refined %zu wrong, %zu certified; raster only %zu wrong, %zu certified\n",
+              wrong[0], certified[0], wrong[1], certified[1]);
+  // Refining only replaces answers by exact ones, so it can only mend: here it does, though
+  // answers whose four pixels hold a single site are not ambiguous and stay as they are.
+  EXPECT_GT(wrong[1], 20u) << "the raster alone should sometimes pick a close second";
+  EXPECT_LT(wrong[0], wrong[1]);
+  EXPECT_GT(certified[0], 1000u);
+  EXPECT_EQ(certified[1], 0u);
+}
+
 TEST_F(AnalysisServerTest, BadInputIsRefusedByName) {
   Create("bad", 64);
   Create("far", 64, v1::FARTHEST);
