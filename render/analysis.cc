@@ -136,20 +136,21 @@ BoundaryEdges FindBoundaryEdges(const IdImage& image, BoundaryMethod method) {
     seed(c.V(0, j));
     seed(c.V(w - 1, j));
   }
-  std::unordered_set<uint64_t> visited;
+  std::vector<uint8_t> visited(w > 1 && h > 1 ? size_t{w - 1} * (h - 1) : 0, 0);
   while (!queue.empty()) {
     uint64_t code = queue.front();
     queue.pop_front();
     uint64_t cells[2];
     c.Cells(code, cells);
     for (uint64_t cell : cells) {
-      if (cell == EdgeCodec::kNone || !visited.insert(cell).second) continue;
+      if (cell == EdgeCodec::kNone || visited[cell]) continue;
+      visited[cell] = 1;
+      ++e.cells_visited;
       uint64_t sides[4];
       c.Sides(cell, sides);
       for (uint64_t s : sides) seed(s);
     }
   }
-  e.cells_visited = visited.size();
   return e;
 }
 

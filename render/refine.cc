@@ -209,23 +209,29 @@ class Refiner {
     return true;
   }
 
-  // Whether the cell at (i, j) is where three or more regions meet (or two, crosswise) and
-  // a fourth site comes within delta of the best value at its centre: four nearly equidistant
-  // sites, whose pairs the raster cannot tell apart. delta covers the distance from the
-  // cell's centre to a Voronoi vertex in it (each site's value changes by at most the largest
-  // weight per unit of distance) and the meshes' error. A cell on the border of the rect
-  // asked about is doubtful with two regions and a third site within three times delta: a
-  // Voronoi vertex can hide in the half pixel between its centres and the border.
+  // Whether the cell at (i, j), on a boundary, is where four sites are nearly equidistant:
+  // three or more sites among the 4x4 pixels around it (a thin region may show only a pixel
+  // or two near where it meets the others), and four of them within delta of the best value
+  // at the cell's centre. delta covers the distance from the centre to a Voronoi vertex in
+  // the cell (a pixel diagonal: each value changes by at most the largest weight per unit of
+  // distance), a Voronoi edge up to half a pixel long between two such vertices (one pixel:
+  // the fourth site's value gains at most twice its length) and the meshes' error. A cell on
+  // the border of the rect asked about is doubtful with two sites and a third within three
+  // pixel diagonals more: a Voronoi vertex can hide in the half pixel between its centres
+  // and the border.
   bool Doubtful(const IdImage& image, const ErrorModel& e, uint32_t i, uint32_t j, bool edge) {
-    const uint32_t corner[4] = {image.at(i, j), image.at(i + 1, j), image.at(i, j + 1),
-                                image.at(i + 1, j + 1)};
-    uint32_t ids[4];
+    // The sites of the 4x4 pixels around the cell (a thin region may show only a pixel or
+    // two from where it meets the others).
+    const uint32_t w = image.width(), h = image.height();
+    uint32_t ids[16];
     int n = 0;
-    for (uint32_t id : corner) {
-      if (id != 0 && std::find(ids, ids + n, id) == ids + n) ids[n++] = id;
+    for (uint32_t y = j >= 1 ? j - 1 : 0; y <= std::min(h - 1, j + 2); ++y) {
+      for (uint32_t x = i >= 1 ? i - 1 : 0; x <= std::min(w - 1, i + 2); ++x) {
+        uint32_t id = image.at(x, y);
+        if (id != 0 && std::find(ids, ids + n, id) == ids + n) ids[n++] = id;
+      }
     }
-    const bool crosswise = n == 2 && corner[0] == corner[3] && corner[1] == corner[2];
-    if (n < 2 || (n < 3 && !crosswise && !edge)) return false;
+    if (n < (edge ? 2 : 3)) return false;
     const int enough = edge ? 3 : 4;
     const Vec2 c = 0.5 * (image.grid.Center(i, j) + image.grid.Center(i + 1, j + 1));
     const SlotTable& sites = frame_.sites();
@@ -237,7 +243,8 @@ class Refiner {
     }
     if (!std::isfinite(best)) return true;
     const double delta =
-        (edge ? 3 : 1) * image.grid.pixel_diagonal() * e.lipschitz + 2 * e.max_excess;
+        ((edge ? 3 : 1) * image.grid.pixel_diagonal() + image.grid.pixel_size()) * e.lipschitz +
+        e.max_excess;
     int close = 0;
     auto near = [&](const Site& s) {
       double v = SiteValue(c, s);

@@ -15,14 +15,16 @@
 namespace gvd {
 
 // Renders the frame's sites at each grid (render/zoom.h), same slots. The refinement calls it
-// with batches of grids, one level of zoom at a time.
+// with batches of grids, one level of zoom at a time. Give it EXACT mode: near four nearly
+// equidistant sites a mesh's error, even at a zoom's finer eps, blurs which is nearest over
+// a band much wider than the structure sought.
 using ZoomFn = std::function<absl::StatusOr<std::vector<std::shared_ptr<const Frame>>>(
     const std::vector<Grid>& grids)>;
 
 struct RefineOptions {
   uint32_t block_px = 8;      // zoom windows of doubtful cells merge up to this side (pixels)
-  uint32_t factor = 16;       // each zoom level has this many times the resolution of its parent
-  uint32_t max_depth = 4;     // zoom levels below the frame; 0 turns refinement off
+  uint32_t factor = 8;        // each zoom level has this many times the resolution of its parent
+  uint32_t max_depth = 5;     // zoom levels below the frame (8^5: 1/32768 pixel); 0: none
   size_t max_windows = 200000;  // past this many windows, stop zooming (complete = false)
   size_t batch = 128;         // windows per call of the ZoomFn
 };
@@ -37,14 +39,14 @@ struct RefinedNeighbors {
 };
 
 // The Voronoi neighbours in `rect` of the frame, refined:
-//  - a 2x2 cell where three or more regions meet (or two, crosswise) is doubtful when a
-//    fourth site comes within a pixel diagonal (times the largest weight, plus the meshes'
-//    error) of the best value at its centre: four nearly equidistant sites, between which a
-//    Voronoi edge shorter than the pixels can be missed, or a pair seen that a thin region
-//    really separates. Doubtful cells are rendered again, with a pixel of margin (merged up
-//    to block_px a side), at `factor` times the resolution; the pairs between pixel centres
-//    that a window spans come from the window (and its own doubtful cells, recursively), the
-//    others from the image;
+//  - a cell on a boundary is doubtful where four sites are nearly equidistant: three or more
+//    sites among the 4x4 pixels around it, and four within a pixel diagonal plus a pixel
+//    (times the largest weight, plus the meshes' error) of the best value at its centre.
+//    There a Voronoi edge shorter than the pixels can be missed, or a pair seen that a thin
+//    region really separates. Doubtful cells are rendered again, with a pixel of margin
+//    (merged up to block_px a side), at `factor` times the resolution; the pairs between
+//    pixel centres that a window spans come from the window (and its own doubtful cells,
+//    recursively), the others from the image;
 //  - a pair counts once it is certified at one of its pixel pairs: where the two sites'
 //    boundary crosses between the pixel centres (located exactly), no other site beats both;
 //  - a site whose geometry meets the rect but holds no pixel (a region smaller than the

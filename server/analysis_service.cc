@@ -28,7 +28,10 @@ const std::string& IdOf(const Frame& frame, uint32_t id) {
   return id == 0 ? kNone : frame.sites().get(id - 1)->id;
 }
 
-// Zoom windows of `frame` through the render thread; stops once the call is cancelled.
+// Zoom windows of `frame` through the render thread; stops once the call is cancelled. The
+// refinement of neighbours zooms in EXACT mode whatever the scene's: where four sites are
+// nearly equidistant, a mesh's error (even at the zoom's finer eps) blurs which is nearest
+// over a band much wider than the structure sought.
 ZoomFn Zoomer(RenderLoop* renderer, std::shared_ptr<const Frame> frame, RenderMode mode,
               grpc::CallbackServerContext* ctx) {
   return [=](const std::vector<Grid>& grids)
@@ -206,7 +209,7 @@ grpc::ServerUnaryReactor* VoronoiService::GetNeighbors(grpc::CallbackServerConte
         return RectOf(request->has_window(), request->window(), q->scene->settings().grid,
                       rect.get());
       },
-      [=](const std::shared_ptr<const Frame>& frame, const Scene& scene) {
+      [=](const std::shared_ptr<const Frame>& frame, const Scene&) {
         const std::string& only = request->site_id();
         if (!only.empty()) {
           bool live = false;
@@ -221,7 +224,7 @@ grpc::ServerUnaryReactor* VoronoiService::GetNeighbors(grpc::CallbackServerConte
           }
         }
         ZoomFn zoom;
-        if (!request->coarse()) zoom = Zoomer(renderer, frame, scene.settings().mode, ctx);
+        if (!request->coarse()) zoom = Zoomer(renderer, frame, RenderMode::kExact, ctx);
         auto r = RefineNeighbors(*frame, *rect, zoom);
         if (!r.ok()) return ToGrpc(r.status());
         for (const auto& [a, b] : NamedPairs(*frame, r->pairs)) {
@@ -244,7 +247,7 @@ grpc::ServerUnaryReactor* VoronoiService::GetDelaunay(grpc::CallbackServerContex
   RenderLoop* renderer = renderer_;
   return StartAnalysis(
       "GetDelaunay", ctx, request->scene_id(), request->min_version(), nullptr,
-      [=](const std::shared_ptr<const Frame>& frame, const Scene& scene) {
+      [=](const std::shared_ptr<const Frame>& frame, const Scene&) {
         const SlotTable& sites = frame->sites();
         std::vector<Vec2> points(sites.size());
         for (uint32_t s = 0; s < sites.size(); ++s) {
@@ -260,7 +263,7 @@ grpc::ServerUnaryReactor* VoronoiService::GetDelaunay(grpc::CallbackServerContex
           points[s] = p->p;
         }
         ZoomFn zoom;
-        if (!request->coarse()) zoom = Zoomer(renderer, frame, scene.settings().mode, ctx);
+        if (!request->coarse()) zoom = Zoomer(renderer, frame, RenderMode::kExact, ctx);
         auto r = RefineNeighbors(*frame, frame->grid().all(), zoom);
         if (!r.ok()) return ToGrpc(r.status());
         std::vector<std::pair<uint32_t, uint32_t>> edges;

@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "gvd/client.h"
+#include "tests/bench/bench_common.h"
 #include "render/context.h"
 #include "render/raster.h"
 #include "render/scene_raster.h"
@@ -24,15 +25,6 @@
 namespace gvd {
 namespace {
 
-SiteTable RandomSites(size_t n, const Window& w, uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> ux(w.min_x, w.max_x), uy(w.min_y, w.max_y);
-  SiteTable sites;
-  sites.reserve(n);
-  for (size_t i = 0; i < n; ++i) sites.push_back({std::to_string(i), PointSite{{ux(rng), uy(rng)}}});
-  return sites;
-}
-
 std::vector<Vec2> RandomPoints(size_t n, uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0, 1);
@@ -40,23 +32,6 @@ std::vector<Vec2> RandomPoints(size_t n, uint64_t seed) {
   for (auto& p : q) p = {u(rng), u(rng)};
   return q;
 }
-
-// One GL context for the whole run, current on the main thread.
-struct Gl {
-  std::unique_ptr<GlContext> context;
-  std::unique_ptr<Rasterizer> rasterizer;
-  static Gl& Get() {
-    static Gl gl = [] {
-      Gl g;
-      auto c = GlContext::Create(DevicePreference::kAuto);
-      if (!c.ok()) return g;
-      g.context = std::move(*c);
-      g.rasterizer = std::move(*Rasterizer::Create());
-      return g;
-    }();
-    return gl;
-  }
-};
 
 const Window kUnit{0, 0, 1, 1};
 
