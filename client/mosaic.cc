@@ -41,6 +41,7 @@ absl::Status WriteImage(const std::string& path, const Image& image) {
   OIIO::TypeDesc format(image.format.empty() ? "uint8" : image.format.c_str());
   if (format == OIIO::TypeDesc::UNKNOWN) format = OIIO::TypeDesc::UINT8;
   OIIO::ImageSpec spec(int(image.width), int(image.height), int(image.channels), format);
+  spec.attribute("Compression", "jpeg:90");  // for JPEG; other formats ignore it
   if (!out->open(path, spec) ||
       !out->write_image(OIIO::TypeDesc::FLOAT, image.pixels.data()) || !out->close()) {
     return absl::InternalError(absl::StrCat("writing ", path, ": ", out->geterror()));

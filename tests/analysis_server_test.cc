@@ -6,6 +6,7 @@
 #include <map>
 #include <random>
 #include <set>
+#include <thread>
 
 #include "gvd/client.h"
 #include "render/exact.h"
@@ -545,6 +546,54 @@ TEST_F(AnalysisServerTest, BadInputIsRefusedByName) {
     r.set_max_distance(-2);
     expect(client_->Pick(r, &out), StatusCode::INVALID_ARGUMENT, "max_distance is -2");
   }
+}
+
+// With one analysis thread and room for one waiting call, a third call at once is refused
+// with RESOURCE_EXHAUSTED naming the flag; the others complete.
+TEST(AnalysisLimitsTest, QueuedAnalysesAreBounded) {
+  testing::ServerProcess server(GVD_SERVER_PATH,
+                                {"--analysis-threads", "1", "--max-queued-analyses", "1"});
+  ASSERT_TRUE(server.error().empty()) << server.error();
+  ClientOptions patient;
+  patient.timeout = std::chrono::minutes(5);  // a sanitizer build is slow
+  auto client = Client::Connect(server.address(), patient);
+  v1::Scene scene;
+  ASSERT_TRUE(client->CreateScene(testing::UnitScene("busy", 1024, 1024), &scene).ok());
+  v1::UpsertSitesRequest u;
+  u.set_scene_id("busy");
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> unit(0, 1);
+  for (int i = 0; i < 3000; ++i) {
+    v1::Site* site = u.add_sites();
+    site->set_id(std::to_string(i));
+    site->mutable_point()->set_x(unit(rng));
+    site->mutable_point()->set_y(unit(rng));
+  }
+  uint64_t v;
+  ASSERT_TRUE(client->UpsertSites(u, &v).ok());
+  // Each a fraction of a second of refinement or more, while the calls arrive within
+  // milliseconds.
+  std::vector<grpc::Status> results(3);
+  std::vector<std::thread> calls;
+  for (int k = 0; k < 3; ++k) {
+    calls.emplace_back([&, k] {
+      v1::GetDelaunayRequest r;
+      r.set_scene_id("busy");
+      r.set_min_version(v);
+      v1::GetDelaunayResponse out;
+      results[k] = client->GetDelaunay(r, &out);
+    });
+  }
+  for (auto& t : calls) t.join();
+  int refused = 0;
+  for (const auto& s : results) {
+    if (s.ok()) continue;
+    ++refused;
+    EXPECT_EQ(s.error_code(), StatusCode::RESOURCE_EXHAUSTED) << s.error_message();
+    EXPECT_NE(s.error_message().find("--max-queued-analyses"), std::string::npos) << s.error_message();
+  }
+  EXPECT_GE(refused, 1);
+  EXPECT_LE(refused, 2);
 }
 
 }  // namespace

@@ -318,6 +318,27 @@ BENCHMARK(BM_GrpcFindNearest)
     ->Unit(benchmark::kMicrosecond)
     ->UseRealTime();
 
+// Pick over loopback (paper sec. 7.2, selection under a cursor): one point per call, exact,
+// in the 100,000-site scene.
+void BM_GrpcPick(benchmark::State& state) {
+  LoopbackServer* ls = LoopbackServer::Get();
+  if (!ls) return state.SkipWithError("no EGL context");
+  auto client = Client::Connect(ls->address);
+  std::vector<Vec2> points = RandomPoints(4096, 8);
+  v1::PickRequest request;
+  request.set_scene_id("bench");
+  v1::PickResponse response;
+  size_t k = 0;
+  for (auto _ : state) {
+    request.mutable_point()->set_x(points[k % points.size()].x);
+    request.mutable_point()->set_y(points[k++ % points.size()].y);
+    grpc::Status s = client->Pick(request, &response);
+    if (!s.ok()) return state.SkipWithError(s.error_message().c_str());
+  }
+  state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_GrpcPick)->Unit(benchmark::kMicrosecond)->UseRealTime();
+
 // Durability's cost: one-site upserts over loopback, one at a time, each acknowledged only
 // once committed, to a store in memory (range 0) or on disk (range 1: WAL, synchronous=FULL).
 void BM_GrpcUpsert(benchmark::State& state) {

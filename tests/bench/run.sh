@@ -7,7 +7,7 @@ cd "$(dirname "$0")/../.."
 . deploy/debian-deps.sh
 gvd_install_packages build test
 cmake -S . -B build/bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DGVD_BUILD_TESTS=ON >/dev/null
-cmake --build build/bench --target gvd_bench
+cmake --build build/bench --target gvd_bench gvd_analysis_bench
 bench=build/bench/tests/bench/gvd_bench
 # Full renders with llvmpipe's rasterizer threads (one per core, its default); updates and
 # queries as gvd-server runs them by default (rasterizing on the render thread).
@@ -15,4 +15,7 @@ env -u LP_NUM_THREADS "$bench" --benchmark_filter='Render|OpenCV' \
   --benchmark_out=build/bench/render.json --benchmark_out_format=json "$@" >&2
 LP_NUM_THREADS=0 "$bench" --benchmark_filter='Update|Nearest|Grpc|Latency' \
   --benchmark_out=build/bench/serve.json --benchmark_out_format=json "$@" >&2
-python3 tests/bench/table.py build/bench/render.json build/bench/serve.json
+# Boundaries, Delaunay, zoom windows and plans as the server's render thread runs them.
+LP_NUM_THREADS=0 build/bench/tests/bench/gvd_analysis_bench \
+  --benchmark_out=build/bench/analysis.json --benchmark_out_format=json "$@" >&2
+python3 tests/bench/table.py build/bench/render.json build/bench/serve.json build/bench/analysis.json

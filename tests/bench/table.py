@@ -78,6 +78,36 @@ def main(paths):
     if lat:
         print(f"| single-point FindNearest latency under a writer | p50 {lat['p50_us']:.0f} us, "
               f"p99 {lat['p99_us']:.0f} us | writer: {lat['moves_per_s']:.0f} moves/s | |")
+    pick = rows.get("BM_GrpcPick")
+    if pick:
+        print(f"| Pick over loopback, 1 point per call, 100,000 points | {ms(pick) * 1e3:.0f} us "
+              f"per call | | |")
+    # Structure and applications (gvd_analysis_bench), 1024x1024, from a rendered frame.
+    for n in (1000, 10000):
+        boost = rows.get(f"BM_BoostPolygonVoronoi/{n}")
+        for method, label in ((0, "full scan"), (1, "continuation")):
+            b = rows.get(f"BM_Boundaries/{n}/{method}")
+            if b:
+                ref = f"{ms(boost):.1f} ms (Boost.Polygon voronoi, exact, points only)" if boost else ""
+                print(f"| boundaries as polylines, {n:,} points, {label} | {ms(b):.1f} ms "
+                      f"({b['polylines']:.0f} polylines) | {ref} | |")
+        qh = rows.get(f"BM_QhullDelaunay/{n}")
+        for refined, label in ((0, "pixel pairs only"), (1, "refined by zoom windows")):
+            d = rows.get(f"BM_Delaunay/{n}/{refined}")
+            if d:
+                ref = f"{ms(qh):.1f} ms (Qhull)" if qh else ""
+                print(f"| Delaunay, {n:,} points, {label} | {ms(d):.0f} ms ({d['triangles']:.0f} "
+                      f"triangles, {d['zoom_windows']:.0f} zoom windows) | {ref} | |")
+    for k in (8, 32):
+        for field, label in ((0, "path on a ready field"), (1, "clearance field and path")):
+            p = rows.get(f"BM_PlanMaze/{k}/{field}")
+            if p:
+                print(f"| plan across a {k}x{k} maze, {label} | {ms(p):.1f} ms | | |")
+    for size in (8, 32, 64):
+        z = rows.get(f"BM_ZoomWindows/{size}")
+        if z:
+            print(f"| zoom windows of {size}x{size} px, batches of 128 | "
+                  f"{z['items_per_second']:.0f} windows/s | | |")
 
 
 if __name__ == "__main__":

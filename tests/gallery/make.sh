@@ -41,3 +41,42 @@ for kind in nearest farthest weighted; do
   fi
   gvd render "fig11-$kind" -o "$out/fig11-$kind.png" --layer ids --draw-sites
 done
+
+# Planning (paper sec. 7.1): a path of maximal clearance through a maze of segment walls,
+# drawn over the distance field.
+python3 - "$work/maze.json" <<'PY'
+import json, random, sys
+k, c = 12, 1 / 12
+random.seed(4)
+below = {(x, y) for x in range(k) for y in range(k + 1)}
+left = {(x, y) for x in range(k + 1) for y in range(k)}
+seen, stack = {(0, 0)}, [(0, 0)]
+while stack:
+    x, y = stack[-1]
+    nxt = [(x + dx, y + dy) for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1))
+           if 0 <= x + dx < k and 0 <= y + dy < k and (x + dx, y + dy) not in seen]
+    if not nxt:
+        stack.pop()
+        continue
+    nx, ny = random.choice(nxt)
+    if nx != x:
+        left.discard((max(x, nx), y))
+    else:
+        below.discard((x, max(y, ny)))
+    seen.add((nx, ny))
+    stack.append((nx, ny))
+seg = lambda i, a, b: {"id": i, "segment": {"a": {"x": a[0], "y": a[1]}, "b": {"x": b[0], "y": b[1]}}}
+sites = [seg(f"h{x}_{y}", (x * c, y * c), ((x + 1) * c, y * c)) for x, y in sorted(below)]
+sites += [seg(f"v{x}_{y}", (x * c, y * c), (x * c, (y + 1) * c)) for x, y in sorted(left)]
+json.dump(sites, open(sys.argv[1], "w"))
+PY
+gvd scene create maze --window 0,0,1,1 --size 512x512 >/dev/null
+export GVD_SCENE=maze
+gvd sites add --file "$work/maze.json" >/dev/null
+gvd plan --from 0.0417,0.0417 --to 0.9583,0.9583 --radius 0.03 -o "$out/plan-maze.png" >/dev/null
+
+# Mosaics (paper sec. 7.3) of a photograph (coffee.jpg: Rachel Michetti, CC0, from
+# scikit-image's sample data), from the server: random tiles, and adaptive ones.
+gvd mosaic "$out/coffee.jpg" "$out/coffee-mosaic.jpg" --tiles 1500 --seed 1 >/dev/null
+gvd mosaic "$out/coffee.jpg" "$out/coffee-mosaic-adaptive.jpg" --tiles 1500 --seed 1 \
+  --adaptive >/dev/null
