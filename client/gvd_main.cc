@@ -45,9 +45,10 @@ Args ParseArgs(int argc, char** argv) {
       (arg == "--json" ? a.json : a.exact) = true;
       continue;
     }
-    if (arg == "--draw-sites" || arg == "--coarse" || arg == "--adaptive" || arg == "--mean" ||
-        arg == "--embedded") {
-      a.options[arg] = "1";
+    static const std::set<std::string> kSwitches = {"--draw-sites", "--coarse", "--adaptive",
+                                                    "--mean", "--embedded"};
+    if (kSwitches.count(arg)) {
+      a.options.insert_or_assign(arg, std::string("1"));
       continue;
     }
     std::string value;

@@ -93,6 +93,42 @@ void main() {
 }
 )";
 
+// Points with no max_distance, per fragment: instanced squares of half side r around each
+// point (rect = (x, y, r)), weight = (m, a); nothing to discard, no buffer to read, so the
+// fragment is one distance. The square's corners, sqrt(2) r away, bound what it writes.
+constexpr const char* kExactPointVertexShader = R"(#version 450 core
+layout(location = 0) in vec3 unit;
+layout(location = 1) in vec3 square;
+layout(location = 2) in vec2 weight;
+layout(location = 3) in uint site;
+uniform vec2 u_scale;
+flat out uint v_site;
+flat out vec2 v_point;
+flat out vec2 v_weight;
+void main() {
+  vec2 p = square.xy + square.z * (2.0 * unit.xy - 1.0);
+  gl_Position = vec4(p * u_scale - 1.0, 0.0, 1.0);
+  v_site = site;
+  v_point = square.xy;
+  v_weight = weight;
+}
+)";
+
+constexpr const char* kExactPointFragmentShader = R"(#version 450 core
+flat in uint v_site;
+flat in vec2 v_point;
+flat in vec2 v_weight;
+uniform vec2 u_pixel;
+uniform vec2 u_origin;
+uniform float u_inv_depth;
+layout(location = 0) out uint o_site;
+void main() {
+  vec2 p = (gl_FragCoord.xy - u_origin) * u_pixel;
+  gl_FragDepth = (v_weight.x * length(p - v_point) + v_weight.y) * u_inv_depth;
+  o_site = v_site;
+}
+)";
+
 constexpr const char* kExactFragmentShader = R"(#version 450 core
 layout(std430, binding = 0) readonly buffer Segments { vec4 segments[]; };
 flat in uvec4 v_info;
@@ -221,7 +257,8 @@ absl::StatusOr<std::unique_ptr<Rasterizer>> Rasterizer::Create() {
   for (auto [program, vertex, fragment] :
        {std::tuple{&r->cone_, kConeVertexShader, kIdFragmentShader},
         std::tuple{&r->tent_, kTentVertexShader, kIdFragmentShader},
-        std::tuple{&r->exact_, kExactVertexShader, kExactFragmentShader}}) {
+        std::tuple{&r->exact_, kExactVertexShader, kExactFragmentShader},
+        std::tuple{&r->exact_point_, kExactPointVertexShader, kExactPointFragmentShader}}) {
     auto linked = Link(vertex, fragment);
     if (!linked.ok()) return linked.status();
     *program = *linked;
@@ -248,7 +285,7 @@ Rasterizer::~Rasterizer() {
   for (auto& [n, buffer] : cones_) glDeleteBuffers(1, &buffer);
   for (unsigned b : {quad_, tent_mesh_, instances_, segments_}) glDeleteBuffers(1, &b);
   glDeleteVertexArrays(1, &vao_);
-  for (const Program* p : {&cone_, &tent_, &exact_}) glDeleteProgram(p->id);
+  for (const Program* p : {&cone_, &tent_, &exact_, &exact_point_}) glDeleteProgram(p->id);
 }
 
 unsigned Rasterizer::ConeBuffer(uint32_t segments) {
@@ -293,6 +330,12 @@ bool PerFragment(const DrawParams& params, const Site& site) {
   return params.diagram == Diagram::kFarthest && !std::holds_alternative<PointSite>(site.geometry);
 }
 
+// A point drawn per fragment with no max_distance to honour: a square of its own.
+bool ExactPoint(const DrawParams& params, const Site& site) {
+  return params.mode == RenderMode::kExact && std::isinf(site.max_distance) &&
+         std::holds_alternative<PointSite>(site.geometry);
+}
+
 // Calls f(p) for each vertex of the geometry that gets a cone in kMesh, and g(a, b) for each
 // edge of positive length that gets a tent.
 template <class F, class G>
@@ -330,7 +373,11 @@ SiteShape Rasterizer::Shape(const Grid& grid, const DrawParams& params, const Si
   const double r = radius + grid.pixel_size() / 16 + scale * 0x1p-18;
   SiteShape shape;
   const double m = site.multiplicative, a = site.additive;
-  if (PerFragment(params, site)) {
+  if (ExactPoint(params, site)) {
+    shape.per_fragment = true;
+    shape.extent = r * std::numbers::sqrt2 * (1 + 0x1p-20);
+    shape.area = 4 * r * r;
+  } else if (PerFragment(params, site)) {
     shape.per_fragment = true;
     shape.extent = r;
     shape.area = (box.width() + 2 * r) * (box.height() + 2 * r);
@@ -372,6 +419,11 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
   std::map<uint32_t, std::vector<Cone>> cones;  // by triangle count
   std::vector<Tent> tents;
   std::vector<Quad> quads;
+  struct Square {
+    float x, y, r, m, a;
+    uint32_t site;
+  };
+  std::vector<Square> squares;
   std::vector<float> segments;  // x0, y0, x1, y1 per segment, for the quads
   const Vec2 origin{grid.window.min_x, grid.window.min_y};
   auto rel = [&](Vec2 p) { return p - origin; };
@@ -381,6 +433,13 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
     const float m = static_cast<float>(site.multiplicative);
     const float a = static_cast<float>(site.additive);
     const uint32_t id = d.slot + 1;
+    if (ExactPoint(params, site)) {
+      // Half side: the radius with its margins (the shape's extent is the corners' reach).
+      const double half = shape.extent / (std::numbers::sqrt2 * (1 + 0x1p-20));
+      Vec2 u = rel(std::get<PointSite>(site.geometry).p);
+      squares.push_back({float(u.x), float(u.y), float(half), m, a, id});
+      continue;
+    }
     if (shape.per_fragment) {
       Window b = BoundingBox(site.geometry);
       const double r = shape.extent;
@@ -475,6 +534,14 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
     use(tent_);
     bind(tent_mesh_, tents.data(), tents.size(), sizeof(Tent), {4, 3}, 1);
     glDrawArraysInstanced(GL_TRIANGLES, 0, 12, static_cast<GLsizei>(tents.size()));
+  }
+  if (!squares.empty()) {
+    use(exact_point_);
+    glUniform2f(exact_point_.u_pixel, static_cast<float>(grid.pixel_width()),
+                static_cast<float>(grid.pixel_height()));
+    glUniform2f(exact_point_.u_origin, static_cast<float>(x0), static_cast<float>(y0));
+    bind(quad_, squares.data(), squares.size(), sizeof(Square), {3, 2}, 1);
+    glDrawArraysInstanced(GL_TRIANGLES, 0, 6, static_cast<GLsizei>(squares.size()));
   }
   if (!quads.empty()) {
     use(exact_);

@@ -150,7 +150,7 @@ class Rasterizer {
   };
   static absl::StatusOr<Program> Link(const char* vertex, const char* fragment);
 
-  Program cone_, tent_, exact_;
+  Program cone_, tent_, exact_, exact_point_;
   unsigned vao_ = 0, instances_ = 0, quad_ = 0, tent_mesh_ = 0, segments_ = 0;
   std::map<uint32_t, unsigned> cones_;  // segments -> vertex buffer
 };
