@@ -13,7 +13,8 @@ trap 'kill "$server" 2>/dev/null || true; wait "$server" 2>/dev/null || true; rm
   --log-level warn &
 server=$!
 for _ in $(seq 100); do [ -s "$work/port" ] && break; sleep 0.1; done
-export GVD_SERVER="127.0.0.1:$(cat "$work/port")"
+GVD_SERVER="127.0.0.1:$(cat "$work/port")"
+export GVD_SERVER
 gvd() { "$build/client/gvd" "$@"; }
 
 # The cover plate.
