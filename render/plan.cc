@@ -272,17 +272,73 @@ absl::StatusOr<Plan> PlanPath(const Frame& frame, const ClearanceField& field,
   std::vector<size_t> pixels;
   for (size_t k = g0; k != SIZE_MAX; k = parent[k]) pixels.push_back(k);
   std::reverse(pixels.begin(), pixels.end());
-  // The polyline: the start, the pixel centres where the direction turns, the goal.
-  plan.min_clearance = std::min(start_step, goal_step);
-  plan.path.push_back(request.start);
+  // The polyline through every pixel centre, with a proven bound on each of its segments.
+  std::vector<Vec2> points = {request.start};
+  std::vector<double> bounds = {start_step};
   for (size_t n = 0; n < pixels.size(); ++n) {
-    if (n > 0) plan.min_clearance = std::min(plan.min_clearance, step(pixels[n - 1], pixels[n]));
-    // Steps are between neighbouring pixels: the direction turns where the index step does.
-    bool turn = n == 0 || n + 1 == pixels.size() ||
-                pixels[n] - pixels[n - 1] != pixels[n + 1] - pixels[n];
-    if (turn) plan.path.push_back(centre(pixels[n]));
+    points.push_back(centre(pixels[n]));
+    if (n > 0) bounds.push_back(step(pixels[n - 1], pixels[n]));
   }
-  plan.path.push_back(request.goal);
+  points.push_back(request.goal);
+  bounds.push_back(goal_step);
+  const double unsimplified = *std::min_element(bounds.begin(), bounds.end());
+  // A proven lower bound on the clearance along the straight segment ab: samples every
+  // quarter pixel, each bounded by its nearest pixel centre's clearance less L times the
+  // distance to it (at start and goal: their own clearance), and between two samples the
+  // step bound.
+  const double quarter = g.pixel_size() / 4;
+  auto sampled = [&](Vec2 a, Vec2 b) {
+    const int n = std::max(1, static_cast<int>(std::ceil(Distance(a, b) / quarter)));
+    const double spacing = Distance(a, b) / n;
+    double least = INFINITY, last = 0;
+    for (int k = 0; k <= n; ++k) {
+      Vec2 x = a + (double(k) / n) * (b - a);
+      uint32_t i, j;
+      frame.PixelOf(x, &i, &j);
+      double c = field.at(i, j) - L * Distance(x, g.Center(i, j));
+      if (k == 0 && a.x == request.start.x && a.y == request.start.y) c = std::max(c, c_start);
+      if (k == n && b.x == request.goal.x && b.y == request.goal.y) c = std::max(c, c_goal);
+      if (k > 0) least = std::min(least, StepBound(last, c, spacing, L));
+      last = c;
+    }
+    return least;
+  };
+  // Simplified within a pixel (Douglas-Peucker), keeping only shortcuts whose proven
+  // clearance stays within a pixel of the path's and at least the robot's radius: the
+  // staircase of pixel steps goes, the bound holds.
+  const double keep = std::max(r, unsimplified - g.pixel_size());
+  std::vector<size_t> kept = {0};
+  std::vector<double> kept_bounds;
+  std::vector<std::pair<size_t, size_t>> todo = {{0, points.size() - 1}};
+  while (!todo.empty()) {
+    auto [i, j] = todo.back();
+    todo.pop_back();
+    if (j == i + 1) {
+      kept.push_back(j);
+      kept_bounds.push_back(bounds[i]);
+      continue;
+    }
+    size_t far = i + 1;
+    double worst = -1;
+    for (size_t k = i + 1; k < j; ++k) {
+      double d = SegmentDistance(points[k], points[i], points[j]);
+      if (d > worst) {
+        worst = d;
+        far = k;
+      }
+    }
+    double chord = worst <= g.pixel_size() ? sampled(points[i], points[j]) : -INFINITY;
+    if (chord >= keep) {
+      kept.push_back(j);
+      kept_bounds.push_back(chord);
+      continue;
+    }
+    if (worst <= g.pixel_size()) far = (i + j) / 2;  // straight enough, but too close
+    todo.push_back({far, j});  // the stack takes the first half next
+    todo.push_back({i, far});
+  }
+  plan.min_clearance = *std::min_element(kept_bounds.begin(), kept_bounds.end());
+  for (size_t k : kept) plan.path.push_back(points[k]);
   for (size_t n = 1; n < plan.path.size(); ++n) plan.length += Distance(plan.path[n - 1], plan.path[n]);
   return plan;
 }

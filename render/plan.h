@@ -43,7 +43,7 @@ struct PlanRequest {
 };
 
 struct Plan {
-  std::vector<Vec2> path;       // start, the turns, goal
+  std::vector<Vec2> path;       // start, the turns, goal (simplified within a pixel)
   double min_clearance = 0;     // proven lower bound on the clearance along all of it
   double best_clearance = 0;    // the widest passage from start to goal along the roadmap
   double length = 0;
@@ -55,7 +55,10 @@ struct Plan {
 // border (where climbing can end, as nothing beyond it is known), joined to the start and
 // the goal by climbing the clearance field. Each step between neighbouring pixel centres
 // p, q is credited with min(c_p, c_q, (c_p + c_q - L |pq|) / 2), a proven lower bound on the
-// clearance along it; the path's clearance is its least step. NotFound when start or goal is
+// clearance along it. The pixel path is then simplified within a pixel (Douglas-Peucker),
+// keeping a shortcut only when its own proven clearance (sampled every quarter pixel) stays
+// within a pixel of the path's and at least the radius; min_clearance is the least bound of
+// the segments returned. NotFound when start or goal is
 // closer than `radius` to an obstacle, or no path along the roadmap keeps `radius` (the
 // message gives the best there is); InvalidArgument when they lie outside the window or the
 // radius is negative. O(pixels log pixels) at worst.
