@@ -41,6 +41,16 @@ ZoomFn Zoomer(RenderLoop* renderer, std::shared_ptr<const Frame> frame, RenderMo
   };
 }
 
+// The frame's neighbour pairs in `rect`, refined through zoom windows unless `coarse`.
+absl::StatusOr<RefinedNeighbors> Neighbours(RenderLoop* renderer,
+                                            const std::shared_ptr<const Frame>& frame,
+                                            PixelRect rect, bool coarse,
+                                            grpc::CallbackServerContext* ctx) {
+  ZoomFn zoom;
+  if (!coarse) zoom = Zoomer(renderer, frame, RenderMode::kExact, ctx);
+  return RefineNeighbors(*frame, rect, zoom);
+}
+
 // The pixels of the frame a request names: its window (clipped), or all of them.
 Status RectOf(bool has_window, const v1::Window& window, const Grid& grid, PixelRect* rect) {
   *rect = grid.all();
@@ -223,9 +233,7 @@ grpc::ServerUnaryReactor* VoronoiService::GetNeighbors(grpc::CallbackServerConte
                                        frame->version()));
           }
         }
-        ZoomFn zoom;
-        if (!request->coarse()) zoom = Zoomer(renderer, frame, RenderMode::kExact, ctx);
-        auto r = RefineNeighbors(*frame, *rect, zoom);
+        auto r = Neighbours(renderer, frame, *rect, request->coarse(), ctx);
         if (!r.ok()) return ToGrpc(r.status());
         for (const auto& [a, b] : NamedPairs(*frame, r->pairs)) {
           if (!only.empty() && a != only && b != only) continue;
@@ -262,9 +270,7 @@ grpc::ServerUnaryReactor* VoronoiService::GetDelaunay(grpc::CallbackServerContex
           }
           points[s] = p->p;
         }
-        ZoomFn zoom;
-        if (!request->coarse()) zoom = Zoomer(renderer, frame, RenderMode::kExact, ctx);
-        auto r = RefineNeighbors(*frame, frame->grid().all(), zoom);
+        auto r = Neighbours(renderer, frame, frame->grid().all(), request->coarse(), ctx);
         if (!r.ok()) return ToGrpc(r.status());
         std::vector<std::pair<uint32_t, uint32_t>> edges;
         for (const auto& [p, n] : r->pairs) edges.push_back({p.first - 1, p.second - 1});

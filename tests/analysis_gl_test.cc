@@ -20,17 +20,8 @@
 namespace gvd {
 namespace {
 
-constexpr RenderMode kModes[] = {RenderMode::kMesh, RenderMode::kExact};
-const char* Name(RenderMode m) { return m == RenderMode::kMesh ? "mesh" : "exact"; }
-
 class AnalysisGLTest : public GlTest {
  protected:
-  std::shared_ptr<const Frame> Render(const Grid& grid, const SiteTable& sites, RenderMode mode,
-                                      Diagram diagram = Diagram::kNearest) {
-    auto frame = rasterizer_->Render(grid, grid.pixel_size(), 1, sites, nullptr, mode, diagram);
-    EXPECT_TRUE(frame.ok()) << frame.status();
-    return frame.ok() ? *frame : nullptr;
-  }
   ZoomFn Zoomer(const std::shared_ptr<const Frame>& frame, RenderMode mode) {
     return [this, frame, mode](const std::vector<Grid>& grids) {
       return zoom_.Render(*rasterizer_, *frame, mode, grids);

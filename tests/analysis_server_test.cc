@@ -21,20 +21,9 @@ namespace {
 using grpc::StatusCode;
 using testing::ToProtoSite;
 
-class AnalysisServerTest : public ::testing::Test {
+class AnalysisServerTest : public testing::SharedServerTest {
  protected:
-  static void SetUpTestSuite() {
-    server_ = new testing::ServerProcess(GVD_SERVER_PATH, {"--max-side-px", "4096"});
-    ASSERT_TRUE(server_->error().empty()) << server_->error();
-    client_ = Client::Connect(server_->address()).release();
-    ASSERT_TRUE(client_->WaitForConnected(std::chrono::seconds(10)));
-  }
-  static void TearDownTestSuite() {
-    delete client_;
-    int status = server_->Stop();
-    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << server_->log();
-    delete server_;
-  }
+  static void SetUpTestSuite() { StartServer({"--max-side-px", "4096"}); }
   // A scene over the unit square at size x size pixels.
   static void Create(const std::string& id, uint32_t size, v1::Diagram diagram = v1::NEAREST,
                      v1::RenderMode mode = v1::MESH) {
@@ -61,8 +50,6 @@ class AnalysisServerTest : public ::testing::Test {
     for (int i = 0; i < n; ++i) sites.push_back({"p" + std::to_string(i), PointSite{{u(rng), u(rng)}}});
     return sites;
   }
-  static inline testing::ServerProcess* server_ = nullptr;
-  static inline Client* client_ = nullptr;
 };
 
 const Site& ById(const SiteTable& sites, const std::string& id) {

@@ -11,6 +11,9 @@
 
 namespace gvd {
 
+inline constexpr RenderMode kModes[] = {RenderMode::kMesh, RenderMode::kExact};
+inline const char* Name(RenderMode m) { return m == RenderMode::kMesh ? "mesh" : "exact"; }
+
 class GlTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -32,6 +35,15 @@ class GlTest : public ::testing::Test {
   }
   void SetUp() override {
     if (context_ == nullptr) GTEST_SKIP() << "no EGL context: " << *skip_reason_;
+  }
+
+  // A render from scratch of the sites (slot i = sites[i]), eps one pixel, at version 1.
+  std::shared_ptr<const Frame> Render(const Grid& grid, const SiteTable& sites,
+                                      RenderMode mode = RenderMode::kMesh,
+                                      Diagram diagram = Diagram::kNearest) {
+    auto frame = rasterizer_->Render(grid, grid.pixel_size(), 1, sites, nullptr, mode, diagram);
+    EXPECT_TRUE(frame.ok()) << frame.status();
+    return frame.ok() ? *frame : nullptr;
   }
 
   static inline GlContext* context_ = nullptr;

@@ -51,14 +51,7 @@ void CheckPath(const Plan& plan, const SiteTable& sites, double radius, const Gr
   EXPECT_GE(worst, plan.min_clearance * (1 - 1e-9)) << what << ": the bound is not proven";
 }
 
-class PlanGLTest : public GlTest {
- protected:
-  std::shared_ptr<const Frame> Render(const Grid& grid, const SiteTable& sites) {
-    auto frame = rasterizer_->Render(grid, grid.pixel_size(), 1, sites);
-    EXPECT_TRUE(frame.ok()) << frame.status();
-    return frame.ok() ? *frame : nullptr;
-  }
-};
+using PlanGLTest = GlTest;
 
 const Grid kGrid{{0, 0, 1, 1}, 512, 512};
 

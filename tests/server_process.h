@@ -17,6 +17,8 @@
 #include <thread>
 #include <vector>
 
+#include "gvd/client.h"
+
 namespace gvd::testing {
 
 class ServerProcess {
@@ -103,6 +105,31 @@ class ServerProcess {
   std::string dir_, log_, error_;
   pid_t pid_ = -1;
   int port_ = 0;
+};
+
+// A suite whose tests share one gvd-server and a client of it. The server must stop cleanly
+// at the end: SIGTERM is a clean shutdown, exit status 0. A suite that needs server flags
+// hides SetUpTestSuite with one that calls StartServer(flags).
+class SharedServerTest : public ::testing::Test {
+ protected:
+  static void StartServer(std::vector<std::string> flags = {}) {
+    server_ = new ServerProcess(GVD_SERVER_PATH, std::move(flags));
+    ASSERT_TRUE(server_->error().empty()) << server_->error();
+    client_ = Client::Connect(server_->address()).release();
+    ASSERT_TRUE(client_->WaitForConnected(std::chrono::seconds(10)));
+  }
+  static void SetUpTestSuite() { StartServer(); }
+  static void TearDownTestSuite() {
+    delete client_;
+    client_ = nullptr;
+    int status = server_->Stop();
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << server_->log();
+    delete server_;
+    server_ = nullptr;
+  }
+
+  static inline ServerProcess* server_ = nullptr;
+  static inline Client* client_ = nullptr;
 };
 
 }  // namespace gvd::testing

@@ -21,22 +21,8 @@ namespace {
 
 using grpc::StatusCode;
 
-class ServerTest : public ::testing::Test {
+class ServerTest : public testing::SharedServerTest {
  protected:
-  static void SetUpTestSuite() {
-    server_ = new testing::ServerProcess(GVD_SERVER_PATH);
-    ASSERT_TRUE(server_->error().empty()) << server_->error();
-    client_ = Client::Connect(server_->address()).release();
-    ASSERT_TRUE(client_->WaitForConnected(std::chrono::seconds(10)));
-  }
-  static void TearDownTestSuite() {
-    delete client_;
-    // SIGTERM is a clean shutdown: exit status 0.
-    int status = server_->Stop();
-    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << server_->log();
-    delete server_;
-  }
-
   static v1::Scene Create(const std::string& id, Window w, uint32_t width, uint32_t height,
                           double max_error = 0, v1::RenderMode mode = v1::MESH) {
     v1::CreateSceneRequest r;
@@ -110,8 +96,6 @@ class ServerTest : public ::testing::Test {
     return sites;
   }
 
-  static inline testing::ServerProcess* server_ = nullptr;
-  static inline Client* client_ = nullptr;
 };
 
 TEST_F(ServerTest, SceneLifecycle) {

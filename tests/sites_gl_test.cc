@@ -16,17 +16,8 @@
 namespace gvd {
 namespace {
 
-constexpr RenderMode kModes[] = {RenderMode::kMesh, RenderMode::kExact};
-const char* Name(RenderMode m) { return m == RenderMode::kMesh ? "mesh" : "exact"; }
-
 class SitesGLTest : public GlTest {
  protected:
-  std::shared_ptr<const Frame> Render(const Grid& grid, const SiteTable& sites, RenderMode mode,
-                                      Diagram diagram = Diagram::kNearest) {
-    auto frame = rasterizer_->Render(grid, grid.pixel_size(), 1, sites, nullptr, mode, diagram);
-    EXPECT_TRUE(frame.ok()) << frame.status();
-    return frame.ok() ? *frame : nullptr;
-  }
   // Renders in both modes and checks every pixel.
   void RenderAndCheck(const Grid& grid, const SiteTable& sites, const std::string& what,
                       Diagram diagram = Diagram::kNearest, PixelReport* report = nullptr) {

@@ -47,20 +47,8 @@ std::vector<Site> MixedSites(uint64_t seed) {
   return sites;
 }
 
-class SitesServerTest : public ::testing::Test {
+class SitesServerTest : public testing::SharedServerTest {
  protected:
-  static void SetUpTestSuite() {
-    server_ = new testing::ServerProcess(GVD_SERVER_PATH);
-    ASSERT_TRUE(server_->error().empty()) << server_->error();
-    client_ = Client::Connect(server_->address()).release();
-    ASSERT_TRUE(client_->WaitForConnected(std::chrono::seconds(10)));
-  }
-  static void TearDownTestSuite() {
-    delete client_;
-    int status = server_->Stop();
-    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << server_->log();
-    delete server_;
-  }
   static void Create(const std::string& id, v1::Diagram diagram, v1::RenderMode mode) {
     v1::CreateSceneRequest r;
     r.set_scene_id(id);
@@ -82,8 +70,6 @@ class SitesServerTest : public ::testing::Test {
     EXPECT_TRUE(st.ok()) << st.error_message();
     return version;
   }
-  static inline testing::ServerProcess* server_ = nullptr;
-  static inline Client* client_ = nullptr;
 };
 
 // The acceptance: a scene mixing all kinds, weights and both diagram directions
