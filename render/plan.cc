@@ -208,7 +208,8 @@ absl::StatusOr<Plan> PlanPath(const Frame& frame, const ClearanceField& field,
     wide[s0] = static_cast<float>(start_step);
     queue.push({wide[s0], s0});
     while (!queue.empty()) {
-      auto [b, k] = queue.top();
+      const float b = queue.top().first;
+      const size_t k = queue.top().second;
       queue.pop();
       if (b < wide[k]) continue;
       if (k == g0) break;
@@ -250,7 +251,8 @@ absl::StatusOr<Plan> PlanPath(const Frame& frame, const ClearanceField& field,
     dist[s0] = 0;
     queue.push({0, s0});
     while (!queue.empty()) {
-      auto [d, k] = queue.top();
+      const double d = queue.top().first;
+      const size_t k = queue.top().second;
       queue.pop();
       if (d > dist[k]) continue;
       if (k == g0) break;

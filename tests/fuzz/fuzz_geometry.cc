@@ -1,11 +1,13 @@
-// Fuzz target: the cone counts of sec. 4.1.1 and the coverage proof of render/coverage.h, on
-// small scenes made from the bytes. Checks the properties themselves, against the oracle.
+// Fuzz target: the cone counts of sec. 4.1.1, the coverage proof of render/coverage.h and the
+// structure of id images (render/analysis.h), on small scenes made from the bytes. Checks
+// the properties themselves, against the oracle.
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <numbers>
 
+#include "render/analysis.h"
 #include "render/coverage.h"
 #include "render/exact.h"
 #include "render/mesh.h"
@@ -65,6 +67,50 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         if (gvd::ExactDistance(p, table[s].geometry) == best) Check(best <= cov.radius[s]);
       }
     }
+  }
+  // The sparse form of the proof gives the same radii.
+  auto sparse = gvd::SparseCoverage(grid, sites, index, gvd::FindLeastWeights(sites), grid.all(),
+                                    tile ? tile : gvd::DefaultTilePx(grid, count),
+                                    gvd::Diagram::kNearest);
+  size_t drawn = 0;
+  for (uint32_t s = 0; s < count; ++s) drawn += cov.radius[s] >= 0;
+  Check(sparse.size() == drawn);
+  for (auto [slot, r] : sparse) Check(r == cov.radius[slot]);
+
+  // Structure of an id image: the oracle's labels, a few of them changed by the input.
+  gvd::IdImage image{grid, std::vector<uint32_t>(grid.pixel_count())};
+  for (uint32_t j = 0; j < grid.height; ++j) {
+    for (uint32_t i = 0; i < grid.width; ++i) {
+      auto n = gvd::NearestBruteForce(grid.Center(i, j), table);
+      image.ids[size_t{j} * grid.width + i] = static_cast<uint32_t>(n.index) + 1;
+    }
+  }
+  for (uint32_t flips = in.U16() % 8; flips > 0; --flips) {
+    image.ids[in.U16() % image.ids.size()] = in.U16() % (count + 1);  // 0: no site
+  }
+  auto full = gvd::FindBoundaryEdges(image, gvd::BoundaryMethod::kFullScan);
+  auto walk = gvd::FindBoundaryEdges(image, gvd::BoundaryMethod::kContinuation);
+  for (size_t k = 0; k < full.horizontal.size(); ++k) Check(walk.horizontal[k] <= full.horizontal[k]);
+  for (size_t k = 0; k < full.vertical.size(); ++k) Check(walk.vertical[k] <= full.vertical[k]);
+  Check(walk.count <= full.count);
+  for (const auto& line : gvd::TraceBoundaries(image, full, sites, gvd::Diagram::kNearest)) {
+    Check(!line.points.empty() && line.a < line.b && line.b <= count);
+    for (gvd::Vec2 p : line.points) Check(std::isfinite(p.x) && std::isfinite(p.y));
+  }
+  auto pairs = gvd::NeighborPairs(image, full);
+  std::vector<std::pair<uint32_t, uint32_t>> edges;
+  for (const auto& [pair, n] : pairs) {
+    Check(pair.first < pair.second && pair.second <= count && n > 0);
+    edges.push_back({pair.first - 1, pair.second - 1});
+  }
+  for (uint32_t s : gvd::HiddenSites(image, sites)) {
+    for (uint32_t id : image.ids) Check(id != s + 1);
+  }
+  std::vector<gvd::Vec2> points;
+  for (const auto& site : table) points.push_back(std::get<gvd::PointSite>(site.geometry).p);
+  for (const auto& t : gvd::TrianglesFromEdges(points, edges)) {
+    gvd::Vec2 a = points[t[0]], b = points[t[1]], c = points[t[2]];
+    Check((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x) > 0);
   }
   return 0;
 }
