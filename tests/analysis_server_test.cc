@@ -34,15 +34,6 @@ class AnalysisServerTest : public testing::SharedServerTest {
     auto s = client_->CreateScene(r, &scene);
     ASSERT_TRUE(s.ok()) << s.error_message();
   }
-  static uint64_t Upsert(const std::string& scene, const SiteTable& sites) {
-    v1::UpsertSitesRequest r;
-    r.set_scene_id(scene);
-    for (const Site& s : sites) *r.add_sites() = ToProtoSite(s);
-    uint64_t version = 0;
-    auto st = client_->UpsertSites(r, &version);
-    EXPECT_TRUE(st.ok()) << st.error_message();
-    return version;
-  }
   static SiteTable RandomPoints(int n, uint64_t seed) {
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> u(0, 1);

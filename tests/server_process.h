@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "gvd/client.h"
+#include "test_scenes.h"
 
 namespace gvd::testing {
 
@@ -119,6 +120,16 @@ class SharedServerTest : public ::testing::Test {
     ASSERT_TRUE(client_->WaitForConnected(std::chrono::seconds(10)));
   }
   static void SetUpTestSuite() { StartServer(); }
+  // Upserts the sites into the scene; the version it brings, or 0 (and a failure).
+  static uint64_t Upsert(const std::string& scene, const SiteTable& sites) {
+    v1::UpsertSitesRequest r;
+    r.set_scene_id(scene);
+    for (const Site& s : sites) *r.add_sites() = ToProtoSite(s);
+    uint64_t version = 0;
+    auto st = client_->UpsertSites(r, &version);
+    EXPECT_TRUE(st.ok()) << st.error_message();
+    return version;
+  }
   static void TearDownTestSuite() {
     delete client_;
     client_ = nullptr;

@@ -61,15 +61,6 @@ class SitesServerTest : public testing::SharedServerTest {
     v1::Scene scene;
     ASSERT_TRUE(client_->CreateScene(r, &scene).ok());
   }
-  static uint64_t Upsert(const std::string& scene, const std::vector<Site>& sites) {
-    v1::UpsertSitesRequest r;
-    r.set_scene_id(scene);
-    for (const Site& s : sites) *r.add_sites() = ToProtoSite(s);
-    uint64_t version = 0;
-    auto st = client_->UpsertSites(r, &version);
-    EXPECT_TRUE(st.ok()) << st.error_message();
-    return version;
-  }
 };
 
 // The acceptance: a scene mixing all kinds, weights and both diagram directions
