@@ -16,7 +16,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "client/mosaic.h"
-#include "render/image.h"
+#include "image/image.h"
 
 namespace gvd::cli {
 namespace {

@@ -7,8 +7,8 @@
 #include <random>
 
 #include "absl/strings/str_cat.h"
-#include "render/context.h"
-#include "render/raster.h"
+#include "gl/context.h"
+#include "gl/raster.h"
 
 namespace gvd {
 

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "render/geometry.h"
+#include "geometry/geometry.h"
 
 namespace gvd {
 

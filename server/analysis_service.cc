@@ -8,9 +8,9 @@
 #include <set>
 
 #include "absl/strings/str_cat.h"
-#include "render/analysis.h"
-#include "render/plan.h"
-#include "render/refine.h"
+#include "analysis/analysis.h"
+#include "analysis/plan.h"
+#include "analysis/refine.h"
 #include "server/call_scope.h"
 #include "server/convert.h"
 #include "server/frame_job.h"

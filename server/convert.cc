@@ -6,8 +6,8 @@
 #include <unordered_set>
 
 #include "absl/strings/str_cat.h"
-#include "render/exact.h"
-#include "render/mesh.h"
+#include "geometry/exact.h"
+#include "geometry/mesh.h"
 
 namespace gvd {
 namespace {

@@ -8,8 +8,8 @@
 #include <grpcpp/support/status.h>
 
 #include "gvd/v1/voronoi.pb.h"
-#include "render/geometry.h"
-#include "render/site.h"
+#include "geometry/geometry.h"
+#include "geometry/site.h"
 #include "server/limits.h"
 #include "server/scene.h"
 

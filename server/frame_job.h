@@ -12,7 +12,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include "absl/strings/str_cat.h"
-#include "render/parallel.h"
+#include "geometry/parallel.h"
 #include "server/call_scope.h"
 #include "server/convert.h"
 #include "server/scene.h"

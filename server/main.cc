@@ -294,6 +294,7 @@ int main(int argc, char** argv) {
   if (auto s = service.Load(); !s.ok()) {
     gvd::Log(gvd::LogLevel::kError, "store_load_failed", {{"error", s.ToString()}});
     server->Shutdown();
+    renderer.Stop();  // before the service's pools go
     return 1;
   }
   server->GetHealthCheckService()->SetServingStatus(true);

@@ -5,7 +5,8 @@
 #include <map>
 
 #include "absl/strings/str_cat.h"
-#include "render/raster.h"
+#include "gl/raster.h"
+#include "gl/scene_raster.h"
 #include "server/log.h"
 
 namespace gvd {
@@ -120,30 +121,25 @@ void RenderLoop::Run(DevicePreference preference) {
     auto start = std::chrono::steady_clock::now();
     auto& slot = rasters[scene.get()];
     absl::StatusOr<std::shared_ptr<const Frame>> frame;
-    Scene::Changes changes;
     if (!slot.second) {
       auto raster = SceneRaster::Create(settings.grid, settings.eps, settings.mode,
                                         settings.diagram);
       if (raster.ok()) {
         slot = {scene, std::move(*raster)};
-        changes = scene->TakeChanges(/*all=*/true);
       } else {
         frame = raster.status();
       }
-    } else {
-      changes = scene->TakeChanges(/*all=*/false);
     }
-    if (slot.second && changes.version <= scene->frame()->version()) continue;
+    // The newest snapshot: the raster draws what differs from the one it drew last.
+    std::shared_ptr<const SiteSnapshot> sites = scene->snapshot();
+    if (slot.second && sites->version() <= scene->frame()->version()) continue;
     RenderStats render_stats;
-    if (slot.second) {
-      frame = slot.second->Apply(*rasterizer, changes.version, std::move(changes.changes),
-                                 &render_stats);
-    }
+    if (slot.second) frame = slot.second->Apply(*rasterizer, sites, &render_stats);
     double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (!frame.ok()) {
       rasters.erase(scene.get());  // the next render starts from scratch
       Log(LogLevel::kError, "render_failed",
-          {{"scene", scene->id()}, {"version", absl::StrCat(changes.version)},
+          {{"scene", scene->id()}, {"version", absl::StrCat(sites->version())},
            {"error", frame.status().ToString()}});
       scene->FailWaiters(absl::UnavailableError(
           absl::StrCat("rendering scene \"", scene->id(), "\" failed: ", frame.status().message())));
@@ -157,7 +153,7 @@ void RenderLoop::Run(DevicePreference preference) {
     scene->Publish(*frame);
     const PixelRect& w = render_stats.window;
     Log(LogLevel::kDebug, "rendered",
-        {{"scene", scene->id()}, {"version", absl::StrCat(changes.version)},
+        {{"scene", scene->id()}, {"version", absl::StrCat(sites->version())},
          {"sites", absl::StrCat((*frame)->site_count())},
          {"full", render_stats.full ? "true" : "false"},
          {"window", absl::StrCat(w.x0, ",", w.y0, ",", w.x1, ",", w.y1)},

@@ -13,8 +13,8 @@
 #include <thread>
 
 #include "absl/status/status.h"
-#include "render/context.h"
-#include "render/zoom.h"
+#include "gl/context.h"
+#include "gl/zoom.h"
 #include "server/metrics.h"
 #include "server/scene.h"
 
@@ -39,7 +39,7 @@ class RenderLoop {
   // Queues a render of the scene at its latest version. Thread-safe; never blocks on a render.
   void MarkDirty(std::shared_ptr<Scene> scene);
 
-  // Renders zoom windows of `base` (render/zoom.h) on the render thread, between scene
+  // Renders zoom windows of `base` (gl/zoom.h) on the render thread, between scene
   // renders, and waits for them. Thread-safe; never call it from the render thread. Fails
   // with Unavailable once the loop stops.
   absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> Zoom(std::shared_ptr<const Frame> base,

@@ -6,9 +6,9 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
-#include "render/analysis.h"
-#include "render/exact.h"
-#include "render/parallel.h"
+#include "analysis/analysis.h"
+#include "geometry/exact.h"
+#include "geometry/parallel.h"
 
 namespace gvd {
 
@@ -20,100 +20,80 @@ int64_t NowNs() {
 }
 }  // namespace
 
-Scene::Scene(SceneSettings settings) : settings_(std::move(settings)) {
-  frame_.store(Frame::Empty(settings_.grid, 1, settings_.eps));
+Scene::Scene(SceneSettings settings, Executor executor)
+    : settings_(std::move(settings)), executor_(std::move(executor)) {
+  snapshot_.store(SiteSnapshot::Empty(1));
+  frame_.store(Frame::Empty(settings_.grid, settings_.eps, snapshot_.load()));
   published_ns_ = NowNs();
 }
 
 double Scene::frame_age_seconds() const { return (NowNs() - published_ns_.load()) * 1e-9; }
 
-Scene::Scene(SceneSettings settings, uint64_t version, std::vector<Site> sites)
-    : Scene(std::move(settings)) {
-  (void)Upsert(std::move(sites), SIZE_MAX);
-  std::unique_lock<std::shared_mutex> lock(mu_);
-  version_ = version;
+Scene::Scene(SceneSettings settings, uint64_t version, std::vector<Site> sites, Executor executor)
+    : Scene(std::move(settings), std::move(executor)) {
+  SnapshotBuilder builder(snapshot_.load(), &free_slots_);
+  for (Site& site : sites) builder.Put(std::move(site));
+  snapshot_.store(builder.Build(version));
+}
+
+absl::StatusOr<uint64_t> Scene::Write(const std::function<absl::Status(SnapshotBuilder&)>& edit,
+                                      const Persist& persist) {
+  std::lock_guard<std::mutex> lock(writer_mu_);
+  auto base = snapshot_.load();
+  SnapshotBuilder builder(base, &free_slots_);
+  absl::Status status = edit(builder);
+  if (status.ok() && persist) status = persist(base->version() + 1);
+  if (!status.ok()) {
+    builder.Abandon();
+    return status;
+  }
+  auto next = builder.Build(base->version() + 1);
+  // Freed slots are taken again only by later snapshots: this one's frames may still show
+  // them until the render of the next.
+  free_slots_.insert(free_slots_.end(), builder.freed().rbegin(), builder.freed().rend());
+  snapshot_.store(next);
+  return next->version();
 }
 
 absl::StatusOr<uint64_t> Scene::Upsert(std::vector<Site> sites, size_t max_sites,
                                        const Persist& persist) {
-  std::unique_lock<std::shared_mutex> lock(mu_);
-  size_t added = 0;
-  for (const Site& s : sites) added += slot_of_.count(s.id) == 0;
-  if (slot_of_.size() + added > max_sites) {
-    return absl::ResourceExhaustedError(
-        absl::StrCat("scene \"", id(), "\" would hold ", slot_of_.size() + added,
-                     " sites; the limit per scene is ", max_sites, " (--max-sites-per-scene)"));
-  }
-  if (persist) {
-    if (auto s = persist(version_ + 1); !s.ok()) return s;
-  }
-  for (Site& s : sites) {
-    changed_.insert(s.id);
-    auto it = slot_of_.find(s.id);
-    uint32_t slot;
-    if (it != slot_of_.end()) {
-      slot = it->second;
-      index_.Remove(slot, slots_.get(slot)->geometry);
-      non_plain_ -= !slots_.get(slot)->plain();
-    } else {
-      if (!free_.empty()) {
-        slot = free_.back();
-        free_.pop_back();
-      } else {
-        slot = slots_.size();
-      }
-      slot_of_.emplace(s.id, slot);
-    }
-    index_.Insert(slot, s.geometry);
-    non_plain_ += !s.plain();
-    slots_.Set(slot, std::move(s));
-  }
-  return ++version_;
+  return Write(
+      [&](SnapshotBuilder& builder) {
+        for (Site& s : sites) builder.Put(std::move(s));
+        if (builder.size() > max_sites) {
+          return absl::ResourceExhaustedError(
+              absl::StrCat("scene \"", id(), "\" would hold ", builder.size(),
+                           " sites; the limit per scene is ", max_sites,
+                           " (--max-sites-per-scene)"));
+        }
+        return absl::OkStatus();
+      },
+      persist);
 }
 
 absl::StatusOr<uint64_t> Scene::Delete(const std::vector<std::string>& ids,
                                        const Persist& persist) {
-  std::unique_lock<std::shared_mutex> lock(mu_);
-  for (size_t i = 0; i < ids.size(); ++i) {
-    if (slot_of_.find(ids[i]) == slot_of_.end()) {
-      return absl::NotFoundError(absl::StrCat("ids[", i, "] \"", ids[i],
-                                              "\" is not a site of scene \"", id(), "\""));
-    }
-  }
-  if (persist) {
-    if (auto s = persist(version_ + 1); !s.ok()) return s;
-  }
-  for (const auto& i : ids) {
-    auto it = slot_of_.find(i);
-    uint32_t slot = it->second;
-    index_.Remove(slot, slots_.get(slot)->geometry);
-    non_plain_ -= !slots_.get(slot)->plain();
-    slots_.Set(slot, std::nullopt);
-    free_.push_back(slot);
-    slot_of_.erase(it);
-    changed_.insert(i);
-  }
-  return ++version_;
-}
-
-uint64_t Scene::version() const {
-  std::shared_lock<std::shared_mutex> lock(mu_);
-  return version_;
-}
-
-size_t Scene::site_count() const {
-  std::shared_lock<std::shared_mutex> lock(mu_);
-  return slot_of_.size();
+  return Write(
+      [&](SnapshotBuilder& builder) {
+        for (size_t i = 0; i < ids.size(); ++i) {
+          if (!builder.Remove(ids[i])) {
+            return absl::NotFoundError(absl::StrCat("ids[", i, "] \"", ids[i],
+                                                    "\" is not a site of scene \"", id(), "\""));
+          }
+        }
+        return absl::OkStatus();
+      },
+      persist);
 }
 
 Scene::Picked Scene::Pick(Vec2 q, double max_distance) const {
-  std::shared_lock<std::shared_mutex> lock(mu_);
+  auto snapshot = snapshot_.load();
   Picked p;
-  p.version = version_;
-  if (slot_of_.empty()) return p;
-  ExactNearest n = index_.Nearest(q, slots_);
+  p.version = snapshot->version();
+  if (snapshot->empty()) return p;
+  ExactNearest n = snapshot->index().Nearest(q);
   if (!n.found() || n.distance > max_distance) return p;
-  const Site& site = *slots_.get(static_cast<uint32_t>(n.index));
+  const Site& site = *snapshot->sites().get(static_cast<uint32_t>(n.index));
   FeatureHit f = NearestFeature(q, site.geometry);
   p.found = true;
   p.site_id = site.id;
@@ -158,25 +138,29 @@ std::shared_ptr<const ClearanceField> Scene::Clearance(
 uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactAnswer>* answers,
                              const std::function<bool()>& cancelled) const {
   std::atomic<bool> stop{false};
-  std::shared_lock<std::shared_mutex> lock(mu_);
-  auto frame = frame_.load();
-  const bool fresh = frame->version() == version_ && !frame->empty();
+  const auto snapshot = snapshot_.load();
+  const auto frame = frame_.load();
+  // The frame bounds the search only when it shows this very snapshot: then its ids are this
+  // snapshot's slots.
+  const bool fresh = frame->snapshot_ptr() == snapshot && !frame->empty();
+  const SlotTable& slots = snapshot->sites();
+  const SiteIndex& index = snapshot->index();
   const Window& window = settings_.grid.window;
   // With only plain sites, the nearest site is the nearest by distance: the frame and the
   // spatial index find it. Otherwise (weights, max_distance, sides, FARTHEST) every site is
   // scored.
-  const bool plain = non_plain_ == 0 && settings_.diagram == Diagram::kNearest;
+  const bool plain = snapshot->plain() && settings_.diagram == Diagram::kNearest;
   answers->resize(points.size());
   auto answer = [&](Vec2 q, uint32_t slot, double value) {
-    const Site* site = slots_.get(slot);
+    const Site* site = slots.get(slot);
     FeatureHit f = NearestFeature(q, site->geometry);
     return ExactAnswer{site->id, value, f.kind, f.index, true};
   };
   // Cancellation is checked about every million site evaluations: every 4,096 points when
   // the index answers, more often when each point scores every site.
   const size_t check_every =
-      plain ? 4096 : std::max<size_t>(1, (size_t{1} << 20) / std::max<uint32_t>(1, slots_.size()));
-  // Large batches are split across cores, all under this one shared lock (one version).
+      plain ? 4096 : std::max<size_t>(1, (size_t{1} << 20) / std::max<uint32_t>(1, slots.size()));
+  // Large batches are split across cores, all on this one snapshot.
   ParallelFor(points.size(), 8192, [&](size_t begin, size_t end) {
     std::vector<uint32_t> nearer;
     for (size_t i = begin; i < end; ++i) {
@@ -189,8 +173,8 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
         uint32_t best = 0;
         double value = 0;
         bool found = false;
-        for (uint32_t s = 0; s < slots_.size(); ++s) {
-          const Site* site = slots_.get(s);
+        for (uint32_t s = 0; s < slots.size(); ++s) {
+          const Site* site = slots.get(s);
           if (site == nullptr) continue;
           double v = SiteValue(q, *site);
           if (std::isfinite(v) && (!found || Beats(settings_.diagram, v, value))) {
@@ -205,19 +189,18 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
       std::optional<NearestAnswer> raster;
       if (fresh && window.Contains(q)) raster = frame->Nearest(q);
       if (!raster) {
-        ExactNearest best = index_.Nearest(q, slots_);
+        ExactNearest best = index.Nearest(q);
         (*answers)[i] = answer(q, static_cast<uint32_t>(best.index), best.distance);
         continue;
       }
-      // The frame's site exists at this version, at exactly this distance from q (its slots
-      // are the render thread's, so it is carried by id): only sites the index finds within
-      // that radius can be nearer.
-      uint32_t best = slot_of_.find(frame->sites().get(raster->site_index)->id)->second;
+      // The frame's site is at exactly this distance from q: only sites the index finds
+      // within that radius can be nearer.
+      uint32_t best = raster->site_index;
       double distance = raster->distance;
       nearer.clear();
-      index_.Within(q, distance, &nearer);
+      index.Within(q, distance, &nearer);
       for (uint32_t s : nearer) {
-        double d = ExactDistance(q, slots_.get(s)->geometry);
+        double d = ExactDistance(q, slots.get(s)->geometry);
         if (d < distance) {
           best = s;
           distance = d;
@@ -227,45 +210,30 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
     }
   });
   if (stop) return 0;
-  return version_;
+  return snapshot->version();
 }
 
 Scene::SitePage Scene::ListSites(std::string_view after, size_t limit) const {
-  std::shared_lock<std::shared_mutex> lock(mu_);
+  auto snapshot = snapshot_.load();
   SitePage page;
-  page.version = version_;
-  auto it = after.empty() ? slot_of_.begin() : slot_of_.upper_bound(after);
-  for (; it != slot_of_.end() && page.sites.size() < limit; ++it) {
-    page.sites.push_back(*slots_.get(it->second));
-  }
-  if (it != slot_of_.end() && !page.sites.empty()) page.last_id = page.sites.back().id;
-  return page;
-}
-
-Scene::Changes Scene::TakeChanges(bool all) {
-  std::unique_lock<std::shared_mutex> lock(mu_);
-  Changes out;
-  out.version = version_;
-  if (all) {
-    out.changes.reserve(slot_of_.size());
-    for (const auto& [id, slot] : slot_of_) out.changes.push_back({id, *slots_.get(slot)});
-  } else {
-    out.changes.reserve(changed_.size());
-    for (const auto& id : changed_) {
-      auto it = slot_of_.find(id);
-      out.changes.push_back({id, it == slot_of_.end()
-                                     ? std::nullopt
-                                     : std::optional<Site>(*slots_.get(it->second))});
+  page.version = snapshot->version();
+  bool more = false;
+  snapshot->ids().ForEachAfter(after, [&](const IdMap::Entry& e) {
+    if (page.sites.size() == limit) {
+      more = true;
+      return false;
     }
-  }
-  changed_.clear();
-  return out;
+    page.sites.push_back(*snapshot->sites().get(e.slot));
+    return true;
+  });
+  if (more && !page.sites.empty()) page.last_id = page.sites.back().id;
+  return page;
 }
 
 void Scene::Publish(std::shared_ptr<const Frame> frame) {
   std::vector<FrameCallback> ready;
   {
-    std::unique_lock<std::shared_mutex> lock(mu_);
+    std::lock_guard<std::mutex> lock(waiters_mu_);
     frame_.store(frame);
     published_ns_ = NowNs();
     for (auto it = waiters_.begin(); it != waiters_.end();) {
@@ -277,13 +245,19 @@ void Scene::Publish(std::shared_ptr<const Frame> frame) {
       }
     }
   }
-  for (auto& done : ready) done(frame);
+  for (auto& done : ready) {
+    if (executor_) {
+      executor_([done = std::move(done), frame] { done(frame); });
+    } else {
+      done(frame);
+    }
+  }
 }
 
 void Scene::FailWaiters(const absl::Status& status) {
   std::map<uint64_t, Waiter> failed;
   {
-    std::unique_lock<std::shared_mutex> lock(mu_);
+    std::lock_guard<std::mutex> lock(waiters_mu_);
     failed.swap(waiters_);
   }
   for (auto& [token, w] : failed) w.done(status);
@@ -298,7 +272,7 @@ uint64_t Scene::WhenRendered(uint64_t min_version, FrameCallback done) {
   std::shared_ptr<const Frame> ready;
   uint64_t token;
   {
-    std::unique_lock<std::shared_mutex> lock(mu_);
+    std::lock_guard<std::mutex> lock(waiters_mu_);
     token = next_token_++;
     auto current = frame_.load();
     if (current->version() >= min_version) {
@@ -314,7 +288,7 @@ uint64_t Scene::WhenRendered(uint64_t min_version, FrameCallback done) {
 void Scene::Cancel(uint64_t token, const absl::Status& why) {
   FrameCallback done;
   {
-    std::unique_lock<std::shared_mutex> lock(mu_);
+    std::lock_guard<std::mutex> lock(waiters_mu_);
     auto it = waiters_.find(token);
     if (it == waiters_.end()) return;
     done = std::move(it->second.done);

@@ -7,19 +7,16 @@
 #include <map>
 #include <memory>
 #include <mutex>
-#include <set>
-#include <shared_mutex>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "render/frame.h"
-#include "render/geometry.h"
-#include "render/plan.h"
-#include "render/scene_raster.h"
-#include "render/site.h"
-#include "render/site_index.h"
+#include "analysis/plan.h"
+#include "core/frame.h"
+#include "core/snapshot.h"
+#include "geometry/geometry.h"
+#include "geometry/site.h"
 
 namespace gvd {
 
@@ -36,17 +33,29 @@ struct SceneSettings {
 // there will be none (scene deleted, render failed, call cancelled).
 using FrameCallback = std::function<void(absl::StatusOr<std::shared_ptr<const Frame>>)>;
 
-// Thread-safe. Handlers mutate sites and read frames; the render thread snapshots sites and
-// publishes frames. Readers of frame() never wait for a render.
+// Runs a job on a thread that is not the caller's (the process's CPU pool).
+using Executor = std::function<void(std::function<void()>)>;
+
+// Thread-safe. Threading rules:
+//  - the sites are an immutable SiteSnapshot, published atomically: readers (queries, the
+//    render thread) load it without a lock and never wait for a writer;
+//  - writers (Upsert, Delete) take the writer lock, build the next snapshot from the current
+//    one, make it durable (Persist) and publish it, so a durable commit blocks only other
+//    writers of the same scene;
+//  - the render thread publishes frames, each holding the snapshot it was rendered from;
+//    readers of frame() never wait for a render;
+//  - waiters for a frame are resumed through the executor, never on the render thread.
 class Scene {
  public:
-  // A new scene at version 1 with no sites and an empty frame.
-  explicit Scene(SceneSettings settings);
+  // A new scene at version 1 with no sites and an empty frame. Frame waiters are resumed
+  // through `executor` (null: on the publishing thread).
+  explicit Scene(SceneSettings settings, Executor executor = nullptr);
   // A scene restored from the store, at its stored version.
-  Scene(SceneSettings settings, uint64_t version, std::vector<Site> sites);
+  Scene(SceneSettings settings, uint64_t version, std::vector<Site> sites,
+        Executor executor = nullptr);
 
-  // Makes a change durable before it is applied: called with the version the change brings
-  // the scene to, under the scene's lock; an error cancels the change.
+  // Makes a change durable before it is published: called with the version the change brings
+  // the scene to, under the writer lock only; an error cancels the change.
   using Persist = std::function<absl::Status(uint64_t new_version)>;
 
   const SceneSettings& settings() const { return settings_; }
@@ -62,13 +71,16 @@ class Scene {
   absl::StatusOr<uint64_t> Delete(const std::vector<std::string>& ids,
                                   const Persist& persist = nullptr);
 
-  uint64_t version() const;
-  size_t site_count() const;
+  // The latest snapshot of the sites. Lock-free.
+  std::shared_ptr<const SiteSnapshot> snapshot() const { return snapshot_.load(); }
+  uint64_t version() const { return snapshot()->version(); }
+  size_t site_count() const { return snapshot()->size(); }
 
-  // Exact best sites at the current version, which it returns. In a NEAREST scene of plain
-  // sites: when the latest frame is of that version and q lies in the window, the frame's
-  // answer bounds the search (paper sec. 6.3: the raster's site is an upper bound) and the
-  // spatial index supplies every site within it; otherwise the index alone finds the nearest.
+  // Exact best sites at the current version, which it returns, all read from one snapshot.
+  // In a NEAREST scene of plain sites: when the latest frame was rendered from that snapshot
+  // and q lies in the window, the frame's answer bounds the search (paper sec. 6.3: the
+  // raster's site is an upper bound) and the snapshot's index supplies every site within it;
+  // otherwise the index alone finds the nearest.
   // Scenes with weighted, bounded or one-sided sites, and FARTHEST scenes, score every site
   // (O(sites) per point). Concurrent calls do not block each other.
   // CONTRACT: the scene has sites.
@@ -108,7 +120,7 @@ class Scene {
   };
   Hidden HiddenSites() const;
 
-  // The clearance field of `frame` (render/plan.h), kept for the latest frame asked about so
+  // The clearance field of `frame` (analysis/plan.h), kept for the latest frame asked about so
   // that repeated plans on one frame compute it once.
   std::shared_ptr<const ClearanceField> Clearance(const std::shared_ptr<const Frame>& frame) const;
 
@@ -120,21 +132,12 @@ class Scene {
   // Up to `limit` sites with ids greater than `after`, in id order.
   SitePage ListSites(std::string_view after, size_t limit) const;
 
-  // For the render thread: the sites changed since the last call, each once with its current
-  // geometry (none if deleted), and the version they bring the scene to. With `all`, every
-  // site as an upsert (for a render from scratch), and the changed set is cleared as well.
-  struct Changes {
-    uint64_t version = 0;
-    std::vector<SiteChange> changes;
-  };
-  Changes TakeChanges(bool all);
-
   // Seconds since the latest frame was published.
   double frame_age_seconds() const;
 
   // The latest published frame. Lock-free for readers.
   std::shared_ptr<const Frame> frame() const { return frame_.load(); }
-  // Publishes a newer frame and hands it to the waiters it satisfies.
+  // Publishes a newer frame and hands it to the waiters it satisfies (through the executor).
   void Publish(std::shared_ptr<const Frame> frame);
   // Fails every waiter (the render failed, or the scene is being deleted).
   void FailWaiters(const absl::Status& status);
@@ -155,19 +158,22 @@ class Scene {
     FrameCallback done;
   };
 
+  // Builds, persists and publishes the next snapshot; `edit` fills the builder and may
+  // refuse. Under the writer lock.
+  absl::StatusOr<uint64_t> Write(const std::function<absl::Status(SnapshotBuilder&)>& edit,
+                                 const Persist& persist);
+
   const SceneSettings settings_;
+  const Executor executor_;
   std::atomic<bool> deleted_{false};
+  std::atomic<std::shared_ptr<const SiteSnapshot>> snapshot_;
   std::atomic<std::shared_ptr<const Frame>> frame_;
   std::atomic<int64_t> published_ns_{0};  // steady_clock
 
-  mutable std::shared_mutex mu_;  // guards everything below; shared by exact queries
-  uint64_t version_ = 1;
-  std::map<std::string, uint32_t, std::less<>> slot_of_;  // id -> slot, in id order
-  SlotTable slots_;
-  std::vector<uint32_t> free_;
-  SiteIndex index_;
-  size_t non_plain_ = 0;  // live sites that are not Site::plain()
-  std::set<std::string> changed_;  // since the last TakeChanges
+  std::mutex writer_mu_;  // held by one writer from building a snapshot to publishing it
+  std::vector<uint32_t> free_slots_;  // slots free in the latest snapshot; guarded by writer_mu_
+
+  std::mutex waiters_mu_;  // guards the two below
   uint64_t next_token_ = 1;
   std::map<uint64_t, Waiter> waiters_;
 

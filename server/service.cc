@@ -4,9 +4,9 @@
 #include "server/frame_job.h"
 
 #include "absl/strings/str_cat.h"
-#include "render/image.h"
+#include "image/image.h"
 #include "server/convert.h"
-#include "render/parallel.h"
+#include "geometry/parallel.h"
 #include "server/log.h"
 
 #include <atomic>
@@ -147,7 +147,12 @@ class NearestStreamReactor final : public grpc::ServerWriteReactor<v1::FindNeare
 VoronoiService::VoronoiService(RenderLoop* renderer, Store* store, ServerLimits limits,
                                const TokenAuth* auth, Metrics* metrics)
     : renderer_(renderer), store_(store), limits_(limits), auth_(auth), metrics_(metrics),
-      workers_(limits.analysis_threads, limits.max_queued_analyses) {}
+      workers_(limits.analysis_threads, limits.max_queued_analyses),
+      answers_(std::max(1u, std::thread::hardware_concurrency()), SIZE_MAX) {}
+
+Executor VoronoiService::executor() {
+  return [this](std::function<void()> job) { answers_.Submit(std::move(job)); };
+}
 
 void VoronoiService::ObserveCommit() const {
   if (metrics_) metrics_->ObserveCommit(store_->last_commit_seconds());
@@ -195,7 +200,8 @@ absl::Status VoronoiService::Load() {
       }
     }
     sites += parsed.size();
-    auto scene = std::make_shared<Scene>(std::move(settings), s.version, std::move(parsed));
+    auto scene = std::make_shared<Scene>(std::move(settings), s.version, std::move(parsed),
+                                         executor());
     {
       std::lock_guard<std::mutex> lock(mu_);
       scenes_[scene->id()] = scene;
@@ -244,7 +250,7 @@ grpc::ServerUnaryReactor* VoronoiService::CreateScene(grpc::CallbackServerContex
   if (auto s = Ready(); !s.ok()) return scope.Done(ctx, s);
   SceneSettings settings;
   if (auto s = ToSceneSettings(*request, limits_, &settings); !s.ok()) return scope.Done(ctx, s);
-  auto scene = std::make_shared<Scene>(std::move(settings));
+  auto scene = std::make_shared<Scene>(std::move(settings), executor());
   {
     std::lock_guard<std::mutex> lock(mu_);
     if (scenes_.count(scene->id())) {

@@ -117,6 +117,8 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   // UNAVAILABLE until Load() has run (and once draining); then the token check, if any.
   grpc::Status Admit(grpc::CallbackServerContext* ctx, bool write) const;
   grpc::Status Ready() const;
+  // Resumes a scene's frame waiters on answers_.
+  Executor executor();
 
   RenderLoop* const renderer_;
   Store* const store_;
@@ -130,7 +132,11 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   friend class CallScope;
   mutable std::mutex mu_;  // guards scenes_
   std::map<std::string, std::shared_ptr<Scene>> scenes_;
-  WorkerPool workers_;  // last: its threads stop before the rest goes
+  WorkerPool workers_;
+  // Where queries that waited for a frame are answered (and images encoded): one thread per
+  // core, never refusing, so the render thread only hands frames over. Last: its threads
+  // stop (finishing what is queued, which may still queue analyses) before the rest goes.
+  WorkerPool answers_;
 };
 
 }  // namespace gvd

@@ -8,10 +8,10 @@
 #include <random>
 #include <set>
 
-#include "render/analysis.h"
-#include "render/exact.h"
-#include "render/refine.h"
-#include "render/zoom.h"
+#include "analysis/analysis.h"
+#include "geometry/exact.h"
+#include "analysis/refine.h"
+#include "gl/zoom.h"
 #include "tests/gl_fixture.h"
 #include "tests/pixel_oracle.h"
 #include "tests/qhull_delaunay.h"

@@ -9,7 +9,7 @@
 #include <thread>
 
 #include "gvd/client.h"
-#include "render/exact.h"
+#include "geometry/exact.h"
 #include "server_process.h"
 #include "test_scenes.h"
 #include "tests/maze.h"

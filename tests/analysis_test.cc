@@ -7,8 +7,8 @@
 #include <random>
 #include <set>
 
-#include "render/analysis.h"
-#include "render/exact.h"
+#include "analysis/analysis.h"
+#include "geometry/exact.h"
 
 namespace gvd {
 namespace {

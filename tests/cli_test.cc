@@ -10,7 +10,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "render/exact.h"
+#include "geometry/exact.h"
 #include "server_process.h"
 
 namespace gvd {

@@ -1,12 +1,12 @@
 // The coverage radii against the oracle, pixel by pixel: every pixel centre lies within the
-// radius of each of its exact nearest sites (render/coverage.h states the proof).
-#include "render/coverage.h"
+// radius of each of its exact nearest sites (geometry/coverage.h states the proof).
+#include "geometry/coverage.h"
 
 #include <gtest/gtest.h>
 
 #include <random>
 
-#include "render/exact.h"
+#include "geometry/exact.h"
 
 namespace gvd {
 namespace {
@@ -96,7 +96,7 @@ TEST(SiteIndex, NearestAndWithinAgreeWithBruteForce) {
   std::uniform_real_distribution<double> u(-2, 12);
   for (int t = 0; t < 300; ++t) {
     Vec2 q{u(rng), u(rng)};
-    EXPECT_EQ(index.Nearest(q, slots).distance, NearestBruteForce(q, sites).distance);
+    EXPECT_EQ(index.Nearest(q).distance, NearestBruteForce(q, sites).distance);
     std::vector<uint32_t> within;
     index.Within(q, 1.5, &within);
     for (size_t s = 0; s < sites.size(); ++s) {
@@ -107,13 +107,18 @@ TEST(SiteIndex, NearestAndWithinAgreeWithBruteForce) {
       }
     }
   }
-  // Removal and insertion keep it exact.
-  index.Remove(0, sites[0].geometry);
-  sites[0].geometry = PointSite{{5, 5}};
-  slots.Set(0, sites[0]);
-  index.Insert(0, sites[0].geometry);
-  EXPECT_EQ(index.Nearest({5, 5}, slots).distance, 0);
-  EXPECT_EQ(index.size(), 500u);
+  // A moved site: the updated index finds it, and the index it was made from still answers
+  // for the table it was made of.
+  SlotTable moved = slots;
+  Site m = sites[0];
+  m.geometry = PointSite{{5, 5}};
+  moved.Set(0, m);
+  const uint32_t changed[] = {0};
+  SiteIndex next = index.Update(moved, changed);
+  EXPECT_EQ(next.Nearest({5, 5}).distance, 0);
+  EXPECT_EQ(next.size(), 500u);
+  EXPECT_EQ(index.Nearest({5, 5}).distance, NearestBruteForce({5, 5}, sites).distance);
+  EXPECT_NE(index.Nearest({5, 5}).distance, 0);
 }
 
 }  // namespace

@@ -1,4 +1,4 @@
-#include "render/exact.h"
+#include "geometry/exact.h"
 
 #include <gtest/gtest.h>
 

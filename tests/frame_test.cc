@@ -1,12 +1,12 @@
 // Frame lookups on frames built on the CPU from the exact oracle (no GL): the query contract
 // must hold whatever mesh overestimate the frame carries.
-#include "render/frame.h"
+#include "core/frame.h"
 
 #include <gtest/gtest.h>
 
 #include <random>
 
-#include "render/exact.h"
+#include "geometry/exact.h"
 
 namespace gvd {
 namespace {
@@ -33,8 +33,8 @@ std::shared_ptr<const Frame> EmulatedFrame(const Grid& grid, std::vector<Site> s
     }
   }
   ErrorModel error{Diagram::kNearest, k, INFINITY, 0, 0x1p-22};  // float storage of D
-  return std::make_shared<const Frame>(grid, 1, 1, error, ids.data(), dist.data(),
-                                       SlotTable(sites), sites.size());
+  return std::make_shared<const Frame>(grid, 1, error, ids.data(), dist.data(),
+                                       SiteSnapshot::Of(1, sites));
 }
 
 void ExpectContract(const Frame& frame, const SiteTable& sites, Vec2 q) {
@@ -49,7 +49,7 @@ void ExpectContract(const Frame& frame, const SiteTable& sites, Vec2 q) {
 }
 
 TEST(Frame, EmptyFrameHasNoAnswer) {
-  auto f = Frame::Empty(Grid{{0, 0, 1, 1}, 4, 4}, 3, 0.25);
+  auto f = Frame::Empty(Grid{{0, 0, 1, 1}, 4, 4}, 0.25, SiteSnapshot::Empty(3));
   EXPECT_TRUE(f->empty());
   EXPECT_EQ(f->version(), 3u);
   EXPECT_FALSE(f->Nearest({0.5, 0.5}).has_value());

@@ -6,8 +6,8 @@
 
 #include <string>
 
-#include "render/context.h"
-#include "render/raster.h"
+#include "gl/context.h"
+#include "gl/raster.h"
 
 namespace gvd {
 

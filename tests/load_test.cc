@@ -13,7 +13,7 @@
 #include <thread>
 
 #include "gvd/client.h"
-#include "render/exact.h"
+#include "geometry/exact.h"
 #include "server_process.h"
 #include "test_scenes.h"
 

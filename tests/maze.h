@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "render/site.h"
+#include "geometry/site.h"
 
 namespace gvd::testing {
 

@@ -1,4 +1,4 @@
-#include "render/mesh.h"
+#include "geometry/mesh.h"
 
 #include <gtest/gtest.h>
 

@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "render/exact.h"
-#include "render/frame.h"
+#include "geometry/exact.h"
+#include "core/frame.h"
 
 namespace gvd {
 
@@ -21,7 +21,7 @@ inline double Unrestricted(Vec2 p, const Site& s) {
 
 // Whether the site may be drawn at p: within max_distance + margin (the margin widened by
 // what a fan's corners and float arithmetic add), and on its polygon's side or within
-// margin of the boundary (render/geometry.h).
+// margin of the boundary (geometry/geometry.h).
 inline bool MayBeDrawn(Vec2 p, const Site& s, const Frame& f) {
   const double margin = DrawMargin(f.grid()) * (1 + 1e-5);
   double d = ExactDistance(p, s.geometry);

@@ -6,8 +6,8 @@
 #include <cmath>
 #include <random>
 
-#include "render/exact.h"
-#include "render/plan.h"
+#include "geometry/exact.h"
+#include "analysis/plan.h"
 #include "tests/gl_fixture.h"
 #include "tests/maze.h"
 

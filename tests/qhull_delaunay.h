@@ -8,7 +8,7 @@
 #include <utility>
 #include <vector>
 
-#include "render/geometry.h"
+#include "geometry/geometry.h"
 
 extern "C" {
 #include <libqhull_r/qhull_ra.h>

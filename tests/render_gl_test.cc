@@ -7,10 +7,10 @@
 #include <memory>
 #include <random>
 
-#include "render/context.h"
-#include "render/exact.h"
-#include "render/mesh.h"
-#include "render/raster.h"
+#include "gl/context.h"
+#include "geometry/exact.h"
+#include "geometry/mesh.h"
+#include "gl/raster.h"
 #include "tests/gl_fixture.h"
 
 namespace gvd {

@@ -1,15 +1,15 @@
 // Incremental rendering on a real EGL context: after any sequence of adds, moves and deletes,
 // the incrementally maintained frame equals a from-scratch render of the same sites, pixel
 // for pixel (ties aside), and holds against the exact oracle.
-#include "render/scene_raster.h"
+#include "gl/scene_raster.h"
 
 #include <gtest/gtest.h>
 
 #include <map>
 #include <random>
 
-#include "render/context.h"
-#include "render/exact.h"
+#include "gl/context.h"
+#include "geometry/exact.h"
 
 namespace gvd {
 namespace {
@@ -92,12 +92,14 @@ TEST_F(SceneRasterGLTest, RandomUpdateSequencesMatchRendersFromScratch) {
     std::uniform_real_distribution<double> ux(-0.5, 4.5), uy(-0.5, 3.5);  // some outside
     std::map<std::string, Vec2> sites;
     int next = 0;
-    uint64_t version = 1;
+    auto snapshot = SiteSnapshot::Empty(1);
+    std::vector<uint32_t> free_slots;
     auto apply = [&](std::vector<SiteChange> changes, const std::string& what) {
-      auto f = (*raster)->Apply(*rasterizer_, ++version, std::move(changes));
+      snapshot = Advance(snapshot, std::move(changes), &free_slots);
+      auto f = (*raster)->Apply(*rasterizer_, snapshot);
       ASSERT_TRUE(f.ok()) << f.status();
       ExpectEquivalent(**f, sites, what + " (seed " + std::to_string(seed) + ", version " +
-                                       std::to_string(version) + ")");
+                                       std::to_string(snapshot->version()) + ")");
     };
     std::vector<SiteChange> initial;
     for (int i = 0; i < 150; ++i) {
@@ -154,7 +156,8 @@ TEST_F(SceneRasterGLTest, LongUpdateSequencesStayEquivalent) {
     std::mt19937_64 rng(mode == RenderMode::kMesh ? 11 : 12);
     std::uniform_real_distribution<double> u(-1.2, 1.2);
     std::map<std::string, Vec2> sites;
-    uint64_t version = 1;
+    auto snapshot = SiteSnapshot::Empty(1);
+    std::vector<uint32_t> free_slots;
     int next = 0;
     std::shared_ptr<const Frame> frame;
     for (int step = 0; step < 400 && !HasFailure(); ++step) {
@@ -179,7 +182,8 @@ TEST_F(SceneRasterGLTest, LongUpdateSequencesStayEquivalent) {
           }
         }
       }
-      auto f = (*raster)->Apply(*rasterizer_, ++version, std::move(changes));
+      snapshot = Advance(snapshot, std::move(changes), &free_slots);
+      auto f = (*raster)->Apply(*rasterizer_, snapshot);
       ASSERT_TRUE(f.ok()) << f.status();
       frame = *f;
       if (step % 50 == 49) ExpectEquivalent(*frame, sites, "step " + std::to_string(step));
@@ -191,12 +195,18 @@ TEST_F(SceneRasterGLTest, DeletingEverySiteAndStartingAgain) {
   Grid grid{{0, 0, 1, 1}, 64, 64};
   auto raster = SceneRaster::Create(grid, grid.pixel_size());
   ASSERT_TRUE(raster.ok());
-  auto f = (*raster)->Apply(*rasterizer_, 2, {{"a", PointSite{{0.2, 0.2}}}, {"b", PointSite{{0.8, 0.7}}}});
+  auto snapshot = SiteSnapshot::Empty(1);
+  std::vector<uint32_t> free_slots;
+  auto apply = [&](std::vector<SiteChange> changes) {
+    snapshot = Advance(snapshot, std::move(changes), &free_slots);
+    return (*raster)->Apply(*rasterizer_, snapshot);
+  };
+  auto f = apply({{"a", PointSite{{0.2, 0.2}}}, {"b", PointSite{{0.8, 0.7}}}});
   ASSERT_TRUE(f.ok());
-  f = (*raster)->Apply(*rasterizer_, 3, {{"a", std::nullopt}, {"b", std::nullopt}});
+  f = apply({{"a", std::nullopt}, {"b", std::nullopt}});
   ASSERT_TRUE(f.ok());
   EXPECT_TRUE((*f)->empty());
-  f = (*raster)->Apply(*rasterizer_, 4, {{"c", PointSite{{0.5, 0.5}}}});
+  f = apply({{"c", PointSite{{0.5, 0.5}}}});
   ASSERT_TRUE(f.ok());
   ExpectEquivalent(**f, {{"c", {0.5, 0.5}}}, "after emptying");
 }
@@ -215,11 +225,17 @@ TEST_F(SceneRasterGLTest, SmallChangesRedrawSmallWindowsAndShareTiles) {
     sites[id] = {u(rng), u(rng)};
     all.push_back({id, PointSite{sites[id]}});
   }
-  auto before = (*raster)->Apply(*rasterizer_, 2, all);
+  auto snapshot = SiteSnapshot::Empty(1);
+  std::vector<uint32_t> free_slots;
+  auto next = [&](std::vector<SiteChange> changes) {
+    snapshot = Advance(snapshot, std::move(changes), &free_slots);
+    return snapshot;
+  };
+  auto before = (*raster)->Apply(*rasterizer_, next(all));
   ASSERT_TRUE(before.ok());
   RenderStats stats;
   sites["7"] = {0.25, 0.75};
-  auto after = (*raster)->Apply(*rasterizer_, 3, {{"7", PointSite{sites["7"]}}}, &stats);
+  auto after = (*raster)->Apply(*rasterizer_, next({{"7", PointSite{sites["7"]}}}), &stats);
   ASSERT_TRUE(after.ok());
   EXPECT_FALSE(stats.full);
   EXPECT_LT(stats.pixels, grid.pixel_count() / 8) << stats.windows << " windows";
@@ -231,7 +247,7 @@ TEST_F(SceneRasterGLTest, SmallChangesRedrawSmallWindowsAndShareTiles) {
   ExpectEquivalent(**after, sites, "after the move");
   // An addition alone draws only the new site.
   sites["new"] = {0.5, 0.5};
-  auto added = (*raster)->Apply(*rasterizer_, 4, {{"new", PointSite{sites["new"]}}}, &stats);
+  auto added = (*raster)->Apply(*rasterizer_, next({{"new", PointSite{sites["new"]}}}), &stats);
   ASSERT_TRUE(added.ok());
   EXPECT_EQ(stats.sites_drawn, 1u);
   ExpectEquivalent(**added, sites, "after the addition");

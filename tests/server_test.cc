@@ -13,7 +13,7 @@
 
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "gvd/client.h"
-#include "render/exact.h"
+#include "geometry/exact.h"
 #include "server_process.h"
 
 namespace gvd {

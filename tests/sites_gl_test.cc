@@ -7,9 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "render/coverage.h"
-#include "render/exact.h"
-#include "render/scene_raster.h"
+#include "geometry/coverage.h"
+#include "geometry/exact.h"
+#include "gl/scene_raster.h"
 #include "tests/gl_fixture.h"
 #include "tests/pixel_oracle.h"
 
@@ -228,7 +228,8 @@ TEST_F(SitesGLTest, IncrementalUpdatesOfEveryKindHoldAgainstTheOracle) {
     ASSERT_TRUE(raster.ok());
     Generator gen(mode == RenderMode::kMesh ? 11 : 12);
     std::map<std::string, Site> live;
-    uint64_t version = 1;
+    auto snapshot = SiteSnapshot::Empty(1);
+    std::vector<uint32_t> free_slots;
     for (int step = 0; step < 24; ++step) {
       std::vector<SiteChange> changes;
       int n = step == 0 ? 12 : 1 + int(gen.U(0, 3));
@@ -245,7 +246,8 @@ TEST_F(SitesGLTest, IncrementalUpdatesOfEveryKindHoldAgainstTheOracle) {
         live[id] = s;
         changes.emplace_back(id, s);
       }
-      auto f = (*raster)->Apply(*rasterizer_, ++version, std::move(changes));
+      snapshot = Advance(snapshot, std::move(changes), &free_slots);
+      auto f = (*raster)->Apply(*rasterizer_, snapshot);
       ASSERT_TRUE(f.ok()) << f.status();
       SiteTable table;
       for (uint32_t s = 0; s < (*f)->sites().size(); ++s) {

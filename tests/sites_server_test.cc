@@ -6,7 +6,7 @@
 #include <random>
 
 #include "gvd/client.h"
-#include "render/exact.h"
+#include "geometry/exact.h"
 #include "server_process.h"
 #include "test_scenes.h"
 

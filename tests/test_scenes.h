@@ -6,8 +6,8 @@
 #include <string>
 
 #include "gvd/v1/voronoi.pb.h"
-#include "render/exact.h"
-#include "render/site.h"
+#include "geometry/exact.h"
+#include "geometry/site.h"
 
 namespace gvd::testing {
 

@@ -7,10 +7,10 @@
 #include <map>
 #include <random>
 
-#include "render/analysis.h"
-#include "render/plan.h"
-#include "render/refine.h"
-#include "render/zoom.h"
+#include "analysis/analysis.h"
+#include "analysis/plan.h"
+#include "analysis/refine.h"
+#include "gl/zoom.h"
 #include "tests/bench/bench_common.h"
 #include "tests/maze.h"
 

@@ -5,9 +5,9 @@
 #include <random>
 #include <string>
 
-#include "render/context.h"
-#include "render/raster.h"
-#include "render/site.h"
+#include "gl/context.h"
+#include "gl/raster.h"
+#include "geometry/site.h"
 
 namespace gvd {
 

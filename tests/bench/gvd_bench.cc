@@ -11,9 +11,9 @@
 
 #include "gvd/client.h"
 #include "tests/bench/bench_common.h"
-#include "render/context.h"
-#include "render/raster.h"
-#include "render/scene_raster.h"
+#include "gl/context.h"
+#include "gl/raster.h"
+#include "gl/scene_raster.h"
 #include "server/render_loop.h"
 #include "server/service.h"
 #include "server/store.h"
@@ -157,8 +157,10 @@ void BM_UpdateOneSite(benchmark::State& state) {
   SiteTable sites = RandomSites(100000, kUnit, 6);
   std::vector<SiteChange> all;
   for (const Site& s : sites) all.push_back({s.id, s.geometry});
-  uint64_t version = 1;
-  (void)scene->Apply(*gl.rasterizer, ++version, all);
+  auto snapshot = SiteSnapshot::Empty(1);
+  std::vector<uint32_t> free_slots;
+  snapshot = Advance(snapshot, std::move(all), &free_slots);
+  (void)scene->Apply(*gl.rasterizer, snapshot);
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<double> u(0, 1);
   const int kind = state.range(0);
@@ -174,7 +176,8 @@ void BM_UpdateOneSite(benchmark::State& state) {
     } else {
       change.push_back({sites[next++].id, std::nullopt});
     }
-    auto frame = scene->Apply(*gl.rasterizer, ++version, std::move(change), &stats);
+    snapshot = Advance(snapshot, std::move(change), &free_slots);
+    auto frame = scene->Apply(*gl.rasterizer, snapshot, &stats);
     if (!frame.ok()) return state.SkipWithError("render failed");
     pixels += stats.pixels;
     drawn += stats.sites_drawn;

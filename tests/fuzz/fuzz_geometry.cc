@@ -1,5 +1,5 @@
-// Fuzz target: the cone counts of sec. 4.1.1, the coverage proof of render/coverage.h and the
-// structure of id images (render/analysis.h), on small scenes made from the bytes. Checks
+// Fuzz target: the cone counts of sec. 4.1.1, the coverage proof of geometry/coverage.h and the
+// structure of id images (analysis/analysis.h), on small scenes made from the bytes. Checks
 // the properties themselves, against the oracle.
 #include <cmath>
 #include <cstdint>
@@ -7,10 +7,10 @@
 #include <cstring>
 #include <numbers>
 
-#include "render/analysis.h"
-#include "render/coverage.h"
-#include "render/exact.h"
-#include "render/mesh.h"
+#include "analysis/analysis.h"
+#include "geometry/coverage.h"
+#include "geometry/exact.h"
+#include "geometry/mesh.h"
 
 namespace {
 

@@ -7,7 +7,7 @@
 #include <google/protobuf/stubs/logging.h>
 
 #include "gvd/v1/voronoi.pb.h"
-#include "render/exact.h"
+#include "geometry/exact.h"
 #include "server/convert.h"
 #include "server/scene.h"
 

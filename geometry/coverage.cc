@@ -1,0 +1,176 @@
+#include "geometry/coverage.h"
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+#include "geometry/exact.h"
+
+namespace gvd {
+namespace {
+
+// Whether some corner x of c satisfies |x s| <= |x s1| (with a little slack for rounding, so
+// the test can only keep too many sites, never too few).
+bool BeatsSomewhere(Vec2 s, Vec2 s1, const Window& c) {
+  for (Vec2 x : {Vec2{c.min_x, c.min_y}, Vec2{c.max_x, c.min_y}, Vec2{c.min_x, c.max_y},
+                 Vec2{c.max_x, c.max_y}}) {
+    double a = Distance(x, s), b = Distance(x, s1);
+    if (a <= b * (1 + 1e-12) + 1e-300) return true;
+  }
+  return false;
+}
+
+// The plain point of a site, or null.
+const PointSite* PlainPoint(const Site& s) {
+  return s.plain() ? std::get_if<PointSite>(&s.geometry) : nullptr;
+}
+
+// Whether the site is present (drawn) on the whole disc of radius h around c, whose
+// distance from the site is d.
+bool PresentOnDisc(const Site& s, double d, double h, double margin) {
+  if (!(d + h <= s.max_distance + margin)) return false;
+  const auto* poly = std::get_if<PolygonSite>(&s.geometry);
+  return poly == nullptr || poly->side == Side::kBoth;
+}
+
+// False when the site is a polygon restricted to its inside whose box, grown by the margin,
+// misses the cell: it is present nowhere there.
+bool InsideReach(const Site& s, const Window& cell, double margin) {
+  const auto* poly = std::get_if<PolygonSite>(&s.geometry);
+  if (poly == nullptr || poly->side != Side::kInside) return true;
+  Window b = BoundingBox(s.geometry);
+  return b.min_x - margin <= cell.max_x && cell.min_x <= b.max_x + margin &&
+         b.min_y - margin <= cell.max_y && cell.min_y <= b.max_y + margin;
+}
+
+}  // namespace
+
+uint32_t DefaultTilePx(const Grid& grid, size_t n) {
+  double spacing = std::sqrt(double(grid.pixel_count()) / std::max<size_t>(n, 1));
+  return static_cast<uint32_t>(std::clamp(2 * spacing, 4.0, 64.0));
+}
+
+LeastWeights FindLeastWeights(const SlotTable& sites) {
+  LeastWeights least;
+  for (uint32_t s = 0; s < sites.size(); ++s) {
+    if (const Site* site = sites.get(s)) {
+      least.multiplicative = std::min(least.multiplicative, site->multiplicative);
+      least.additive = std::min(least.additive, site->additive);
+    }
+  }
+  return least;
+}
+
+namespace {
+
+// The proof of ComputeCoverage, tile by tile: calls keep(slot, radius) for every site that
+// must cover some pixel centre of a tile, with the radius that tile needs (a site may be
+// kept by several tiles). Returns the tile side used.
+template <class Keep>
+uint32_t CoverTiles(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
+                    const LeastWeights& least, PixelRect region, uint32_t tile_px,
+                    Diagram diagram, Keep&& keep) {
+  tile_px = tile_px ? tile_px : DefaultTilePx(grid, index.size());
+  const double margin = DrawMargin(grid);
+  // The margin absorbs rounding differences between these bounds and distances computed
+  // elsewhere (a few ulps), so a radius can never fall short of them.
+  auto radius_for = [&](const Site& s, const Window& box) {
+    return std::min(FarthestDistance(box, s.geometry) * (1 + 0x1p-40), s.max_distance + margin);
+  };
+  if (region.empty()) return tile_px;
+  if (diagram == Diagram::kFarthest) {
+    Vec2 lo = grid.Center(region.x0, region.y0), hi = grid.Center(region.x1 - 1, region.y1 - 1);
+    Window box{lo.x, lo.y, hi.x, hi.y};
+    for (uint32_t s = 0; s < sites.size(); ++s) {
+      if (const Site* site = sites.get(s)) keep(s, radius_for(*site, box));
+    }
+    return tile_px;
+  }
+  const double min_m = least.multiplicative, min_a = least.additive;
+  std::vector<uint32_t> candidates;
+  for (uint32_t ty = region.y0; ty < region.y1; ty += tile_px) {
+    for (uint32_t tx = region.x0; tx < region.x1; tx += tile_px) {
+      uint32_t x1 = std::min(tx + tile_px, region.x1) - 1;
+      uint32_t y1 = std::min(ty + tile_px, region.y1) - 1;
+      Vec2 lo = grid.Center(tx, ty), hi = grid.Center(x1, y1);
+      Window cell{lo.x, lo.y, hi.x, hi.y};
+      Vec2 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2};
+      double h = Distance(lo, hi) / 2;
+      // U: an upper bound on the best drawn value at every centre of the cell.
+      ExactNearest s0 = index.Nearest(c);
+      const Site* best_site = sites.get(static_cast<uint32_t>(s0.index));
+      double upper = INFINITY;
+      if (PresentOnDisc(*best_site, s0.distance, h, margin)) {
+        upper = best_site->multiplicative * (s0.distance + h) + best_site->additive;
+      }
+      candidates.clear();
+      if (std::isfinite(upper)) {
+        // Rounding slack on the search radius keeps the candidate set a superset.
+        index.Within(c, ((upper - min_a) / min_m + h) * (1 + 1e-12), &candidates);
+      } else {
+        for (uint32_t s = 0; s < sites.size(); ++s) {
+          if (sites.get(s)) candidates.push_back(s);
+        }
+      }
+      // Distances from c, and the least U among the candidates present on the whole cell.
+      thread_local std::vector<double> dist;
+      dist.resize(candidates.size());
+      const Site* s1 = best_site;
+      for (size_t k = 0; k < candidates.size(); ++k) {
+        const Site& s = *sites.get(candidates[k]);
+        dist[k] = ExactDistance(c, s.geometry);
+        if (!PresentOnDisc(s, dist[k], h, margin)) continue;
+        double u = s.multiplicative * (dist[k] + h) + s.additive;
+        if (u < upper) {
+          upper = u;
+          s1 = &s;
+        }
+      }
+      const PointSite* p1 = PlainPoint(*s1);
+      for (size_t k = 0; k < candidates.size(); ++k) {
+        uint32_t slot = candidates[k];
+        const Site& s = *sites.get(slot);
+        double lower = s.multiplicative * std::max(0.0, dist[k] - h) + s.additive;
+        if (lower > upper * (1 + 1e-12)) continue;
+        if (dist[k] - h > (s.max_distance + margin) * (1 + 1e-12)) continue;  // absent on C
+        if (!InsideReach(s, cell, margin)) continue;
+        const PointSite* p = PlainPoint(s);
+        if (p && p1 && &s != s1 && !BeatsSomewhere(p->p, p1->p, cell)) continue;
+        keep(slot, radius_for(s, cell));
+      }
+    }
+  }
+  return tile_px;
+}
+
+}  // namespace
+
+Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
+                         PixelRect region, uint32_t tile_px, Diagram diagram) {
+  Coverage cov;
+  cov.radius.assign(sites.size(), -1);
+  cov.tile_px = CoverTiles(grid, sites, index, FindLeastWeights(sites), region, tile_px, diagram,
+                           [&](uint32_t slot, double radius) {
+                             cov.radius[slot] = std::max(cov.radius[slot], radius);
+                             ++cov.pairs;
+                           });
+  return cov;
+}
+
+std::vector<std::pair<uint32_t, double>> SparseCoverage(const Grid& grid, const SlotTable& sites,
+                                                        const SiteIndex& index,
+                                                        const LeastWeights& least,
+                                                        PixelRect region, uint32_t tile_px,
+                                                        Diagram diagram) {
+  std::unordered_map<uint32_t, double> radius;
+  CoverTiles(grid, sites, index, least, region, tile_px, diagram,
+             [&](uint32_t slot, double r) {
+               auto [it, fresh] = radius.emplace(slot, r);
+               if (!fresh) it->second = std::max(it->second, r);
+             });
+  std::vector<std::pair<uint32_t, double>> out(radius.begin(), radius.end());
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+}  // namespace gvd

@@ -1,0 +1,129 @@
+// Voronoi sites as the render layer sees them: an id and a geometry.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "geometry/geometry.h"
+
+namespace gvd {
+
+struct PointSite {
+  Vec2 p;
+};
+
+// A closed segment; a == b is allowed (it is then a point).
+struct SegmentSite {
+  Vec2 a, b;
+};
+
+// An open chain of segments through `points` (at least two; repeats allowed).
+struct PolylineSite {
+  std::vector<Vec2> points;
+};
+
+// Where a polygon's distance function is defined (paper sec. 4.3).
+enum class Side : uint8_t { kBoth, kOutside, kInside };
+
+// A closed chain: edge i runs from vertex i to vertex i + 1 (mod n); at least three
+// vertices, repeats allowed. Its distance is the distance to that boundary. Inside and
+// outside follow the even-odd rule, so a self-intersecting polygon is well defined; one of
+// zero area has no inside. With kOutside (kInside) the polygon is a candidate only at points
+// outside (inside) it, or on its boundary.
+struct PolygonSite {
+  std::vector<Vec2> vertices;
+  Side side = Side::kBoth;
+};
+
+// A quadratic (3 control points) or cubic (4) Bezier curve, represented by `flat`: a
+// polyline through points of the curve within `tolerance` of it (see Flatten in exact.h).
+// Distances to the site are distances to `flat`.
+struct BezierSite {
+  std::vector<Vec2> control;
+  double tolerance = 0;
+  std::vector<Vec2> flat;
+};
+
+// Every site kind; new kinds are added here, in exact.cc and in the rasterizer's primitives.
+using Geometry = std::variant<PointSite, SegmentSite, PolylineSite, PolygonSite, BezierSite>;
+
+// What a site's part nearest to a point is (NearestSite.feature_kind in the API).
+enum class FeatureKind : uint8_t { kVertex, kEdge, kCurve };
+
+struct Site {
+  std::string id;
+  Geometry geometry;
+  // The site's value at q is multiplicative * d + additive, d the Euclidean distance from q
+  // to the geometry (paper sec. 4.4); beyond max_distance (in d) the site has no influence.
+  // CONTRACT: additive >= 0 and multiplicative > 0, both finite; max_distance > 0.
+  double additive = 0;
+  double multiplicative = 1;
+  double max_distance = INFINITY;
+
+  bool weighted() const { return additive != 0 || multiplicative != 1; }
+  // Whether the site is a candidate everywhere at its plain distance: unweighted, unbounded
+  // and not restricted to a side.
+  bool plain() const;
+};
+
+// A densely indexed list of sites; the id buffer holds index + 1.
+using SiteTable = std::vector<Site>;
+
+// Sites by slot (the id buffer holds slot + 1), in chunks that versions share: a copy is
+// O(slots / kChunk) and a change copies only its chunk's pointers. Each site is immutable and
+// shared: two tables hold the same site in a slot exactly when they hold the same pointer,
+// which is how a renderer finds what changed between two versions (Diff). A copy is immutable
+// to readers of the original; not thread-safe for concurrent writers.
+class SlotTable {
+ public:
+  static constexpr uint32_t kChunk = 1024;
+
+  SlotTable() = default;
+  explicit SlotTable(const SiteTable& sites);  // slot i = sites[i]
+
+  uint32_t size() const { return size_; }  // slots, free ones included
+  // The site in `slot`, or null for a free slot. CONTRACT: slot < size().
+  const Site* get(uint32_t slot) const { return ptr(slot).get(); }
+  const std::shared_ptr<const Site>& ptr(uint32_t slot) const {
+    return (*chunks_[slot / kChunk])[slot % kChunk];
+  }
+  // Puts a site in (or frees, with null) a slot, growing the table as needed.
+  void Set(uint32_t slot, std::shared_ptr<const Site> site);
+  void Set(uint32_t slot, std::optional<Site> site) {
+    Set(slot, site ? std::make_shared<const Site>(std::move(*site)) : nullptr);
+  }
+
+  // Calls f(slot, before, after) for every slot whose site differs between the two tables
+  // (by identity; either may be null). Chunks the tables share are skipped: O(slots / kChunk
+  // + changed chunks * kChunk).
+  template <class F>
+  static void Diff(const SlotTable& before, const SlotTable& after, F&& f);
+
+ private:
+  using Chunk = std::vector<std::shared_ptr<const Site>>;
+  std::vector<std::shared_ptr<const Chunk>> chunks_;
+  uint32_t size_ = 0;
+};
+
+template <class F>
+void SlotTable::Diff(const SlotTable& before, const SlotTable& after, F&& f) {
+  const uint32_t n = std::max(before.size_, after.size_);
+  for (uint32_t c = 0; c * kChunk < n; ++c) {
+    const Chunk* a = c < before.chunks_.size() ? before.chunks_[c].get() : nullptr;
+    const Chunk* b = c < after.chunks_.size() ? after.chunks_[c].get() : nullptr;
+    if (a == b) continue;
+    for (uint32_t i = 0; i < kChunk && c * kChunk + i < n; ++i) {
+      const Site* x = a ? (*a)[i].get() : nullptr;
+      const Site* y = b ? (*b)[i].get() : nullptr;
+      if (x != y) f(c * kChunk + i, x, y);
+    }
+  }
+}
+
+}  // namespace gvd

@@ -1,0 +1,149 @@
+// Draws a scene's distance meshes into an id + depth framebuffer and reads it back as a Frame.
+// Everything here needs the thread's current GL context (see GlContext).
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+
+#include "absl/status/statusor.h"
+#include "core/frame.h"
+#include "geometry/exact.h"
+#include "geometry/geometry.h"
+#include "geometry/site.h"
+
+namespace gvd {
+
+// A framebuffer object with an R32UI id attachment (0 = no site, else site index + 1) and a
+// 32-bit float depth attachment, at one resolution. Rendering always targets an FBO, never a
+// window surface. Not thread-safe; the context that made it must be current.
+class RenderTarget {
+ public:
+  static absl::StatusOr<std::unique_ptr<RenderTarget>> Create(uint32_t width, uint32_t height);
+  ~RenderTarget();
+  RenderTarget(const RenderTarget&) = delete;
+  RenderTarget& operator=(const RenderTarget&) = delete;
+
+  uint32_t width() const { return width_; }
+  uint32_t height() const { return height_; }
+  unsigned framebuffer() const { return fbo_; }
+
+ private:
+  RenderTarget(uint32_t width, uint32_t height) : width_(width), height_(height) {}
+  uint32_t width_, height_;
+  unsigned fbo_ = 0, ids_ = 0, depth_ = 0;
+};
+
+struct RenderStats {
+  uint32_t cone_segments = 0;  // triangles in the largest point cone of this render
+  uint64_t sites_drawn = 0;    // sites nearest to some pixel centre
+  double fill_ratio = 0;       // total area of the drawn meshes / area of the window
+  uint32_t tile_px = 0;        // tile side of the coverage pass
+  double coverage_seconds = 0; // spatial index and coverage radii
+  double draw_seconds = 0;     // until the GPU finished drawing
+  double readback_seconds = 0;
+  PixelRect window;            // bounds the pixels redrawn and read back
+  size_t windows = 0;          // separate windows redrawn
+  uint64_t pixels = 0;         // pixels redrawn and read back
+  bool full = false;           // a render from scratch
+};
+
+
+// A site to draw: it must cover every pixel centre within `radius` of its geometry.
+struct SiteDraw {
+  uint32_t slot = 0;
+  double radius = 0;
+};
+
+// What drawing one site with a given radius amounts to.
+struct SiteShape {
+  double extent = 0;        // no fragment lies farther than this from the geometry
+  double max_value = 0;     // no value written exceeds this (m * extent + a)
+  double overestimate = 1;  // k of its fans (1 when none)
+  uint32_t segments = 0;    // triangles in each of its fans (0 when none)
+  double area = 0;          // the area its pieces cover
+  bool per_fragment = false;  // drawn as a quad evaluated per fragment
+  // A bound on height - value over what is drawn: m * eps for fans with enough triangles;
+  // m * (k - 1) * extent for a fan that would need more than kMaxConeSegments (a site far
+  // from a small window); 0 per fragment.
+  double excess = 0;
+};
+
+// The fixed parameters of one scene's draws.
+struct DrawParams {
+  double eps = 0;
+  RenderMode mode = RenderMode::kMesh;
+  Diagram diagram = Diagram::kNearest;
+  double depth_scale = 1;  // depth = value / depth_scale
+};
+
+// What a frame's ErrorModel needs to know of the sites drawn into it: the largest weight,
+// fan overestimate and excess, Bezier tolerance, coordinate magnitude, and whether presence
+// is limited. Reset before a render from scratch; later draws only widen it.
+class ErrorTally {
+ public:
+  void Reset() { *this = ErrorTally(); }
+  // A site that is live in the frame (drawn or not).
+  void Live(const Site& site);
+  // A site drawn with `shape` on `grid`.
+  void Drawn(const Grid& grid, const Site& site, const SiteShape& shape);
+  ErrorModel Model(const Grid& grid, const DrawParams& params) const;
+
+ private:
+  double overestimate_ = 1;
+  double max_weight_ = 1;
+  double curve_slack_ = 0;
+  double coordinate_scale_ = 0;  // relative to the window's min corner
+  double excess_ = 0;            // beyond eps * weight, from fans with capped triangle counts
+  bool limited_presence_ = false;
+};
+
+// Compiled shaders and mesh buffers. Not thread-safe; use on the context's thread.
+class Rasterizer {
+ public:
+  static absl::StatusOr<std::unique_ptr<Rasterizer>> Create();
+  ~Rasterizer();
+  Rasterizer(const Rasterizer&) = delete;
+  Rasterizer& operator=(const Rasterizer&) = delete;
+
+  // How a site that must cover `radius` is drawn.
+  SiteShape Shape(const Grid& grid, const DrawParams& params, const Site& site,
+                  double radius) const;
+
+  // Draws the sites' distance functions into `target` inside `scissor` (clearing it first
+  // when `clear`). The grid's pixel (0, 0) is the target's pixel (x0, y0); the scissor is in
+  // grid pixels. CONTRACT: every shape's max_value <= params.depth_scale; the grid, placed
+  // at (x0, y0), fits in the target.
+  absl::Status Draw(const Grid& grid, const DrawParams& params, PixelRect scissor, bool clear,
+                    const SlotTable& sites, const std::vector<SiteDraw>& draws,
+                    RenderTarget& target, uint32_t x0 = 0, uint32_t y0 = 0);
+
+  // Reads `rect` of the target: ids, and distances (depth * depth_scale), row-major.
+  absl::Status ReadBack(RenderTarget& target, PixelRect rect, double depth_scale,
+                        std::vector<uint32_t>* ids, std::vector<float>* distances);
+
+  // A whole render from scratch, for tests and benchmarks: the same path as a scene's first
+  // render (SceneRaster).
+  absl::StatusOr<std::shared_ptr<const Frame>> Render(const Grid& grid, double eps,
+                                                      uint64_t version, const SiteTable& sites,
+                                                      RenderStats* stats = nullptr,
+                                                      RenderMode mode = RenderMode::kMesh,
+                                                      Diagram diagram = Diagram::kNearest);
+
+ private:
+  Rasterizer() = default;
+  // The vertex buffer of the unit cone with `segments` triangles, made on first use.
+  unsigned ConeBuffer(uint32_t segments);
+
+  struct Program {
+    unsigned id = 0;
+    int u_scale = -1, u_inv_depth = -1, u_pixel = -1, u_margin = -1, u_origin = -1;
+  };
+  static absl::StatusOr<Program> Link(const char* vertex, const char* fragment);
+
+  Program cone_, tent_, exact_, exact_point_;
+  unsigned vao_ = 0, instances_ = 0, quad_ = 0, tent_mesh_ = 0, segments_ = 0;
+  std::map<uint32_t, unsigned> cones_;  // segments -> vertex buffer
+};
+
+}  // namespace gvd

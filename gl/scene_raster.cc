@@ -1,0 +1,286 @@
+#include "gl/scene_raster.h"
+
+#include <algorithm>
+#include <chrono>
+#include <numbers>
+
+#include "geometry/coverage.h"
+#include "geometry/exact.h"
+
+namespace gvd {
+namespace {
+
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+// The rectangle spanned by the pixel centres of `rect`.
+Window CentreBox(const Grid& grid, PixelRect rect) {
+  Vec2 lo = grid.Center(rect.x0, rect.y0), hi = grid.Center(rect.x1 - 1, rect.y1 - 1);
+  return {lo.x, lo.y, hi.x, hi.y};
+}
+
+// Distance from the geometry to the nearest point of the box (0 inside).
+double NearestDistance(const Window& box, const Geometry& g) {
+  Window b = BoundingBox(g);
+  double dx = std::max({0.0, box.min_x - b.max_x, b.min_x - box.max_x});
+  double dy = std::max({0.0, box.min_y - b.max_y, b.min_y - box.max_y});
+  return std::hypot(dx, dy);  // a lower bound; exact for points
+}
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<SceneRaster>> SceneRaster::Create(const Grid& grid, double eps,
+                                                                  RenderMode mode,
+                                                                  Diagram diagram) {
+  auto target = RenderTarget::Create(grid.width, grid.height);
+  if (!target.ok()) return target.status();
+  return std::unique_ptr<SceneRaster>(
+      new SceneRaster(grid, eps, mode, diagram, std::move(*target)));
+}
+
+PixelRect SceneRaster::Reach(const Geometry& g, double extent) const {
+  Window b = BoundingBox(g);
+  return grid_.CentresIn({b.min_x - extent, b.min_y - extent}, {b.max_x + extent, b.max_y + extent});
+}
+
+void SceneRaster::Publish(PixelRect rect, const std::vector<uint32_t>& ids,
+                          const std::vector<float>& distances) {
+  const ErrorModel error = tally_.Model(grid_, params_);
+  if (rect == grid_.all() || frame_ == nullptr || frame_->empty()) {  // a full render
+    frame_ = std::make_shared<const Frame>(grid_, eps_, error, ids.data(), distances.data(),
+                                           drawn_);
+  } else {
+    frame_ = std::make_shared<const Frame>(*frame_, error, rect, ids.data(), distances.data(),
+                                           drawn_);
+  }
+}
+
+absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& rasterizer,
+                                                                    RenderStats* stats) {
+  auto start = std::chrono::steady_clock::now();
+  const SlotTable& slots = drawn_->sites();
+  Coverage cov = ComputeCoverage(grid_, slots, drawn_->index(), grid_.all(), 0, params_.diagram);
+  double coverage_seconds = Seconds(start);
+  std::vector<SiteDraw> draws;
+  double max_value = 0, area = 0;
+  uint32_t max_segments = 0;
+  tally_.Reset();
+  extent_.assign(slots.size(), -1);
+  for (uint32_t s = 0; s < slots.size(); ++s) {
+    const Site* site = slots.get(s);
+    if (site == nullptr) continue;
+    tally_.Live(*site);
+    if (cov.radius[s] < 0) continue;
+    draws.push_back({s, cov.radius[s]});
+    SiteShape shape = rasterizer.Shape(grid_, params_, *site, cov.radius[s]);
+    extent_[s] = shape.extent;
+    max_value = std::max(max_value, shape.max_value);
+    max_segments = std::max(max_segments, shape.segments);
+    tally_.Drawn(grid_, *site, shape);
+    area += shape.area;
+  }
+  // Headroom: later increments may draw values up to twice this render's largest (or four
+  // window diagonals) without a full render. Float depth keeps its relative precision at any
+  // scale.
+  params_.depth_scale = std::max(2 * max_value, 4 * grid_.window.diagonal());
+  auto draw_start = std::chrono::steady_clock::now();
+  if (auto s = rasterizer.Draw(grid_, params_, grid_.all(), true, slots, draws, *target_);
+      !s.ok()) {
+    return s;
+  }
+  std::vector<uint32_t> ids;
+  std::vector<float> distances;
+  auto read_start = std::chrono::steady_clock::now();
+  double draw_seconds = Seconds(draw_start);
+  if (auto s = rasterizer.ReadBack(*target_, grid_.all(), params_.depth_scale, &ids, &distances);
+      !s.ok()) {
+    return s;
+  }
+  double readback_seconds = Seconds(read_start);
+  valid_ = true;
+  Publish(grid_.all(), ids, distances);
+  if (stats) {
+    stats->cone_segments = max_segments;
+    stats->sites_drawn = draws.size();
+    stats->fill_ratio = area / (grid_.window.width() * grid_.window.height());
+    stats->tile_px = cov.tile_px;
+    stats->coverage_seconds = coverage_seconds;
+    stats->draw_seconds = draw_seconds;
+    stats->readback_seconds = readback_seconds;
+    stats->window = grid_.all();
+    stats->windows = 1;
+    stats->pixels = grid_.pixel_count();
+    stats->full = true;
+  }
+  return frame_;
+}
+
+absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
+    Rasterizer& rasterizer, std::shared_ptr<const SiteSnapshot> sites, RenderStats* stats) {
+  // 1. Compare the slots with those last drawn: collect the windows that old cones reached
+  //    (their pixels may now belong to other sites) and the slots placed anew. A slot freed
+  //    and taken again since is both; its old pixels all lie inside its dirty window, which
+  //    is redrawn below, so no pixel keeps an id that now means another site.
+  std::vector<PixelRect> dirty;
+  std::vector<uint32_t> placed;
+  const bool from_scratch = !valid_ || frame_ == nullptr || frame_->empty() || drawn_ == nullptr;
+  if (extent_.size() < sites->sites().size()) extent_.resize(sites->sites().size(), -1);
+  if (!from_scratch) {
+    SlotTable::Diff(drawn_->sites(), sites->sites(),
+                    [&](uint32_t s, const Site* before, const Site* after) {
+                      if (before && extent_[s] >= 0) {
+                        PixelRect r = Reach(before->geometry, extent_[s]);
+                        if (!r.empty()) dirty.push_back(r);
+                      }
+                      extent_[s] = -1;
+                      if (after) placed.push_back(s);
+                    });
+  }
+  drawn_ = std::move(sites);
+  const SlotTable& slots = drawn_->sites();
+
+  if (drawn_->empty()) {
+    valid_ = false;
+    frame_ = Frame::Empty(grid_, eps_, drawn_);
+    return frame_;
+  }
+  if (from_scratch) return RenderAll(rasterizer, stats);
+  if (params_.diagram == Diagram::kFarthest) return RenderAll(rasterizer, stats);
+  for (uint32_t s : placed) tally_.Live(*slots.get(s));
+
+  // Past a few dozen windows, finding and merging them costs more than drawing everything.
+  constexpr size_t kMaxWindows = 64;
+  if (placed.size() + dirty.size() > kMaxWindows) return RenderAll(rasterizer, stats);
+
+  auto start = std::chrono::steady_clock::now();
+  // 2. Where can each placed site be nearest now? Outside the old pieces' windows no pixel's
+  //    best value grew, so a pixel p the site wins has m d(p, site) + a <= D(p) + slack:
+  //    only tiles whose nearest point to the site passes that against their largest stored
+  //    value, and within its presence, qualify. (Inside those windows everything is
+  //    recomputed anyway.)
+  const ErrorModel& err = frame_->error();
+  const double margin = DrawMargin(grid_);
+  struct Window_ {
+    PixelRect rect;
+    bool clear;                   // holds an old piece's reach: redraw from scratch
+    std::vector<SiteDraw> added;  // else: draw these over what is there
+  };
+  std::vector<Window_> windows;
+  for (const PixelRect& d : dirty) windows.push_back({d, true, {}});
+  for (uint32_t s : placed) {
+    const Site& site = *slots.get(s);
+    double radius = -1;
+    PixelRect grown;
+    for (uint32_t ty = 0; ty < frame_->tiles_y(); ++ty) {
+      for (uint32_t tx = 0; tx < frame_->tiles_x(); ++tx) {
+        PixelRect rect{tx * Frame::kTile, ty * Frame::kTile,
+                       std::min((tx + 1) * Frame::kTile, grid_.width),
+                       std::min((ty + 1) * Frame::kTile, grid_.height)};
+        Window box = CentreBox(grid_, rect);
+        double m = frame_->tile_at(tx, ty).max_distance;
+        double near = NearestDistance(box, site.geometry);
+        if (site.multiplicative * near + site.additive > m + err.Slack(m)) continue;
+        if (near > site.max_distance + margin) continue;
+        grown = grown.Union(rect);
+        radius = std::max(radius, std::min(FarthestDistance(box, site.geometry) * (1 + 0x1p-40),
+                                           site.max_distance + margin));
+      }
+    }
+    if (radius >= 0) windows.push_back({grown, false, {{s, radius}}});
+  }
+  // Merge overlapping windows until none overlap (a merged window is cleared if either was).
+  for (bool merged = true; merged;) {
+    merged = false;
+    for (size_t a = 0; a < windows.size() && !merged; ++a) {
+      for (size_t b = a + 1; b < windows.size() && !merged; ++b) {
+        if (windows[a].rect.Intersects(windows[b].rect)) {
+          windows[a].rect = windows[a].rect.Union(windows[b].rect);
+          windows[a].clear = windows[a].clear || windows[b].clear;
+          windows[a].added.insert(windows[a].added.end(), windows[b].added.begin(),
+                                  windows[b].added.end());
+          windows.erase(windows.begin() + b);
+          merged = true;
+        }
+      }
+    }
+  }
+  uint64_t area = 0;
+  for (const auto& w : windows) area += w.rect.area();
+  if (area > grid_.pixel_count() / 2) return RenderAll(rasterizer, stats);
+
+  // 3. Each window: cleared ones get every site that can be best there, with the coverage
+  //    proof restricted to the window; the others only their new sites.
+  std::vector<std::vector<SiteDraw>> draws(windows.size());
+  uint32_t tile_px = 0;
+  for (size_t w = 0; w < windows.size(); ++w) {
+    if (!windows[w].clear) {
+      draws[w] = std::move(windows[w].added);
+      continue;
+    }
+    Coverage cov = ComputeCoverage(grid_, slots, drawn_->index(), windows[w].rect);
+    tile_px = cov.tile_px;
+    for (uint32_t s = 0; s < slots.size(); ++s) {
+      if (cov.radius[s] >= 0) draws[w].push_back({s, cov.radius[s]});
+    }
+  }
+  double coverage_seconds = Seconds(start);
+  double fill = 0, max_value = 0;
+  uint32_t max_segments = 0;
+  size_t drawn = 0;
+  std::vector<std::pair<uint32_t, SiteShape>> shapes;
+  for (const auto& list : draws) {
+    for (const SiteDraw& d : list) {
+      SiteShape shape = rasterizer.Shape(grid_, params_, *slots.get(d.slot), d.radius);
+      max_value = std::max(max_value, shape.max_value);
+      max_segments = std::max(max_segments, shape.segments);
+      fill += shape.area;
+      shapes.emplace_back(d.slot, shape);
+      ++drawn;
+    }
+  }
+  if (max_value > params_.depth_scale) return RenderAll(rasterizer, stats);  // rescale
+  for (const auto& [slot, shape] : shapes) {
+    extent_[slot] = std::max(extent_[slot], shape.extent);
+    tally_.Drawn(grid_, *slots.get(slot), shape);
+  }
+  double draw_seconds = 0, readback_seconds = 0;
+  PixelRect all_windows;
+  for (size_t w = 0; w < windows.size(); ++w) {
+    const PixelRect& rect = windows[w].rect;
+    auto draw_start = std::chrono::steady_clock::now();
+    if (auto s = rasterizer.Draw(grid_, params_, rect, windows[w].clear, slots, draws[w],
+                                 *target_);
+        !s.ok()) {
+      return s;
+    }
+    std::vector<uint32_t> ids;
+    std::vector<float> distances;
+    auto read_start = std::chrono::steady_clock::now();
+    draw_seconds += std::chrono::duration<double>(read_start - draw_start).count();
+    if (auto s = rasterizer.ReadBack(*target_, rect, params_.depth_scale, &ids, &distances);
+        !s.ok()) {
+      return s;
+    }
+    readback_seconds += Seconds(read_start);
+    Publish(rect, ids, distances);
+    all_windows = all_windows.Union(rect);
+  }
+  if (windows.empty()) Publish({}, {}, {});  // nothing visible changed
+  if (stats) {
+    stats->cone_segments = max_segments;
+    stats->sites_drawn = drawn;
+    stats->fill_ratio = fill / (grid_.window.width() * grid_.window.height());
+    stats->tile_px = tile_px;
+    stats->coverage_seconds = coverage_seconds;
+    stats->draw_seconds = draw_seconds;
+    stats->readback_seconds = readback_seconds;
+    stats->window = all_windows;
+    stats->windows = windows.size();
+    stats->pixels = area;
+    stats->full = false;
+  }
+  return frame_;
+}
+
+}  // namespace gvd

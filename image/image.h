@@ -1,0 +1,39 @@
+// A frame's layers as encoded images (PNG, EXR) through OpenImageIO.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "core/frame.h"
+
+namespace gvd {
+
+enum class ImageLayer { kIds, kFeatures, kDistance };
+enum class ImageFormat { kPng, kExr };
+
+struct ImageOptions {
+  ImageLayer layer = ImageLayer::kIds;
+  ImageFormat format = ImageFormat::kPng;
+  PixelRect rect;           // the pixels to show; CONTRACT: not empty, inside the grid
+  bool draw_sites = false;  // the sites' geometry in white on top (PNG)
+  std::vector<Vec2> polyline;  // drawn in red on top (PNG): a planned path, say
+};
+
+struct EncodedImage {
+  std::vector<unsigned char> bytes;
+  std::string mime_type;
+  uint32_t width = 0, height = 0;
+};
+
+// The colour of a site (or of one of its features): stable, from a hash of its id, bright
+// enough to stand apart from the black of empty pixels.
+void SiteColour(const std::string& id, uint32_t feature, uint8_t rgb[3]);
+
+// Encodes a layer of the frame: row 0 of the image is the top of the window (max y).
+// Pixels held by a site that is no candidate there (within DrawMargin of its max_distance
+// or side) show as empty. CONTRACT: the frame is not empty.
+absl::StatusOr<EncodedImage> EncodeImage(const Frame& frame, const ImageOptions& options);
+
+}  // namespace gvd
