@@ -14,6 +14,7 @@
 #include "absl/status/statusor.h"
 #include "analysis/plan.h"
 #include "core/frame.h"
+#include "core/shared_cell.h"
 #include "core/snapshot.h"
 #include "geometry/geometry.h"
 #include "geometry/site.h"
@@ -37,8 +38,8 @@ using FrameCallback = std::function<void(absl::StatusOr<std::shared_ptr<const Fr
 using Executor = std::function<void(std::function<void()>)>;
 
 // Thread-safe. Threading rules:
-//  - the sites are an immutable SiteSnapshot, published atomically: readers (queries, the
-//    render thread) load it without a lock and never wait for a writer;
+//  - the sites are an immutable SiteSnapshot, published in a SharedCell: readers (queries, the
+//    render thread) copy the pointer and never wait for a writer's work;
 //  - writers (Upsert, Delete) take the writer lock, build the next snapshot from the current
 //    one, make it durable (Persist) and publish it, so a durable commit blocks only other
 //    writers of the same scene;
@@ -71,7 +72,7 @@ class Scene {
   absl::StatusOr<uint64_t> Delete(const std::vector<std::string>& ids,
                                   const Persist& persist = nullptr);
 
-  // The latest snapshot of the sites. Lock-free.
+  // The latest snapshot of the sites. Never waits for a writer.
   std::shared_ptr<const SiteSnapshot> snapshot() const { return snapshot_.load(); }
   uint64_t version() const { return snapshot()->version(); }
   size_t site_count() const { return snapshot()->size(); }
@@ -135,7 +136,7 @@ class Scene {
   // Seconds since the latest frame was published.
   double frame_age_seconds() const;
 
-  // The latest published frame. Lock-free for readers.
+  // The latest published frame. Never waits for a render.
   std::shared_ptr<const Frame> frame() const { return frame_.load(); }
   // Publishes a newer frame and hands it to the waiters it satisfies (through the executor).
   void Publish(std::shared_ptr<const Frame> frame);
@@ -166,8 +167,8 @@ class Scene {
   const SceneSettings settings_;
   const Executor executor_;
   std::atomic<bool> deleted_{false};
-  std::atomic<std::shared_ptr<const SiteSnapshot>> snapshot_;
-  std::atomic<std::shared_ptr<const Frame>> frame_;
+  SharedCell<const SiteSnapshot> snapshot_;
+  SharedCell<const Frame> frame_;
   std::atomic<int64_t> published_ns_{0};  // steady_clock
 
   std::mutex writer_mu_;  // held by one writer from building a snapshot to publishing it
