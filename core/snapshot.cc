@@ -116,6 +116,7 @@ void SnapshotBuilder::Put(Site site) {
   non_plain_ += !site.plain();
   changed_.push_back(slot);
   table_.Set(slot, std::make_shared<const Site>(std::move(site)));
+  put_.push_back(table_.ptr(slot));
 }
 
 bool SnapshotBuilder::Remove(std::string_view id) {
@@ -126,6 +127,7 @@ bool SnapshotBuilder::Remove(std::string_view id) {
   changed_.push_back(*found);
   freed_.push_back(*found);
   id_changes_.emplace_back(std::string(id), std::nullopt);
+  removed_.emplace_back(id);
   --size_;
   return true;
 }

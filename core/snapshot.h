@@ -115,6 +115,9 @@ class SnapshotBuilder {
   // Live sites once the changes are made.
   size_t size() const { return size_; }
   const std::vector<uint32_t>& freed() const { return freed_; }
+  // The sites put and the ids removed so far, in call order: what a store commits.
+  const std::vector<std::shared_ptr<const Site>>& put() const { return put_; }
+  const std::vector<std::string>& removed() const { return removed_; }
 
   // The snapshot at `version`. Call once.
   std::shared_ptr<const SiteSnapshot> Build(uint64_t version);
@@ -130,6 +133,8 @@ class SnapshotBuilder {
   size_t non_plain_;
   std::vector<uint32_t> changed_, taken_, freed_;
   std::vector<IdMap::Change> id_changes_;
+  std::vector<std::shared_ptr<const Site>> put_;
+  std::vector<std::string> removed_;
 };
 
 // `base` with the changes applied in order (a later change of an id overrides an earlier

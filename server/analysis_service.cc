@@ -402,7 +402,8 @@ grpc::ServerUnaryReactor* VoronoiService::PlanPath(grpc::CallbackServerContext* 
         return Status::OK;
       },
       [=](const std::shared_ptr<const Frame>& frame, const Scene& scene) {
-        std::shared_ptr<const ClearanceField> field = scene.Clearance(frame);
+        // Repeated plans on one frame share its clearance field.
+        auto field = scene.Derived<ClearanceField>(frame, MakeClearanceField);
         auto plan = gvd::PlanPath(*frame, *field, *plan_request);
         if (!plan.ok()) return ToGrpc(plan.status());
         for (Vec2 p : plan->path) {

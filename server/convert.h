@@ -11,7 +11,8 @@
 #include "geometry/geometry.h"
 #include "geometry/site.h"
 #include "server/limits.h"
-#include "server/scene.h"
+#include "core/scene.h"
+#include "store/sqlite_store.h"
 
 namespace gvd {
 
@@ -54,6 +55,10 @@ grpc::Status ToWindow(const v1::Window& w, const std::string& field, Window* out
 
 // width_px and height_px of a grid, checked against --max-side-px (and its square).
 grpc::Status ToGridSize(uint32_t width, uint32_t height, const ServerLimits& limits, Grid* grid);
+
+// Reads the records of a database written by an earlier release, which kept request
+// messages (CreateSceneRequest, Site), checking them as requests are checked.
+SqliteStore::Legacy LegacyRecords(const ServerLimits& limits);
 
 void ToProto(const Site& site, v1::Site* out);
 void ToProto(const Window& w, v1::Window* out);

@@ -15,7 +15,7 @@
 #include "geometry/parallel.h"
 #include "server/call_scope.h"
 #include "server/convert.h"
-#include "server/scene.h"
+#include "core/scene.h"
 
 namespace gvd {
 

@@ -22,7 +22,8 @@
 #include "server/metrics.h"
 #include "server/render_loop.h"
 #include "server/service.h"
-#include "server/store.h"
+#include "server/convert.h"
+#include "store/sqlite_store.h"
 
 namespace {
 
@@ -235,7 +236,7 @@ int main(int argc, char** argv) {
             {"gl_version", renderer.device().gl_version}});
 
   if (flags.data != ":memory:") MakeParents(flags.data);
-  auto store = gvd::Store::Open(flags.data);
+  auto store = gvd::SqliteStore::Open(flags.data, gvd::LegacyRecords(flags.limits));
   if (!store.ok()) {
     gvd::Log(gvd::LogLevel::kError, "store_failed", {{"error", store.status().ToString()}});
     return 1;

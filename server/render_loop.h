@@ -16,7 +16,7 @@
 #include "gl/context.h"
 #include "gl/zoom.h"
 #include "server/metrics.h"
-#include "server/scene.h"
+#include "core/scene.h"
 
 namespace gvd {
 

@@ -4,6 +4,7 @@
 #include "server/frame_job.h"
 
 #include "absl/strings/str_cat.h"
+#include "analysis/analysis.h"
 #include "image/image.h"
 #include "server/convert.h"
 #include "geometry/parallel.h"
@@ -144,7 +145,7 @@ class NearestStreamReactor final : public grpc::ServerWriteReactor<v1::FindNeare
 
 }  // namespace
 
-VoronoiService::VoronoiService(RenderLoop* renderer, Store* store, ServerLimits limits,
+VoronoiService::VoronoiService(RenderLoop* renderer, SceneStore* store, ServerLimits limits,
                                const TokenAuth* auth, Metrics* metrics)
     : renderer_(renderer), store_(store), limits_(limits), auth_(auth), metrics_(metrics),
       workers_(limits.analysis_threads, limits.max_queued_analyses),
@@ -154,8 +155,15 @@ Executor VoronoiService::executor() {
   return [this](std::function<void()> job) { answers_.Submit(std::move(job)); };
 }
 
-void VoronoiService::ObserveCommit() const {
-  if (metrics_) metrics_->ObserveCommit(store_->last_commit_seconds());
+template <class Call>
+absl::Status VoronoiService::Durably(Call call) const {
+  auto start = std::chrono::steady_clock::now();
+  absl::Status s = call();
+  if (s.ok() && metrics_) {
+    metrics_->ObserveCommit(
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  }
+  return s;
 }
 
 std::vector<Metrics::SceneSample> VoronoiService::SampleScenes() const {
@@ -182,25 +190,10 @@ absl::Status VoronoiService::Load() {
   auto stored = store_->Load();
   if (!stored.ok()) return stored.status();
   size_t sites = 0;
-  for (Store::StoredScene& s : *stored) {
-    SceneSettings settings;
-    if (auto st = ToSceneSettings(s.request, limits_, &settings); !st.ok()) {
-      return absl::DataLossError(absl::StrCat("stored scene \"", s.request.scene_id(),
-                                              "\" is refused now: ", st.error_message()));
-    }
-    v1::UpsertSitesRequest request;
-    for (auto& site : s.sites) *request.add_sites() = std::move(site);
-    std::vector<Site> parsed;
-    if (request.sites_size() > 0) {
-      ServerLimits unlimited = limits_;
-      unlimited.max_sites_per_request = SIZE_MAX;
-      if (auto st = ToSites(request, unlimited, &parsed); !st.ok()) {
-        return absl::DataLossError(absl::StrCat("stored sites of scene \"", s.request.scene_id(),
-                                                "\" are refused now: ", st.error_message()));
-      }
-    }
-    sites += parsed.size();
-    auto scene = std::make_shared<Scene>(std::move(settings), s.version, std::move(parsed),
+  for (StoredScene& s : *stored) {
+    sites += s.sites.size();
+    // Stored sites were validated when they were accepted: they go straight to a snapshot.
+    auto scene = std::make_shared<Scene>(std::move(s.settings), s.version, std::move(s.sites),
                                          executor());
     {
       std::lock_guard<std::mutex> lock(mu_);
@@ -209,7 +202,7 @@ absl::Status VoronoiService::Load() {
     renderer_->MarkDirty(scene);
   }
   Log(LogLevel::kInfo, "store_loaded",
-      {{"path", store_->path()}, {"scenes", absl::StrCat(stored->size())},
+      {{"path", store_->Describe()}, {"scenes", absl::StrCat(stored->size())},
        {"sites", absl::StrCat(sites)}});
   ready_ = true;
   return absl::OkStatus();
@@ -253,22 +246,26 @@ grpc::ServerUnaryReactor* VoronoiService::CreateScene(grpc::CallbackServerContex
   auto scene = std::make_shared<Scene>(std::move(settings), executor());
   {
     std::lock_guard<std::mutex> lock(mu_);
-    if (scenes_.count(scene->id())) {
+    if (scenes_.count(scene->id()) || creating_.count(scene->id())) {
       return scope.Done(ctx, Status(StatusCode::ALREADY_EXISTS,
                               absl::StrCat("scene \"", scene->id(), "\" already exists")));
     }
-    if (scenes_.size() >= limits_.max_scenes) {
+    if (scenes_.size() + creating_.size() >= limits_.max_scenes) {
       return scope.Done(ctx, Status(StatusCode::RESOURCE_EXHAUSTED,
-                              absl::StrCat("the server holds ", scenes_.size(),
+                              absl::StrCat("the server holds ", scenes_.size() + creating_.size(),
                                            " scenes; the limit (--max-scenes) is ",
                                            limits_.max_scenes)));
     }
-    if (auto s = store_->CreateScene(*request, scene->version()); !s.ok()) {
-      return scope.Done(ctx, ToGrpc(s));
-    }
-    ObserveCommit();
-    scenes_.emplace(scene->id(), scene);
+    creating_.insert(scene->id());  // reserved: the commit runs without the lock
   }
+  absl::Status stored =
+      Durably([&] { return store_->CreateScene(scene->settings(), scene->version()); });
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    creating_.erase(scene->id());
+    if (stored.ok()) scenes_.emplace(scene->id(), scene);
+  }
+  if (!stored.ok()) return scope.Done(ctx, ToGrpc(stored));
   ToProto(*scene, response);
   Log(LogLevel::kInfo, "scene_created",
       {{"scene", scene->id()}, {"width_px", absl::StrCat(request->width_px())},
@@ -285,9 +282,21 @@ grpc::ServerUnaryReactor* VoronoiService::GetScene(grpc::CallbackServerContext* 
   std::shared_ptr<Scene> scene;
   if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return scope.Done(ctx, s);
   ToProto(*scene, response);
-  Scene::Hidden hidden = scene->HiddenSites();
-  response->set_hidden_site_count(hidden.count);
-  for (const std::string& id : hidden.ids) response->add_hidden_site_ids(id);
+  // Sites that meet the window but hold no pixel of the latest frame (paper sec. 6.2): their
+  // number and the first kHiddenIds ids, computed once per frame.
+  constexpr size_t kHiddenIds = 16;
+  struct Hidden {
+    std::vector<uint32_t> slots;
+  };
+  const std::shared_ptr<const Frame> frame = scene->frame();
+  auto hidden = scene->Derived<Hidden>(frame, [](const Frame& frame) {
+    if (frame.empty()) return Hidden{};
+    return Hidden{HiddenSites(IdsOf(frame, frame.grid().all()), frame.sites())};
+  });
+  response->set_hidden_site_count(hidden->slots.size());
+  for (size_t k = 0; k < hidden->slots.size() && k < kHiddenIds; ++k) {
+    response->add_hidden_site_ids(frame->sites().get(hidden->slots[k])->id);
+  }
   return scope.Done(ctx, Status::OK);
 }
 
@@ -311,22 +320,18 @@ grpc::ServerUnaryReactor* VoronoiService::DeleteScene(grpc::CallbackServerContex
                                                       v1::DeleteSceneResponse*) {
   CallScope scope(this, "DeleteScene");
   if (auto s = Admit(ctx, true); !s.ok()) return scope.Done(ctx, s);
-  if (auto s = Ready(); !s.ok()) return scope.Done(ctx, s);
-  if (auto s = ValidateSceneId(request->scene_id(), limits_); !s.ok()) return scope.Done(ctx, s);
   std::shared_ptr<Scene> scene;
+  if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return scope.Done(ctx, s);
+  // The commit holds only the scene's writer lock: writes to the scene wait and then find it
+  // deleted, and other scenes' lookups go on.
+  absl::Status deleted =
+      scene->Retire([&] { return Durably([&] { return store_->DeleteScene(scene->id()); }); });
+  if (!deleted.ok()) return scope.Done(ctx, ToGrpc(deleted));
   {
     std::lock_guard<std::mutex> lock(mu_);
-    auto it = scenes_.find(request->scene_id());
-    if (it == scenes_.end()) {
-      return scope.Done(ctx, Status(StatusCode::NOT_FOUND, absl::StrCat("scene \"", request->scene_id(),
-                                                                  "\" does not exist")));
-    }
-    if (auto s = store_->DeleteScene(request->scene_id()); !s.ok()) return scope.Done(ctx, ToGrpc(s));
-    ObserveCommit();
-    scene = std::move(it->second);
-    scenes_.erase(it);
+    auto it = scenes_.find(scene->id());
+    if (it != scenes_.end() && it->second == scene) scenes_.erase(it);
   }
-  scene->MarkDeleted();
   scene->FailWaiters(absl::NotFoundError(absl::StrCat("scene \"", scene->id(), "\" was deleted")));
   renderer_->MarkDirty(scene);  // lets the render thread release the scene's target
   Log(LogLevel::kInfo, "scene_deleted", {{"scene", scene->id()}});
@@ -342,11 +347,10 @@ grpc::ServerUnaryReactor* VoronoiService::UpsertSites(grpc::CallbackServerContex
   if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return scope.Done(ctx, s);
   std::vector<Site> sites;
   if (auto s = ToSites(*request, limits_, &sites); !s.ok()) return scope.Done(ctx, s);
-  auto version = scene->Upsert(std::move(sites), limits_.max_sites_per_scene, [&](uint64_t v) {
-    auto s = store_->UpsertSites(scene->id(), request->sites(), v);
-    if (s.ok()) ObserveCommit();
-    return s;
-  });
+  auto version = scene->Upsert(std::move(sites), limits_.max_sites_per_scene,
+                               [&](const ChangeSet& c) {
+                                 return Durably([&] { return store_->Commit(c); });
+                               });
   if (!version.ok()) return scope.Done(ctx, ToGrpc(version.status()));
   response->set_version(*version);
   renderer_->MarkDirty(scene);
@@ -362,11 +366,8 @@ grpc::ServerUnaryReactor* VoronoiService::DeleteSites(grpc::CallbackServerContex
   if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return scope.Done(ctx, s);
   std::vector<std::string> ids;
   if (auto s = ToSiteIds(*request, limits_, &ids); !s.ok()) return scope.Done(ctx, s);
-  auto version = scene->Delete(ids, [&](uint64_t v) {
-    auto s = store_->DeleteSites(scene->id(), ids, v);
-    if (s.ok()) ObserveCommit();
-    return s;
-  });
+  auto version = scene->Delete(
+      ids, [&](const ChangeSet& c) { return Durably([&] { return store_->Commit(c); }); });
   if (!version.ok()) return scope.Done(ctx, ToGrpc(version.status()));
   response->set_version(*version);
   renderer_->MarkDirty(scene);

@@ -9,6 +9,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 
 #include "gvd/v1/voronoi.grpc.pb.h"
@@ -16,8 +17,8 @@
 #include "server/limits.h"
 #include "server/metrics.h"
 #include "server/render_loop.h"
-#include "server/scene.h"
-#include "server/store.h"
+#include "core/scene.h"
+#include "core/store.h"
 #include "server/workers.h"
 
 namespace gvd {
@@ -28,7 +29,7 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
  public:
   // `renderer` and `store` must outlive the service. Until Load() has run, every call is
   // answered UNAVAILABLE.
-  VoronoiService(RenderLoop* renderer, Store* store, ServerLimits limits,
+  VoronoiService(RenderLoop* renderer, SceneStore* store, ServerLimits limits,
                  const TokenAuth* auth = nullptr, Metrics* metrics = nullptr);
 
   // Per-scene figures for the metrics.
@@ -121,17 +122,24 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   Executor executor();
 
   RenderLoop* const renderer_;
-  Store* const store_;
+  SceneStore* const store_;
   const ServerLimits limits_;
   const TokenAuth* const auth_;
   Metrics* const metrics_;
-  void ObserveCommit() const;
+  // Runs one store call, timing it for the metrics.
+  template <class Call>
+  absl::Status Durably(Call call) const;
   std::atomic<bool> ready_{false};
   std::atomic<bool> draining_{false};
   mutable std::atomic<int> in_flight_{0};
   friend class CallScope;
-  mutable std::mutex mu_;  // guards scenes_
+  // Guards scenes_ and creating_, and is never held across a store call: a durable commit
+  // blocks no other scene's lookup.
+  mutable std::mutex mu_;
   std::map<std::string, std::shared_ptr<Scene>> scenes_;
+  // Ids of scenes being created (reserved, not yet committed): they count against
+  // --max-scenes and refuse a second create, but are not found until committed.
+  std::set<std::string> creating_;
   WorkerPool workers_;
   // Where queries that waited for a frame are answered (and images encoded): one thread per
   // core, never refusing, so the render thread only hands frames over. Last: its threads

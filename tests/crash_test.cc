@@ -2,6 +2,8 @@
 // SIGKILL at random moments and restarted on the same store. Every acknowledged update must be
 // there after the restart, and the request in flight at the kill entirely or not at all.
 #include <gtest/gtest.h>
+#include <sqlite3.h>
+#include <sys/stat.h>
 
 #include <atomic>
 #include <map>
@@ -261,6 +263,98 @@ TEST(CrashTest, CleanRestartKeepsEverything) {
   ASSERT_TRUE(client->FindNearest(q, &r).ok());
   EXPECT_EQ(r.results(0).site_id(), "a");
   EXPECT_EQ(r.results(0).distance(), 5);
+  std::system(("rm -rf " + data.substr(0, data.rfind('/'))).c_str());
+}
+
+// Runs SQL with one blob parameter per '?' on a database file, as an earlier release did.
+void RawSql(const std::string& path, const std::string& sql,
+            const std::vector<std::string>& blobs = {}) {
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  sqlite3_stmt* stmt = nullptr;
+  ASSERT_EQ(sqlite3_prepare_v2(db, sql.c_str(), -1, &stmt, nullptr), SQLITE_OK) << sql;
+  for (size_t i = 0; i < blobs.size(); ++i) {
+    sqlite3_bind_blob(stmt, static_cast<int>(i + 1), blobs[i].data(),
+                      static_cast<int>(blobs[i].size()), SQLITE_TRANSIENT);
+  }
+  EXPECT_EQ(sqlite3_step(stmt), SQLITE_DONE) << sql << ": " << sqlite3_errmsg(db);
+  sqlite3_finalize(stmt);
+  sqlite3_close(db);
+}
+
+// A database written by the release that kept request messages (scenes as their
+// CreateSceneRequest, sites as their Site message) is converted when the server starts, with
+// every scene setting, site, weight and version kept.
+TEST(StoreUpgrade, AnEarlierDatabaseIsConvertedOnStart) {
+  char dir_template[] = "/tmp/gvd-upgrade-XXXXXX";
+  const std::string data = std::string(mkdtemp(dir_template)) + "/store";
+  ASSERT_EQ(mkdir(data.c_str(), 0700), 0);
+  const std::string db = data + "/gvd.sqlite3";
+  RawSql(db, "CREATE TABLE scenes (id TEXT PRIMARY KEY, request BLOB NOT NULL, version INTEGER NOT NULL)");
+  RawSql(db, "CREATE TABLE sites (scene TEXT NOT NULL REFERENCES scenes(id) ON DELETE CASCADE,"
+             " id TEXT NOT NULL, site BLOB NOT NULL, PRIMARY KEY (scene, id)) WITHOUT ROWID");
+  v1::CreateSceneRequest create = testing::UnitScene("old", 48, 32);
+  create.set_diagram(v1::FARTHEST);
+  RawSql(db, "INSERT INTO scenes VALUES ('old', ?, 9)", {create.SerializeAsString()});
+  v1::Site p, g;
+  p.set_id("p");
+  p.mutable_point()->set_x(0.25);
+  p.mutable_point()->set_y(0.5);
+  p.set_additive_weight(0.125);
+  p.set_multiplicative_weight(2);
+  g.set_id("g");
+  for (auto [x, y] : {std::pair{0.1, 0.1}, {0.9, 0.1}, {0.5, 0.8}}) {
+    auto* v = g.mutable_polygon()->add_vertices();
+    v->set_x(x);
+    v->set_y(y);
+  }
+  g.mutable_polygon()->set_side(v1::Polygon::INSIDE);
+  for (const v1::Site& site : {p, g}) {
+    RawSql(db, "INSERT INTO sites VALUES ('old', '" + site.id() + "', ?)",
+           {site.SerializeAsString()});
+  }
+  auto expect_sites = [&](Client& client, uint64_t version, size_t count) {
+    v1::Scene scene;
+    ASSERT_TRUE(client.GetScene("old", &scene).ok());
+    EXPECT_EQ(scene.version(), version);
+    EXPECT_EQ(scene.width_px(), 48u);
+    EXPECT_EQ(scene.height_px(), 32u);
+    EXPECT_EQ(scene.diagram(), v1::FARTHEST);
+    std::vector<v1::Site> sites;
+    ASSERT_TRUE(client.ListAllSites("old", &sites).ok());
+    ASSERT_EQ(sites.size(), count);
+    EXPECT_EQ(sites[0].id(), "g");
+    EXPECT_EQ(sites[0].polygon().side(), v1::Polygon::INSIDE);
+    ASSERT_EQ(sites[0].polygon().vertices_size(), 3);
+    EXPECT_EQ(sites[0].polygon().vertices(2).y(), 0.8);
+    EXPECT_EQ(sites[1].id(), "p");
+    EXPECT_EQ(sites[1].point().x(), 0.25);
+    EXPECT_EQ(sites[1].point().y(), 0.5);
+    EXPECT_EQ(sites[1].additive_weight(), 0.125);
+    EXPECT_EQ(sites[1].multiplicative_weight(), 2);
+  };
+  {
+    testing::ServerProcess server(GVD_SERVER_PATH, {"--data", data});
+    ASSERT_TRUE(server.error().empty()) << server.error();
+    auto client = Client::Connect(server.address());
+    ASSERT_TRUE(client->WaitForConnected(std::chrono::seconds(10)));
+    expect_sites(*client, 9, 2);
+    v1::UpsertSitesRequest r;
+    r.set_scene_id("old");
+    auto* q = r.add_sites();
+    q->set_id("q");
+    q->mutable_point()->set_x(0.75);
+    q->mutable_point()->set_y(0.75);
+    uint64_t version = 0;
+    ASSERT_TRUE(client->UpsertSites(r, &version).ok());
+    EXPECT_EQ(version, 10u);
+  }
+  // Converted once: the restarted server reads the new form, with the later write.
+  testing::ServerProcess server(GVD_SERVER_PATH, {"--data", data});
+  ASSERT_TRUE(server.error().empty()) << server.error();
+  auto client = Client::Connect(server.address());
+  ASSERT_TRUE(client->WaitForConnected(std::chrono::seconds(10)));
+  expect_sites(*client, 10, 3);
   std::system(("rm -rf " + data.substr(0, data.rfind('/'))).c_str());
 }
 

@@ -14,7 +14,7 @@
 #include <gtest/gtest.h>
 
 #include "core/snapshot.h"
-#include "server/scene.h"
+#include "core/scene.h"
 
 namespace gvd {
 namespace {
@@ -190,7 +190,7 @@ TEST(SceneCore, RefusedWritesChangeNothing) {
   auto before = scene.snapshot();
   auto over = scene.Upsert({{"c", PointSite{{0.5, 0.5}}}, {"d", PointSite{{0.4, 0.5}}}}, 3);
   EXPECT_EQ(over.status().code(), absl::StatusCode::kResourceExhausted);
-  auto failed = scene.Upsert({{"a", PointSite{{0.5, 0.5}}}}, 10, [](uint64_t) {
+  auto failed = scene.Upsert({{"a", PointSite{{0.5, 0.5}}}}, 10, [](const ChangeSet&) {
     return absl::UnavailableError("disk");
   });
   EXPECT_EQ(failed.status().code(), absl::StatusCode::kUnavailable);
@@ -209,8 +209,8 @@ TEST(SceneCore, ReadersDoNotWaitForACommit) {
   Scene scene(Settings());
   ASSERT_TRUE(scene.Upsert({{"a", PointSite{{0.25, 0.5}}}}, 10).ok());
   bool read_during_commit = false;
-  auto v = scene.Upsert({{"b", PointSite{{0.75, 0.5}}}}, 10, [&](uint64_t next) {
-    EXPECT_EQ(next, 3u);
+  auto v = scene.Upsert({{"b", PointSite{{0.75, 0.5}}}}, 10, [&](const ChangeSet& c) {
+    EXPECT_EQ(c.version, 3u);
     auto reader = std::async(std::launch::async, [&] {
       std::vector<Scene::ExactAnswer> answers;
       uint64_t version = scene.NearestExact({{0.8, 0.5}}, &answers);

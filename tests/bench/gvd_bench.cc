@@ -16,7 +16,7 @@
 #include "gl/scene_raster.h"
 #include "server/render_loop.h"
 #include "server/service.h"
-#include "server/store.h"
+#include "store/sqlite_store.h"
 
 #ifdef GVD_BENCH_OPENCV
 #include <opencv2/imgproc.hpp>
@@ -244,7 +244,7 @@ BENCHMARK(BM_NanoflannNearest);
 // An in-process gvd-server on a loopback port with a 100,000-site scene "bench".
 struct LoopbackServer {
   RenderLoop renderer;
-  std::unique_ptr<Store> store;
+  std::unique_ptr<SqliteStore> store;
   std::unique_ptr<VoronoiService> service;
   std::unique_ptr<grpc::Server> server;
   std::string address;
@@ -254,7 +254,7 @@ struct LoopbackServer {
     static LoopbackServer* s = [] {
       auto* ls = new LoopbackServer();
       if (!ls->renderer.Start(DevicePreference::kAuto).ok()) return (LoopbackServer*)nullptr;
-      ls->store = std::move(*Store::Open(":memory:"));
+      ls->store = std::move(*SqliteStore::Open(":memory:"));
       ls->service = std::make_unique<VoronoiService>(&ls->renderer, ls->store.get(), ServerLimits{});
       (void)ls->service->Load();
       grpc::ServerBuilder builder;
@@ -350,7 +350,7 @@ void BM_GrpcUpsert(benchmark::State& state) {
   std::string dir = disk ? std::string(mkdtemp(dir_template)) + "/store" : ":memory:";
   RenderLoop renderer;
   if (!renderer.Start(DevicePreference::kAuto).ok()) return state.SkipWithError("no EGL context");
-  auto store = Store::Open(dir);
+  auto store = SqliteStore::Open(dir);
   if (!store.ok()) return state.SkipWithError("no store");
   VoronoiService service(&renderer, store->get(), ServerLimits{});
   (void)service.Load();

@@ -9,7 +9,7 @@
 #include "gvd/v1/voronoi.pb.h"
 #include "geometry/exact.h"
 #include "server/convert.h"
-#include "server/scene.h"
+#include "core/scene.h"
 
 namespace {
 

@@ -1,4 +1,5 @@
-// A scene: its grid, its sites, its version counter and the latest frame rendered from them.
+// A scene: its settings, the latest snapshot of its sites and the latest frame rendered
+// from them. No GL, no gRPC: the server, the tests and the benchmarks share it.
 #pragma once
 
 #include <atomic>
@@ -9,26 +10,19 @@
 #include <mutex>
 #include <string>
 #include <string_view>
+#include <typeindex>
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "analysis/plan.h"
 #include "core/frame.h"
 #include "core/shared_cell.h"
+#include "core/settings.h"
 #include "core/snapshot.h"
+#include "core/store.h"
 #include "geometry/geometry.h"
 #include "geometry/site.h"
 
 namespace gvd {
-
-struct SceneSettings {
-  std::string id;
-  Grid grid;
-  double eps = 0;        // the distance meshes' error bound, scene units (never 0)
-  uint32_t cone_triangles = 0;  // for sites inside the window
-  RenderMode mode = RenderMode::kMesh;
-  Diagram diagram = Diagram::kNearest;
-};
 
 // Called exactly once: with a frame of at least the awaited version, or with the reason
 // there will be none (scene deleted, render failed, call cancelled).
@@ -40,9 +34,9 @@ using Executor = std::function<void(std::function<void()>)>;
 // Thread-safe. Threading rules:
 //  - the sites are an immutable SiteSnapshot, published in a SharedCell: readers (queries, the
 //    render thread) copy the pointer and never wait for a writer's work;
-//  - writers (Upsert, Delete) take the writer lock, build the next snapshot from the current
-//    one, make it durable (Persist) and publish it, so a durable commit blocks only other
-//    writers of the same scene;
+//  - writers (Upsert, Delete, Retire) take the writer lock, build the next snapshot from the
+//    current one, make it durable (Persist: the store's commit of the change set) and publish
+//    it, so a durable commit blocks only other writers of the same scene;
 //  - the render thread publishes frames, each holding the snapshot it was rendered from;
 //    readers of frame() never wait for a render;
 //  - waiters for a frame are resumed through the executor, never on the render thread.
@@ -55,15 +49,17 @@ class Scene {
   Scene(SceneSettings settings, uint64_t version, std::vector<Site> sites,
         Executor executor = nullptr);
 
-  // Makes a change durable before it is published: called with the version the change brings
-  // the scene to, under the writer lock only; an error cancels the change.
-  using Persist = std::function<absl::Status(uint64_t new_version)>;
+  // Makes a change durable before it is published (SceneStore::Commit): called under the
+  // writer lock only, with the change and the version it brings the scene to; an error
+  // cancels the change.
+  using Persist = std::function<absl::Status(const ChangeSet& changes)>;
 
   const SceneSettings& settings() const { return settings_; }
   const std::string& id() const { return settings_.id; }
 
   // Inserts or replaces sites, atomically; returns the new version. If the scene would then
-  // hold more than max_sites sites, or `persist` fails, changes nothing and says why.
+  // hold more than max_sites sites, or `persist` fails, or the scene was deleted, changes
+  // nothing and says why.
   // CONTRACT: sites are valid and their ids distinct.
   absl::StatusOr<uint64_t> Upsert(std::vector<Site> sites, size_t max_sites,
                                   const Persist& persist = nullptr);
@@ -112,18 +108,24 @@ class Scene {
   };
   Picked Pick(Vec2 q, double max_distance) const;
 
-  // Sites whose geometry meets the window but which hold no pixel of the latest frame (paper
-  // sec. 6.2): their number and the first `kHiddenIds` ids. Computed once per frame.
-  static constexpr size_t kHiddenIds = 16;
-  struct Hidden {
-    uint64_t count = 0;
-    std::vector<std::string> ids;
-  };
-  Hidden HiddenSites() const;
-
-  // The clearance field of `frame` (analysis/plan.h), kept for the latest frame asked about so
-  // that repeated plans on one frame compute it once.
-  std::shared_ptr<const ClearanceField> Clearance(const std::shared_ptr<const Frame>& frame) const;
+  // A value computed from `frame` by `make` (a pure function of the frame), kept for the
+  // latest frame asked about, one per type T: repeated questions about one frame (its hidden
+  // sites, its clearance field) compute it once. Concurrent first calls may each compute it.
+  template <class T, class Make>
+  std::shared_ptr<const T> Derived(const std::shared_ptr<const Frame>& frame, Make&& make) const {
+    const std::type_index key(typeid(T));
+    {
+      std::lock_guard<std::mutex> lock(derived_mu_);
+      auto it = derived_.find(key);
+      if (it != derived_.end() && it->second.frame == frame) {
+        return std::static_pointer_cast<const T>(it->second.value);
+      }
+    }
+    auto value = std::make_shared<const T>(make(*frame));
+    std::lock_guard<std::mutex> lock(derived_mu_);
+    derived_[key] = {frame, value};
+    return value;
+  }
 
   struct SitePage {
     std::vector<Site> sites;
@@ -150,7 +152,10 @@ class Scene {
   // If the waiter is still pending, removes it and calls it with `why`.
   void Cancel(uint64_t token, const absl::Status& why);
 
-  void MarkDeleted() { deleted_ = true; }
+  // Deletes the scene: under the writer lock, runs `persist` (the store's delete) and, if it
+  // succeeds, marks the scene deleted, after which every write is refused (NOT_FOUND).
+  // NOT_FOUND when it was deleted already.
+  absl::Status Retire(const std::function<absl::Status()>& persist = nullptr);
   bool deleted() const { return deleted_; }
 
  private:
@@ -163,6 +168,7 @@ class Scene {
   // refuse. Under the writer lock.
   absl::StatusOr<uint64_t> Write(const std::function<absl::Status(SnapshotBuilder&)>& edit,
                                  const Persist& persist);
+  absl::Status Gone() const;  // NOT_FOUND: the scene was deleted
 
   const SceneSettings settings_;
   const Executor executor_;
@@ -178,12 +184,12 @@ class Scene {
   uint64_t next_token_ = 1;
   std::map<uint64_t, Waiter> waiters_;
 
-  mutable std::mutex hidden_mu_;  // guards the two below
-  mutable const Frame* hidden_frame_ = nullptr;  // the frame `hidden_` describes
-  mutable std::shared_ptr<const Frame> hidden_keep_;
-  mutable Hidden hidden_;
-  mutable std::shared_ptr<const Frame> clearance_frame_;  // guarded by hidden_mu_
-  mutable std::shared_ptr<const ClearanceField> clearance_;
+  struct DerivedValue {
+    std::shared_ptr<const Frame> frame;  // keeps the frame's address from being reused
+    std::shared_ptr<const void> value;
+  };
+  mutable std::mutex derived_mu_;  // guards derived_
+  mutable std::map<std::type_index, DerivedValue> derived_;
 };
 
 }  // namespace gvd

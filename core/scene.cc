@@ -1,4 +1,4 @@
-#include "server/scene.h"
+#include "core/scene.h"
 
 #include <atomic>
 #include <algorithm>
@@ -6,7 +6,6 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
-#include "analysis/analysis.h"
 #include "geometry/exact.h"
 #include "geometry/parallel.h"
 
@@ -39,10 +38,13 @@ Scene::Scene(SceneSettings settings, uint64_t version, std::vector<Site> sites, 
 absl::StatusOr<uint64_t> Scene::Write(const std::function<absl::Status(SnapshotBuilder&)>& edit,
                                       const Persist& persist) {
   std::lock_guard<std::mutex> lock(writer_mu_);
+  if (deleted_) return Gone();
   auto base = snapshot_.load();
   SnapshotBuilder builder(base, &free_slots_);
   absl::Status status = edit(builder);
-  if (status.ok() && persist) status = persist(base->version() + 1);
+  if (status.ok() && persist) {
+    status = persist(ChangeSet{id(), base->version() + 1, builder.put(), builder.removed()});
+  }
   if (!status.ok()) {
     builder.Abandon();
     return status;
@@ -53,6 +55,20 @@ absl::StatusOr<uint64_t> Scene::Write(const std::function<absl::Status(SnapshotB
   free_slots_.insert(free_slots_.end(), builder.freed().rbegin(), builder.freed().rend());
   snapshot_.store(next);
   return next->version();
+}
+
+absl::Status Scene::Gone() const {
+  return absl::NotFoundError(absl::StrCat("scene \"", id(), "\" was deleted"));
+}
+
+absl::Status Scene::Retire(const std::function<absl::Status()>& persist) {
+  std::lock_guard<std::mutex> lock(writer_mu_);
+  if (deleted_) return Gone();
+  if (persist) {
+    if (auto s = persist(); !s.ok()) return s;
+  }
+  deleted_ = true;
+  return absl::OkStatus();
 }
 
 absl::StatusOr<uint64_t> Scene::Upsert(std::vector<Site> sites, size_t max_sites,
@@ -101,38 +117,6 @@ Scene::Picked Scene::Pick(Vec2 q, double max_distance) const {
   p.feature_kind = f.kind;
   p.feature_index = f.index;
   return p;
-}
-
-Scene::Hidden Scene::HiddenSites() const {
-  auto frame = frame_.load();
-  std::lock_guard<std::mutex> lock(hidden_mu_);
-  if (hidden_frame_ != frame.get()) {
-    hidden_ = {};
-    if (!frame->empty()) {
-      std::vector<uint32_t> slots =
-          gvd::HiddenSites(IdsOf(*frame, frame->grid().all()), frame->sites());
-      hidden_.count = slots.size();
-      for (size_t k = 0; k < slots.size() && k < kHiddenIds; ++k) {
-        hidden_.ids.push_back(frame->sites().get(slots[k])->id);
-      }
-    }
-    hidden_frame_ = frame.get();
-    hidden_keep_ = frame;  // keeps the address from being reused by another frame
-  }
-  return hidden_;
-}
-
-std::shared_ptr<const ClearanceField> Scene::Clearance(
-    const std::shared_ptr<const Frame>& frame) const {
-  {
-    std::lock_guard<std::mutex> lock(hidden_mu_);
-    if (clearance_frame_ == frame) return clearance_;
-  }
-  auto field = std::make_shared<const ClearanceField>(MakeClearanceField(*frame));
-  std::lock_guard<std::mutex> lock(hidden_mu_);
-  clearance_frame_ = frame;
-  clearance_ = field;
-  return field;
 }
 
 uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactAnswer>* answers,

@@ -1,0 +1,280 @@
+#include "store/sqlite_store.h"
+
+#include <sqlite3.h>
+#include <sys/stat.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+
+#include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
+#include "core/codec.h"
+
+namespace gvd {
+namespace {
+
+absl::Status SqliteError(sqlite3* db, const std::string& what) {
+  return absl::InternalError(absl::StrCat("store: ", what, ": ", sqlite3_errmsg(db)));
+}
+
+// A prepared statement, finalized on scope exit.
+class Statement {
+ public:
+  Statement(sqlite3* db, const char* sql) {
+    if (sqlite3_prepare_v2(db, sql, -1, &stmt_, nullptr) != SQLITE_OK) stmt_ = nullptr;
+  }
+  ~Statement() { sqlite3_finalize(stmt_); }
+  bool ok() const { return stmt_ != nullptr; }
+  sqlite3_stmt* get() { return stmt_; }
+  void Text(int i, std::string_view s) {
+    sqlite3_bind_text(stmt_, i, s.data(), static_cast<int>(s.size()), SQLITE_TRANSIENT);
+  }
+  void Blob(int i, std::string_view s) {
+    sqlite3_bind_blob(stmt_, i, s.data(), static_cast<int>(s.size()), SQLITE_TRANSIENT);
+  }
+  void Int(int i, uint64_t v) { sqlite3_bind_int64(stmt_, i, static_cast<sqlite3_int64>(v)); }
+  // Steps a statement that returns no rows, and resets it for reuse.
+  bool Run() {
+    int rc = sqlite3_step(stmt_);
+    sqlite3_reset(stmt_);
+    sqlite3_clear_bindings(stmt_);
+    return rc == SQLITE_DONE;
+  }
+
+ private:
+  sqlite3_stmt* stmt_ = nullptr;
+};
+
+std::string_view ColumnBlob(sqlite3_stmt* s, int i) {
+  const void* p = sqlite3_column_blob(s, i);
+  return std::string_view(static_cast<const char*>(p), sqlite3_column_bytes(s, i));
+}
+
+std::string ColumnText(sqlite3_stmt* s, int i) {
+  const unsigned char* p = sqlite3_column_text(s, i);
+  return p ? std::string(reinterpret_cast<const char*>(p), sqlite3_column_bytes(s, i)) : "";
+}
+
+// The database's schema. The earlier one (tables "scenes" and "sites", holding request
+// messages) is converted by Migrate.
+constexpr const char* kSchema[] = {
+    "CREATE TABLE IF NOT EXISTS scene ("
+    "  id TEXT PRIMARY KEY,"
+    "  settings BLOB NOT NULL,"  // EncodeSettings
+    "  version INTEGER NOT NULL)",
+    "CREATE TABLE IF NOT EXISTS site ("
+    "  scene TEXT NOT NULL REFERENCES scene(id) ON DELETE CASCADE,"
+    "  id TEXT NOT NULL,"
+    "  site BLOB NOT NULL,"  // EncodeSite
+    "  PRIMARY KEY (scene, id)) WITHOUT ROWID",
+};
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string& dir,
+                                                               const Legacy& legacy) {
+  bool persistent = dir != ":memory:";
+  std::string path = ":memory:";
+  if (persistent) {
+    if (mkdir(dir.c_str(), 0700) != 0 && errno != EEXIST) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("store: cannot create directory ", dir, ": ", std::strerror(errno)));
+    }
+    path = dir + "/gvd.sqlite3";
+  }
+  sqlite3* db = nullptr;
+  if (sqlite3_open_v2(path.c_str(), &db,
+                      SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX,
+                      nullptr) != SQLITE_OK) {
+    absl::Status s = absl::FailedPreconditionError(
+        absl::StrCat("store: cannot open ", path, ": ", db ? sqlite3_errmsg(db) : "out of memory"));
+    sqlite3_close(db);
+    return s;
+  }
+  std::unique_ptr<SqliteStore> store(new SqliteStore(db, path));
+  sqlite3_busy_timeout(db, 5000);
+  for (const char* sql : {"PRAGMA journal_mode=WAL", "PRAGMA synchronous=FULL",
+                          "PRAGMA foreign_keys=ON"}) {
+    if (auto s = store->Exec(sql); !s.ok()) return s;
+  }
+  for (const char* sql : kSchema) {
+    if (auto s = store->Exec(sql); !s.ok()) return s;
+  }
+  if (auto s = store->Migrate(legacy); !s.ok()) return s;
+  return store;
+}
+
+SqliteStore::~SqliteStore() { sqlite3_close(db_); }
+
+absl::Status SqliteStore::Exec(const char* sql) {
+  char* error = nullptr;
+  if (sqlite3_exec(db_, sql, nullptr, nullptr, &error) != SQLITE_OK) {
+    absl::Status s = absl::InternalError(absl::StrCat("store: ", sql, ": ", error ? error : "?"));
+    sqlite3_free(error);
+    return s;
+  }
+  return absl::OkStatus();
+}
+
+template <class Body>
+absl::Status SqliteStore::Transaction(Body body) {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto start = std::chrono::steady_clock::now();
+  if (auto s = Exec("BEGIN IMMEDIATE"); !s.ok()) return s;
+  absl::Status s = body();
+  if (s.ok()) s = Exec("COMMIT");
+  if (!s.ok()) {
+    Exec("ROLLBACK").IgnoreError();
+    return s;
+  }
+  last_commit_seconds_ =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return absl::OkStatus();
+}
+
+double SqliteStore::last_commit_seconds() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return last_commit_seconds_;
+}
+
+absl::Status SqliteStore::Migrate(const Legacy& legacy) {
+  {
+    Statement old(db_, "SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'scenes'");
+    if (!old.ok()) return SqliteError(db_, "reading the schema");
+    if (sqlite3_step(old.get()) != SQLITE_ROW) return absl::OkStatus();
+  }
+  if (!legacy.scene || !legacy.site) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("store: ", path_, " was written by an earlier release; this program "
+                     "cannot convert it"));
+  }
+  return Transaction([&]() -> absl::Status {
+    Statement scenes(db_, "SELECT id, request, version FROM scenes ORDER BY id");
+    Statement sites(db_, "SELECT site FROM sites WHERE scene = ?");
+    Statement put_scene(db_, "INSERT INTO scene (id, settings, version) VALUES (?, ?, ?)");
+    Statement put_site(db_, "INSERT INTO site (scene, id, site) VALUES (?, ?, ?)");
+    if (!scenes.ok() || !sites.ok() || !put_scene.ok() || !put_site.ok()) {
+      return SqliteError(db_, "converting the earlier schema");
+    }
+    int rc;
+    while ((rc = sqlite3_step(scenes.get())) == SQLITE_ROW) {
+      const std::string id = ColumnText(scenes.get(), 0);
+      auto settings = legacy.scene(ColumnBlob(scenes.get(), 1));
+      if (!settings.ok()) {
+        return absl::DataLossError(absl::StrCat("store: scene \"", id,
+                                                "\" cannot be converted: ",
+                                                settings.status().message()));
+      }
+      put_scene.Text(1, id);
+      put_scene.Blob(2, EncodeSettings(*settings));
+      put_scene.Int(3, static_cast<uint64_t>(sqlite3_column_int64(scenes.get(), 2)));
+      if (!put_scene.Run()) return SqliteError(db_, "converting a scene");
+      sites.Text(1, id);
+      while ((rc = sqlite3_step(sites.get())) == SQLITE_ROW) {
+        auto site = legacy.site(ColumnBlob(sites.get(), 0));
+        if (!site.ok()) {
+          return absl::DataLossError(absl::StrCat("store: a site of scene \"", id,
+                                                  "\" cannot be converted: ",
+                                                  site.status().message()));
+        }
+        put_site.Text(1, id);
+        put_site.Text(2, site->id);
+        put_site.Blob(3, EncodeSite(*site));
+        if (!put_site.Run()) return SqliteError(db_, "converting a site");
+      }
+      sqlite3_reset(sites.get());
+      if (rc != SQLITE_DONE) return SqliteError(db_, "reading sites");
+    }
+    if (rc != SQLITE_DONE) return SqliteError(db_, "reading scenes");
+    sqlite3_reset(scenes.get());
+    if (auto s = Exec("DROP TABLE sites"); !s.ok()) return s;
+    return Exec("DROP TABLE scenes");
+  });
+}
+
+absl::StatusOr<std::vector<StoredScene>> SqliteStore::Load() {
+  std::lock_guard<std::mutex> lock(mu_);
+  std::vector<StoredScene> scenes;
+  Statement s(db_, "SELECT id, settings, version FROM scene ORDER BY id");
+  if (!s.ok()) return SqliteError(db_, "reading scenes");
+  int rc;
+  while ((rc = sqlite3_step(s.get())) == SQLITE_ROW) {
+    auto settings = DecodeSettings(ColumnBlob(s.get(), 1));
+    if (!settings.ok()) {
+      return absl::DataLossError(absl::StrCat("store: scene \"", ColumnText(s.get(), 0),
+                                              "\": ", settings.status().message()));
+    }
+    StoredScene scene;
+    scene.settings = std::move(*settings);
+    scene.version = static_cast<uint64_t>(sqlite3_column_int64(s.get(), 2));
+    scenes.push_back(std::move(scene));
+  }
+  if (rc != SQLITE_DONE) return SqliteError(db_, "reading scenes");
+  Statement sites(db_, "SELECT site FROM site WHERE scene = ?");
+  if (!sites.ok()) return SqliteError(db_, "reading sites");
+  for (StoredScene& scene : scenes) {
+    sites.Text(1, scene.settings.id);
+    while ((rc = sqlite3_step(sites.get())) == SQLITE_ROW) {
+      auto site = DecodeSite(ColumnBlob(sites.get(), 0));
+      if (!site.ok()) {
+        return absl::DataLossError(absl::StrCat("store: a site of scene \"", scene.settings.id,
+                                                "\": ", site.status().message()));
+      }
+      scene.sites.push_back(std::move(*site));
+    }
+    sqlite3_reset(sites.get());
+    if (rc != SQLITE_DONE) return SqliteError(db_, "reading sites");
+  }
+  return scenes;
+}
+
+absl::Status SqliteStore::CreateScene(const SceneSettings& settings, uint64_t version) {
+  return Transaction([&]() -> absl::Status {
+    Statement s(db_, "INSERT INTO scene (id, settings, version) VALUES (?, ?, ?)");
+    s.Text(1, settings.id);
+    s.Blob(2, EncodeSettings(settings));
+    s.Int(3, version);
+    if (!s.ok() || !s.Run()) return SqliteError(db_, "storing the scene");
+    return absl::OkStatus();
+  });
+}
+
+absl::Status SqliteStore::DeleteScene(std::string_view scene_id) {
+  return Transaction([&]() -> absl::Status {
+    Statement s(db_, "DELETE FROM scene WHERE id = ?");  // sites cascade
+    s.Text(1, scene_id);
+    if (!s.ok() || !s.Run()) return SqliteError(db_, "deleting the scene");
+    return absl::OkStatus();
+  });
+}
+
+absl::Status SqliteStore::Commit(const ChangeSet& changes) {
+  return Transaction([&]() -> absl::Status {
+    Statement put(db_, "INSERT OR REPLACE INTO site (scene, id, site) VALUES (?, ?, ?)");
+    Statement del(db_, "DELETE FROM site WHERE scene = ? AND id = ?");
+    Statement version(db_, "UPDATE scene SET version = ? WHERE id = ?");
+    if (!put.ok() || !del.ok() || !version.ok()) return SqliteError(db_, "storing sites");
+    version.Int(1, changes.version);
+    version.Text(2, changes.scene_id);
+    if (!version.Run()) return SqliteError(db_, "storing the version");
+    if (sqlite3_changes(db_) != 1) {
+      return absl::NotFoundError(
+          absl::StrCat("store: scene \"", std::string(changes.scene_id), "\" is not stored"));
+    }
+    for (const auto& site : changes.put) {
+      put.Text(1, changes.scene_id);
+      put.Text(2, site->id);
+      put.Blob(3, EncodeSite(*site));
+      if (!put.Run()) return SqliteError(db_, "storing a site");
+    }
+    for (const std::string& id : changes.removed) {
+      del.Text(1, changes.scene_id);
+      del.Text(2, id);
+      if (!del.Run()) return SqliteError(db_, "deleting a site");
+    }
+    return absl::OkStatus();
+  });
+}
+
+}  // namespace gvd

@@ -1,0 +1,61 @@
+// SceneStore on SQLite: one database file in WAL mode with synchronous=FULL, one transaction
+// per call, durable before the call returns. Sites and settings are kept in the core's byte
+// form (core/codec.h), so every site kind the core gains is stored without a schema change.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <string_view>
+
+#include "absl/status/statusor.h"
+#include "core/store.h"
+
+struct sqlite3;
+
+namespace gvd {
+
+// Thread-safe: one connection behind a mutex (SQLite has one writer at a time anyway).
+class SqliteStore final : public SceneStore {
+ public:
+  // Reads the records of an earlier schema, which kept each scene's CreateSceneRequest and
+  // each site's Site message: given to Open by the one who knows those messages (the server)
+  // so that a database written by an earlier release is converted once, in one transaction.
+  struct Legacy {
+    std::function<absl::StatusOr<SceneSettings>(std::string_view request)> scene;
+    std::function<absl::StatusOr<Site>(std::string_view site)> site;
+  };
+
+  // Opens (creating if needed) DIR/gvd.sqlite3. ":memory:" keeps nothing across restarts.
+  // A database of the earlier schema is converted with `legacy`, or refused without it.
+  static absl::StatusOr<std::unique_ptr<SqliteStore>> Open(const std::string& dir,
+                                                           const Legacy& legacy = {});
+  ~SqliteStore() override;  // closes the database cleanly (checkpointing the WAL)
+  SqliteStore(const SqliteStore&) = delete;
+  SqliteStore& operator=(const SqliteStore&) = delete;
+
+  absl::StatusOr<std::vector<StoredScene>> Load() override;
+  absl::Status CreateScene(const SceneSettings& settings, uint64_t version) override;
+  absl::Status Commit(const ChangeSet& changes) override;
+  absl::Status DeleteScene(std::string_view scene_id) override;
+  std::string Describe() const override { return path_; }
+
+  // Seconds the last transaction took (BEGIN to durable COMMIT).
+  double last_commit_seconds() const;
+
+ private:
+  SqliteStore(sqlite3* db, std::string path) : db_(db), path_(std::move(path)) {}
+  absl::Status Exec(const char* sql);
+  absl::Status Migrate(const Legacy& legacy);
+  // Runs `body` inside BEGIN IMMEDIATE ... COMMIT, rolling back if it fails.
+  template <class Body>
+  absl::Status Transaction(Body body);
+
+  mutable std::mutex mu_;
+  sqlite3* db_;
+  std::string path_;
+  double last_commit_seconds_ = 0;
+};
+
+}  // namespace gvd

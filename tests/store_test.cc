@@ -1,0 +1,400 @@
+// The store behind the scene core: the byte form of sites and settings, and SqliteStore's
+// load, commit, delete, reopen and conversion of the earlier schema. The oracle is a plain
+// model kept here (a std::map of encoded-by-hand fields), compared bit for bit.
+#include <sqlite3.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <limits>
+#include <map>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "core/codec.h"
+#include "core/scene.h"
+#include "store/sqlite_store.h"
+
+namespace gvd {
+namespace {
+
+bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+bool SamePoints(const std::vector<Vec2>& a, const std::vector<Vec2>& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (!SameBits(a[i].x, b[i].x) || !SameBits(a[i].y, b[i].y)) return false;
+  }
+  return true;
+}
+
+// Field by field and bit for bit, written here rather than taken from the code under test.
+bool SameSite(const Site& a, const Site& b) {
+  if (a.id != b.id || !SameBits(a.additive, b.additive) ||
+      !SameBits(a.multiplicative, b.multiplicative) || !SameBits(a.max_distance, b.max_distance) ||
+      a.geometry.index() != b.geometry.index()) {
+    return false;
+  }
+  if (auto* p = std::get_if<PointSite>(&a.geometry)) {
+    return SamePoints({p->p}, {std::get<PointSite>(b.geometry).p});
+  }
+  if (auto* s = std::get_if<SegmentSite>(&a.geometry)) {
+    const auto& t = std::get<SegmentSite>(b.geometry);
+    return SamePoints({s->a, s->b}, {t.a, t.b});
+  }
+  if (auto* l = std::get_if<PolylineSite>(&a.geometry)) {
+    return SamePoints(l->points, std::get<PolylineSite>(b.geometry).points);
+  }
+  if (auto* g = std::get_if<PolygonSite>(&a.geometry)) {
+    const auto& h = std::get<PolygonSite>(b.geometry);
+    return g->side == h.side && SamePoints(g->vertices, h.vertices);
+  }
+  const auto& c = std::get<BezierSite>(a.geometry);
+  const auto& d = std::get<BezierSite>(b.geometry);
+  return SameBits(c.tolerance, d.tolerance) && SamePoints(c.control, d.control) &&
+         SamePoints(c.flat, d.flat);
+}
+
+// A random site of every kind in turn, with awkward values: -0, subnormals, huge and tiny
+// magnitudes, infinite max_distance, ids with bytes of every value.
+Site RandomSite(std::mt19937_64& rng, int kind, const std::string& id) {
+  const double awkward[] = {-0.0, 5e-324, 1e308, -1e-300, 0.1, 1.0 / 3, -7.5e12};
+  std::uniform_real_distribution<double> u(-1e6, 1e6);
+  auto value = [&] { return rng() % 4 == 0 ? awkward[rng() % 7] : u(rng); };
+  auto points = [&](size_t n) {
+    std::vector<Vec2> v(n);
+    for (Vec2& p : v) p = {value(), value()};
+    return v;
+  };
+  Site s;
+  s.id = id;
+  s.additive = rng() % 2 ? 0 : std::abs(value());
+  s.multiplicative = rng() % 2 ? 1 : 1 + std::abs(u(rng));
+  s.max_distance = rng() % 2 ? INFINITY : 1 + std::abs(u(rng));
+  switch (kind % 5) {
+    case 0: s.geometry = PointSite{{value(), value()}}; break;
+    case 1: s.geometry = SegmentSite{{value(), value()}, {value(), value()}}; break;
+    case 2: s.geometry = PolylineSite{points(2 + rng() % 40)}; break;
+    case 3: s.geometry = PolygonSite{points(3 + rng() % 40), static_cast<Side>(rng() % 3)}; break;
+    default: s.geometry = BezierSite{points(3 + rng() % 2), std::abs(value()), points(2 + rng() % 90)};
+  }
+  return s;
+}
+
+std::string RandomId(std::mt19937_64& rng) {
+  std::string id(1 + rng() % 12, '\0');
+  for (char& c : id) c = static_cast<char>(rng() % 256);
+  return id;
+}
+
+TEST(Codec, SitesRoundTripBitForBit) {
+  std::mt19937_64 rng(11);
+  for (int i = 0; i < 2000; ++i) {
+    Site s = RandomSite(rng, i, RandomId(rng));
+    auto back = DecodeSite(EncodeSite(s));
+    ASSERT_TRUE(back.ok()) << back.status();
+    EXPECT_TRUE(SameSite(s, *back)) << "site " << i;
+  }
+}
+
+TEST(Codec, SettingsRoundTripBitForBit) {
+  SceneSettings s;
+  s.id = std::string("scene\0with nul", 14);
+  s.grid = Grid{{-0.0, -1e300, 5e-324, 1e300}, 4096, 3};
+  s.eps = 1.0 / 3;
+  s.cone_triangles = 77;
+  s.mode = RenderMode::kExact;
+  s.diagram = Diagram::kFarthest;
+  auto back = DecodeSettings(EncodeSettings(s));
+  ASSERT_TRUE(back.ok()) << back.status();
+  EXPECT_EQ(back->id, s.id);
+  EXPECT_TRUE(SameBits(back->grid.window.min_x, -0.0));
+  EXPECT_TRUE(SameBits(back->grid.window.min_y, -1e300));
+  EXPECT_TRUE(SameBits(back->grid.window.max_x, 5e-324));
+  EXPECT_TRUE(SameBits(back->grid.window.max_y, 1e300));
+  EXPECT_EQ(back->grid.width, 4096u);
+  EXPECT_EQ(back->grid.height, 3u);
+  EXPECT_TRUE(SameBits(back->eps, 1.0 / 3));
+  EXPECT_EQ(back->cone_triangles, 77u);
+  EXPECT_EQ(back->mode, RenderMode::kExact);
+  EXPECT_EQ(back->diagram, Diagram::kFarthest);
+}
+
+// Damage is DATA_LOSS, never a crash or a site read from garbage: every proper prefix, every
+// extension and every changed format or tag byte of an encoding is refused.
+TEST(Codec, DamagedBytesAreDataLoss) {
+  std::mt19937_64 rng(12);
+  for (int kind = 0; kind < 5; ++kind) {
+    const std::string bytes = EncodeSite(RandomSite(rng, kind, "id"));
+    for (size_t n = 0; n < bytes.size(); ++n) {
+      auto s = DecodeSite(std::string_view(bytes).substr(0, n));
+      ASSERT_EQ(s.status().code(), absl::StatusCode::kDataLoss) << "kind " << kind << " prefix " << n;
+    }
+    EXPECT_EQ(DecodeSite(bytes + "x").status().code(), absl::StatusCode::kDataLoss);
+    std::string format = bytes;
+    format[0] = 9;
+    EXPECT_EQ(DecodeSite(format).status().code(), absl::StatusCode::kDataLoss);
+    // The geometry tag follows the format byte, the id (4-byte length + 2 bytes) and the
+    // three weights.
+    std::string tag = bytes;
+    tag[1 + 4 + 2 + 24] = 0;
+    EXPECT_EQ(DecodeSite(tag).status().code(), absl::StatusCode::kDataLoss);
+  }
+  // A point count far beyond the bytes present.
+  std::string line = EncodeSite(Site{"l", PolylineSite{{{0, 0}, {1, 1}}}});
+  line[1 + 4 + 1 + 24 + 1 + 3] = '\x7f';
+  EXPECT_EQ(DecodeSite(line).status().code(), absl::StatusCode::kDataLoss);
+  const std::string settings = EncodeSettings(SceneSettings{});
+  for (size_t n = 0; n < settings.size(); ++n) {
+    EXPECT_EQ(DecodeSettings(settings.substr(0, n)).status().code(), absl::StatusCode::kDataLoss);
+  }
+  std::string mode = settings;
+  mode[mode.size() - 2] = 7;
+  EXPECT_EQ(DecodeSettings(mode).status().code(), absl::StatusCode::kDataLoss);
+}
+
+// A fresh directory under /tmp, removed at the end of the test.
+class TempDir {
+ public:
+  TempDir() {
+    char t[] = "/tmp/gvd-store-XXXXXX";
+    path_ = mkdtemp(t);
+  }
+  ~TempDir() { std::system(("rm -rf '" + path_ + "'").c_str()); }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
+SceneSettings Settings(const std::string& id) {
+  SceneSettings s;
+  s.id = id;
+  s.grid = Grid{{0, 0, 1, 1}, 32, 16};
+  s.eps = 0.25;
+  s.cone_triangles = 9;
+  return s;
+}
+
+using SceneModel = std::map<std::string, Site>;
+struct StoreModel {
+  std::map<std::string, uint64_t> versions;
+  std::map<std::string, SceneModel> sites;
+};
+
+void ExpectStoreHolds(SqliteStore& store, const StoreModel& model) {
+  auto loaded = store.Load();
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  ASSERT_EQ(loaded->size(), model.versions.size());
+  auto expected = model.versions.begin();
+  for (const StoredScene& scene : *loaded) {
+    SCOPED_TRACE(scene.settings.id);
+    ASSERT_EQ(scene.settings.id, expected->first);  // in id order
+    EXPECT_EQ(scene.version, expected->second);
+    EXPECT_EQ(scene.settings.grid.width, 32u);
+    EXPECT_TRUE(SameBits(scene.settings.eps, 0.25));
+    const SceneModel& sites = model.sites.at(scene.settings.id);
+    ASSERT_EQ(scene.sites.size(), sites.size());
+    for (const Site& site : scene.sites) {
+      auto it = sites.find(site.id);
+      ASSERT_NE(it, sites.end()) << site.id;
+      EXPECT_TRUE(SameSite(site, it->second)) << site.id;
+    }
+    ++expected;
+  }
+}
+
+// Random creates, change sets and deletes, checked against the model after each reopen: what
+// a call acknowledged is there, a refused call left nothing behind.
+TEST(Store, KeepsWhatWasCommittedAcrossReopens) {
+  TempDir dir;
+  std::mt19937_64 rng(13);
+  StoreModel model;
+  for (int round = 0; round < 4; ++round) {
+    auto store = SqliteStore::Open(dir.path() + "/data");
+    ASSERT_TRUE(store.ok()) << store.status();
+    ExpectStoreHolds(**store, model);
+    for (int op = 0; op < 60; ++op) {
+      const std::string scene = "s" + std::to_string(rng() % 4);
+      const bool exists = model.versions.count(scene) > 0;
+      if (!exists) {
+        ASSERT_TRUE((*store)->CreateScene(Settings(scene), 5).ok());
+        model.versions[scene] = 5;
+        model.sites[scene] = {};
+        continue;
+      }
+      if (rng() % 15 == 0) {
+        ASSERT_TRUE((*store)->DeleteScene(scene).ok());
+        model.versions.erase(scene);
+        model.sites.erase(scene);
+        continue;
+      }
+      SceneModel& sites = model.sites[scene];
+      std::vector<std::shared_ptr<const Site>> put;
+      std::vector<std::string> removed;
+      std::map<std::string, bool> touched;
+      for (int k = 0, n = 1 + rng() % 30; k < n; ++k) {
+        std::string id = "id" + std::to_string(rng() % 50);
+        if (touched.count(id)) continue;
+        touched[id] = true;
+        if (sites.count(id) && rng() % 3 == 0) {
+          removed.push_back(id);
+        } else {
+          put.push_back(std::make_shared<const Site>(RandomSite(rng, static_cast<int>(rng()), id)));
+        }
+      }
+      const uint64_t version = model.versions[scene] + 1;
+      ASSERT_TRUE((*store)->Commit({scene, version, put, removed}).ok());
+      for (const auto& s : put) sites[s->id] = *s;
+      for (const auto& id : removed) sites.erase(id);
+      model.versions[scene] = version;
+    }
+    // A change set for a scene that is not stored is refused whole.
+    auto site = std::make_shared<const Site>(Site{"x", PointSite{{0, 0}}});
+    std::vector<std::shared_ptr<const Site>> put = {site};
+    EXPECT_EQ((*store)->Commit({"absent", 9, put, {}}).code(), absl::StatusCode::kNotFound);
+    // A second create of a stored scene is refused and changes nothing.
+    if (!model.versions.empty()) {
+      EXPECT_FALSE((*store)->CreateScene(Settings(model.versions.begin()->first), 1).ok());
+    }
+    ExpectStoreHolds(**store, model);
+  }
+}
+
+// Executes SQL on a database file directly, as an earlier release would have.
+void RawSql(const std::string& path, const std::vector<std::string>& statements) {
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  for (const std::string& sql : statements) {
+    char* error = nullptr;
+    EXPECT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &error), SQLITE_OK)
+        << sql << ": " << (error ? error : "");
+    sqlite3_free(error);
+  }
+  sqlite3_close(db);
+}
+
+// The earlier schema, holding records that the test's own legacy reader understands:
+// a scene's record is its id, a site's is "id x y".
+void WriteEarlierSchema(const std::string& dir) {
+  ASSERT_EQ(system(("mkdir -p '" + dir + "'").c_str()), 0);
+  RawSql(dir + "/gvd.sqlite3",
+         {"CREATE TABLE scenes (id TEXT PRIMARY KEY, request BLOB NOT NULL, version INTEGER NOT NULL)",
+          "CREATE TABLE sites (scene TEXT NOT NULL REFERENCES scenes(id) ON DELETE CASCADE,"
+          " id TEXT NOT NULL, site BLOB NOT NULL, PRIMARY KEY (scene, id)) WITHOUT ROWID",
+          "INSERT INTO scenes VALUES ('a', 'a', 7), ('b', 'b', 3)",
+          "INSERT INTO sites VALUES ('a', 'p', 'p 0.25 0.5'), ('a', 'q', 'q 0.75 0.125'),"
+          " ('b', 'r', 'r 0.5 0.5')"});
+}
+
+SqliteStore::Legacy TestLegacy(bool refuse_r = false) {
+  return {
+      [](std::string_view id) -> absl::StatusOr<SceneSettings> {
+        return Settings(std::string(id));
+      },
+      [refuse_r](std::string_view record) -> absl::StatusOr<Site> {
+        std::string s(record);
+        char id[8];
+        double x, y;
+        if (std::sscanf(s.c_str(), "%7s %lf %lf", id, &x, &y) != 3) {
+          return absl::DataLossError("bad record");
+        }
+        if (refuse_r && std::string(id) == "r") return absl::DataLossError("refused r");
+        return Site{id, PointSite{{x, y}}};
+      },
+  };
+}
+
+TEST(Store, ConvertsTheEarlierSchemaOnce) {
+  TempDir dir;
+  const std::string data = dir.path() + "/data";
+  WriteEarlierSchema(data);
+  {
+    // Without a reader for the old records the database is refused, and left as it was.
+    auto refused = SqliteStore::Open(data);
+    EXPECT_EQ(refused.status().code(), absl::StatusCode::kFailedPrecondition);
+    // A record the reader refuses stops the conversion, which changes nothing.
+    auto failed = SqliteStore::Open(data, TestLegacy(/*refuse_r=*/true));
+    EXPECT_EQ(failed.status().code(), absl::StatusCode::kDataLoss);
+    EXPECT_NE(failed.status().message().find("refused r"), std::string::npos);
+  }
+  StoreModel model;
+  model.versions = {{"a", 7}, {"b", 3}};
+  model.sites["a"]["p"] = Site{"p", PointSite{{0.25, 0.5}}};
+  model.sites["a"]["q"] = Site{"q", PointSite{{0.75, 0.125}}};
+  model.sites["b"]["r"] = Site{"r", PointSite{{0.5, 0.5}}};
+  {
+    auto store = SqliteStore::Open(data, TestLegacy());
+    ASSERT_TRUE(store.ok()) << store.status();
+    ExpectStoreHolds(**store, model);
+    auto site = std::make_shared<const Site>(Site{"s", PointSite{{0.1, 0.2}}});
+    std::vector<std::shared_ptr<const Site>> put = {site};
+    ASSERT_TRUE((*store)->Commit({"b", 4, put, {}}).ok());
+    model.versions["b"] = 4;
+    model.sites["b"]["s"] = *site;
+  }
+  // Converted once: a reopen needs no reader and finds the converted data and what followed.
+  auto again = SqliteStore::Open(data);
+  ASSERT_TRUE(again.ok()) << again.status();
+  ExpectStoreHolds(**again, model);
+}
+
+// Deleting a scene waits for its writer, and every later write finds it gone.
+TEST(Store, ARetiredSceneRefusesWrites) {
+  Scene scene(Settings("gone"));
+  ASSERT_TRUE(scene.Upsert({{"a", PointSite{{0.1, 0.1}}}}, 10).ok());
+  EXPECT_EQ(scene.Retire([] { return absl::UnavailableError("disk"); }).code(),
+            absl::StatusCode::kUnavailable);
+  EXPECT_FALSE(scene.deleted());  // a failed delete keeps the scene
+  ASSERT_TRUE(scene.Retire().ok());
+  EXPECT_TRUE(scene.deleted());
+  EXPECT_EQ(scene.Retire().code(), absl::StatusCode::kNotFound);
+  bool persisted = false;
+  auto write = scene.Upsert({{"b", PointSite{{0.2, 0.2}}}}, 10, [&](const ChangeSet&) {
+    persisted = true;
+    return absl::OkStatus();
+  });
+  EXPECT_EQ(write.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_FALSE(persisted);
+  EXPECT_EQ(scene.Delete({"a"}).status().code(), absl::StatusCode::kNotFound);
+  EXPECT_EQ(scene.version(), 2u);
+}
+
+// The change set a write hands to the store is exactly what it did.
+TEST(Store, ChangeSetsNameWhatAWriteDid) {
+  Scene scene(Settings("c"));
+  ASSERT_TRUE(scene.Upsert({{"a", PointSite{{0.1, 0.1}}}, {"b", PointSite{{0.2, 0.2}}}}, 10).ok());
+  std::vector<std::string> put_ids, removed;
+  uint64_t version = 0;
+  ASSERT_TRUE(scene
+                  .Upsert({{"b", PointSite{{0.3, 0.3}}}, {"c", PointSite{{0.4, 0.4}}}}, 10,
+                          [&](const ChangeSet& c) {
+                            for (const auto& s : c.put) put_ids.push_back(s->id);
+                            version = c.version;
+                            EXPECT_EQ(c.scene_id, "c");
+                            EXPECT_TRUE(c.removed.empty());
+                            return absl::OkStatus();
+                          })
+                  .ok());
+  EXPECT_EQ(put_ids, (std::vector<std::string>{"b", "c"}));
+  EXPECT_EQ(version, 3u);
+  ASSERT_TRUE(scene
+                  .Delete({"a", "c"},
+                          [&](const ChangeSet& c) {
+                            removed.assign(c.removed.begin(), c.removed.end());
+                            EXPECT_TRUE(c.put.empty());
+                            EXPECT_EQ(c.version, 4u);
+                            return absl::OkStatus();
+                          })
+                  .ok());
+  EXPECT_EQ(removed, (std::vector<std::string>{"a", "c"}));
+}
+
+}  // namespace
+}  // namespace gvd
