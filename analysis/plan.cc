@@ -6,7 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "geometry/exact.h"
-#include "geometry/parallel.h"
+#include "core/cpu_pool.h"
 
 namespace gvd {
 namespace {

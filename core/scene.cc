@@ -7,7 +7,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "geometry/exact.h"
-#include "geometry/parallel.h"
+#include "core/cpu_pool.h"
 
 namespace gvd {
 

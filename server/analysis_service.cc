@@ -139,7 +139,7 @@ grpc::ServerUnaryReactor* VoronoiService::StartAnalysis(
     if (auto s = validate(&query); !s.ok()) return query.scope->Done(ctx, s);
   }
   if (auto s = WaitFor(min_version, &query); !s.ok()) return query.scope->Done(ctx, s);
-  WorkerPool* workers = &workers_;
+  CpuPool::Lane* workers = &analyses_;
   query.on_frame_async = [workers, ctx, scene = query.scene, work = std::move(work)](
                              std::shared_ptr<const Frame> frame, NearestQuery::Done done) {
     bool queued = workers->Submit([ctx, work, scene, frame, done] {

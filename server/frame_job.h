@@ -12,7 +12,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include "absl/strings/str_cat.h"
-#include "geometry/parallel.h"
+#include "core/cpu_pool.h"
 #include "server/call_scope.h"
 #include "server/convert.h"
 #include "core/scene.h"

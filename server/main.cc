@@ -51,9 +51,9 @@ constexpr const char* kUsage = R"(usage: gvd-server [flags]
   --max-sites-per-request N   sites (or ids) in one UpsertSites or DeleteSites (default 100000)
   --max-vertices-per-site N   points of one polyline or polygon (default 100000)
   --max-message-bytes N       gRPC message size limit (default 268435456)
-  --analysis-threads N        threads for boundaries, neighbours, Delaunay, zoom windows,
-                              clearance and planning (default 2)
-  --max-queued-analyses N     such calls waiting for a thread before RESOURCE_EXHAUSTED
+  --analysis-threads N        boundaries, neighbours, Delaunay, zoom windows, clearance
+                              and planning calls run at once on the CPU pool (default 2)
+  --max-queued-analyses N     such calls waiting for their turn before RESOURCE_EXHAUSTED
                               (default 64)
   --metrics-listen HOST:PORT  serve Prometheus metrics at http://HOST:PORT/metrics (default off)
   --tokens FILE               require bearer tokens: one "TOKEN read" or "TOKEN write" per line

@@ -7,7 +7,7 @@
 #include "analysis/analysis.h"
 #include "image/image.h"
 #include "server/convert.h"
-#include "geometry/parallel.h"
+#include "core/cpu_pool.h"
 #include "server/log.h"
 
 #include <atomic>
@@ -148,8 +148,9 @@ class NearestStreamReactor final : public grpc::ServerWriteReactor<v1::FindNeare
 VoronoiService::VoronoiService(RenderLoop* renderer, SceneStore* store, ServerLimits limits,
                                const TokenAuth* auth, Metrics* metrics)
     : renderer_(renderer), store_(store), limits_(limits), auth_(auth), metrics_(metrics),
-      workers_(limits.analysis_threads, limits.max_queued_analyses),
-      answers_(std::max(1u, std::thread::hardware_concurrency()), SIZE_MAX) {}
+      analyses_(CpuPool::Process(), /*priority=*/0, limits.analysis_threads,
+                limits.max_queued_analyses),
+      answers_(CpuPool::Process(), /*priority=*/1, SIZE_MAX, SIZE_MAX) {}
 
 Executor VoronoiService::executor() {
   return [this](std::function<void()> job) { answers_.Submit(std::move(job)); };

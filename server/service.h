@@ -17,9 +17,9 @@
 #include "server/limits.h"
 #include "server/metrics.h"
 #include "server/render_loop.h"
+#include "core/cpu_pool.h"
 #include "core/scene.h"
 #include "core/store.h"
-#include "server/workers.h"
 
 namespace gvd {
 
@@ -140,11 +140,13 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   // Ids of scenes being created (reserved, not yet committed): they count against
   // --max-scenes and refuse a second create, but are not found until committed.
   std::set<std::string> creating_;
-  WorkerPool workers_;
-  // Where queries that waited for a frame are answered (and images encoded): one thread per
-  // core, never refusing, so the render thread only hands frames over. Last: its threads
-  // stop (finishing what is queued, which may still queue analyses) before the rest goes.
-  WorkerPool answers_;
+  // The process's CPU pool does the work that must not run on gRPC's threads nor on the
+  // render thread, on two lanes: answers to queries that waited for a frame (and image
+  // encoding) first, then analyses, of which at most --analysis-threads run at once and
+  // --max-queued-analyses wait. Declared last: answers_ goes first, finishing what is queued
+  // (which may still queue analyses), then analyses_.
+  CpuPool::Lane analyses_;
+  CpuPool::Lane answers_;
 };
 
 }  // namespace gvd
