@@ -1,6 +1,9 @@
 #include "server/render_loop.h"
 
+#include <unistd.h>
+
 #include <chrono>
+#include <cstdlib>
 #include <future>
 #include <map>
 
@@ -14,6 +17,7 @@ namespace gvd {
 RenderLoop::~RenderLoop() { Stop(); }
 
 absl::Status RenderLoop::Start(DevicePreference preference) {
+  if (const char* hold = std::getenv(kHoldRendersVariable)) hold_path_ = hold;
   thread_ = std::thread([this, preference] { Run(preference); });
   std::unique_lock<std::mutex> lock(mu_);
   cv_.wait(lock, [this] { return started_; });
@@ -110,6 +114,15 @@ void RenderLoop::Run(DevicePreference preference) {
     // Zooms first (they are small, and a caller waits on each), then one scene.
     for (auto& task : tasks) task(rasterizer.get(), &zoom);
     if (!scene) continue;
+    if (!hold_path_.empty() && access(hold_path_.c_str(), F_OK) == 0) {
+      // Held (kHoldRendersVariable): look again shortly, still taking zooms and a stop.
+      std::lock_guard<std::mutex> lock(mu_);
+      if (queued_.insert(scene.get()).second) queue_.push_front(std::move(scene));
+      tasks_.emplace_back([](Rasterizer*, ZoomRenderer*) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      });
+      continue;
+    }
     // Drop the state of scenes that are gone.
     for (auto it = rasters.begin(); it != rasters.end();) {
       auto owner = it->second.first.lock();

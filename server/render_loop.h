@@ -10,6 +10,7 @@
 #include <memory>
 #include <mutex>
 #include <set>
+#include <string>
 #include <thread>
 
 #include "absl/status/status.h"
@@ -49,12 +50,18 @@ class RenderLoop {
   // Renders are observed here from now on (null: none). Call before Start.
   void set_metrics(Metrics* metrics) { metrics_ = metrics; }
 
+  // A test hook: when the environment variable GVD_TEST_HOLD_RENDERS names a path at Start,
+  // the thread renders no scene while a file exists at that path (zoom windows still run), so
+  // tests can hold a version unrendered for as long as they need, whatever the machine's speed.
+  static constexpr const char* kHoldRendersVariable = "GVD_TEST_HOLD_RENDERS";
+
  private:
   void Run(DevicePreference preference);
 
   std::thread thread_;
   DeviceInfo device_;
   Metrics* metrics_ = nullptr;
+  std::string hold_path_;  // see kHoldRendersVariable; empty: no hold
 
   mutable std::mutex mu_;
   std::condition_variable cv_;

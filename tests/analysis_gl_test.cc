@@ -13,6 +13,7 @@
 #include "analysis/refine.h"
 #include "gl/zoom.h"
 #include "tests/gl_fixture.h"
+#include "tests/oracle.h"
 #include "tests/pixel_oracle.h"
 #include "tests/qhull_delaunay.h"
 
@@ -119,12 +120,12 @@ TEST_F(AnalysisGLTest, ContinuationAgreesWithTheFullScanOnConvexSites) {
         const Site *a = f->sites().get(l.a - 1), *b = f->sites().get(l.b - 1);
         for (size_t k = 1; k + 1 < l.points.size(); ++k) {
           Vec2 p = l.points[k];
-          double da = ExactDistance(p, a->geometry), db = ExactDistance(p, b->geometry);
-          ExactNearest best = NearestBruteForce(p, sites);
+          double da = oracle::Distance(p, a->geometry), db = oracle::Distance(p, b->geometry);
+          oracle::Best best = oracle::BestSite(p, sites);
           // On the a|b boundary (or, where a pixel's label was off by the mesh's error, within
           // a pixel of it) and no site much nearer.
           EXPECT_LT(std::abs(da - db), 2 * f->grid().pixel_diagonal());
-          EXPECT_LE(std::min(da, db) - best.distance, 2 * f->eps() + 1e-9);
+          EXPECT_LE(std::min(da, db) - best.value, 2 * f->eps() + 1e-9);
         }
       }
     }

@@ -19,6 +19,7 @@ namespace gvd {
 namespace {
 
 using grpc::StatusCode;
+using testing::IsNearestFeature;
 using testing::ToProtoSite;
 
 class AnalysisServerTest : public testing::SharedServerTest {
@@ -195,10 +196,10 @@ TEST_F(AnalysisServerTest, ZoomWindowsAgainstTheOracle) {
         ASSERT_GT(id, 0u);
         const Site& site = ById(sites, z.site_ids(id - 1));
         Vec2 p = g.Center(i, j);
-        ExactNearest truth = NearestBruteForce(p, sites);
-        ASSERT_LE(ExactDistance(p, site.geometry) - truth.distance, 2 * z.max_error() + 1e-6)
+        oracle::Best truth = oracle::BestSite(p, sites);
+        ASSERT_LE(oracle::Distance(p, site.geometry) - truth.value, 2 * z.max_error() + 1e-6)
             << "pixel " << i << "," << j;
-        EXPECT_NEAR(z.distances(j * 120 + i), ExactDistance(p, site.geometry), 1e-4);
+        EXPECT_NEAR(z.distances(j * 120 + i), oracle::Distance(p, site.geometry), 1e-4);
       }
     }
   }
@@ -232,12 +233,12 @@ TEST_F(AnalysisServerTest, ClearanceFieldBoundsTheDistance) {
     for (uint32_t i = 0; i < 128; ++i) {
       Vec2 p = g.Center(i, j);
       float got = c.clearance(j * 128 + i);
-      if (InsidePolygon(p, tri)) {
+      if (oracle::Inside(p, tri)) {
         ++inside;
         EXPECT_EQ(got, 0);
         continue;
       }
-      double truth = NearestBruteForce(p, sites).distance;
+      double truth = oracle::BestSite(p, sites).value;
       ASSERT_LE(got, truth * (1 + 1e-6)) << i << "," << j;
       ASSERT_GE(got, truth - 2.5 * g.pixel_size()) << i << "," << j;
     }
@@ -270,7 +271,7 @@ TEST_F(AnalysisServerTest, PlansThroughAMazeAndReplansWhenWallsMove) {
       int steps = std::max(1, int(Distance(a, b) / px * 10));
       for (int t = 0; t <= steps; ++t) {
         Vec2 q = a + (double(t) / steps) * (b - a);
-        ASSERT_GE(NearestBruteForce(q, sites).distance, p.min_clearance() * (1 - 1e-9));
+        ASSERT_GE(oracle::BestSite(q, sites).value, p.min_clearance() * (1 - 1e-9));
       }
     }
   };
@@ -327,11 +328,13 @@ TEST_F(AnalysisServerTest, PickIsTheExactNearestObject) {
     ASSERT_TRUE(client_->Pick(r, &p).ok());
     ASSERT_TRUE(p.found());
     double best = INFINITY;
-    for (const Site& s : sites) best = std::min(best, ExactDistance(q, s.geometry));
-    ASSERT_EQ(p.distance(), best);
-    ASSERT_EQ(ExactDistance(q, ById(sites, p.site_id()).geometry), best);
-    FeatureHit f = NearestFeature(q, ById(sites, p.site_id()).geometry);
-    EXPECT_EQ(p.feature_index(), f.index);
+    for (const Site& s : sites) best = std::min(best, oracle::Distance(q, s.geometry));
+    const double tolerance = oracle::Tolerance(q, best);
+    ASSERT_NEAR(p.distance(), best, tolerance);
+    ASSERT_NEAR(oracle::Distance(q, ById(sites, p.site_id()).geometry), best, tolerance);
+    EXPECT_TRUE(IsNearestFeature(q, ById(sites, p.site_id()).geometry, p.feature_kind(),
+                                 p.feature_index()))
+        << p.feature_kind() << " " << p.feature_index();
     // Beyond max_distance: nothing.
     r.set_max_distance(best * 0.999);
     ASSERT_TRUE(client_->Pick(r, &p).ok());
@@ -410,11 +413,12 @@ TEST_F(AnalysisServerTest, AmbiguousAnswersAreRefined) {
     ASSERT_TRUE(client_->FindNearest(r, &a).ok());
     const auto& p = a.packed();
     for (size_t k = 0; k < qs.size(); ++k) {
-      ExactNearest truth = NearestBruteForce(qs[k], sites);
+      oracle::Best truth = oracle::BestSite(qs[k], sites);
       const double got = p.distance(int(k));
-      ASSERT_GE(got, truth.distance);
-      ASSERT_LE(got - truth.distance, p.error_bound(int(k)));
-      const bool right = got == truth.distance;
+      const double tolerance = oracle::Tolerance(qs[k], got);
+      ASSERT_GE(got, truth.value - tolerance);
+      ASSERT_LE(got - truth.value, p.error_bound(int(k)) + tolerance);
+      const bool right = std::abs(got - truth.value) <= tolerance;
       wrong[skip] += !right;
       if (p.exact(int(k))) {
         ++certified[skip];

@@ -9,6 +9,7 @@
 
 #include "analysis/analysis.h"
 #include "geometry/exact.h"
+#include "tests/oracle.h"
 
 namespace gvd {
 namespace {
@@ -18,8 +19,8 @@ IdImage Oracle(const Grid& grid, const SiteTable& sites, Diagram diagram = Diagr
   IdImage image{grid, std::vector<uint32_t>(grid.pixel_count())};
   for (uint32_t j = 0; j < grid.height; ++j) {
     for (uint32_t i = 0; i < grid.width; ++i) {
-      ExactNearest n = NearestBruteForce(grid.Center(i, j), sites, diagram);
-      image.ids[size_t{j} * grid.width + i] = n.found() ? static_cast<uint32_t>(n.index) + 1 : 0;
+      oracle::Best n = oracle::BestSite(grid.Center(i, j), sites, diagram);
+      image.ids[size_t{j} * grid.width + i] = n.found ? static_cast<uint32_t>(n.index) + 1 : 0;
     }
   }
   return image;
@@ -127,7 +128,7 @@ TEST(TraceBoundaries, AnIslandIsAClosedPolyline) {
       ++island;
       EXPECT_TRUE(l.closed);
       for (Vec2 p : l.points) {  // on the bisector of the cup and the point, by bisection
-        EXPECT_NEAR(ExactDistance(p, sites[0].geometry), ExactDistance(p, sites[1].geometry), 1e-9);
+        EXPECT_NEAR(oracle::Distance(p, sites[0].geometry), oracle::Distance(p, sites[1].geometry), 1e-9);
       }
     }
   }

@@ -7,6 +7,7 @@
 #include <random>
 
 #include "geometry/exact.h"
+#include "tests/oracle.h"
 
 namespace gvd {
 namespace {
@@ -25,7 +26,7 @@ std::shared_ptr<const Frame> EmulatedFrame(const Grid& grid, std::vector<Site> s
       double best = INFINITY;
       uint32_t id = 0;
       for (size_t s = 0; s < sites.size(); ++s) {
-        double h = ExactDistance(grid.Center(i, j), sites[s].geometry) * factor(rng);
+        double h = oracle::Distance(grid.Center(i, j), sites[s].geometry) * factor(rng);
         if (h < best) best = h, id = static_cast<uint32_t>(s + 1);
       }
       ids[size_t{j} * grid.width + i] = id;
@@ -41,9 +42,10 @@ void ExpectContract(const Frame& frame, const SiteTable& sites, Vec2 q) {
   auto answer = frame.Nearest(q);
   ASSERT_TRUE(answer.has_value());
   const Site& site = sites[answer->site_index];
-  EXPECT_EQ(answer->distance, ExactDistance(q, site.geometry));
-  ExactNearest truth = NearestBruteForce(q, sites);
-  EXPECT_GE(truth.distance, answer->distance - answer->error_bound)
+  const double tolerance = oracle::Tolerance(q, answer->distance);
+  EXPECT_NEAR(answer->distance, oracle::Distance(q, site.geometry), tolerance);
+  oracle::Best truth = oracle::BestSite(q, sites);
+  EXPECT_GE(truth.value + tolerance, answer->distance - answer->error_bound)
       << "q=(" << q.x << "," << q.y << ") site " << site.id;
   EXPECT_GE(answer->error_bound, 0);
 }

@@ -1,4 +1,4 @@
-// Checks of rendered frames against the exact double-precision oracle, and random sites of
+// Checks of rendered frames against the tests' double-precision oracle (oracle.h), and random sites of
 // every kind, shared by the GL tests.
 #pragma once
 
@@ -10,13 +10,14 @@
 #include <vector>
 
 #include "geometry/exact.h"
+#include "oracle.h"
 #include "core/frame.h"
 
 namespace gvd {
 
 // The site's value ignoring its max_distance and side.
 inline double Unrestricted(Vec2 p, const Site& s) {
-  return s.multiplicative * ExactDistance(p, s.geometry) + s.additive;
+  return s.multiplicative * oracle::Distance(p, s.geometry) + s.additive;
 }
 
 // Whether the site may be drawn at p: within max_distance + margin (the margin widened by
@@ -24,12 +25,12 @@ inline double Unrestricted(Vec2 p, const Site& s) {
 // margin of the boundary (geometry/geometry.h).
 inline bool MayBeDrawn(Vec2 p, const Site& s, const Frame& f) {
   const double margin = DrawMargin(f.grid()) * (1 + 1e-5);
-  double d = ExactDistance(p, s.geometry);
+  double d = oracle::Distance(p, s.geometry);
   if (d > (s.max_distance + margin + f.grid().pixel_size() / 8) * f.error().overestimate)
     return false;
   if (const auto* poly = std::get_if<PolygonSite>(&s.geometry)) {
     if (poly->side != Side::kBoth && d > margin &&
-        InsidePolygon(p, poly->vertices) != (poly->side == Side::kInside)) {
+        oracle::Inside(p, poly->vertices) != (poly->side == Side::kInside)) {
       return false;
     }
   }
@@ -58,18 +59,18 @@ inline PixelReport CheckEveryPixel(const Frame& f, const SiteTable& sites, const
   for (uint32_t j = 0; j < g.height && failures < 5; ++j) {
     for (uint32_t i = 0; i < g.width && failures < 5; ++i) {
       Vec2 p = g.Center(i, j);
-      ExactNearest truth = NearestBruteForce(p, sites, e.diagram);
+      oracle::Best truth = oracle::BestSite(p, sites, e.diagram);
       uint32_t id = f.id_at(i, j);
       auto fail = [&](const std::string& why) {
         ++failures;
         ADD_FAILURE() << what << ": pixel " << i << "," << j << " at (" << p.x << ", " << p.y
                       << "): " << why << " (id " << id << ", stored " << f.distance_at(i, j)
-                      << ", truth " << (truth.found() ? sites[truth.index].id : "none") << " "
-                      << truth.distance << ")";
+                      << ", truth " << (truth.found ? sites[truth.index].id : "none") << " "
+                      << truth.value << ")";
       };
       if (id == 0) {
         ++report.empty;
-        if (truth.found()) fail("empty, but a site is a candidate");
+        if (truth.found) fail("empty, but a site is a candidate");
         continue;
       }
       if (id > sites.size()) {
@@ -82,19 +83,19 @@ inline PixelReport CheckEveryPixel(const Frame& f, const SiteTable& sites, const
       report.worst_px = std::max(report.worst_px, std::abs(stored - v) / g.pixel_size());
       if (!(stored >= v - slack && stored <= v + excess + slack)) fail("stored value off");
       if (!MayBeDrawn(p, s, f)) fail("site drawn where it is not present");
-      if (!truth.found()) {
+      if (!truth.found) {
         ++report.band;
         continue;
       }
-      if (nearest ? !(e.LowerBound(stored) <= truth.distance)
-                  : !(e.UpperBound(stored) >= truth.distance)) {
+      if (nearest ? !(e.LowerBound(stored) <= truth.value)
+                  : !(e.UpperBound(stored) >= truth.value)) {
         fail("the error model's bound fails");
       }
-      if (!std::isfinite(SiteValue(p, s))) {
+      if (!std::isfinite(oracle::Value(p, s))) {
         ++report.band;
         continue;
       }
-      double gap = nearest ? v - truth.distance : truth.distance - v;
+      double gap = nearest ? v - truth.value : truth.value - v;
       if (!(gap <= 2 * excess + 2 * slack)) fail("stored site not within 2 eps of the best");
     }
   }

@@ -10,6 +10,7 @@
 #include "analysis/plan.h"
 #include "tests/gl_fixture.h"
 #include "tests/maze.h"
+#include "tests/oracle.h"
 
 namespace gvd {
 namespace {
@@ -19,9 +20,9 @@ double TrueClearance(Vec2 q, const SiteTable& sites) {
   double best = INFINITY;
   for (const Site& s : sites) {
     if (const auto* poly = std::get_if<PolygonSite>(&s.geometry)) {
-      if (poly->side != Side::kInside && InsidePolygon(q, poly->vertices)) return 0;
+      if (poly->side != Side::kInside && oracle::Inside(q, poly->vertices)) return 0;
     }
-    best = std::min(best, ExactDistance(q, s.geometry));
+    best = std::min(best, oracle::Distance(q, s.geometry));
   }
   return best;
 }
@@ -154,8 +155,8 @@ TEST_F(PlanGLTest, SolidPolygonsAreObstaclesAndStartsInsideThemFail) {
   ASSERT_TRUE(plan.ok()) << plan.status();
   CheckPath(*plan, sites, req.radius, kGrid, "polygons");
   for (Vec2 p : plan->path) {
-    EXPECT_FALSE(InsidePolygon(p, std::get<PolygonSite>(sites[0].geometry).vertices));
-    EXPECT_TRUE(InsidePolygon(p, std::get<PolygonSite>(sites[2].geometry).vertices));
+    EXPECT_FALSE(oracle::Inside(p, std::get<PolygonSite>(sites[0].geometry).vertices));
+    EXPECT_TRUE(oracle::Inside(p, std::get<PolygonSite>(sites[2].geometry).vertices));
   }
   req.start = {0.35, 0.5};  // inside the L
   auto inside = PlanPath(*f, field, req);

@@ -12,6 +12,7 @@
 #include "geometry/mesh.h"
 #include "gl/raster.h"
 #include "tests/gl_fixture.h"
+#include "tests/oracle.h"
 
 namespace gvd {
 namespace {
@@ -50,19 +51,19 @@ class RenderGLTest : public GlTest {
           continue;
         }
         double stored = f.distance_at(i, j);
-        double to_stored = ExactDistance(p, sites[id - 1].geometry);
-        ExactNearest truth = NearestBruteForce(p, sites);
+        double to_stored = oracle::Distance(p, sites[id - 1].geometry);
+        oracle::Best truth = oracle::BestSite(p, sites);
         double slack = e.Slack(stored);
         worst = std::max(worst, std::abs(stored - to_stored) / g.pixel_size());
         bool ok = stored <= to_stored + eps + slack && stored >= to_stored - slack &&
-                  to_stored <= truth.distance + 2 * eps + slack &&
-                  e.LowerBound(stored) <= truth.distance;
+                  to_stored <= truth.value + 2 * eps + slack &&
+                  e.LowerBound(stored) <= truth.value;
         if (!ok) {
           ++failures;
           ADD_FAILURE() << "pixel " << i << "," << j << " at (" << p.x << "," << p.y
                         << "): stored site " << id - 1 << " distance " << stored
                         << ", exact to it " << to_stored << ", exact nearest " << truth.index
-                        << " at " << truth.distance << ", eps " << eps << ", slack " << slack;
+                        << " at " << truth.value << ", eps " << eps << ", slack " << slack;
         }
       }
     }
@@ -191,9 +192,10 @@ TEST_F(RenderGLTest, QueriesHonourTheirBound) {
     Vec2 q{u(rng), u(rng)};
     auto a = f->Nearest(q);
     ASSERT_TRUE(a.has_value());
-    ExactNearest truth = NearestBruteForce(q, sites);
-    ASSERT_EQ(a->distance, ExactDistance(q, sites[a->site_index].geometry));
-    ASSERT_GE(truth.distance, a->distance - a->error_bound) << q.x << "," << q.y;
+    oracle::Best truth = oracle::BestSite(q, sites);
+    const double tolerance = oracle::Tolerance(q, a->distance);
+    ASSERT_NEAR(a->distance, oracle::Distance(q, sites[a->site_index].geometry), tolerance);
+    ASSERT_GE(truth.value + tolerance, a->distance - a->error_bound) << q.x << "," << q.y;
     worst_bound = std::max(worst_bound, a->error_bound);
   }
   // The bound is about a pixel diagonal plus the mesh's eps, not more.

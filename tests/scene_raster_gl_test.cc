@@ -9,27 +9,15 @@
 #include <random>
 
 #include "gl/context.h"
+#include "gl_fixture.h"
+#include "oracle.h"
 #include "geometry/exact.h"
 
 namespace gvd {
 namespace {
 
-class SceneRasterGLTest : public ::testing::Test {
+class SceneRasterGLTest : public GlTest {
  protected:
-  static void SetUpTestSuite() {
-    auto ctx = GlContext::Create(DevicePreference::kAuto);
-    if (!ctx.ok()) return;
-    context_ = ctx->release();
-    rasterizer_ = Rasterizer::Create()->release();
-  }
-  static void TearDownTestSuite() {
-    delete rasterizer_;
-    delete context_;
-  }
-  void SetUp() override {
-    if (context_ == nullptr) GTEST_SKIP() << "no EGL context";
-  }
-
   // The sites of a frame, by slot, as the oracle sees them.
   static SiteTable Live(const std::map<std::string, Vec2>& sites) {
     SiteTable t;
@@ -60,8 +48,8 @@ class SceneRasterGLTest : public ::testing::Test {
         const Site* sa = inc.sites().get(a - 1);
         const Site* sb = ref.sites().get(b - 1);
         ASSERT_TRUE(sa && sb) << when << ": pixel " << i << "," << j << " names a free slot";
-        double da = ExactDistance(p, sa->geometry), db = ExactDistance(p, sb->geometry);
-        double truth = NearestBruteForce(p, live).distance;
+        double da = oracle::Distance(p, sa->geometry), db = oracle::Distance(p, sb->geometry);
+        double truth = oracle::BestSite(p, live).value;
         double eps = inc.error().max_excess, slack = inc.error().Slack(inc.distance_at(i, j));
         // The same site, or a tie within the meshes' error; distances within eps of each other.
         bool same = sa->id == sb->id || std::abs(da - db) <= 2 * eps + slack;
@@ -78,8 +66,6 @@ class SceneRasterGLTest : public ::testing::Test {
     }
   }
 
-  static inline GlContext* context_ = nullptr;
-  static inline Rasterizer* rasterizer_ = nullptr;
 };
 
 TEST_F(SceneRasterGLTest, RandomUpdateSequencesMatchRendersFromScratch) {

@@ -10,6 +10,7 @@
 #include <chrono>
 
 #include <gtest/gtest.h>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -38,6 +39,7 @@ class ServerProcess {
     args.insert(args.end(), flags.begin(), flags.end());
     pid_ = fork();
     if (pid_ == 0) {
+      setenv("GVD_TEST_HOLD_RENDERS", hold_renders_path().c_str(), 1);
       FILE* log = std::fopen(log_.c_str(), "w");
       dup2(fileno(log), STDERR_FILENO);
       std::vector<char*> argv;
@@ -60,6 +62,10 @@ class ServerProcess {
     }
     error_ = "gvd-server wrote no port within 60 s: " + log();
   }
+
+  // While a file exists here, the server renders no scene (its test hook
+  // GVD_TEST_HOLD_RENDERS): see HoldRenders.
+  std::string hold_renders_path() const { return dir_ + "/hold-renders"; }
 
   // Stops the server with SIGTERM and fails the running test unless it exits 0: a crash at
   // shutdown, or a sanitizer report (they change the exit status), is a failure.
@@ -106,6 +112,21 @@ class ServerProcess {
   std::string dir_, log_, error_;
   pid_t pid_ = -1;
   int port_ = 0;
+};
+
+// Holds a server's renders from construction to destruction, so that a version stays
+// unrendered for as long as a test needs, however fast the machine renders.
+class HoldRenders {
+ public:
+  explicit HoldRenders(const ServerProcess& server) : path_(server.hold_renders_path()) {
+    std::ofstream(path_) << "held\n";
+  }
+  ~HoldRenders() { std::remove(path_.c_str()); }
+  HoldRenders(const HoldRenders&) = delete;
+  HoldRenders& operator=(const HoldRenders&) = delete;
+
+ private:
+  std::string path_;
 };
 
 // A suite whose tests share one gvd-server and a client of it. The server must stop cleanly

@@ -11,6 +11,7 @@
 #include "geometry/exact.h"
 #include "gl/scene_raster.h"
 #include "tests/gl_fixture.h"
+#include "tests/oracle.h"
 #include "tests/pixel_oracle.h"
 
 namespace gvd {
@@ -60,8 +61,8 @@ TEST_F(SitesGLTest, PolygonSidesClaimOnlyTheirSide) {
     for (uint32_t j = 0; j < kGrid.height; ++j) {
       for (uint32_t i = 0; i < kGrid.width; ++i) {
         Vec2 p = kGrid.Center(i, j);
-        if (ExactDistance(p, u) <= DrawMargin(kGrid)) continue;
-        bool in = InsidePolygon(p, u.vertices);
+        if (oracle::Distance(p, u) <= DrawMargin(kGrid)) continue;
+        bool in = oracle::Inside(p, u.vertices);
         inside += in;
         owned += f->id_at(i, j) == 1;
         EXPECT_EQ(f->id_at(i, j) == 1, in) << Name(mode) << " pixel " << i << "," << j;
@@ -107,8 +108,8 @@ TEST_F(SitesGLTest, MaxDistanceLeavesPixelsEmpty) {
       Vec2 q{gen.U(0, 1), gen.U(0, 1)};
       auto a = f->Nearest(q);
       ASSERT_TRUE(a.has_value());
-      ExactNearest truth = NearestBruteForce(q, sites);
-      ASSERT_EQ(a->found, truth.found()) << q.x << "," << q.y;
+      oracle::Best truth = oracle::BestSite(q, sites);
+      ASSERT_EQ(a->found, truth.found) << q.x << "," << q.y;
       empty += !a->found;
     }
     EXPECT_GT(empty, 100u);
@@ -202,18 +203,19 @@ TEST_F(SitesGLTest, MixedSceneAnswersWithinBound) {
         Vec2 q{gen.U(-0.1, 1.1), gen.U(-0.1, 1.1)};
         auto a = f->Nearest(q);
         ASSERT_TRUE(a.has_value());
-        ExactNearest truth = NearestBruteForce(q, sites, diagram);
-        ASSERT_EQ(a->found, truth.found()) << "query " << q.x << "," << q.y;
+        oracle::Best truth = oracle::BestSite(q, sites, diagram);
+        ASSERT_EQ(a->found, truth.found) << "query " << q.x << "," << q.y;
         if (!a->found) {
           ++empty;
           continue;
         }
         const Site& s = *f->sites().get(a->site_index);
-        ASSERT_EQ(a->distance, SiteValue(q, s)) << "the answer's value is exact";
-        double gap = diagram == Diagram::kNearest ? a->distance - truth.distance
-                                                  : truth.distance - a->distance;
-        ASSERT_GE(gap, 0);
-        ASSERT_LE(gap, a->error_bound) << Name(mode) << " query " << q.x << "," << q.y;
+        const double tolerance = oracle::Tolerance(q, a->distance, s.multiplicative);
+        ASSERT_NEAR(a->distance, oracle::Value(q, s), tolerance) << "the answer's value is exact";
+        double gap = diagram == Diagram::kNearest ? a->distance - truth.value
+                                                  : truth.value - a->distance;
+        ASSERT_GE(gap, -tolerance);
+        ASSERT_LE(gap, a->error_bound + tolerance) << Name(mode) << " query " << q.x << "," << q.y;
         worst_bound = std::max(worst_bound, a->error_bound);
       }
       // The bound is a few pixels of weighted distance at most, not a vacuous one.
@@ -276,7 +278,7 @@ TEST(Bezier, FlatteningStaysWithinTolerance) {
     PolylineSite flat{b.flat};
     for (int s = 0; s <= 2000; ++s) {
       Vec2 p = BezierPoint(control, s / 2000.0);
-      ASSERT_LE(ExactDistance(p, flat), tol * (1 + 1e-9)) << "curve " << k << " t " << s / 2000.0;
+      ASSERT_LE(oracle::Distance(p, flat), tol * (1 + 1e-9)) << "curve " << k << " t " << s / 2000.0;
     }
     for (Vec2 p : b.flat) {  // the flattening's points lie on the curve
       auto at = [&](double t) { return Distance(p, BezierPoint(control, t)); };

@@ -14,6 +14,7 @@ namespace gvd {
 namespace {
 
 using grpc::StatusCode;
+using testing::IsNearestFeature;
 using testing::SetPoint;
 using testing::ToProtoSite;
 
@@ -92,17 +93,19 @@ TEST_F(SitesServerTest, MixedScenesAnswerWithinTheirBound) {
         const Diagram d = diagram == v1::FARTHEST ? Diagram::kFarthest : Diagram::kNearest;
         for (size_t k = 0; k < qs.size(); ++k) {
           const v1::NearestSite& n = response.results(int(k));
-          ExactNearest truth = NearestBruteForce(qs[k], sites, d);
-          ASSERT_EQ(n.empty(), !truth.found()) << id << " query " << k;
+          oracle::Best truth = oracle::BestSite(qs[k], sites, d);
+          ASSERT_EQ(n.empty(), !truth.found) << id << " query " << k;
           if (n.empty()) continue;
           const Site& s = sites[std::stoi(n.site_id().substr(1))];
-          ASSERT_EQ(n.distance(), SiteValue(qs[k], s)) << id << " query " << k;
-          FeatureHit f = NearestFeature(qs[k], s.geometry);
-          ASSERT_EQ(n.feature_index(), f.index) << id << " query " << k;
-          double gap = d == Diagram::kNearest ? n.distance() - truth.distance
-                                              : truth.distance - n.distance();
-          ASSERT_GE(gap, 0) << id << " query " << k;
-          ASSERT_LE(gap, n.error_bound()) << id << " query " << k << (exact ? " exact" : "");
+          const double tolerance = oracle::Tolerance(qs[k], n.distance(), s.multiplicative);
+          ASSERT_NEAR(n.distance(), oracle::Value(qs[k], s), tolerance) << id << " query " << k;
+          ASSERT_TRUE(IsNearestFeature(qs[k], s.geometry, n.feature_kind(), n.feature_index()))
+              << id << " query " << k << " feature " << n.feature_kind() << " "
+              << n.feature_index();
+          double gap = d == Diagram::kNearest ? n.distance() - truth.value
+                                              : truth.value - n.distance();
+          ASSERT_GE(gap, -tolerance) << id << " query " << k;
+          ASSERT_LE(gap, n.error_bound() + tolerance) << id << " query " << k << (exact ? " exact" : "");
           if (exact) {
             ASSERT_EQ(n.error_bound(), 0);
           }

@@ -8,8 +8,20 @@
 #include "gvd/v1/voronoi.pb.h"
 #include "geometry/exact.h"
 #include "geometry/site.h"
+#include "oracle.h"
 
 namespace gvd::testing {
+
+// Whether an answer's feature (as the API numbers it) is a part of the geometry nearest to
+// q, by the tests' oracle.
+inline bool IsNearestFeature(Vec2 q, const Geometry& g, v1::FeatureKind kind, uint32_t index) {
+  switch (kind) {
+    case v1::VERTEX: return oracle::IsNearestFeature(q, g, FeatureKind::kVertex, index);
+    case v1::EDGE: return oracle::IsNearestFeature(q, g, FeatureKind::kEdge, index);
+    case v1::CURVE: return oracle::IsNearestFeature(q, g, FeatureKind::kCurve, index);
+    default: return false;
+  }
+}
 
 inline void SetPoint(Vec2 p, v1::Point* out) {
   out->set_x(p.x);
