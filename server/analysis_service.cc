@@ -130,15 +130,13 @@ grpc::ServerUnaryReactor* VoronoiService::StartAnalysis(
     const char* method, grpc::CallbackServerContext* ctx, const std::string& scene_id,
     uint64_t min_version, std::function<Status(NearestQuery*)> validate,
     std::function<Status(const std::shared_ptr<const Frame>&, const Scene&)> work) {
-  NearestQuery query;
-  query.scope = std::make_shared<CallScope>(this, method);
-  query.ctx = ctx;
-  if (auto s = Admit(ctx, false); !s.ok()) return query.scope->Done(ctx, s);
-  if (auto s = Lookup(scene_id, &query.scene); !s.ok()) return query.scope->Done(ctx, s);
+  Call call = Begin(ctx, method, Access::kRead, &scene_id);
+  if (!call.ok()) return call.Finish(ctx);
+  NearestQuery query{call.scope, ctx, call.scene};
   if (validate) {
-    if (auto s = validate(&query); !s.ok()) return query.scope->Done(ctx, s);
+    if (auto s = validate(&query); !s.ok()) return call.Finish(ctx, s);
   }
-  if (auto s = WaitFor(min_version, &query); !s.ok()) return query.scope->Done(ctx, s);
+  if (auto s = WaitFor(min_version, &query); !s.ok()) return call.Finish(ctx, s);
   CpuPool::Lane* workers = &analyses_;
   query.on_frame_async = [workers, ctx, scene = query.scene, work = std::move(work)](
                              std::shared_ptr<const Frame> frame, NearestQuery::Done done) {
@@ -171,17 +169,7 @@ grpc::ServerUnaryReactor* VoronoiService::GetBoundaries(grpc::CallbackServerCont
   return StartAnalysis(
       "GetBoundaries", ctx, request->scene_id(), request->min_version(),
       [=](NearestQuery* q) {
-        switch (request->method()) {
-          case v1::GetBoundariesRequest::METHOD_UNSPECIFIED:
-          case v1::GetBoundariesRequest::FULL_SCAN: break;
-          case v1::GetBoundariesRequest::CONTINUATION:
-            p->method = BoundaryMethod::kContinuation;
-            break;
-          default:
-            return Status(StatusCode::INVALID_ARGUMENT,
-                          absl::StrCat("method is ", request->method(),
-                                       "; it must be FULL_SCAN or CONTINUATION"));
-        }
+        if (auto s = ToBoundaryMethod(*request, &p->method); !s.ok()) return s;
         return RectOf(request->has_window(), request->window(), q->scene->settings().grid,
                       &p->rect);
       },
@@ -388,18 +376,7 @@ grpc::ServerUnaryReactor* VoronoiService::PlanPath(grpc::CallbackServerContext* 
         plan_request->start = {request->start().x(), request->start().y()};
         plan_request->goal = {request->goal().x(), request->goal().y()};
         plan_request->radius = request->robot_radius();
-        switch (request->prefer()) {
-          case v1::PlanPathRequest::PREFER_UNSPECIFIED:
-          case v1::PlanPathRequest::MAX_CLEARANCE:
-            plan_request->prefer = PathPreference::kMaxClearance;
-            break;
-          case v1::PlanPathRequest::SHORTEST: plan_request->prefer = PathPreference::kShortest; break;
-          default:
-            return Status(StatusCode::INVALID_ARGUMENT,
-                          absl::StrCat("prefer is ", request->prefer(),
-                                       "; it must be MAX_CLEARANCE or SHORTEST"));
-        }
-        return Status::OK;
+        return ToPathPreference(*request, &plan_request->prefer);
       },
       [=](const std::shared_ptr<const Frame>& frame, const Scene& scene) {
         // Repeated plans on one frame share its clearance field.
@@ -422,24 +399,12 @@ grpc::ServerUnaryReactor* VoronoiService::PlanPath(grpc::CallbackServerContext* 
 grpc::ServerUnaryReactor* VoronoiService::Pick(grpc::CallbackServerContext* ctx,
                                                const v1::PickRequest* request,
                                                v1::PickResponse* response) {
-  CallScope scope(this, "Pick");
-  if (auto s = Admit(ctx, false); !s.ok()) return scope.Done(ctx, s);
-  std::shared_ptr<Scene> scene;
-  if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return scope.Done(ctx, s);
-  const v1::Point& p = request->point();
-  if (!request->has_point()) return scope.Done(ctx, Status(StatusCode::INVALID_ARGUMENT, "point is not set"));
-  if (!std::isfinite(p.x()) || !std::isfinite(p.y())) {
-    return scope.Done(ctx, Status(StatusCode::INVALID_ARGUMENT,
-                                  absl::StrCat("point is (", FormatNumber(p.x()), ", ",
-                                               FormatNumber(p.y()), "); coordinates must be finite")));
-  }
-  double limit = request->max_distance();
-  if (!std::isfinite(limit) || limit < 0) {
-    return scope.Done(ctx, Status(StatusCode::INVALID_ARGUMENT,
-                                  absl::StrCat("max_distance is ", FormatNumber(limit),
-                                               "; it must be finite and not negative (0: no limit)")));
-  }
-  Scene::Picked picked = scene->Pick({p.x(), p.y()}, limit == 0 ? INFINITY : limit);
+  Call call = Begin(ctx, "Pick", Access::kRead, &request->scene_id());
+  if (!call.ok()) return call.Finish(ctx);
+  Vec2 point;
+  double max_distance;
+  if (auto s = ToPick(*request, &point, &max_distance); !s.ok()) return call.Finish(ctx, s);
+  Scene::Picked picked = call.scene->Pick(point, max_distance);
   response->set_found(picked.found);
   response->set_version(picked.version);
   if (picked.found) {
@@ -448,7 +413,7 @@ grpc::ServerUnaryReactor* VoronoiService::Pick(grpc::CallbackServerContext* ctx,
     response->set_feature_kind(ToProto(picked.feature_kind));
     response->set_feature_index(picked.feature_index);
   }
-  return scope.Done(ctx, Status::OK);
+  return call.Finish(ctx, Status::OK);
 }
 
 }  // namespace gvd

@@ -1,5 +1,5 @@
 // How every call is accounted for: in flight while it lives, and its method, status and
-// duration in the metrics when it ends. Shared by the service's source files.
+// duration in the metrics when it ends.
 #pragma once
 
 #include <atomic>
@@ -7,23 +7,30 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "server/service.h"
+#include "server/metrics.h"
 
 namespace gvd {
 
+// What a service counts about its calls. Thread-safe.
+struct CallCounter {
+  explicit CallCounter(Metrics* metrics) : metrics(metrics) {}
+  std::atomic<int> in_flight{0};
+  Metrics* const metrics;  // null: none
+};
+
 // Counts a call in flight for as long as it lives, and records its method, status and
-// duration in the metrics when it ends.
+// duration in the metrics when it ends. Thread-safe.
 class CallScope {
  public:
-  CallScope(const VoronoiService* s, const char* method)
-      : s_(s), method_(method), start_(std::chrono::steady_clock::now()) {
-    ++s_->in_flight_;
-    if (s_->metrics_) s_->metrics_->RpcStarted(method_);
+  CallScope(CallCounter* counter, const char* method)
+      : counter_(counter), method_(method), start_(std::chrono::steady_clock::now()) {
+    ++counter_->in_flight;
+    if (counter_->metrics) counter_->metrics->RpcStarted(method_);
   }
   ~CallScope() {
     Record(grpc::Status::OK);  // a call that ended without a recorded status
-    if (s_->metrics_) s_->metrics_->RpcEnded(method_);
-    --s_->in_flight_;
+    if (counter_->metrics) counter_->metrics->RpcEnded(method_);
+    --counter_->in_flight;
   }
   CallScope(const CallScope&) = delete;
   CallScope& operator=(const CallScope&) = delete;
@@ -31,8 +38,8 @@ class CallScope {
   // Records the call's status and duration, once, before the status goes out (so that a
   // client that has its answer finds it in the metrics).
   void Record(const grpc::Status& s) {
-    if (recorded_.exchange(true) || !s_->metrics_) return;
-    s_->metrics_->ObserveRpc(
+    if (recorded_.exchange(true) || !counter_->metrics) return;
+    counter_->metrics->ObserveRpc(
         method_, s.error_code(),
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count());
   }
@@ -45,7 +52,7 @@ class CallScope {
   }
 
  private:
-  const VoronoiService* s_;
+  CallCounter* const counter_;
   const char* method_;
   std::chrono::steady_clock::time_point start_;
   std::atomic<bool> recorded_{false};

@@ -439,4 +439,95 @@ SqliteStore::Legacy LegacyRecords(const ServerLimits& limits) {
   };
 }
 
+grpc::Status ToImageOptions(const v1::RenderImageRequest& request, const Grid& grid,
+                            ImageOptions* options) {
+  switch (request.layer()) {
+    case v1::RenderImageRequest::LAYER_UNSPECIFIED:
+    case v1::RenderImageRequest::IDS: options->layer = ImageLayer::kIds; break;
+    case v1::RenderImageRequest::FEATURES: options->layer = ImageLayer::kFeatures; break;
+    case v1::RenderImageRequest::DISTANCE: options->layer = ImageLayer::kDistance; break;
+    default:
+      return Invalid(absl::StrCat("layer is ", request.layer(),
+                                  "; it must be IDS, FEATURES or DISTANCE"));
+  }
+  switch (request.format()) {
+    case v1::RenderImageRequest::FORMAT_UNSPECIFIED:
+    case v1::RenderImageRequest::PNG: options->format = ImageFormat::kPng; break;
+    case v1::RenderImageRequest::EXR: options->format = ImageFormat::kExr; break;
+    default:
+      return Invalid(absl::StrCat("format is ", request.format(), "; it must be PNG or EXR"));
+  }
+  const bool exr = options->format == ImageFormat::kExr;
+  if (exr && options->layer != ImageLayer::kDistance) {
+    return Invalid("format EXR holds the DISTANCE layer only");
+  }
+  if (exr && request.draw_sites()) return Invalid("draw_sites needs format PNG");
+  options->draw_sites = request.draw_sites();
+  options->rect = grid.all();
+  if (request.has_window()) {
+    if (auto s = ToPixelRect(request.window(), grid, &options->rect); !s.ok()) return s;
+  }
+  for (int k = 0; k < request.polyline_size(); ++k) {
+    Vec2 p;
+    if (auto s = ToPoint(request.polyline(k), Indexed("polyline", k), &p); !s.ok()) return s;
+    options->polyline.push_back(p);
+  }
+  if (!options->polyline.empty() && exr) return Invalid("polyline needs format PNG");
+  return Status::OK;
+}
+
+grpc::Status ToPoint(const v1::Point& p, const std::string& field, Vec2* out) {
+  if (!std::isfinite(p.x()) || !std::isfinite(p.y())) {
+    return Invalid(absl::StrCat(field, " is (", FormatNumber(p.x()), ", ", FormatNumber(p.y()),
+                                "); coordinates must be finite"));
+  }
+  *out = {p.x(), p.y()};
+  return Status::OK;
+}
+
+grpc::Status ToPick(const v1::PickRequest& request, Vec2* point, double* max_distance) {
+  if (!request.has_point()) return Invalid("point is not set");
+  if (auto s = ToPoint(request.point(), "point", point); !s.ok()) return s;
+  const double limit = request.max_distance();
+  if (!std::isfinite(limit) || limit < 0) {
+    return Invalid(absl::StrCat("max_distance is ", FormatNumber(limit),
+                                "; it must be finite and not negative (0: no limit)"));
+  }
+  *max_distance = limit == 0 ? INFINITY : limit;
+  return Status::OK;
+}
+
+grpc::Status ToBoundaryMethod(const v1::GetBoundariesRequest& request, BoundaryMethod* method) {
+  switch (request.method()) {
+    case v1::GetBoundariesRequest::METHOD_UNSPECIFIED:
+    case v1::GetBoundariesRequest::FULL_SCAN: *method = BoundaryMethod::kFullScan; break;
+    case v1::GetBoundariesRequest::CONTINUATION: *method = BoundaryMethod::kContinuation; break;
+    default:
+      return Invalid(absl::StrCat("method is ", request.method(),
+                                  "; it must be FULL_SCAN or CONTINUATION"));
+  }
+  return Status::OK;
+}
+
+grpc::Status ToPathPreference(const v1::PlanPathRequest& request, PathPreference* prefer) {
+  switch (request.prefer()) {
+    case v1::PlanPathRequest::PREFER_UNSPECIFIED:
+    case v1::PlanPathRequest::MAX_CLEARANCE: *prefer = PathPreference::kMaxClearance; break;
+    case v1::PlanPathRequest::SHORTEST: *prefer = PathPreference::kShortest; break;
+    default:
+      return Invalid(absl::StrCat("prefer is ", request.prefer(),
+                                  "; it must be MAX_CLEARANCE or SHORTEST"));
+  }
+  return Status::OK;
+}
+
+v1::FeatureKind ToProto(FeatureKind k) {
+  switch (k) {
+    case FeatureKind::kVertex: return v1::VERTEX;
+    case FeatureKind::kEdge: return v1::EDGE;
+    case FeatureKind::kCurve: return v1::CURVE;
+  }
+  return v1::FEATURE_KIND_UNSPECIFIED;
+}
+
 }  // namespace gvd

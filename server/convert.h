@@ -1,5 +1,6 @@
-// Proto messages to render types, with validation. Every refusal is a gRPC status whose
-// message names the field (with its index) and the offending value; nothing here mutates.
+// The one place where API messages and enums become the core's types and back, with
+// validation. Every refusal is a gRPC status whose message names the field (with its index)
+// and the offending value; nothing here mutates.
 #pragma once
 
 #include <string>
@@ -9,7 +10,10 @@
 
 #include "gvd/v1/voronoi.pb.h"
 #include "geometry/geometry.h"
+#include "analysis/analysis.h"
+#include "analysis/plan.h"
 #include "geometry/site.h"
+#include "image/image.h"
 #include "server/limits.h"
 #include "core/scene.h"
 #include "store/sqlite_store.h"
@@ -60,6 +64,20 @@ grpc::Status ToGridSize(uint32_t width, uint32_t height, const ServerLimits& lim
 // messages (CreateSceneRequest, Site), checking them as requests are checked.
 SqliteStore::Legacy LegacyRecords(const ServerLimits& limits);
 
+// A point given in field `field`, checked finite.
+grpc::Status ToPoint(const v1::Point& p, const std::string& field, Vec2* out);
+
+// RenderImageRequest's layer, format, drawing options, window and polyline, checked together.
+grpc::Status ToImageOptions(const v1::RenderImageRequest& request, const Grid& grid,
+                            ImageOptions* options);
+
+// PickRequest's point and max_distance (0: no limit, returned as +infinity).
+grpc::Status ToPick(const v1::PickRequest& request, Vec2* point, double* max_distance);
+
+grpc::Status ToBoundaryMethod(const v1::GetBoundariesRequest& request, BoundaryMethod* method);
+grpc::Status ToPathPreference(const v1::PlanPathRequest& request, PathPreference* prefer);
+
+v1::FeatureKind ToProto(FeatureKind k);
 void ToProto(const Site& site, v1::Site* out);
 void ToProto(const Window& w, v1::Window* out);
 void ToProto(const Scene& scene, v1::Scene* out);

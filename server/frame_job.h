@@ -46,15 +46,6 @@ struct AnswerRow {
   uint32_t feature_index;
 };
 
-inline v1::FeatureKind ToProto(FeatureKind k) {
-  switch (k) {
-    case FeatureKind::kVertex: return v1::VERTEX;
-    case FeatureKind::kEdge: return v1::EDGE;
-    case FeatureKind::kCurve: return v1::CURVE;
-  }
-  return v1::FEATURE_KIND_UNSPECIFIED;
-}
-
 // Resolves a query's answers: at once when they are exact or the latest frame is new
 // enough, else when the render thread publishes the awaited version. The frame callback and
 // Cancel race safely: whichever removes the waiter from the scene finishes the job.

@@ -148,6 +148,7 @@ class NearestStreamReactor final : public grpc::ServerWriteReactor<v1::FindNeare
 VoronoiService::VoronoiService(RenderLoop* renderer, SceneStore* store, ServerLimits limits,
                                const TokenAuth* auth, Metrics* metrics)
     : renderer_(renderer), store_(store), limits_(limits), auth_(auth), metrics_(metrics),
+      calls_(metrics),
       analyses_(CpuPool::Process(), /*priority=*/0, limits.analysis_threads,
                 limits.max_queued_analyses),
       answers_(CpuPool::Process(), /*priority=*/1, SIZE_MAX, SIZE_MAX) {}
@@ -156,10 +157,10 @@ Executor VoronoiService::executor() {
   return [this](std::function<void()> job) { answers_.Submit(std::move(job)); };
 }
 
-template <class Call>
-absl::Status VoronoiService::Durably(Call call) const {
+template <class StoreCall>
+absl::Status VoronoiService::Durably(StoreCall store_call) const {
   auto start = std::chrono::steady_clock::now();
-  absl::Status s = call();
+  absl::Status s = store_call();
   if (s.ok() && metrics_) {
     metrics_->ObserveCommit(
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
@@ -218,10 +219,10 @@ Status VoronoiService::Ready() const {
 int VoronoiService::Drain(std::chrono::milliseconds grace) {
   draining_ = true;
   auto deadline = std::chrono::steady_clock::now() + grace;
-  while (in_flight_ > 0 && std::chrono::steady_clock::now() < deadline) {
+  while (calls_.in_flight > 0 && std::chrono::steady_clock::now() < deadline) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
-  return in_flight_;
+  return calls_.in_flight;
 }
 
 Status VoronoiService::Lookup(const std::string& scene_id, std::shared_ptr<Scene>* scene) const {
@@ -236,23 +237,31 @@ Status VoronoiService::Lookup(const std::string& scene_id, std::shared_ptr<Scene
   return Status::OK;
 }
 
+VoronoiService::Call VoronoiService::Begin(grpc::CallbackServerContext* ctx, const char* method,
+                                           Access access, const std::string* scene_id) const {
+  Call call;
+  call.scope = std::make_shared<CallScope>(&calls_, method);
+  call.status = Admit(ctx, access == Access::kWrite);
+  if (call.ok() && scene_id != nullptr) call.status = Lookup(*scene_id, &call.scene);
+  return call;
+}
+
 grpc::ServerUnaryReactor* VoronoiService::CreateScene(grpc::CallbackServerContext* ctx,
                                                       const v1::CreateSceneRequest* request,
                                                       v1::Scene* response) {
-  CallScope scope(this, "CreateScene");
-  if (auto s = Admit(ctx, true); !s.ok()) return scope.Done(ctx, s);
-  if (auto s = Ready(); !s.ok()) return scope.Done(ctx, s);
+  Call call = Begin(ctx, "CreateScene", Access::kWrite);
+  if (!call.ok()) return call.Finish(ctx);
   SceneSettings settings;
-  if (auto s = ToSceneSettings(*request, limits_, &settings); !s.ok()) return scope.Done(ctx, s);
+  if (auto s = ToSceneSettings(*request, limits_, &settings); !s.ok()) return call.Finish(ctx, s);
   auto scene = std::make_shared<Scene>(std::move(settings), executor());
   {
     std::lock_guard<std::mutex> lock(mu_);
     if (scenes_.count(scene->id()) || creating_.count(scene->id())) {
-      return scope.Done(ctx, Status(StatusCode::ALREADY_EXISTS,
+      return call.Finish(ctx, Status(StatusCode::ALREADY_EXISTS,
                               absl::StrCat("scene \"", scene->id(), "\" already exists")));
     }
     if (scenes_.size() + creating_.size() >= limits_.max_scenes) {
-      return scope.Done(ctx, Status(StatusCode::RESOURCE_EXHAUSTED,
+      return call.Finish(ctx, Status(StatusCode::RESOURCE_EXHAUSTED,
                               absl::StrCat("the server holds ", scenes_.size() + creating_.size(),
                                            " scenes; the limit (--max-scenes) is ",
                                            limits_.max_scenes)));
@@ -266,22 +275,21 @@ grpc::ServerUnaryReactor* VoronoiService::CreateScene(grpc::CallbackServerContex
     creating_.erase(scene->id());
     if (stored.ok()) scenes_.emplace(scene->id(), scene);
   }
-  if (!stored.ok()) return scope.Done(ctx, ToGrpc(stored));
+  if (!stored.ok()) return call.Finish(ctx, ToGrpc(stored));
   ToProto(*scene, response);
   Log(LogLevel::kInfo, "scene_created",
       {{"scene", scene->id()}, {"width_px", absl::StrCat(request->width_px())},
        {"height_px", absl::StrCat(request->height_px())},
        {"max_error", FormatNumber(scene->settings().eps)}});
-  return scope.Done(ctx, Status::OK);
+  return call.Finish(ctx, Status::OK);
 }
 
 grpc::ServerUnaryReactor* VoronoiService::GetScene(grpc::CallbackServerContext* ctx,
                                                    const v1::GetSceneRequest* request,
                                                    v1::Scene* response) {
-  CallScope scope(this, "GetScene");
-  if (auto s = Admit(ctx, false); !s.ok()) return scope.Done(ctx, s);
-  std::shared_ptr<Scene> scene;
-  if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return scope.Done(ctx, s);
+  Call call = Begin(ctx, "GetScene", Access::kRead, &request->scene_id());
+  if (!call.ok()) return call.Finish(ctx);
+  const std::shared_ptr<Scene>& scene = call.scene;
   ToProto(*scene, response);
   // Sites that meet the window but hold no pixel of the latest frame (paper sec. 6.2): their
   // number and the first kHiddenIds ids, computed once per frame.
@@ -298,36 +306,34 @@ grpc::ServerUnaryReactor* VoronoiService::GetScene(grpc::CallbackServerContext* 
   for (size_t k = 0; k < hidden->slots.size() && k < kHiddenIds; ++k) {
     response->add_hidden_site_ids(frame->sites().get(hidden->slots[k])->id);
   }
-  return scope.Done(ctx, Status::OK);
+  return call.Finish(ctx, Status::OK);
 }
 
 grpc::ServerUnaryReactor* VoronoiService::ListScenes(grpc::CallbackServerContext* ctx,
                                                      const v1::ListScenesRequest*,
                                                      v1::ListScenesResponse* response) {
-  CallScope scope(this, "ListScenes");
-  if (auto s = Admit(ctx, false); !s.ok()) return scope.Done(ctx, s);
-  if (auto s = Ready(); !s.ok()) return scope.Done(ctx, s);
+  Call call = Begin(ctx, "ListScenes", Access::kRead);
+  if (!call.ok()) return call.Finish(ctx);
   std::vector<std::shared_ptr<Scene>> scenes;
   {
     std::lock_guard<std::mutex> lock(mu_);
     for (const auto& [id, scene] : scenes_) scenes.push_back(scene);
   }
   for (const auto& scene : scenes) ToProto(*scene, response->add_scenes());
-  return scope.Done(ctx, Status::OK);
+  return call.Finish(ctx, Status::OK);
 }
 
 grpc::ServerUnaryReactor* VoronoiService::DeleteScene(grpc::CallbackServerContext* ctx,
                                                       const v1::DeleteSceneRequest* request,
                                                       v1::DeleteSceneResponse*) {
-  CallScope scope(this, "DeleteScene");
-  if (auto s = Admit(ctx, true); !s.ok()) return scope.Done(ctx, s);
-  std::shared_ptr<Scene> scene;
-  if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return scope.Done(ctx, s);
+  Call call = Begin(ctx, "DeleteScene", Access::kWrite, &request->scene_id());
+  if (!call.ok()) return call.Finish(ctx);
+  const std::shared_ptr<Scene>& scene = call.scene;
   // The commit holds only the scene's writer lock: writes to the scene wait and then find it
   // deleted, and other scenes' lookups go on.
   absl::Status deleted =
       scene->Retire([&] { return Durably([&] { return store_->DeleteScene(scene->id()); }); });
-  if (!deleted.ok()) return scope.Done(ctx, ToGrpc(deleted));
+  if (!deleted.ok()) return call.Finish(ctx, ToGrpc(deleted));
   {
     std::lock_guard<std::mutex> lock(mu_);
     auto it = scenes_.find(scene->id());
@@ -336,55 +342,52 @@ grpc::ServerUnaryReactor* VoronoiService::DeleteScene(grpc::CallbackServerContex
   scene->FailWaiters(absl::NotFoundError(absl::StrCat("scene \"", scene->id(), "\" was deleted")));
   renderer_->MarkDirty(scene);  // lets the render thread release the scene's target
   Log(LogLevel::kInfo, "scene_deleted", {{"scene", scene->id()}});
-  return scope.Done(ctx, Status::OK);
+  return call.Finish(ctx, Status::OK);
 }
 
 grpc::ServerUnaryReactor* VoronoiService::UpsertSites(grpc::CallbackServerContext* ctx,
                                                       const v1::UpsertSitesRequest* request,
                                                       v1::UpsertSitesResponse* response) {
-  CallScope scope(this, "UpsertSites");
-  if (auto s = Admit(ctx, true); !s.ok()) return scope.Done(ctx, s);
-  std::shared_ptr<Scene> scene;
-  if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return scope.Done(ctx, s);
+  Call call = Begin(ctx, "UpsertSites", Access::kWrite, &request->scene_id());
+  if (!call.ok()) return call.Finish(ctx);
+  const std::shared_ptr<Scene>& scene = call.scene;
   std::vector<Site> sites;
-  if (auto s = ToSites(*request, limits_, &sites); !s.ok()) return scope.Done(ctx, s);
+  if (auto s = ToSites(*request, limits_, &sites); !s.ok()) return call.Finish(ctx, s);
   auto version = scene->Upsert(std::move(sites), limits_.max_sites_per_scene,
                                [&](const ChangeSet& c) {
                                  return Durably([&] { return store_->Commit(c); });
                                });
-  if (!version.ok()) return scope.Done(ctx, ToGrpc(version.status()));
+  if (!version.ok()) return call.Finish(ctx, ToGrpc(version.status()));
   response->set_version(*version);
   renderer_->MarkDirty(scene);
-  return scope.Done(ctx, Status::OK);
+  return call.Finish(ctx, Status::OK);
 }
 
 grpc::ServerUnaryReactor* VoronoiService::DeleteSites(grpc::CallbackServerContext* ctx,
                                                       const v1::DeleteSitesRequest* request,
                                                       v1::DeleteSitesResponse* response) {
-  CallScope scope(this, "DeleteSites");
-  if (auto s = Admit(ctx, true); !s.ok()) return scope.Done(ctx, s);
-  std::shared_ptr<Scene> scene;
-  if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return scope.Done(ctx, s);
+  Call call = Begin(ctx, "DeleteSites", Access::kWrite, &request->scene_id());
+  if (!call.ok()) return call.Finish(ctx);
+  const std::shared_ptr<Scene>& scene = call.scene;
   std::vector<std::string> ids;
-  if (auto s = ToSiteIds(*request, limits_, &ids); !s.ok()) return scope.Done(ctx, s);
+  if (auto s = ToSiteIds(*request, limits_, &ids); !s.ok()) return call.Finish(ctx, s);
   auto version = scene->Delete(
       ids, [&](const ChangeSet& c) { return Durably([&] { return store_->Commit(c); }); });
-  if (!version.ok()) return scope.Done(ctx, ToGrpc(version.status()));
+  if (!version.ok()) return call.Finish(ctx, ToGrpc(version.status()));
   response->set_version(*version);
   renderer_->MarkDirty(scene);
-  return scope.Done(ctx, Status::OK);
+  return call.Finish(ctx, Status::OK);
 }
 
 grpc::ServerUnaryReactor* VoronoiService::ListSites(grpc::CallbackServerContext* ctx,
                                                     const v1::ListSitesRequest* request,
                                                     v1::ListSitesResponse* response) {
-  CallScope scope(this, "ListSites");
-  if (auto s = Admit(ctx, false); !s.ok()) return scope.Done(ctx, s);
-  std::shared_ptr<Scene> scene;
-  if (auto s = Lookup(request->scene_id(), &scene); !s.ok()) return scope.Done(ctx, s);
+  Call call = Begin(ctx, "ListSites", Access::kRead, &request->scene_id());
+  if (!call.ok()) return call.Finish(ctx);
+  const std::shared_ptr<Scene>& scene = call.scene;
   uint32_t size = request->page_size() == 0 ? 1000 : request->page_size();
   if (size > limits_.max_page_size) {
-    return scope.Done(ctx, Status(StatusCode::INVALID_ARGUMENT,
+    return call.Finish(ctx, Status(StatusCode::INVALID_ARGUMENT,
                             absl::StrCat("page_size is ", size, "; it must be at most ",
                                          limits_.max_page_size)));
   }
@@ -393,12 +396,11 @@ grpc::ServerUnaryReactor* VoronoiService::ListSites(grpc::CallbackServerContext*
   for (const Site& site : page.sites) ToProto(site, response->add_sites());
   response->set_next_page_token(page.last_id);
   response->set_version(page.version);
-  return scope.Done(ctx, Status::OK);
+  return call.Finish(ctx, Status::OK);
 }
 
 Status VoronoiService::ParseNearest(const v1::FindNearestRequest& request,
                                     NearestQuery* query) const {
-  if (auto s = Lookup(request.scene_id(), &query->scene); !s.ok()) return s;
   bool outside = false;
   if (auto s = ToQueryPoints(request, query->scene->settings().grid.window, limits_,
                              &query->points, &outside);
@@ -434,11 +436,10 @@ Status VoronoiService::WaitFor(uint64_t requested, NearestQuery* query) const {
 grpc::ServerUnaryReactor* VoronoiService::FindNearest(grpc::CallbackServerContext* ctx,
                                                       const v1::FindNearestRequest* request,
                                                       v1::FindNearestResponse* response) {
-  NearestQuery query;
-  query.scope = std::make_shared<CallScope>(this, "FindNearest");
-  query.ctx = ctx;
-  if (auto s = Admit(ctx, false); !s.ok()) return query.scope->Done(ctx, s);
-  if (auto s = ParseNearest(*request, &query); !s.ok()) return query.scope->Done(ctx, s);
+  Call call = Begin(ctx, "FindNearest", Access::kRead, &request->scene_id());
+  if (!call.ok()) return call.Finish(ctx);
+  NearestQuery query{call.scope, ctx, call.scene};
+  if (auto s = ParseNearest(*request, &query); !s.ok()) return call.Finish(ctx, s);
   auto* reactor = new NearestUnaryReactor(std::move(query), request->xy_size() > 0, response);
   reactor->Start();
   return reactor;
@@ -446,10 +447,9 @@ grpc::ServerUnaryReactor* VoronoiService::FindNearest(grpc::CallbackServerContex
 
 grpc::ServerWriteReactor<v1::FindNearestResponse>* VoronoiService::FindNearestStream(
     grpc::CallbackServerContext* ctx, const v1::FindNearestRequest* request) {
-  NearestQuery query;
-  query.scope = std::make_shared<CallScope>(this, "FindNearestStream");
-  query.ctx = ctx;
-  Status s = Admit(ctx, false);
+  Call call = Begin(ctx, "FindNearestStream", Access::kRead, &request->scene_id());
+  NearestQuery query{call.scope, ctx, call.scene};
+  Status s = call.status;
   if (s.ok()) s = ParseNearest(*request, &query);
   if (!s.ok()) query.scope->Record(s);
   size_t chunk = request->chunk_size() == 0 ? 65536 : request->chunk_size();
@@ -469,62 +469,14 @@ namespace gvd {
 grpc::ServerUnaryReactor* VoronoiService::RenderImage(grpc::CallbackServerContext* ctx,
                                                       const v1::RenderImageRequest* request,
                                                       v1::RenderImageResponse* response) {
-  NearestQuery query;
-  query.scope = std::make_shared<CallScope>(this, "RenderImage");
-  query.ctx = ctx;
-  if (auto s = Admit(ctx, false); !s.ok()) return query.scope->Done(ctx, s);
-  if (auto s = Lookup(request->scene_id(), &query.scene); !s.ok()) return query.scope->Done(ctx, s);
+  Call call = Begin(ctx, "RenderImage", Access::kRead, &request->scene_id());
+  if (!call.ok()) return call.Finish(ctx);
+  NearestQuery query{call.scope, ctx, call.scene};
   ImageOptions options;
-  switch (request->layer()) {
-    case v1::RenderImageRequest::LAYER_UNSPECIFIED:
-    case v1::RenderImageRequest::IDS: options.layer = ImageLayer::kIds; break;
-    case v1::RenderImageRequest::FEATURES: options.layer = ImageLayer::kFeatures; break;
-    case v1::RenderImageRequest::DISTANCE: options.layer = ImageLayer::kDistance; break;
-    default:
-      return query.scope->Done(
-          ctx, Status(StatusCode::INVALID_ARGUMENT,
-                      absl::StrCat("layer is ", request->layer(),
-                                   "; it must be IDS, FEATURES or DISTANCE")));
+  if (auto s = ToImageOptions(*request, query.scene->settings().grid, &options); !s.ok()) {
+    return call.Finish(ctx, s);
   }
-  switch (request->format()) {
-    case v1::RenderImageRequest::FORMAT_UNSPECIFIED:
-    case v1::RenderImageRequest::PNG: options.format = ImageFormat::kPng; break;
-    case v1::RenderImageRequest::EXR: options.format = ImageFormat::kExr; break;
-    default:
-      return query.scope->Done(
-          ctx, Status(StatusCode::INVALID_ARGUMENT,
-                      absl::StrCat("format is ", request->format(), "; it must be PNG or EXR")));
-  }
-  if (options.format == ImageFormat::kExr && options.layer != ImageLayer::kDistance) {
-    return query.scope->Done(
-        ctx, Status(StatusCode::INVALID_ARGUMENT, "format EXR holds the DISTANCE layer only"));
-  }
-  if (options.format == ImageFormat::kExr && request->draw_sites()) {
-    return query.scope->Done(ctx,
-                             Status(StatusCode::INVALID_ARGUMENT, "draw_sites needs format PNG"));
-  }
-  options.draw_sites = request->draw_sites();
-  const Grid& grid = query.scene->settings().grid;
-  options.rect = grid.all();
-  if (request->has_window()) {
-    if (auto s = ToPixelRect(request->window(), grid, &options.rect); !s.ok()) {
-      return query.scope->Done(ctx, s);
-    }
-  }
-  for (int k = 0; k < request->polyline_size(); ++k) {
-    const v1::Point& p = request->polyline(k);
-    if (!std::isfinite(p.x()) || !std::isfinite(p.y())) {
-      return query.scope->Done(ctx, Status(StatusCode::INVALID_ARGUMENT,
-                                           absl::StrCat("polyline[", k, "] is (", FormatNumber(p.x()),
-                                                        ", ", FormatNumber(p.y()),
-                                                        "); coordinates must be finite")));
-    }
-    options.polyline.push_back({p.x(), p.y()});
-  }
-  if (!options.polyline.empty() && options.format == ImageFormat::kExr) {
-    return query.scope->Done(ctx, Status(StatusCode::INVALID_ARGUMENT, "polyline needs format PNG"));
-  }
-  if (auto s = WaitFor(request->min_version(), &query); !s.ok()) return query.scope->Done(ctx, s);
+  if (auto s = WaitFor(request->min_version(), &query); !s.ok()) return call.Finish(ctx, s);
   query.on_frame = [options, response](const Frame& frame) {
     auto image = EncodeImage(frame, options);
     if (!image.ok()) return ToGrpc(image.status());

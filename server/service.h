@@ -14,6 +14,7 @@
 
 #include "gvd/v1/voronoi.grpc.pb.h"
 #include "server/auth.h"
+#include "server/call_scope.h"
 #include "server/limits.h"
 #include "server/metrics.h"
 #include "server/render_loop.h"
@@ -42,7 +43,7 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   // flight to finish. Returns how many were still in flight.
   int Drain(std::chrono::milliseconds grace);
   // Calls in flight: handlers running, queries waiting for a render, streams writing.
-  int in_flight() const { return in_flight_; }
+  int in_flight() const { return calls_.in_flight; }
 
   grpc::ServerUnaryReactor* CreateScene(grpc::CallbackServerContext* ctx,
                                         const v1::CreateSceneRequest* request,
@@ -97,11 +98,32 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
                                  v1::PickResponse* response) override;
 
  private:
-  // Validates a FindNearest request and resolves its scene, points and mode.
+  // Validates a FindNearest request on its scene (query->scene) and resolves its points and
+  // mode.
   grpc::Status ParseNearest(const v1::FindNearestRequest& request, NearestQuery* query) const;
 
   // The scene, or NOT_FOUND naming it (after validating the id).
   grpc::Status Lookup(const std::string& scene_id, std::shared_ptr<Scene>* scene) const;
+
+  // How every handler starts: the call is counted (scope) and admitted (ready, token;
+  // kWrite for calls that change state), and a call on one scene (scene_id given) has its
+  // id validated and its scene found. When status is not OK the handler finishes with it.
+  enum class Access { kRead, kWrite };
+  struct Call {
+    std::shared_ptr<CallScope> scope;
+    std::shared_ptr<Scene> scene;
+    grpc::Status status;
+    bool ok() const { return status.ok(); }
+    // Finishes a unary call with `s` (by default, the preamble's refusal).
+    grpc::ServerUnaryReactor* Finish(grpc::CallbackServerContext* ctx) const {
+      return scope->Done(ctx, status);
+    }
+    grpc::ServerUnaryReactor* Finish(grpc::CallbackServerContext* ctx, const grpc::Status& s) const {
+      return scope->Done(ctx, s);
+    }
+  };
+  Call Begin(grpc::CallbackServerContext* ctx, const char* method, Access access,
+             const std::string* scene_id = nullptr) const;
 
   // Sets the version a call waits for: `requested`, or the current one while the scene's
   // first render is under way. OUT_OF_RANGE when the scene has not reached `requested`.
@@ -127,12 +149,11 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   const TokenAuth* const auth_;
   Metrics* const metrics_;
   // Runs one store call, timing it for the metrics.
-  template <class Call>
-  absl::Status Durably(Call call) const;
+  template <class StoreCall>
+  absl::Status Durably(StoreCall store_call) const;
   std::atomic<bool> ready_{false};
   std::atomic<bool> draining_{false};
-  mutable std::atomic<int> in_flight_{0};
-  friend class CallScope;
+  mutable CallCounter calls_;
   // Guards scenes_ and creating_, and is never held across a store call: a durable commit
   // blocks no other scene's lookup.
   mutable std::mutex mu_;
