@@ -53,19 +53,23 @@ TEST(CpuPool, HigherLanesGoFirst) {
       order.push_back(what);
     };
   };
+  // Declared before the lanes, so that the lanes' destructors (which wait for their jobs)
+  // run before these go.
+  Gate gate;
+  std::promise<void> started;
   {
     CpuPool::Lane low(pool, 0, 8, 8), high(pool, 5, 8, 8);
-    Gate gate;
-    std::promise<void> started;
-    ASSERT_TRUE(low.Submit([&] {
+    EXPECT_TRUE(low.Submit([&] {
       started.set_value();
       gate.opened.wait();
     }));
-    started.get_future().wait();  // the only thread is busy: what follows queues
-    ASSERT_TRUE(low.Submit(record("low 1")));
-    ASSERT_TRUE(low.Submit(record("low 2")));
-    ASSERT_TRUE(high.Submit(record("high 1")));
-    ASSERT_TRUE(high.Submit(record("high 2")));
+    // The only thread is busy: what follows queues. (EXPECT, not ASSERT, until the gate
+    // opens: a return would leave the lanes waiting for a job that waits for the gate.)
+    EXPECT_EQ(started.get_future().wait_for(std::chrono::seconds(30)), std::future_status::ready);
+    EXPECT_TRUE(low.Submit(record("low 1")));
+    EXPECT_TRUE(low.Submit(record("low 2")));
+    EXPECT_TRUE(high.Submit(record("high 1")));
+    EXPECT_TRUE(high.Submit(record("high 2")));
     gate.open.set_value();
   }  // the lanes' destructors wait for their jobs
   EXPECT_EQ(order, (std::vector<std::string>{"high 1", "high 2", "low 1", "low 2"}));
@@ -73,10 +77,12 @@ TEST(CpuPool, HigherLanesGoFirst) {
 
 TEST(CpuPool, LanesKeepTheirLimits) {
   CpuPool pool(4);
+  // Declared before the lanes, whose destructors wait for the jobs that use them.
+  Gate gate;
+  std::promise<void> ran;
+  std::atomic<int> running{0}, most{0}, done{0};
   CpuPool::Lane capped(pool, 0, /*max_running=*/2, /*max_queued=*/3);
   CpuPool::Lane other(pool, 0, 8, 8);
-  Gate gate;
-  std::atomic<int> running{0}, most{0}, done{0};
   auto job = [&] {
     int now = ++running;
     int seen = most.load();
@@ -95,8 +101,7 @@ TEST(CpuPool, LanesKeepTheirLimits) {
   for (int i = 0; i < 4; ++i) accepted += capped.Submit(job);
   EXPECT_EQ(accepted, 5);
   // The lane at its limit leaves the other threads to other lanes.
-  std::promise<void> ran;
-  ASSERT_TRUE(other.Submit([&] { ran.set_value(); }));
+  EXPECT_TRUE(other.Submit([&] { ran.set_value(); }));
   EXPECT_EQ(ran.get_future().wait_for(std::chrono::seconds(30)), std::future_status::ready);
   gate.open.set_value();
   while (done.load() < 5 && std::chrono::steady_clock::now() < deadline) {
