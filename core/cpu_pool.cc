@@ -42,18 +42,14 @@ CpuPool::Lane::Lane(CpuPool& pool, int priority, size_t max_running, size_t max_
 
 CpuPool::Lane::~Lane() {
   std::unique_lock<std::mutex> lock(pool_.mu_);
-  pool_.idle_.wait(lock, [this] { return head_ == queue_.size() && running_ == 0; });
+  pool_.idle_.wait(lock, [this] { return queue_.empty() && running_ == 0; });
   pool_.lanes_.erase(std::find(pool_.lanes_.begin(), pool_.lanes_.end(), this));
 }
 
 bool CpuPool::Lane::Submit(std::function<void()> job) {
   {
     std::lock_guard<std::mutex> lock(pool_.mu_);
-    if (queue_.size() - head_ >= max_queued_) return false;
-    if (head_ == queue_.size()) {
-      queue_.clear();
-      head_ = 0;
-    }
+    if (queue_.size() >= max_queued_) return false;
     queue_.push_back(std::move(job));
   }
   pool_.work_.notify_one();
@@ -62,7 +58,7 @@ bool CpuPool::Lane::Submit(std::function<void()> job) {
 
 CpuPool::Lane* CpuPool::Next() {
   for (Lane* lane : lanes_) {
-    if (lane->head_ < lane->queue_.size() && lane->running_ < lane->max_running_) return lane;
+    if (!lane->queue_.empty() && lane->running_ < lane->max_running_) return lane;
   }
   return nullptr;
 }
@@ -73,7 +69,8 @@ void CpuPool::Run() {
     Lane* lane;
     work_.wait(lock, [&] { return (lane = Next()) != nullptr || stopping_; });
     if (lane == nullptr) return;  // stopping, and every lane is gone
-    std::function<void()> job = std::move(lane->queue_[lane->head_++]);
+    std::function<void()> job = std::move(lane->queue_.front());
+    lane->queue_.pop_front();
     ++lane->running_;
     lock.unlock();
     job();
@@ -82,7 +79,7 @@ void CpuPool::Run() {
     --lane->running_;
     idle_.notify_all();
     // A lane at its limit may now run its next job, which a waiting thread was not told of.
-    if (lane->head_ < lane->queue_.size()) work_.notify_one();
+    if (!lane->queue_.empty()) work_.notify_one();
   }
 }
 

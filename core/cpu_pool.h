@@ -6,6 +6,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstddef>
+#include <deque>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -52,8 +53,7 @@ class CpuPool {
     const size_t max_running_;
     const size_t max_queued_;
     // Guarded by the pool's mutex.
-    std::vector<std::function<void()>> queue_;  // a ring would do; jobs are few and short
-    size_t head_ = 0;
+    std::deque<std::function<void()>> queue_;
     size_t running_ = 0;
   };
 

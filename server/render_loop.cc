@@ -115,12 +115,12 @@ void RenderLoop::Run(DevicePreference preference) {
     for (auto& task : tasks) task(rasterizer.get(), &zoom);
     if (!scene) continue;
     if (!hold_path_.empty() && access(hold_path_.c_str(), F_OK) == 0) {
-      // Held (kHoldRendersVariable): look again shortly, still taking zooms and a stop.
-      std::lock_guard<std::mutex> lock(mu_);
+      // Held (kHoldRendersVariable): the scene goes back to the front of the queue, and the
+      // loop looks again shortly, still taking zooms and a stop meanwhile.
+      std::unique_lock<std::mutex> lock(mu_);
       if (queued_.insert(scene.get()).second) queue_.push_front(std::move(scene));
-      tasks_.emplace_back([](Rasterizer*, ZoomRenderer*) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(5));
-      });
+      cv_.wait_for(lock, std::chrono::milliseconds(5),
+                   [this] { return stopping_ || !tasks_.empty(); });
       continue;
     }
     // Drop the state of scenes that are gone.

@@ -294,17 +294,14 @@ grpc::ServerUnaryReactor* VoronoiService::GetScene(grpc::CallbackServerContext* 
   // Sites that meet the window but hold no pixel of the latest frame (paper sec. 6.2): their
   // number and the first kHiddenIds ids, computed once per frame.
   constexpr size_t kHiddenIds = 16;
-  struct Hidden {
-    std::vector<uint32_t> slots;
-  };
   const std::shared_ptr<const Frame> frame = scene->frame();
-  auto hidden = scene->Derived<Hidden>(frame, [](const Frame& frame) {
-    if (frame.empty()) return Hidden{};
-    return Hidden{HiddenSites(IdsOf(frame, frame.grid().all()), frame.sites())};
+  auto hidden = scene->Derived<std::vector<uint32_t>>(frame, [](const Frame& frame) {
+    if (frame.empty()) return std::vector<uint32_t>();
+    return HiddenSites(IdsOf(frame, frame.grid().all()), frame.sites());
   });
-  response->set_hidden_site_count(hidden->slots.size());
-  for (size_t k = 0; k < hidden->slots.size() && k < kHiddenIds; ++k) {
-    response->add_hidden_site_ids(frame->sites().get(hidden->slots[k])->id);
+  response->set_hidden_site_count(hidden->size());
+  for (size_t k = 0; k < hidden->size() && k < kHiddenIds; ++k) {
+    response->add_hidden_site_ids(frame->sites().get((*hidden)[k])->id);
   }
   return call.Finish(ctx, Status::OK);
 }
