@@ -160,8 +160,8 @@ Vec2 BoundaryCrossing(Vec2 p, Vec2 q, const Site* a, const Site* b, Diagram diag
   if (pa && pb) {
     // |x - a| = |x - b| on x = p + t (q - p): linear in t.
     Vec2 d = q - p, ab = pb->p - pa->p;
-    double den = 2 * Dot(d, ab);
-    double num = Dot(p - pb->p, p - pb->p) - Dot(p - pa->p, p - pa->p);
+    double den = 2 * glm::dot(d, ab);
+    double num = glm::dot(p - pb->p, p - pb->p) - glm::dot(p - pa->p, p - pa->p);
     if (den == 0) return mid;
     double t = num / den;
     if (!(t >= 0 && t <= 1)) return mid;

@@ -7,7 +7,7 @@ gvd_packages() {
     build)
       echo cmake ninja-build g++ pkgconf ccache \
         libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler libabsl-dev \
-        libboost-dev libsqlite3-dev prometheus-cpp-dev libopenimageio-dev \
+        libboost-dev libglm-dev libsqlite3-dev prometheus-cpp-dev libopenimageio-dev \
         libegl-dev libopengl-dev libegl1 libopengl0 libegl-mesa0 libgl1-mesa-dri
       ;;
     test)

@@ -8,8 +8,8 @@ namespace gvd {
 
 double SegmentDistance(Vec2 q, Vec2 a, Vec2 b, double* t) {
   Vec2 ab = b - a;
-  double len2 = Dot(ab, ab);
-  double u = len2 > 0 ? std::clamp(Dot(q - a, ab) / len2, 0.0, 1.0) : 0.0;
+  double len2 = glm::dot(ab, ab);
+  double u = len2 > 0 ? std::clamp(glm::dot(q - a, ab) / len2, 0.0, 1.0) : 0.0;
   if (t) *t = u;
   if (u == 0) return Distance(q, a);
   if (u == 1) return Distance(q, b);
@@ -93,7 +93,7 @@ std::vector<Vec2> Flatten(const std::vector<Vec2>& control, double tolerance) {
   const double deg = static_cast<double>(control.size() - 1);
   double m = 0;
   for (size_t i = 0; i + 2 < control.size(); ++i) {
-    m = std::max(m, Length(control[i + 2] - 2 * control[i + 1] + control[i]));
+    m = std::max(m, Length(control[i + 2] - 2.0 * control[i + 1] + control[i]));
   }
   double n = std::ceil(std::sqrt(deg * (deg - 1) / 8 * m / tolerance));
   uint32_t pieces = !(n >= 1) ? 1 : n >= kMaxBezierPieces ? kMaxBezierPieces : uint32_t(n);
@@ -114,7 +114,7 @@ BezierSite MakeBezier(std::vector<Vec2> control, double tolerance) {
   const double deg = static_cast<double>(control.size() - 1);
   double m = 0;
   for (size_t i = 0; i + 2 < control.size(); ++i) {
-    m = std::max(m, Length(control[i + 2] - 2 * control[i + 1] + control[i]));
+    m = std::max(m, Length(control[i + 2] - 2.0 * control[i + 1] + control[i]));
   }
   double floor_tol = deg * (deg - 1) / 8 * m / (double(kMaxBezierPieces) * kMaxBezierPieces);
   tolerance = std::max(tolerance, floor_tol);

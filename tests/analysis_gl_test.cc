@@ -154,7 +154,7 @@ TEST_F(AnalysisGLTest, ContinuationMissesAnIslandInsideAConcaveSite) {
 
 Vec2 Circumcentre(Vec2 a, Vec2 b, Vec2 c) {
   double d = 2 * (a.x * (b.y - c.y) + b.x * (c.y - a.y) + c.x * (a.y - b.y));
-  double a2 = Dot(a, a), b2 = Dot(b, b), c2 = Dot(c, c);
+  double a2 = glm::dot(a, a), b2 = glm::dot(b, b), c2 = glm::dot(c, c);
   return {(a2 * (b.y - c.y) + b2 * (c.y - a.y) + c2 * (a.y - b.y)) / d,
           (a2 * (c.x - b.x) + b2 * (a.x - c.x) + c2 * (b.x - a.x)) / d};
 }
@@ -196,7 +196,7 @@ std::map<std::pair<uint32_t, uint32_t>, double> VoronoiEdgeLengths(
     } else {  // a hull edge: a ray away from the third vertex
       Vec2 a = pts[e.first], b = pts[e.second], mid = 0.5 * (a + b);
       Vec2 n{-(b.y - a.y), b.x - a.x};
-      if (Dot(n, pts[s[0].second] - mid) > 0) n = -1.0 * n;
+      if (glm::dot(n, pts[s[0].second] - mid) > 0) n = -1.0 * n;
       out[e] = ClippedLength(s[0].first, s[0].first + n, true, window);
     }
   }

@@ -72,8 +72,8 @@ TEST_F(AnalysisServerTest, DelaunayTrianglesHaveEmptyCircumcircles) {
     Vec2 a = at(t.a()), b = at(t.b()), c = at(t.c());
     EXPECT_GT((b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x), 0) << "clockwise";
     double det = 2 * (a.x * (b.y - c.y) + b.x * (c.y - a.y) + c.x * (a.y - b.y));
-    Vec2 o{(Dot(a, a) * (b.y - c.y) + Dot(b, b) * (c.y - a.y) + Dot(c, c) * (a.y - b.y)) / det,
-           (Dot(a, a) * (c.x - b.x) + Dot(b, b) * (a.x - c.x) + Dot(c, c) * (b.x - a.x)) / det};
+    Vec2 o{(glm::dot(a, a) * (b.y - c.y) + glm::dot(b, b) * (c.y - a.y) + glm::dot(c, c) * (a.y - b.y)) / det,
+           (glm::dot(a, a) * (c.x - b.x) + glm::dot(b, b) * (a.x - c.x) + glm::dot(c, c) * (b.x - a.x)) / det};
     double r2 = Distance(o, a);
     for (const Site& p : sites) {
       if (p.id == t.a() || p.id == t.b() || p.id == t.c()) continue;
@@ -93,8 +93,8 @@ TEST_F(AnalysisServerTest, DelaunayTrianglesHaveEmptyCircumcircles) {
   for (const auto& t : tris) {
     Vec2 a = pts[t[0]], b = pts[t[1]], c = pts[t[2]];
     double det = 2 * (a.x * (b.y - c.y) + b.x * (c.y - a.y) + c.x * (a.y - b.y));
-    Vec2 o{(Dot(a, a) * (b.y - c.y) + Dot(b, b) * (c.y - a.y) + Dot(c, c) * (a.y - b.y)) / det,
-           (Dot(a, a) * (c.x - b.x) + Dot(b, b) * (a.x - c.x) + Dot(c, c) * (b.x - a.x)) / det};
+    Vec2 o{(glm::dot(a, a) * (b.y - c.y) + glm::dot(b, b) * (c.y - a.y) + glm::dot(c, c) * (a.y - b.y)) / det,
+           (glm::dot(a, a) * (c.x - b.x) + glm::dot(b, b) * (a.x - c.x) + glm::dot(c, c) * (b.x - a.x)) / det};
     const double margin = 1.0 / 1024;
     if (o.x < margin || o.y < margin || o.x > 1 - margin || o.y > 1 - margin) continue;
     ++inside;
