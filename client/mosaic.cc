@@ -9,6 +9,7 @@
 #include "absl/strings/str_cat.h"
 #include "gl/context.h"
 #include "gl/raster.h"
+#include "gl/scene_raster.h"
 
 namespace gvd {
 
@@ -153,7 +154,7 @@ absl::StatusOr<std::vector<uint32_t>> EmbeddedDiagram(const Grid& grid,
   SiteTable table;
   table.reserve(sites.size());
   for (size_t s = 0; s < sites.size(); ++s) table.push_back({absl::StrCat("t", s), PointSite{sites[s]}});
-  auto frame = (*rasterizer)->Render(grid, grid.pixel_size(), 1, table, nullptr, RenderMode::kExact);
+  auto frame = RenderOnce(**rasterizer, grid, grid.pixel_size(), 1, table, nullptr, RenderMode::kExact);
   if (!frame.ok()) return frame.status();
   std::vector<uint32_t> ids(grid.pixel_count());
   for (uint32_t j = 0; j < grid.height; ++j) {

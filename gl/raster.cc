@@ -10,157 +10,22 @@
 #include <string>
 #include <vector>
 
+#include <glm/gtc/type_ptr.hpp>
+#include <glm/vec4.hpp>
+
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "geometry/coverage.h"
 #include "geometry/exact.h"
-#include "gl/scene_raster.h"
 #include "geometry/mesh.h"
+#include "gl/shaders.h"
 
 namespace gvd {
 namespace {
 
-// Every program works in scene units relative to the window's min corner, with depth =
-// value / depth_scale; glClipControl(ZERO_TO_ONE) keeps it unchanged into the depth buffer,
-// with no [-1, 1] remapping to cost precision.
-
-// Vertex cones, instanced: `unit` is a vertex of the unit cone, `cone` = (x, y, rho),
-// `weight` = (m, a), `site` = slot + 1. Height m * rho * z + a.
-constexpr const char* kConeVertexShader = R"(#version 450 core
-layout(location = 0) in vec3 unit;
-layout(location = 1) in vec3 cone;
-layout(location = 2) in vec2 weight;
-layout(location = 3) in uint site;
-uniform vec2 u_scale;
-uniform float u_inv_depth;
-flat out uint v_site;
-void main() {
-  vec2 p = cone.xy + cone.z * unit.xy;
-  float value = weight.x * cone.z * unit.z + weight.y;
-  gl_Position = vec4(p * u_scale - 1.0, value * u_inv_depth, 1.0);
-  v_site = site;
-}
-)";
-
-// Edge tents, instanced: `unit` = (u, v, |v|) spans the segment (u in [0, 1]) and its
-// normal (v in [-1, 1]); `ends` = (a, b), `tent` = (half-width r, m, a). Each half is a plane,
-// so the interpolated height is the distance to the segment's line, exactly.
-constexpr const char* kTentVertexShader = R"(#version 450 core
-layout(location = 0) in vec3 unit;
-layout(location = 1) in vec4 ends;
-layout(location = 2) in vec3 tent;
-layout(location = 3) in uint site;
-uniform vec2 u_scale;
-uniform float u_inv_depth;
-flat out uint v_site;
-void main() {
-  vec2 ab = ends.zw - ends.xy;
-  vec2 n = vec2(-ab.y, ab.x) / length(ab);
-  vec2 p = ends.xy + unit.x * ab + unit.y * tent.x * n;
-  float value = tent.y * tent.x * unit.z + tent.z;
-  gl_Position = vec4(p * u_scale - 1.0, value * u_inv_depth, 1.0);
-  v_site = site;
-}
-)";
-
-constexpr const char* kIdFragmentShader = R"(#version 450 core
-flat in uint v_site;
-layout(location = 0) out uint o_site;
-void main() { o_site = v_site; }
-)";
-
-// Per-fragment sites, instanced quads: `rect` = (x0, y0, x1, y1), `weight` = (m, a, reach),
-// `first` = the site's first segment (also in the buffer), `info` = (site, index of the first
-// segment, segment count, side: 0 both, 1 outside, 2 inside). The
-// fragment takes the least distance over the site's segments (a point is one of length 0),
-// tests the polygon's side by the even-odd rule, and writes m d + a as depth.
-constexpr const char* kExactVertexShader = R"(#version 450 core
-layout(location = 0) in vec3 unit;
-layout(location = 1) in vec4 rect;
-layout(location = 2) in vec3 weight;
-layout(location = 3) in vec4 first;
-layout(location = 4) in uvec4 info;
-uniform vec2 u_scale;
-flat out uvec4 v_info;
-flat out vec3 v_weight;
-flat out vec4 v_first;
-void main() {
-  vec2 p = mix(rect.xy, rect.zw, unit.xy);
-  gl_Position = vec4(p * u_scale - 1.0, 0.0, 1.0);
-  v_info = info;
-  v_weight = weight;
-  v_first = first;
-}
-)";
-
-// Points with no max_distance, per fragment: instanced squares of half side r around each
-// point (rect = (x, y, r)), weight = (m, a); nothing to discard, no buffer to read, so the
-// fragment is one distance. The square's corners, sqrt(2) r away, bound what it writes.
-constexpr const char* kExactPointVertexShader = R"(#version 450 core
-layout(location = 0) in vec3 unit;
-layout(location = 1) in vec3 square;
-layout(location = 2) in vec2 weight;
-layout(location = 3) in uint site;
-uniform vec2 u_scale;
-flat out uint v_site;
-flat out vec2 v_point;
-flat out vec2 v_weight;
-void main() {
-  vec2 p = square.xy + square.z * (2.0 * unit.xy - 1.0);
-  gl_Position = vec4(p * u_scale - 1.0, 0.0, 1.0);
-  v_site = site;
-  v_point = square.xy;
-  v_weight = weight;
-}
-)";
-
-constexpr const char* kExactPointFragmentShader = R"(#version 450 core
-flat in uint v_site;
-flat in vec2 v_point;
-flat in vec2 v_weight;
-uniform vec2 u_pixel;
-uniform vec2 u_origin;
-uniform float u_inv_depth;
-layout(location = 0) out uint o_site;
-void main() {
-  vec2 p = (gl_FragCoord.xy - u_origin) * u_pixel;
-  gl_FragDepth = (v_weight.x * length(p - v_point) + v_weight.y) * u_inv_depth;
-  o_site = v_site;
-}
-)";
-
-constexpr const char* kExactFragmentShader = R"(#version 450 core
-layout(std430, binding = 0) readonly buffer Segments { vec4 segments[]; };
-flat in uvec4 v_info;
-flat in vec3 v_weight;
-flat in vec4 v_first;
-uniform vec2 u_pixel;
-uniform vec2 u_origin;
-uniform float u_inv_depth;
-uniform float u_margin;
-layout(location = 0) out uint o_site;
-vec2 p;
-float d = 3.0e38;
-bool inside = false;
-void visit(vec4 s) {
-  vec2 ab = s.zw - s.xy, ap = p - s.xy;
-  float len2 = dot(ab, ab);
-  float t = len2 > 0.0 ? clamp(dot(ap, ab) / len2, 0.0, 1.0) : 0.0;
-  d = min(d, length(ap - t * ab));
-  if ((s.y > p.y) != (s.w > p.y) && p.x < s.x + (p.y - s.y) / (s.w - s.y) * (s.z - s.x)) {
-    inside = !inside;
-  }
-}
-void main() {
-  p = (gl_FragCoord.xy - u_origin) * u_pixel;  // the grid's pixel (0, 0) is at u_origin
-  visit(v_first);  // a point's only segment comes with the instance: no buffer read
-  for (uint i = v_info.y + 1u; i < v_info.y + v_info.z; ++i) visit(segments[i]);
-  if (d > v_weight.z) discard;
-  if (v_info.w != 0u && d > u_margin && inside != (v_info.w == 2u)) discard;
-  gl_FragDepth = (v_weight.x * d + v_weight.y) * u_inv_depth;
-  o_site = v_info.x;
-}
-)";
+// Every program (gl/shaders/*.glsl) works in scene units relative to the window's min
+// corner, with depth = value / depth_scale; glClipControl(ZERO_TO_ONE) keeps it unchanged
+// into the depth buffer, with no [-1, 1] remapping to cost precision.
 
 absl::Status GlError(const char* what) {
   GLenum e = glGetError();
@@ -255,10 +120,10 @@ absl::StatusOr<Rasterizer::Program> Rasterizer::Link(const char* vertex, const c
 absl::StatusOr<std::unique_ptr<Rasterizer>> Rasterizer::Create() {
   std::unique_ptr<Rasterizer> r(new Rasterizer());
   for (auto [program, vertex, fragment] :
-       {std::tuple{&r->cone_, kConeVertexShader, kIdFragmentShader},
-        std::tuple{&r->tent_, kTentVertexShader, kIdFragmentShader},
-        std::tuple{&r->exact_, kExactVertexShader, kExactFragmentShader},
-        std::tuple{&r->exact_point_, kExactPointVertexShader, kExactPointFragmentShader}}) {
+       {std::tuple{&r->cone_, shaders::kConeVert, shaders::kIdFrag},
+        std::tuple{&r->tent_, shaders::kTentVert, shaders::kIdFrag},
+        std::tuple{&r->exact_, shaders::kExactVert, shaders::kExactFrag},
+        std::tuple{&r->exact_point_, shaders::kExactPointVert, shaders::kExactPointFrag}}) {
     auto linked = Link(vertex, fragment);
     if (!linked.ok()) return linked.status();
     *program = *linked;
@@ -404,72 +269,72 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
     return absl::InternalError("the grid does not fit in the render target");
   }
   if (scissor.empty()) return absl::OkStatus();
-  struct Cone {
-    float x, y, rho, m, a;
+  // One instance of each program, laid out as its vertex shader's attributes 1, 2, ...: GLM's
+  // float vectors are the shaders' vec2, vec3 and vec4.
+  struct Cone {  // cone.vert
+    glm::vec3 cone;  // (x, y, rho)
+    glm::vec2 weight;
     uint32_t site;
   };
-  struct Tent {
-    float ax, ay, bx, by, r, m, a;
+  struct Tent {  // tent.vert
+    glm::vec4 ends;
+    glm::vec3 tent;  // (half-width, m, a)
     uint32_t site;
   };
-  struct Quad {
-    float x0, y0, x1, y1, m, a, reach, ax, ay, bx, by;
-    uint32_t site, first, count, side;
+  struct Quad {  // exact.vert
+    glm::vec4 rect;
+    glm::vec3 weight;  // (m, a, reach)
+    glm::vec4 first;
+    glm::uvec4 info;
   };
+  struct Square {  // exact_point.vert
+    glm::vec3 square;  // (x, y, half side)
+    glm::vec2 weight;
+    uint32_t site;
+  };
+  static_assert(sizeof(Cone) == 6 * 4 && sizeof(Tent) == 8 * 4 && sizeof(Quad) == 15 * 4 &&
+                sizeof(Square) == 6 * 4);
   std::map<uint32_t, std::vector<Cone>> cones;  // by triangle count
   std::vector<Tent> tents;
   std::vector<Quad> quads;
-  struct Square {
-    float x, y, r, m, a;
-    uint32_t site;
-  };
   std::vector<Square> squares;
-  std::vector<float> segments;  // x0, y0, x1, y1 per segment, for the quads
+  std::vector<glm::vec4> segments;  // (a, b) per segment, for the quads (exact.frag)
   const Vec2 origin{grid.window.min_x, grid.window.min_y};
-  auto rel = [&](Vec2 p) { return p - origin; };
+  auto rel = [&](Vec2 p) { return glm::vec2(p - origin); };
   for (const SiteDraw& d : draws) {
     const Site& site = *sites.get(d.slot);
     SiteShape shape = Shape(grid, params, site, d.radius);
-    const float m = static_cast<float>(site.multiplicative);
-    const float a = static_cast<float>(site.additive);
+    const glm::vec2 weight(site.multiplicative, site.additive);
     const uint32_t id = d.slot + 1;
     if (ExactPoint(params, site)) {
       // Half side: the radius with its margins (the shape's extent is the corners' reach).
       const double half = shape.extent / (std::numbers::sqrt2 * (1 + 0x1p-20));
-      Vec2 u = rel(std::get<PointSite>(site.geometry).p);
-      squares.push_back({float(u.x), float(u.y), float(half), m, a, id});
+      squares.push_back({glm::vec3(rel(std::get<PointSite>(site.geometry).p), half), weight, id});
       continue;
     }
     if (shape.per_fragment) {
       Window b = BoundingBox(site.geometry);
       const double r = shape.extent;
-      uint32_t first = static_cast<uint32_t>(segments.size() / 4), count = 0;
+      uint32_t first = static_cast<uint32_t>(segments.size()), count = 0;
       ForEachSegment(site.geometry, [&](Vec2 p, Vec2 q) {
-        Vec2 u = rel(p), v = rel(q);
-        segments.insert(segments.end(), {float(u.x), float(u.y), float(v.x), float(v.y)});
+        segments.emplace_back(rel(p), rel(q));
         ++count;
       });
       uint32_t side = 0;
       if (const auto* poly = std::get_if<PolygonSite>(&site.geometry)) {
         side = poly->side == Side::kOutside ? 1 : poly->side == Side::kInside ? 2 : 0;
       }
-      Vec2 lo = rel({b.min_x - r, b.min_y - r}), hi = rel({b.max_x + r, b.max_y + r});
-      const float* s0 = &segments[size_t{first} * 4];
-      quads.push_back({float(lo.x), float(lo.y), float(hi.x), float(hi.y), m, a, float(r), s0[0],
-                       s0[1], s0[2], s0[3], id, first, count, side});
+      glm::vec2 lo = rel({b.min_x - r, b.min_y - r}), hi = rel({b.max_x + r, b.max_y + r});
+      quads.push_back({glm::vec4(lo, hi), glm::vec3(weight, r), segments[first],
+                       glm::uvec4(id, first, count, side)});
       continue;
     }
     const float rho = static_cast<float>(shape.extent);
     ForEachPiece(
         site.geometry,
-        [&](Vec2 p) {
-          Vec2 u = rel(p);
-          cones[shape.segments].push_back({float(u.x), float(u.y), rho, m, a, id});
-        },
+        [&](Vec2 p) { cones[shape.segments].push_back({glm::vec3(rel(p), rho), weight, id}); },
         [&](Vec2 p, Vec2 q) {
-          Vec2 u = rel(p), v = rel(q);
-          tents.push_back(
-              {float(u.x), float(u.y), float(v.x), float(v.y), float(shape.extent), m, a, id});
+          tents.push_back({glm::vec4(rel(p), rel(q)), glm::vec3(rho, weight), id});
         });
   }
   glBindFramebuffer(GL_FRAMEBUFFER, target.framebuffer());
@@ -488,12 +353,13 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
     glClearBufferuiv(GL_COLOR, 0, zero_id);
     glClearBufferfi(GL_DEPTH_STENCIL, 0, farthest ? 0.0f : 1.0f, 0);
   }
-  const float scale[2] = {static_cast<float>(2 / grid.window.width()),
-                          static_cast<float>(2 / grid.window.height())};
+  const glm::vec2 scale(2 / grid.window.width(), 2 / grid.window.height());
+  const glm::vec2 pixel(grid.pixel_width(), grid.pixel_height());
+  const glm::vec2 target_origin(x0, y0);
   const float inv_depth = static_cast<float>(1 / params.depth_scale);
   auto use = [&](const Program& p) {
     glUseProgram(p.id);
-    glUniform2f(p.u_scale, scale[0], scale[1]);
+    glUniform2fv(p.u_scale, 1, glm::value_ptr(scale));
     glUniform1f(p.u_inv_depth, inv_depth);
   };
   // Binds `mesh` as attribute 0 and `data` (n instances of `stride` bytes) as attributes
@@ -537,20 +403,18 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
   }
   if (!squares.empty()) {
     use(exact_point_);
-    glUniform2f(exact_point_.u_pixel, static_cast<float>(grid.pixel_width()),
-                static_cast<float>(grid.pixel_height()));
-    glUniform2f(exact_point_.u_origin, static_cast<float>(x0), static_cast<float>(y0));
+    glUniform2fv(exact_point_.u_pixel, 1, glm::value_ptr(pixel));
+    glUniform2fv(exact_point_.u_origin, 1, glm::value_ptr(target_origin));
     bind(quad_, squares.data(), squares.size(), sizeof(Square), {3, 2}, 1);
     glDrawArraysInstanced(GL_TRIANGLES, 0, 6, static_cast<GLsizei>(squares.size()));
   }
   if (!quads.empty()) {
     use(exact_);
-    glUniform2f(exact_.u_pixel, static_cast<float>(grid.pixel_width()),
-                static_cast<float>(grid.pixel_height()));
+    glUniform2fv(exact_.u_pixel, 1, glm::value_ptr(pixel));
     glUniform1f(exact_.u_margin, static_cast<float>(DrawMargin(grid)));
-    glUniform2f(exact_.u_origin, static_cast<float>(x0), static_cast<float>(y0));
+    glUniform2fv(exact_.u_origin, 1, glm::value_ptr(target_origin));
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, segments_);
-    glBufferData(GL_SHADER_STORAGE_BUFFER, segments.size() * sizeof(float), segments.data(),
+    glBufferData(GL_SHADER_STORAGE_BUFFER, segments.size() * sizeof(glm::vec4), segments.data(),
                  GL_STREAM_DRAW);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, segments_);
     bind(quad_, quads.data(), quads.size(), sizeof(Quad), {4, 3, 4}, 4);
@@ -619,17 +483,6 @@ ErrorModel ErrorTally::Model(const Grid& grid, const DrawParams& params) const {
   error.curve = curve_slack_;
   error.limited_presence = limited_presence_;
   return error;
-}
-
-absl::StatusOr<std::shared_ptr<const Frame>> Rasterizer::Render(const Grid& grid, double eps,
-                                                                uint64_t version,
-                                                                const SiteTable& sites,
-                                                                RenderStats* stats,
-                                                                RenderMode mode,
-                                                                Diagram diagram) {
-  auto scene = SceneRaster::Create(grid, eps, mode, diagram);
-  if (!scene.ok()) return scene.status();
-  return (*scene)->Apply(*this, SiteSnapshot::Of(version, sites), stats);
 }
 
 }  // namespace gvd

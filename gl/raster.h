@@ -122,14 +122,6 @@ class Rasterizer {
   absl::Status ReadBack(RenderTarget& target, PixelRect rect, double depth_scale,
                         std::vector<uint32_t>* ids, std::vector<float>* distances);
 
-  // A whole render from scratch, for tests and benchmarks: the same path as a scene's first
-  // render (SceneRaster).
-  absl::StatusOr<std::shared_ptr<const Frame>> Render(const Grid& grid, double eps,
-                                                      uint64_t version, const SiteTable& sites,
-                                                      RenderStats* stats = nullptr,
-                                                      RenderMode mode = RenderMode::kMesh,
-                                                      Diagram diagram = Diagram::kNearest);
-
  private:
   Rasterizer() = default;
   // The vertex buffer of the unit cone with `segments` triangles, made on first use.

@@ -283,4 +283,13 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
   return frame_;
 }
 
+absl::StatusOr<std::shared_ptr<const Frame>> RenderOnce(Rasterizer& rasterizer, const Grid& grid,
+                                                        double eps, uint64_t version,
+                                                        const SiteTable& sites, RenderStats* stats,
+                                                        RenderMode mode, Diagram diagram) {
+  auto scene = SceneRaster::Create(grid, eps, mode, diagram);
+  if (!scene.ok()) return scene.status();
+  return (*scene)->Apply(rasterizer, SiteSnapshot::Of(version, sites), stats);
+}
+
 }  // namespace gvd

@@ -66,4 +66,14 @@ class SceneRaster {
   std::shared_ptr<const Frame> frame_;
 };
 
+// One whole render of `sites` from scratch, through a SceneRaster of its own (the same path
+// as a scene's first render): for a one-off diagram, such as the embedded mosaic's, and for
+// tests and benchmarks.
+absl::StatusOr<std::shared_ptr<const Frame>> RenderOnce(Rasterizer& rasterizer, const Grid& grid,
+                                                        double eps, uint64_t version,
+                                                        const SiteTable& sites,
+                                                        RenderStats* stats = nullptr,
+                                                        RenderMode mode = RenderMode::kMesh,
+                                                        Diagram diagram = Diagram::kNearest);
+
 }  // namespace gvd

@@ -10,6 +10,7 @@
 
 #include "gl/context.h"
 #include "gl/raster.h"
+#include "gl/scene_raster.h"
 
 namespace gvd {
 
@@ -48,7 +49,7 @@ class GlTest : public ::testing::Test {
   std::shared_ptr<const Frame> Render(const Grid& grid, const SiteTable& sites,
                                       RenderMode mode = RenderMode::kMesh,
                                       Diagram diagram = Diagram::kNearest) {
-    auto frame = rasterizer_->Render(grid, grid.pixel_size(), 1, sites, nullptr, mode, diagram);
+    auto frame = RenderOnce(*rasterizer_, grid, grid.pixel_size(), 1, sites, nullptr, mode, diagram);
     EXPECT_TRUE(frame.ok()) << frame.status();
     return frame.ok() ? *frame : nullptr;
   }

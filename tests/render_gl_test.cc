@@ -11,6 +11,7 @@
 #include "geometry/exact.h"
 #include "geometry/mesh.h"
 #include "gl/raster.h"
+#include "gl/scene_raster.h"
 #include "tests/gl_fixture.h"
 #include "tests/oracle.h"
 
@@ -23,7 +24,7 @@ class RenderGLTest : public GlTest {
   std::shared_ptr<const Frame> Render(const Grid& grid, double eps, const std::vector<Site>& sites,
                                       RenderStats* stats = nullptr,
                                       RenderMode mode = RenderMode::kMesh) {
-    auto frame = rasterizer_->Render(grid, eps, 1, sites, stats, mode);
+    auto frame = RenderOnce(*rasterizer_, grid, eps, 1, sites, stats, mode);
     EXPECT_TRUE(frame.ok()) << frame.status();
     for (uint32_t i = 0; i < sites.size(); ++i) EXPECT_EQ((*frame)->sites().get(i)->id, sites[i].id);
     return *frame;

@@ -31,7 +31,7 @@ class SceneRasterGLTest : public GlTest {
     const Grid& g = inc.grid();
     SiteTable live = Live(sites);
     const RenderMode mode = inc.error().max_excess == 0 ? RenderMode::kExact : RenderMode::kMesh;
-    auto full = rasterizer_->Render(g, inc.eps(), inc.version(), live, nullptr, mode);
+    auto full = RenderOnce(*rasterizer_, g, inc.eps(), inc.version(), live, nullptr, mode);
     ASSERT_TRUE(full.ok()) << full.status();
     const Frame& ref = **full;
     ASSERT_EQ(inc.site_count(), live.size());

@@ -10,6 +10,7 @@
 #include "analysis/analysis.h"
 #include "analysis/plan.h"
 #include "analysis/refine.h"
+#include "gl/scene_raster.h"
 #include "gl/zoom.h"
 #include "tests/bench/bench_common.h"
 #include "tests/maze.h"
@@ -29,7 +30,7 @@ std::shared_ptr<const Frame> PointsFrame(size_t n, uint32_t size) {
   auto& f = frames[{n, size}];
   if (!f) {
     Grid grid{kUnit, size, size};
-    auto r = Gl::Get().rasterizer->Render(grid, grid.pixel_size(), 1, RandomSites(n, kUnit, 1));
+    auto r = RenderOnce(*Gl::Get().rasterizer, grid, grid.pixel_size(), 1, RandomSites(n, kUnit, 1));
     if (r.ok()) f = *r;
   }
   return f;
@@ -144,7 +145,7 @@ void BM_PlanMaze(benchmark::State& state) {
   if (!gl.context) return state.SkipWithError("no EGL context");
   const int k = state.range(0);
   Grid grid{kUnit, 1024, 1024};
-  auto frame = *gl.rasterizer->Render(grid, grid.pixel_size(), 1, testing::Maze(k, 7));
+  auto frame = *RenderOnce(*gl.rasterizer, grid, grid.pixel_size(), 1, testing::Maze(k, 7));
   const double half = 0.5 / k;
   PlanRequest request{{half, half}, {1 - half, 1 - half}, 0.9 * half};
   ClearanceField field = MakeClearanceField(*frame);

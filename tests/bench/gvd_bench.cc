@@ -47,7 +47,7 @@ void BM_Render(benchmark::State& state) {
   auto sites = RandomSites(n, kUnit, 1);
   RenderStats stats;
   for (auto _ : state) {
-    auto frame = gl.rasterizer->Render(grid, grid.pixel_size(), 1, sites, &stats, mode);
+    auto frame = RenderOnce(*gl.rasterizer, grid, grid.pixel_size(), 1, sites, &stats, mode);
     benchmark::DoNotOptimize(frame);
   }
   state.counters["coverage_ms"] = stats.coverage_seconds * 1e3;
@@ -110,7 +110,7 @@ void BM_RenderKind(benchmark::State& state) {
   const Diagram diagram = kind == 6 ? Diagram::kFarthest : Diagram::kNearest;
   RenderStats stats;
   for (auto _ : state) {
-    auto frame = gl.rasterizer->Render(grid, grid.pixel_size(), 1, sites, &stats, mode, diagram);
+    auto frame = RenderOnce(*gl.rasterizer, grid, grid.pixel_size(), 1, sites, &stats, mode, diagram);
     benchmark::DoNotOptimize(frame);
   }
   static const char* kNames[] = {"segment",      "polyline8", "polygon6", "polygon6-inside",
@@ -194,7 +194,7 @@ constexpr size_t kQuerySites = 100000;
 std::shared_ptr<const Frame> QueryFrame() {
   static std::shared_ptr<const Frame> frame = [] {
     Grid grid{kUnit, 1024, 1024};
-    return *Gl::Get().rasterizer->Render(grid, grid.pixel_size(), 1, RandomSites(kQuerySites, kUnit, 2));
+    return *RenderOnce(*Gl::Get().rasterizer, grid, grid.pixel_size(), 1, RandomSites(kQuerySites, kUnit, 2));
   }();
   return frame;
 }
