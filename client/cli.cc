@@ -63,11 +63,11 @@ Applications (paper sec. 7):
       it over the distance field
   gvd pick X Y [--max-distance D]
       the site (and its feature) nearest to the point, exactly
-  gvd mosaic IN OUT [--tiles N] [--adaptive] [--seed S] [--mean] [--embedded]
+  gvd mosaic IN OUT [--tiles N] [--adaptive] [--seed S] [--mean]
       IN (any format OpenImageIO reads) as a Voronoi mosaic: N tiles (default 1000) at
       random, or --adaptive: more and smaller where the image has detail; each tile the
-      colour at its site, or --mean of the tile; the diagram from the server, or
-      --embedded: rendered here on EGL (a GPU, or Mesa's llvmpipe)
+      colour at its site, or --mean of the tile; the diagram from the server (gvd-mosaic
+      makes the same mosaic with no server, rendering on this machine's EGL)
   all of them wait for --min-version V when given
 Health:
   gvd health           the server's grpc.health.v1 status; exit 0 when SERVING

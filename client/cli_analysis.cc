@@ -15,7 +15,7 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
-#include "client/mosaic.h"
+#include "image/mosaic.h"
 #include "image/image.h"
 
 namespace gvd::cli {
@@ -332,35 +332,20 @@ absl::StatusOr<std::vector<uint32_t>> ServerDiagram(Client& client, const Grid& 
 
 int Mosaic(const Args& a, Client& client) {
   const auto& w = a.words;
-  if (w.size() != 3) Usage("usage: gvd mosaic IN OUT [--tiles N] [--adaptive] [--seed S] [--mean] [--embedded]");
-  MosaicOptions options;
-  if (const std::string* t = Option(a, "--tiles")) {
-    if (!absl::SimpleAtoi(*t, &options.tiles) || options.tiles == 0) Usage("--tiles needs a positive count");
+  if (w.size() != 3) Usage("usage: gvd mosaic IN OUT [--tiles N] [--adaptive] [--seed S] [--mean]");
+  if (Option(a, "--embedded")) {
+    Usage("--embedded: gvd renders nothing itself; gvd-mosaic IN OUT takes the same flags and "
+          "renders on this machine");
   }
-  if (const std::string* s = Option(a, "--seed")) {
-    if (!absl::SimpleAtoi(*s, &options.seed)) Usage("--seed needs a number");
-  }
-  options.adaptive = Option(a, "--adaptive") != nullptr;
-  options.mean = Option(a, "--mean") != nullptr;
-  auto start = std::chrono::steady_clock::now();
-  auto image = ReadImage(w[1]);
-  if (!image.ok()) return WriteFailed(image.status());
-  std::vector<Vec2> sites = MosaicSites(*image, options);
-  const Grid grid = ImageGrid(*image);
-  auto diagram_start = std::chrono::steady_clock::now();
-  auto ids = Option(a, "--embedded") ? EmbeddedDiagram(grid, sites) : ServerDiagram(client, grid, sites);
-  if (!ids.ok()) return WriteFailed(ids.status());
-  double diagram_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - diagram_start).count();
-  auto mosaic = MakeMosaic(*image, sites, *ids, options);
-  if (!mosaic.ok()) return WriteFailed(mosaic.status());
-  if (auto s = WriteImage(w[2], *mosaic); !s.ok()) return WriteFailed(s);
-  double total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  std::cout << "wrote " << w[2] << ": " << image->width << "x" << image->height << ", "
-            << sites.size() << (options.adaptive ? " adaptive" : " random") << " tiles, "
-            << (options.mean ? "tile means" : "colours at the sites") << "; diagram "
-            << (Option(a, "--embedded") ? "embedded" : "from the server") << " in "
-            << Num(std::round(diagram_s * 1000) / 1000) << " s, " << Num(std::round(total_s * 1000) / 1000)
-            << " s in all\n";
+  auto options = MosaicOptionsFromFlags(a.options);
+  if (!options.ok()) Usage(std::string(options.status().message()));
+  auto report = RunMosaic(w[1], w[2], *options,
+                          [&](const Grid& grid, const std::vector<Vec2>& sites) {
+                            return ServerDiagram(client, grid, sites);
+                          },
+                          "from the server");
+  if (!report.ok()) return WriteFailed(report.status());
+  std::cout << *report << "\n";
   return 0;
 }
 

@@ -30,8 +30,14 @@ class CliTest : public ::testing::Test {
   static void TearDownTestSuite() { delete server_; }
 
   static Result Gvd(const std::string& args) {
-    std::string command = std::string(GVD_CLI_PATH) + " --server " + server_->address() + " " +
-                          args + " 2>&1";
+    return Run(std::string(GVD_CLI_PATH) + " --server " + server_->address() + " " + args);
+  }
+  // gvd-mosaic, which renders in its own process.
+  static Result Mosaic(const std::string& args) {
+    return Run(std::string(GVD_MOSAIC_PATH) + " " + args);
+  }
+  static Result Run(const std::string& line) {
+    std::string command = line + " 2>&1";
     FILE* p = popen(command.c_str(), "r");
     std::string out;
     char buf[4096];
@@ -290,36 +296,47 @@ TEST_F(CliTest, MosaicsFromTheServerAndEmbedded) {
     return c;
   };
   std::set<std::array<unsigned char, 3>> all = colours(in, 0, in.w);
+  // gvd mosaic takes the diagram from the server; gvd-mosaic renders it itself.
   std::map<std::string, Ppm> made;
-  for (const char* flags : {"--embedded", "", "--adaptive --embedded"}) {
+  for (const char* how : {"embedded", "server", "adaptive embedded"}) {
     const std::string out = server_->dir() + "/mosaic" + std::to_string(made.size()) + ".ppm";
-    Result r = Gvd("mosaic " + src + " " + out + " --tiles 300 --seed 5 " + flags);
-    ASSERT_EQ(r.exit_code, 0) << flags << ": " << r.out;
+    const std::string args = src + " " + out + " --tiles 300 --seed 5" +
+                             (std::string(how).find("adaptive") == 0 ? " --adaptive" : "");
+    Result r = std::string(how) == "server" ? Gvd("mosaic " + args) : Mosaic(args);
+    ASSERT_EQ(r.exit_code, 0) << how << ": " << r.out;
     EXPECT_NE(r.out.find("300"), std::string::npos) << r.out;
     Ppm m = ReadPpm(out);
     ASSERT_EQ(m.w, in.w);
     ASSERT_EQ(m.h, in.h);
     auto used = colours(m, 0, m.w);
-    EXPECT_LE(used.size(), 300u) << flags;
-    EXPECT_GT(used.size(), 200u) << flags;
-    for (const auto& c : used) ASSERT_TRUE(all.count(c)) << flags << ": a colour not in the image";
-    made[flags] = m;
+    EXPECT_LE(used.size(), 300u) << how;
+    EXPECT_GT(used.size(), 200u) << how;
+    for (const auto& c : used) ASSERT_TRUE(all.count(c)) << how << ": a colour not in the image";
+    made[how] = m;
   }
-  EXPECT_EQ(made["--embedded"].rgb, made[""].rgb) << "server and embedded mosaics differ";
+  EXPECT_EQ(made["embedded"].rgb, made["server"].rgb) << "server and embedded mosaics differ";
   // Random tiles fall about evenly; adaptive ones crowd the noisy half.
-  Ppm& random = made["--embedded"];
-  Ppm& adaptive = made["--adaptive --embedded"];
+  Ppm& random = made["embedded"];
+  Ppm& adaptive = made["adaptive embedded"];
   size_t random_left = colours(random, 0, 100).size(), random_right = colours(random, 140, 240).size();
   size_t adaptive_left = colours(adaptive, 0, 100).size(), adaptive_right = colours(adaptive, 140, 240).size();
   EXPECT_LT(random_right, 2 * random_left);
   EXPECT_GT(adaptive_right, 4 * adaptive_left);
   // Tile means: the smooth half's tiles average a linear gradient, so they keep its colours
-  // near; a bad input name is a clear error.
-  Result r = Gvd("mosaic " + src + " " + server_->dir() + "/mean.ppm --tiles 50 --mean --embedded");
+  // near; a bad input name, a bad flag and the CLI's old --embedded are clear errors.
+  Result r = Mosaic(src + " " + server_->dir() + "/mean.ppm --tiles 50 --mean");
   ASSERT_EQ(r.exit_code, 0) << r.out;
-  r = Gvd("mosaic /nonexistent.png " + server_->dir() + "/x.png --embedded");
-  EXPECT_EQ(r.exit_code, 1);
-  EXPECT_NE(r.out.find("cannot read /nonexistent.png"), std::string::npos) << r.out;
+  for (Result bad : {Mosaic("/nonexistent.png " + server_->dir() + "/x.png"),
+                     Gvd("mosaic /nonexistent.png " + server_->dir() + "/x.png")}) {
+    EXPECT_EQ(bad.exit_code, 1);
+    EXPECT_NE(bad.out.find("cannot read /nonexistent.png"), std::string::npos) << bad.out;
+  }
+  r = Mosaic(src + " " + server_->dir() + "/y.png --tiles -3");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.out.find("--tiles needs a positive count, not \"-3\""), std::string::npos) << r.out;
+  r = Gvd("mosaic " + src + " " + server_->dir() + "/y.png --embedded");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.out.find("gvd-mosaic"), std::string::npos) << r.out;
 }
 
 TEST_F(CliTest, HealthSaysServing) {

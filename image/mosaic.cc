@@ -1,15 +1,15 @@
-#include "client/mosaic.h"
+#include "image/mosaic.h"
 
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <random>
 
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
-#include "gl/context.h"
-#include "gl/raster.h"
-#include "gl/scene_raster.h"
+#include "absl/strings/str_format.h"
 
 namespace gvd {
 
@@ -145,22 +145,49 @@ absl::StatusOr<Image> MakeMosaic(const Image& image, const std::vector<Vec2>& si
   return out;
 }
 
-absl::StatusOr<std::vector<uint32_t>> EmbeddedDiagram(const Grid& grid,
-                                                      const std::vector<Vec2>& sites) {
-  auto context = GlContext::Create(DevicePreference::kAuto);
-  if (!context.ok()) return context.status();
-  auto rasterizer = Rasterizer::Create();
-  if (!rasterizer.ok()) return rasterizer.status();
-  SiteTable table;
-  table.reserve(sites.size());
-  for (size_t s = 0; s < sites.size(); ++s) table.push_back({absl::StrCat("t", s), PointSite{sites[s]}});
-  auto frame = RenderOnce(**rasterizer, grid, grid.pixel_size(), 1, table, nullptr, RenderMode::kExact);
-  if (!frame.ok()) return frame.status();
-  std::vector<uint32_t> ids(grid.pixel_count());
-  for (uint32_t j = 0; j < grid.height; ++j) {
-    for (uint32_t i = 0; i < grid.width; ++i) ids[size_t{j} * grid.width + i] = (*frame)->id_at(i, j);
+absl::StatusOr<MosaicOptions> MosaicOptionsFromFlags(
+    const std::map<std::string, std::string>& flags) {
+  MosaicOptions options;
+  if (auto t = flags.find("--tiles"); t != flags.end()) {
+    if (!absl::SimpleAtoi(t->second, &options.tiles) || options.tiles == 0) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--tiles needs a positive count, not \"", t->second, "\""));
+    }
   }
-  return ids;
+  if (auto s = flags.find("--seed"); s != flags.end()) {
+    if (!absl::SimpleAtoi(s->second, &options.seed)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--seed needs a number, not \"", s->second, "\""));
+    }
+  }
+  options.adaptive = flags.count("--adaptive") > 0;
+  options.mean = flags.count("--mean") > 0;
+  return options;
+}
+
+absl::StatusOr<std::string> RunMosaic(const std::string& in, const std::string& out,
+                                      const MosaicOptions& options, const DiagramFn& diagram,
+                                      const std::string& source) {
+  using Clock = std::chrono::steady_clock;
+  auto seconds = [](Clock::time_point since) {
+    return std::chrono::duration<double>(Clock::now() - since).count();
+  };
+  const auto start = Clock::now();
+  auto image = ReadImage(in);
+  if (!image.ok()) return image.status();
+  std::vector<Vec2> sites = MosaicSites(*image, options);
+  const auto diagram_start = Clock::now();
+  auto ids = diagram(ImageGrid(*image), sites);
+  if (!ids.ok()) return ids.status();
+  const double diagram_s = seconds(diagram_start);
+  auto mosaic = MakeMosaic(*image, sites, *ids, options);
+  if (!mosaic.ok()) return mosaic.status();
+  if (auto s = WriteImage(out, *mosaic); !s.ok()) return s;
+  return absl::StrFormat("wrote %s: %ux%u, %u%s tiles, %s; diagram %s in %.3g s, %.3g s in all",
+                         out, image->width, image->height, sites.size(),
+                         options.adaptive ? " adaptive" : " random",
+                         options.mean ? "tile means" : "colours at the sites", source, diagram_s,
+                         seconds(start));
 }
 
 }  // namespace gvd

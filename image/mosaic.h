@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -52,8 +53,16 @@ absl::StatusOr<Image> MakeMosaic(const Image& image, const std::vector<Vec2>& si
 // The grid of an image: its pixels, over [0, width] x [0, height].
 Grid ImageGrid(const Image& image);
 
-// The diagram rendered here, on this process's own EGL context (a GPU, else llvmpipe).
-absl::StatusOr<std::vector<uint32_t>> EmbeddedDiagram(const Grid& grid,
-                                                      const std::vector<Vec2>& sites);
+// The options from command flags, by name (--tiles N, --seed S, and the switches --adaptive
+// and --mean, present with any value); INVALID_ARGUMENT naming a bad value.
+absl::StatusOr<MosaicOptions> MosaicOptionsFromFlags(
+    const std::map<std::string, std::string>& flags);
+
+// The whole mosaic command: reads `in`, places the sites, takes their diagram from `diagram`,
+// colours the tiles and writes `out`. Returns the line to print: the sizes, the diagram's
+// `source` and the times taken.
+absl::StatusOr<std::string> RunMosaic(const std::string& in, const std::string& out,
+                                      const MosaicOptions& options, const DiagramFn& diagram,
+                                      const std::string& source);
 
 }  // namespace gvd
