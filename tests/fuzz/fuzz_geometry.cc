@@ -11,6 +11,7 @@
 #include "geometry/coverage.h"
 #include "geometry/exact.h"
 #include "geometry/mesh.h"
+#include "tests/oracle.h"
 
 namespace {
 
@@ -61,10 +62,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   gvd::Coverage cov = gvd::ComputeCoverage(grid, sites, index, grid.all(), tile);
   for (uint32_t j = 0; j < grid.height; ++j) {
     for (uint32_t i = 0; i < grid.width; ++i) {
+      // Every site that is nearest at a pixel centre (ties within the oracle's tolerance
+      // included) is drawn at least that far.
       gvd::Vec2 p = grid.Center(i, j);
-      double best = gvd::NearestBruteForce(p, table).distance;
+      const double best = gvd::oracle::BestSite(p, table).value;
+      const double tolerance = gvd::oracle::Tolerance(p, best);
       for (uint32_t s = 0; s < count; ++s) {
-        if (gvd::ExactDistance(p, table[s].geometry) == best) Check(best <= cov.radius[s]);
+        const double d = gvd::oracle::Distance(p, table[s].geometry);
+        if (d <= best + tolerance) Check(d <= cov.radius[s] + tolerance);
       }
     }
   }
@@ -81,7 +86,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   gvd::IdImage image{grid, std::vector<uint32_t>(grid.pixel_count())};
   for (uint32_t j = 0; j < grid.height; ++j) {
     for (uint32_t i = 0; i < grid.width; ++i) {
-      auto n = gvd::NearestBruteForce(grid.Center(i, j), table);
+      auto n = gvd::oracle::BestSite(grid.Center(i, j), table);
       image.ids[size_t{j} * grid.width + i] = static_cast<uint32_t>(n.index) + 1;
     }
   }
