@@ -155,14 +155,4 @@ double FarthestDistance(const Window& rect, const Geometry& g) {
   return best;
 }
 
-ExactNearest NearestBruteForce(Vec2 q, std::span<const Site> sites, Diagram diagram) {
-  ExactNearest best;
-  for (size_t i = 0; i < sites.size(); ++i) {
-    double v = SiteValue(q, sites[i]);
-    if (!std::isfinite(v)) continue;
-    if (!best.found() || Beats(diagram, v, best.distance)) best = {i, v};
-  }
-  return best;
-}
-
 }  // namespace gvd

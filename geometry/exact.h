@@ -4,7 +4,6 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
-#include <span>
 #include <vector>
 
 #include "geometry/geometry.h"
@@ -74,15 +73,10 @@ inline bool Beats(Diagram diagram, double a, double b) {
 
 struct ExactNearest {
   static constexpr size_t kNone = std::numeric_limits<size_t>::max();
-  size_t index = kNone;  // into the span; kNone when no site is a candidate at q
+  size_t index = kNone;  // the site (SiteIndex::Nearest: its slot); kNone when none is a candidate
   double distance = 0;   // its value at q
   bool found() const { return index != kNone; }
 };
-
-// The best site at q by brute force over all sites, O(n): the least (kNearest) or greatest
-// (kFarthest) finite SiteValue. Ties go to the lowest index.
-ExactNearest NearestBruteForce(Vec2 q, std::span<const Site> sites,
-                               Diagram diagram = Diagram::kNearest);
 
 // ---- implementation ----
 

@@ -57,26 +57,6 @@ TEST(ExactVsOracle, DistancesFeaturesSidesAndValues) {
   EXPECT_GT(checked, 10000);
 }
 
-// The brute-force best site (which the server's exact answers and the GL tests' bounds rest
-// on) against the oracle's, nearest and farthest, with ties from duplicated sites.
-TEST(ExactVsOracle, BestSites) {
-  Generator gen(405);
-  std::vector<Site> sites;
-  for (int k = 0; k < 40; ++k) sites.push_back({std::to_string(k), gen.Kind(k % 7)});
-  sites.push_back(sites[3]);
-  for (Diagram diagram : {Diagram::kNearest, Diagram::kFarthest}) {
-    for (int i = 0; i < 2000; ++i) {
-      Vec2 q = gen.P();
-      ExactNearest got = NearestBruteForce(q, sites, diagram);
-      oracle::Best want = oracle::BestSite(q, sites, diagram);
-      ASSERT_EQ(got.found(), want.found);
-      if (!want.found) continue;
-      ASSERT_NEAR(got.distance, want.value, oracle::Tolerance(q, want.value));
-      ASSERT_NEAR(oracle::Value(q, sites[got.index]), want.value, oracle::Tolerance(q, want.value));
-    }
-  }
-}
-
 TEST(ExactDistance, Point) {
   // Sites: (0, 0). Queries at a 3-4-5 triangle and at the site itself.
   EXPECT_DOUBLE_EQ(ExactDistance({3, 4}, PointSite{{0, 0}}), 5);
@@ -90,18 +70,6 @@ TEST(FarthestDistance, InsideAndOutside) {
   EXPECT_DOUBLE_EQ(FarthestDistance(w, PointSite{{0, 0}}), 5);
   EXPECT_DOUBLE_EQ(FarthestDistance(w, PointSite{{2, 1.5}}), 2.5);
   EXPECT_DOUBLE_EQ(FarthestDistance(w, PointSite{{-4, 0}}), std::hypot(8, 3));
-}
-
-TEST(NearestBruteForce, TiesGoToLowestIndex) {
-  // Sites: (1, 0), (-1, 0), (1, 0) again. The query (0, 0) is equidistant from all three.
-  std::vector<Site> sites = {{"a", PointSite{{1, 0}}}, {"b", PointSite{{-1, 0}}},
-                             {"c", PointSite{{1, 0}}}};
-  auto n = NearestBruteForce({0, 0}, sites);
-  EXPECT_EQ(n.index, 0u);
-  EXPECT_DOUBLE_EQ(n.distance, 1);
-  n = NearestBruteForce({-0.5, 0}, sites);
-  EXPECT_EQ(n.index, 1u);
-  EXPECT_DOUBLE_EQ(n.distance, 0.5);
 }
 
 }  // namespace
