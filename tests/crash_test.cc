@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "gvd/client.h"
+#include "metrics_scrape.h"
 #include "server_process.h"
 #include "test_scenes.h"
 
@@ -176,45 +177,67 @@ TEST(CrashTest, AcknowledgedUpdatesSurviveSigkill) {
 
 // SIGTERM drains: a query waiting for a render when the signal comes still gets its answer,
 // and the server exits 0.
+// SIGTERM while a query waits for a render: the drain lets the render finish and the query be
+// answered, and the server exits cleanly having cancelled nothing. The render is held until
+// the query is known to be in flight and the server to be draining, so the order is the same
+// however fast the machine renders.
 TEST(CrashTest, SigtermDrainsCallsInFlight) {
-  // A grace longer than the render in any build (sanitizers slow it 20-fold); the drain ends
-  // as soon as the waiting query is answered.
-  testing::ServerProcess server(GVD_SERVER_PATH, {"--shutdown-grace-ms", "120000"});
+  testing::ServerProcess server(
+      GVD_SERVER_PATH, {"--shutdown-grace-ms", "120000", "--metrics-listen", "127.0.0.1:0"});
   ASSERT_TRUE(server.error().empty()) << server.error();
-  // Two 100,000-site upserts can outlast the default 30 s deadline under ThreadSanitizer on
-  // a loaded machine; what this test is about is the drain below.
-  ClientOptions options;
-  options.timeout = std::chrono::seconds(300);
-  auto client = Client::Connect(server.address(), options);
+  const int port = testing::MetricsPort(server.log());
+  ASSERT_NE(port, 0) << server.log();
+  auto client = Client::Connect(server.address());
   v1::Scene scene;
-  ASSERT_TRUE(client->CreateScene(testing::UnitScene("slow", 1024, 1024), &scene).ok());
+  ASSERT_TRUE(client->CreateScene(testing::UnitScene("draining", 256, 256), &scene).ok());
+  auto hold = std::make_unique<testing::HoldRenders>(server);
   std::mt19937_64 rng(1);
   std::uniform_real_distribution<double> unit(0, 1);
-  uint64_t v;
-  for (int batch = 0; batch < 2; ++batch) {  // 200,000 points: a render of a second or so
-    v1::UpsertSitesRequest u;
-    u.set_scene_id("slow");
-    for (int i = 0; i < 100000; ++i) {
-      auto* s = u.add_sites();
-      s->set_id(std::to_string(batch) + "-" + std::to_string(i));
-      s->mutable_point()->set_x(unit(rng));
-      s->mutable_point()->set_y(unit(rng));
-    }
-    ASSERT_TRUE(client->UpsertSites(u, &v).ok());
+  std::vector<Site> sites;
+  v1::UpsertSitesRequest u;
+  u.set_scene_id("draining");
+  for (int i = 0; i < 1000; ++i) {
+    sites.push_back({std::to_string(i), PointSite{{unit(rng), unit(rng)}}});
+    *u.add_sites() = testing::ToProtoSite(sites.back());
   }
+  uint64_t v;
+  ASSERT_TRUE(client->UpsertSites(u, &v).ok());
+  const Vec2 q{0.5, 0.25};
   grpc::Status answered;
+  v1::FindNearestResponse r;
+  std::atomic<bool> done = false;
   std::thread waiting([&] {
-    v1::FindNearestRequest q;
-    q.set_scene_id("slow");
-    q.set_min_version(v);
-    q.add_points()->set_x(0.5);
-    v1::FindNearestResponse r;
-    answered = client->FindNearest(q, &r);
+    v1::FindNearestRequest find;
+    find.set_scene_id("draining");
+    find.set_min_version(v);
+    find.add_points()->set_x(q.x);
+    find.mutable_points(0)->set_y(q.y);
+    answered = client->FindNearest(find, &r);
+    done = true;
   });
-  std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  int status = server.Stop();  // SIGTERM while the query waits for the render
+  const std::string in_flight = "gvd_rpc_in_flight{method=\"FindNearest\"} 1";
+  std::string text = testing::WaitForMetric(port, in_flight, 120);
+  ASSERT_NE(text.find(in_flight), std::string::npos) << text;
+  server.Terminate();
+  for (int tries = 0; tries < 2400 && server.log().find("event=shutting_down") == std::string::npos;
+       ++tries) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  ASSERT_NE(server.log().find("event=shutting_down"), std::string::npos) << server.log();
+  EXPECT_FALSE(done) << "the query was answered while its version's render was held";
+  hold.reset();  // the render goes on, during the drain
   waiting.join();
-  EXPECT_TRUE(answered.ok()) << answered.error_message();
+  const int status = server.Wait();
+  ASSERT_TRUE(answered.ok()) << answered.error_message();
+  ASSERT_EQ(r.results_size(), 1);
+  // The answer of the version the query waited for: a site of it, at its distance, no
+  // farther from the true nearest than the answer's bound.
+  const v1::NearestSite& n = r.results(0);
+  ASSERT_FALSE(n.site_id().empty());
+  const Site& named = sites.at(std::stoul(n.site_id()));
+  const double tolerance = oracle::Tolerance(q, n.distance());
+  EXPECT_NEAR(n.distance(), oracle::Distance(q, named.geometry), tolerance) << n.site_id();
+  EXPECT_GE(oracle::BestSite(q, sites).value + tolerance, n.distance() - n.error_bound());
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << server.log();
   EXPECT_NE(server.log().find("event=stopped cancelled_calls=0"), std::string::npos) << server.log();
 }

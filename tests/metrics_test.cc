@@ -1,9 +1,5 @@
 // /metrics on its own port, scraped as Prometheus would, after calls whose counts are known.
-#include <arpa/inet.h>
 #include <gtest/gtest.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
-#include <unistd.h>
 
 #include <regex>
 #include <thread>
@@ -11,36 +7,12 @@
 #include <grpcpp/create_channel.h>
 
 #include "gvd/client.h"
+#include "metrics_scrape.h"
 #include "server_process.h"
 #include "test_scenes.h"
 
 namespace gvd {
 namespace {
-
-// GET http://127.0.0.1:port/metrics; the body, or "" on failure.
-std::string Scrape(int port) {
-  int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(port);
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
-    close(fd);
-    return "";
-  }
-  std::string request = "GET /metrics HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n";
-  if (write(fd, request.data(), request.size()) != ssize_t(request.size())) {
-    close(fd);
-    return "";
-  }
-  std::string response;
-  char buf[4096];
-  ssize_t n;
-  while ((n = read(fd, buf, sizeof buf)) > 0) response.append(buf, n);
-  close(fd);
-  auto body = response.find("\r\n\r\n");
-  return body == std::string::npos ? "" : response.substr(body + 4);
-}
 
 TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
   testing::ServerProcess server(GVD_SERVER_PATH, {"--metrics-listen", "127.0.0.1:0"});
@@ -70,7 +42,7 @@ TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
   v1::FindNearestResponse r;
   ASSERT_TRUE(client->FindNearest(q, &r).ok());
 
-  std::string text = Scrape(port);
+  std::string text = testing::Scrape(port);
   ASSERT_FALSE(text.empty());
   for (const char* want : {
            "gvd_rpc_total{code=\"OK\",method=\"CreateScene\"} 1",
@@ -86,17 +58,6 @@ TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
        }) {
     EXPECT_NE(text.find(want), std::string::npos) << "missing: " << want << "\n" << text;
   }
-}
-
-// Polls the metrics until `line` appears (up to `seconds`); the last scrape.
-std::string WaitForMetric(int port, const std::string& line, int seconds) {
-  std::string text;
-  for (int tries = 0; tries < seconds * 20; ++tries) {
-    text = Scrape(port);
-    if (text.find(line) != std::string::npos) break;
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  return text;
 }
 
 // A query cancelled while it computes stops there: the server records it as cancelled
@@ -138,16 +99,16 @@ TEST(MetricsTest, CancelledBatchesStopWorking) {
   v1::FindNearestResponse r;
   grpc::Status status;
   std::thread call([&] { status = stub->FindNearest(&ctx, q, &r); });
-  std::string text = WaitForMetric(port, "gvd_rpc_in_flight{method=\"FindNearest\"} 1", 120);
+  std::string text = testing::WaitForMetric(port, "gvd_rpc_in_flight{method=\"FindNearest\"} 1", 120);
   EXPECT_NE(text.find("gvd_rpc_in_flight{method=\"FindNearest\"} 1"), std::string::npos) << text;
   ctx.TryCancel();
   call.join();
   EXPECT_EQ(status.error_code(), grpc::StatusCode::CANCELLED) << status.error_message();
   // The server notices within about a million site evaluations.
   const std::string cancelled = "gvd_rpc_total{code=\"CANCELLED\",method=\"FindNearest\"} 1";
-  text = WaitForMetric(port, cancelled, 60);
+  text = testing::WaitForMetric(port, cancelled, 60);
   EXPECT_NE(text.find(cancelled), std::string::npos) << text;
-  text = WaitForMetric(port, "gvd_rpc_in_flight{method=\"FindNearest\"} 0", 60);
+  text = testing::WaitForMetric(port, "gvd_rpc_in_flight{method=\"FindNearest\"} 0", 60);
   EXPECT_NE(text.find("gvd_rpc_in_flight{method=\"FindNearest\"} 0"), std::string::npos) << text;
 }
 

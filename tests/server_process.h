@@ -90,8 +90,16 @@ class ServerProcess {
 
   // Sends SIGTERM and waits; returns the exit status as waitpid reports it.
   int Stop() {
+    Terminate();
+    return Wait();
+  }
+  // Sends SIGTERM: the server drains and exits in its own time (see Wait).
+  void Terminate() {
+    if (pid_ > 0) kill(pid_, SIGTERM);
+  }
+  // Waits for the server to exit; returns the exit status as waitpid reports it.
+  int Wait() {
     if (pid_ <= 0) return -1;
-    kill(pid_, SIGTERM);
     int status = 0;
     waitpid(pid_, &status, 0);
     pid_ = -1;

@@ -65,11 +65,4 @@ inline v1::CreateSceneRequest UnitScene(const std::string& id, uint32_t width, u
   return r;
 }
 
-// The metrics port a server logged ("event=metrics ... port=N"), or 0.
-inline int MetricsPort(const std::string& log) {
-  std::smatch m;
-  if (!std::regex_search(log, m, std::regex("event=metrics address=\\S+ port=(\\d+)"))) return 0;
-  return std::stoi(m[1]);
-}
-
 }  // namespace gvd::testing
