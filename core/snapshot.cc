@@ -81,10 +81,6 @@ std::shared_ptr<const SiteSnapshot> SiteSnapshot::Of(uint64_t version, std::vect
   return b.Build(version);
 }
 
-const LeastWeights& SiteSnapshot::least() const {
-  std::call_once(least_once_, [this] { least_ = FindLeastWeights(sites()); });
-  return least_;
-}
 
 // ---- SnapshotBuilder ----
 

@@ -7,7 +7,6 @@
 
 #include <cstdint>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -70,8 +69,6 @@ class SiteSnapshot {
   // Whether every site is plain (Site::plain): then the nearest site is the nearest by
   // Euclidean distance alone.
   bool plain() const { return non_plain_ == 0; }
-  // The least weights over the sites: computed on the first call (O(n)), then kept.
-  const LeastWeights& least() const;
 
  private:
   friend class SnapshotBuilder;
@@ -81,8 +78,6 @@ class SiteSnapshot {
   SiteIndex index_;
   IdMap ids_;
   size_t non_plain_ = 0;
-  mutable std::once_flag least_once_;
-  mutable LeastWeights least_;
 };
 
 // An upsert (site set) or a deletion (site empty) of the site `id`.

@@ -50,17 +50,6 @@ uint32_t DefaultTilePx(const Grid& grid, size_t n) {
   return static_cast<uint32_t>(std::clamp(2 * spacing, 4.0, 64.0));
 }
 
-LeastWeights FindLeastWeights(const SlotTable& sites) {
-  LeastWeights least;
-  for (uint32_t s = 0; s < sites.size(); ++s) {
-    if (const Site* site = sites.get(s)) {
-      least.multiplicative = std::min(least.multiplicative, site->multiplicative);
-      least.additive = std::min(least.additive, site->additive);
-    }
-  }
-  return least;
-}
-
 namespace {
 
 // The proof of ComputeCoverage, tile by tile: calls keep(slot, radius) for every site that
@@ -68,8 +57,8 @@ namespace {
 // kept by several tiles). Returns the tile side used.
 template <class Keep>
 uint32_t CoverTiles(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
-                    const LeastWeights& least, PixelRect region, uint32_t tile_px,
-                    Diagram diagram, Keep&& keep) {
+                    PixelRect region, uint32_t tile_px, Diagram diagram, Keep&& keep) {
+  const LeastWeights least = sites.least();
   tile_px = tile_px ? tile_px : DefaultTilePx(grid, index.size());
   const double margin = DrawMargin(grid);
   // The margin absorbs rounding differences between these bounds and distances computed
@@ -149,7 +138,7 @@ Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteInd
                          PixelRect region, uint32_t tile_px, Diagram diagram) {
   Coverage cov;
   cov.radius.assign(sites.size(), -1);
-  cov.tile_px = CoverTiles(grid, sites, index, FindLeastWeights(sites), region, tile_px, diagram,
+  cov.tile_px = CoverTiles(grid, sites, index, region, tile_px, diagram,
                            [&](uint32_t slot, double radius) {
                              cov.radius[slot] = std::max(cov.radius[slot], radius);
                              ++cov.pairs;
@@ -159,11 +148,10 @@ Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteInd
 
 std::vector<std::pair<uint32_t, double>> SparseCoverage(const Grid& grid, const SlotTable& sites,
                                                         const SiteIndex& index,
-                                                        const LeastWeights& least,
                                                         PixelRect region, uint32_t tile_px,
                                                         Diagram diagram) {
   std::unordered_map<uint32_t, double> radius;
-  CoverTiles(grid, sites, index, least, region, tile_px, diagram,
+  CoverTiles(grid, sites, index, region, tile_px, diagram,
              [&](uint32_t slot, double r) {
                auto [it, fresh] = radius.emplace(slot, r);
                if (!fresh) it->second = std::max(it->second, r);

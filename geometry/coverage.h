@@ -53,20 +53,13 @@ Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteInd
                          PixelRect region, uint32_t tile_px = 0,
                          Diagram diagram = Diagram::kNearest);
 
-// The least multiplicative and additive weights over the live sites of the table.
-struct LeastWeights {
-  double multiplicative = INFINITY;
-  double additive = INFINITY;
-};
-LeastWeights FindLeastWeights(const SlotTable& sites);
 
 // The same radii as ComputeCoverage, as a list of (slot, radius) for the sites with one, in
 // slot order: for a small region of a large scene (a zoom window), whose cost then depends
 // on the region and the sites near it, not on the scene's size (but for kFarthest, which
-// keeps every site). `least` must be FindLeastWeights(sites).
+// keeps every site).
 std::vector<std::pair<uint32_t, double>> SparseCoverage(const Grid& grid, const SlotTable& sites,
                                                         const SiteIndex& index,
-                                                        const LeastWeights& least,
                                                         PixelRect region, uint32_t tile_px,
                                                         Diagram diagram);
 

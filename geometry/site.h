@@ -75,6 +75,14 @@ struct Site {
 // A densely indexed list of sites; the id buffer holds index + 1.
 using SiteTable = std::vector<Site>;
 
+// The least multiplicative and additive weights over some sites (infinite when there are
+// none): no site's value at a point at distance d from it is below
+// multiplicative * d + additive.
+struct LeastWeights {
+  double multiplicative = INFINITY;
+  double additive = INFINITY;
+};
+
 // Sites by slot (the id buffer holds slot + 1), in chunks that versions share: a copy is
 // O(slots / kChunk) and a change copies only its chunk's pointers. Each site is immutable and
 // shared: two tables hold the same site in a slot exactly when they hold the same pointer,
@@ -91,13 +99,16 @@ class SlotTable {
   // The site in `slot`, or null for a free slot. CONTRACT: slot < size().
   const Site* get(uint32_t slot) const { return ptr(slot).get(); }
   const std::shared_ptr<const Site>& ptr(uint32_t slot) const {
-    return (*chunks_[slot / kChunk])[slot % kChunk];
+    return chunks_[slot / kChunk]->sites[slot % kChunk];
   }
   // Puts a site in (or frees, with null) a slot, growing the table as needed.
   void Set(uint32_t slot, std::shared_ptr<const Site> site);
   void Set(uint32_t slot, std::optional<Site> site) {
     Set(slot, site ? std::make_shared<const Site>(std::move(*site)) : nullptr);
   }
+
+  // The least weights over the sites, exactly: O(slots / kChunk), as each chunk keeps its own.
+  LeastWeights least() const;
 
   // Calls f(slot, before, after) for every slot whose site differs between the two tables
   // (by identity; either may be null). Chunks the tables share are skipped: O(slots / kChunk
@@ -106,7 +117,27 @@ class SlotTable {
   static void Diff(const SlotTable& before, const SlotTable& after, F&& f);
 
  private:
-  using Chunk = std::vector<std::shared_ptr<const Site>>;
+  // The least of some values and how many of them equal it, kept as values come and go; a
+  // removal that leaves none at the least asks for a recount.
+  struct Least {
+    double value = INFINITY;
+    uint32_t count = 0;
+    void Add(double v) {
+      if (v < value) {
+        value = v;
+        count = 1;
+      } else if (v == value) {
+        ++count;
+      }
+    }
+    // False when the least must be recounted.
+    bool Remove(double v) { return v != value || --count > 0; }
+  };
+  struct Chunk {
+    std::vector<std::shared_ptr<const Site>> sites = std::vector<std::shared_ptr<const Site>>(kChunk);
+    Least multiplicative, additive;
+    void Recount();
+  };
   std::vector<std::shared_ptr<const Chunk>> chunks_;
   uint32_t size_ = 0;
 };
@@ -119,8 +150,8 @@ void SlotTable::Diff(const SlotTable& before, const SlotTable& after, F&& f) {
     const Chunk* b = c < after.chunks_.size() ? after.chunks_[c].get() : nullptr;
     if (a == b) continue;
     for (uint32_t i = 0; i < kChunk && c * kChunk + i < n; ++i) {
-      const Site* x = a ? (*a)[i].get() : nullptr;
-      const Site* y = b ? (*b)[i].get() : nullptr;
+      const Site* x = a ? a->sites[i].get() : nullptr;
+      const Site* y = b ? b->sites[i].get() : nullptr;
       if (x != y) f(c * kChunk + i, x, y);
     }
   }

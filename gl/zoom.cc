@@ -74,7 +74,7 @@ absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> ZoomRenderer::Render(
       std::vector<SiteDraw> draws;
       ErrorTally tally = live;
       double max_value = 0;
-      for (auto [slot, radius] : SparseCoverage(g, sites, snapshot.index(), snapshot.least(), g.all(),
+      for (auto [slot, radius] : SparseCoverage(g, sites, snapshot.index(), g.all(),
                                                 kZoomTilePx, diagram)) {
         draws.push_back({slot, radius});
         SiteShape shape = rasterizer.Shape(g, params, *sites.get(slot), radius);

@@ -21,6 +21,10 @@
 
 namespace gvd {
 
+// Threads: one thread of its own, the only one that touches GL; it renders, reads back and
+// publishes frames, and runs the zoom tasks handed to it. Its public calls are thread-safe
+// (mu_ guards the queues) and never wait for a render, except Zoom, which waits for its own
+// task and must not be called from the render thread.
 class RenderLoop {
  public:
   RenderLoop() = default;

@@ -26,6 +26,13 @@ namespace gvd {
 
 struct NearestQuery;
 
+// Threads:
+//  - gRPC's threads run the handlers: they admit, validate, write scenes (through Scene's
+//    per-scene writer lock; the durable commit happens there, under no lock of this class)
+//    and answer from published frames when no wait is needed;
+//  - a query that waits for a version resumes on the answers_ lane of the CPU pool, and an
+//    analysis runs on the analyses_ lane, never on the render thread;
+//  - mu_ guards only the scene map and the ids being created, for lookups and publication.
 class VoronoiService final : public v1::Voronoi::CallbackService {
  public:
   // `renderer` and `store` must outlive the service. Until Load() has run, every call is

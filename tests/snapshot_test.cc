@@ -151,6 +151,63 @@ TEST(Snapshot, EveryVersionStaysWhatItWas) {
   }
 }
 
+// A table's least weights, kept per chunk as sites come and go, against the minimum over a
+// plain model of its slots: few distinct weights (so that ties at the least are common and
+// removing one of them must not lose the others), removals of the least, emptied chunks,
+// and copies whose changes must not reach the original.
+TEST(SlotTable, LeastWeightsFollowEveryChange) {
+  std::mt19937_64 rng(12);
+  const double kWeights[] = {0.5, 1, 1, 2, 3.25};
+  std::map<uint32_t, std::pair<double, double>> model;  // slot -> (multiplicative, additive)
+  SlotTable table;
+  auto check = [](const SlotTable& t, const std::map<uint32_t, std::pair<double, double>>& m) {
+    double least_m = INFINITY, least_a = INFINITY;
+    for (const auto& [slot, w] : m) {
+      least_m = std::min(least_m, w.first);
+      least_a = std::min(least_a, w.second);
+    }
+    LeastWeights got = t.least();
+    ASSERT_EQ(got.multiplicative, least_m);
+    ASSERT_EQ(got.additive, least_a);
+  };
+  const uint32_t kSlots = 3 * SlotTable::kChunk;
+  for (int step = 0; step < 20000; ++step) {
+    const uint32_t slot = rng() % kSlots;
+    if (rng() % 3 == 0) {
+      table.Set(slot, std::shared_ptr<const Site>());
+      model.erase(slot);
+    } else {
+      Site site{std::to_string(slot), PointSite{{0, 0}}};
+      site.multiplicative = kWeights[rng() % 5];
+      site.additive = kWeights[rng() % 5] - 0.5;
+      model[slot] = {site.multiplicative, site.additive};
+      table.Set(slot, std::make_shared<const Site>(site));
+    }
+    if (step % 97 == 0) {
+      ASSERT_NO_FATAL_FAILURE(check(table, model));
+    }
+    if (step == 10000) {
+      // A copy goes its own way; the original keeps its least.
+      SlotTable copy = table;
+      auto copy_model = model;
+      for (uint32_t s = 0; s < kSlots; ++s) copy.Set(s, std::shared_ptr<const Site>());
+      ASSERT_NO_FATAL_FAILURE(check(copy, {}));
+      ASSERT_NO_FATAL_FAILURE(check(table, copy_model));
+    }
+  }
+  // Emptied one chunk after another, least first.
+  std::vector<uint32_t> by_weight;
+  for (const auto& [slot, w] : model) by_weight.push_back(slot);
+  std::sort(by_weight.begin(), by_weight.end(), [&](uint32_t a, uint32_t b) {
+    return model[a] < model[b];
+  });
+  for (uint32_t slot : by_weight) {
+    table.Set(slot, std::shared_ptr<const Site>());
+    model.erase(slot);
+    ASSERT_NO_FATAL_FAILURE(check(table, model));
+  }
+}
+
 TEST(Snapshot, FreedSlotsAreTakenAgainAndAbandonGivesThemBack) {
   std::vector<uint32_t> free_slots;
   auto a = Advance(SiteSnapshot::Empty(1),

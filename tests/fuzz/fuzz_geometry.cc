@@ -74,7 +74,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     }
   }
   // The sparse form of the proof gives the same radii.
-  auto sparse = gvd::SparseCoverage(grid, sites, index, gvd::FindLeastWeights(sites), grid.all(),
+  auto sparse = gvd::SparseCoverage(grid, sites, index, grid.all(),
                                     tile ? tile : gvd::DefaultTilePx(grid, count),
                                     gvd::Diagram::kNearest);
   size_t drawn = 0;
