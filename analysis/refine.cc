@@ -194,7 +194,7 @@ class Refiner {
       return std::isfinite(v) && (nearest ? v < tie - tolerance : v > tie + tolerance);
     };
     if (nearest) {
-      const LeastWeights least = frame_.snapshot().sites().least();
+      const LeastWeights& least = frame_.snapshot().least();
       candidates_.clear();
       frame_.snapshot().index().Within(x, (tie - least.additive) / least.multiplicative,
                                        &candidates_);
@@ -251,7 +251,7 @@ class Refiner {
       return std::isfinite(v) && std::abs(v - best) <= delta;
     };
     if (nearest) {
-      const LeastWeights least = frame_.snapshot().sites().least();
+      const LeastWeights& least = frame_.snapshot().least();
       candidates_.clear();
       frame_.snapshot().index().Within(c, (best + delta - least.additive) / least.multiplicative,
                                        &candidates_);

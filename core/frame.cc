@@ -180,7 +180,7 @@ NearestAnswer Frame::Refine(Vec2 q, const NearestAnswer& answer) const {
   };
   if (error_.diagram == Diagram::kNearest) {
     // A site beats value V only where m d + a < V, so d < (V - least a) / least m.
-    const LeastWeights least = snapshot_->sites().least();
+    const LeastWeights& least = snapshot_->least();
     std::vector<uint32_t> near;
     snapshot_->index().Within(q, (answer.distance - least.additive) / least.multiplicative * (1 + 1e-12),
                               &near);

@@ -81,7 +81,6 @@ std::shared_ptr<const SiteSnapshot> SiteSnapshot::Of(uint64_t version, std::vect
   return b.Build(version);
 }
 
-
 // ---- SnapshotBuilder ----
 
 SnapshotBuilder::SnapshotBuilder(std::shared_ptr<const SiteSnapshot> base,
@@ -142,6 +141,7 @@ std::shared_ptr<const SiteSnapshot> SnapshotBuilder::Build(uint64_t version) {
   s->version_ = version;
   s->non_plain_ = non_plain_;
   s->index_ = base_->index_.Update(table_, changed_);
+  s->least_ = table_.least();
   std::sort(id_changes_.begin(), id_changes_.end(),
             [](const IdMap::Change& a, const IdMap::Change& b) { return a.first < b.first; });
   s->ids_ = base_->ids_.With(id_changes_);

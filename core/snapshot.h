@@ -69,6 +69,9 @@ class SiteSnapshot {
   // Whether every site is plain (Site::plain): then the nearest site is the nearest by
   // Euclidean distance alone.
   bool plain() const { return non_plain_ == 0; }
+  // The least weights over the sites (SlotTable::least), found once when the version is
+  // built, for the queries that bound their search with them.
+  const LeastWeights& least() const { return least_; }
 
  private:
   friend class SnapshotBuilder;
@@ -78,6 +81,7 @@ class SiteSnapshot {
   SiteIndex index_;
   IdMap ids_;
   size_t non_plain_ = 0;
+  LeastWeights least_;
 };
 
 // An upsert (site set) or a deletion (site empty) of the site `id`.

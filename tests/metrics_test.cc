@@ -1,7 +1,6 @@
 // /metrics on its own port, scraped as Prometheus would, after calls whose counts are known.
 #include <gtest/gtest.h>
 
-#include <regex>
 #include <thread>
 
 #include <grpcpp/create_channel.h>

@@ -2,7 +2,6 @@
 #pragma once
 
 #include <cmath>
-#include <regex>
 #include <string>
 
 #include "gvd/v1/voronoi.pb.h"
