@@ -27,6 +27,7 @@ std::optional<uint32_t> IdMap::Find(std::string_view id) const {
 
 IdMap IdMap::With(const std::vector<Change>& changes) const {
   IdMap out;
+  out.size_ = size_;
   out.leaves_.reserve(leaves_.size() + changes.size() / kLeaf + 1);
   auto emit = [&out](Leaf&& merged) {
     // Split into leaves of kLeaf when it outgrew 2 * kLeaf; drop it when it emptied.
@@ -37,16 +38,15 @@ IdMap IdMap::With(const std::vector<Change>& changes) const {
       b = e;
     }
   };
-  size_t c = 0;
-  // Each change goes to the leaf holding the greatest first id <= its id (or leaf 0).
-  for (size_t l = 0; l < std::max<size_t>(leaves_.size(), 1); ++l) {
+  // Each change goes to the leaf holding the greatest first id <= its id (or leaf 0), found
+  // by binary search; the leaves between changed ones are shared as they are.
+  size_t shared = 0;  // leaves_[0, shared) are in out
+  for (size_t c = 0; c < changes.size();) {
+    const size_t l = leaves_.empty() ? 0 : LeafAfter(changes[c].first);
+    out.leaves_.insert(out.leaves_.end(), leaves_.begin() + shared, leaves_.begin() + l);
     const bool last = l + 1 >= leaves_.size();
     size_t end = c;
     while (end < changes.size() && (last || changes[end].first < leaves_[l + 1]->front().id)) ++end;
-    if (end == c) {
-      if (!leaves_.empty()) out.leaves_.push_back(leaves_[l]);
-      continue;
-    }
     static const Leaf kNone;
     const Leaf& old = leaves_.empty() ? kNone : *leaves_[l];
     Leaf merged;
@@ -60,9 +60,11 @@ IdMap IdMap::With(const std::vector<Change>& changes) const {
       if (slot) merged.push_back({id, *slot});
     }
     while (i < old.size()) merged.push_back(old[i++]);
+    out.size_ = out.size_ - old.size() + merged.size();
     emit(std::move(merged));
+    shared = std::min(l + 1, leaves_.size());
   }
-  for (const auto& leaf : out.leaves_) out.size_ += leaf->size();
+  out.leaves_.insert(out.leaves_.end(), leaves_.begin() + shared, leaves_.end());
   return out;
 }
 

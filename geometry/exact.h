@@ -42,6 +42,12 @@ bool InsidePolygon(Vec2 q, const std::vector<Vec2>& vertices);
 // candidate (beyond its max_distance, or on the side of a polygon it excludes; the boundary
 // itself belongs to both sides).
 double SiteValue(Vec2 q, const Site& site);
+// SiteValue of the site in `slot`, from the table's own record of it when it is a plain point
+// (equal, as that site's value is its distance). CONTRACT: the slot holds a site.
+inline double SlotValue(Vec2 q, const SlotTable& sites, uint32_t slot) {
+  Vec2 p = sites.point(slot);
+  return std::isnan(p.x) ? SiteValue(q, *sites.get(slot)) : Distance(q, p);
+}
 
 // A polyline through points of the Bezier curve (3 or 4 control points) that stays within
 // `tolerance` of it: uniform in the parameter, with n pieces where the bound

@@ -12,25 +12,65 @@ SlotTable::SlotTable(const SiteTable& sites) {
   for (uint32_t i = 0; i < sites.size(); ++i) Set(i, std::make_shared<const Site>(sites[i]));
 }
 
+SlotTable::Chunk::Chunk() { points.fill(Vec2(NAN, NAN)); }
+
+SlotTable::Block::Block() { chunks.fill(EmptyChunk()); }
+
+const std::shared_ptr<const SlotTable::Chunk>& SlotTable::EmptyChunk() {
+  static const auto* empty = new std::shared_ptr<const Chunk>(std::make_shared<const Chunk>());
+  return *empty;
+}
+
+const std::shared_ptr<const SlotTable::Block>& SlotTable::EmptyBlock() {
+  static const auto* empty = new std::shared_ptr<const Block>(std::make_shared<const Block>());
+  return *empty;
+}
+
+namespace {
+
+// The node `p` points to, made this table's own first when another table shares it.
+template <class T>
+T& Own(std::shared_ptr<const T>& p) {
+  if (p.use_count() != 1) p = std::make_shared<const T>(*p);
+  return const_cast<T&>(*p);
+}
+
+LeastWeights Min(LeastWeights a, LeastWeights b) {
+  return {std::min(a.multiplicative, b.multiplicative), std::min(a.additive, b.additive)};
+}
+
+}  // namespace
+
 void SlotTable::Set(uint32_t slot, std::shared_ptr<const Site> site) {
-  while (chunks_.size() * kChunk <= slot) chunks_.push_back(std::make_shared<Chunk>());
+  if (!root_) root_ = std::make_shared<const Root>();
+  Root& root = Own(root_);
+  while (root.blocks.size() * kBlockSlots <= slot) {
+    root.blocks.push_back(EmptyBlock());
+    root.least.push_back({});
+  }
   size_ = std::max(size_, slot + 1);
-  auto& shared = chunks_[slot / kChunk];
-  if (shared.use_count() > 1) shared = std::make_shared<Chunk>(*shared);  // copy on write
-  Chunk& chunk = const_cast<Chunk&>(*shared);
-  std::shared_ptr<const Site>& entry = chunk.sites[slot % kChunk];
+  const uint32_t b = slot / kBlockSlots, c = slot / kChunk % kBlock, i = slot % kChunk;
+  Block& block = Own(root.blocks[b]);
+  Chunk& chunk = Own(block.chunks[c]);
+  std::shared_ptr<const Site>& entry = chunk.sites[i];
   bool recount = false;
   if (entry) {
     recount = !chunk.multiplicative.Remove(entry->multiplicative);
     recount = !chunk.additive.Remove(entry->additive) || recount;
   }
   entry = std::move(site);
+  const auto* point = entry && entry->plain() ? std::get_if<PointSite>(&entry->geometry) : nullptr;
+  chunk.points[i] = point ? point->p : Vec2(NAN, NAN);
   if (recount) {
     chunk.Recount();
   } else if (entry) {
     chunk.multiplicative.Add(entry->multiplicative);
     chunk.additive.Add(entry->additive);
   }
+  block.least[c] = {chunk.multiplicative.value, chunk.additive.value};
+  LeastWeights least;
+  for (const LeastWeights& l : block.least) least = Min(least, l);
+  root.least[b] = least;
 }
 
 void SlotTable::Chunk::Recount() {
@@ -45,9 +85,8 @@ void SlotTable::Chunk::Recount() {
 
 LeastWeights SlotTable::least() const {
   LeastWeights least;
-  for (const auto& chunk : chunks_) {
-    least.multiplicative = std::min(least.multiplicative, chunk->multiplicative.value);
-    least.additive = std::min(least.additive, chunk->additive.value);
+  if (root_) {
+    for (const LeastWeights& l : root_->least) least = Min(least, l);
   }
   return least;
 }

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <memory>
@@ -83,14 +84,18 @@ struct LeastWeights {
   double additive = INFINITY;
 };
 
-// Sites by slot (the id buffer holds slot + 1), in chunks that versions share: a copy is
-// O(slots / kChunk) and a change copies only its chunk's pointers. Each site is immutable and
-// shared: two tables hold the same site in a slot exactly when they hold the same pointer,
-// which is how a renderer finds what changed between two versions (Diff). A copy is immutable
-// to readers of the original; not thread-safe for concurrent writers.
+// Sites by slot (the id buffer holds slot + 1), in a persistent two-level table that versions
+// share: blocks of kBlock chunks of kChunk slots, under a root. A copy is O(1); a change
+// copies the root's block pointers, one block and one chunk (O(slots / kBlockSlots + kBlock
+// + kChunk)), and leaves every other table as it was. Each site is immutable and shared: two
+// tables hold the same site in a slot exactly when they hold the same pointer, which is how a
+// renderer finds what changed between two versions (Diff). A copy is immutable to readers of
+// the original; not thread-safe for concurrent writers.
 class SlotTable {
  public:
-  static constexpr uint32_t kChunk = 1024;
+  static constexpr uint32_t kChunk = 64;
+  static constexpr uint32_t kBlock = 32;
+  static constexpr uint32_t kBlockSlots = kChunk * kBlock;
 
   SlotTable() = default;
   explicit SlotTable(const SiteTable& sites);  // slot i = sites[i]
@@ -99,20 +104,24 @@ class SlotTable {
   // The site in `slot`, or null for a free slot. CONTRACT: slot < size().
   const Site* get(uint32_t slot) const { return ptr(slot).get(); }
   const std::shared_ptr<const Site>& ptr(uint32_t slot) const {
-    return chunks_[slot / kChunk]->sites[slot % kChunk];
+    return chunk(slot).sites[slot % kChunk];
   }
+  // Where the site in `slot` is, when it is a plain (Site::plain) point, and NaN otherwise:
+  // then its value at q is Distance(q, point), found without reaching the site itself.
+  // CONTRACT: slot < size().
+  Vec2 point(uint32_t slot) const { return chunk(slot).points[slot % kChunk]; }
   // Puts a site in (or frees, with null) a slot, growing the table as needed.
   void Set(uint32_t slot, std::shared_ptr<const Site> site);
   void Set(uint32_t slot, std::optional<Site> site) {
     Set(slot, site ? std::make_shared<const Site>(std::move(*site)) : nullptr);
   }
 
-  // The least weights over the sites, exactly: O(slots / kChunk), as each chunk keeps its own.
+  // The least weights over the sites, exactly: O(slots / kBlockSlots), as each chunk and
+  // block keeps its own.
   LeastWeights least() const;
 
   // Calls f(slot, before, after) for every slot whose site differs between the two tables
-  // (by identity; either may be null). Chunks the tables share are skipped: O(slots / kChunk
-  // + changed chunks * kChunk).
+  // (by identity; either may be null). Blocks and chunks the tables share are skipped.
   template <class F>
   static void Diff(const SlotTable& before, const SlotTable& after, F&& f);
 
@@ -134,25 +143,53 @@ class SlotTable {
     bool Remove(double v) { return v != value || --count > 0; }
   };
   struct Chunk {
-    std::vector<std::shared_ptr<const Site>> sites = std::vector<std::shared_ptr<const Site>>(kChunk);
+    Chunk();  // all slots free
+    std::array<std::shared_ptr<const Site>, kChunk> sites;
+    std::array<Vec2, kChunk> points;  // see point()
     Least multiplicative, additive;
     void Recount();
   };
-  std::vector<std::shared_ptr<const Chunk>> chunks_;
+  struct Block {
+    Block();  // every chunk the shared empty one
+    std::array<std::shared_ptr<const Chunk>, kBlock> chunks;
+    std::array<LeastWeights, kBlock> least;  // each chunk's
+  };
+  struct Root {
+    std::vector<std::shared_ptr<const Block>> blocks;
+    std::vector<LeastWeights> least;  // each block's
+  };
+  static const std::shared_ptr<const Chunk>& EmptyChunk();
+  static const std::shared_ptr<const Block>& EmptyBlock();
+  // Block b, or the empty block past the table's end.
+  const Block& block(uint32_t b) const {
+    return root_ && b < root_->blocks.size() ? *root_->blocks[b] : *EmptyBlock();
+  }
+  const Chunk& chunk(uint32_t slot) const {
+    return *root_->blocks[slot / kBlockSlots]->chunks[slot / kChunk % kBlock];
+  }
+
+  std::shared_ptr<const Root> root_;  // null while no slot was ever set
   uint32_t size_ = 0;
 };
 
 template <class F>
 void SlotTable::Diff(const SlotTable& before, const SlotTable& after, F&& f) {
+  if (before.root_ == after.root_) return;
   const uint32_t n = std::max(before.size_, after.size_);
-  for (uint32_t c = 0; c * kChunk < n; ++c) {
-    const Chunk* a = c < before.chunks_.size() ? before.chunks_[c].get() : nullptr;
-    const Chunk* b = c < after.chunks_.size() ? after.chunks_[c].get() : nullptr;
-    if (a == b) continue;
-    for (uint32_t i = 0; i < kChunk && c * kChunk + i < n; ++i) {
-      const Site* x = a ? a->sites[i].get() : nullptr;
-      const Site* y = b ? b->sites[i].get() : nullptr;
-      if (x != y) f(c * kChunk + i, x, y);
+  for (uint32_t b = 0; b * kBlockSlots < n; ++b) {
+    const Block& x = before.block(b);
+    const Block& y = after.block(b);
+    if (&x == &y) continue;
+    for (uint32_t c = 0; c < kBlock; ++c) {
+      const Chunk& cx = *x.chunks[c];
+      const Chunk& cy = *y.chunks[c];
+      if (&cx == &cy) continue;
+      const uint32_t first = (b * kBlock + c) * kChunk;
+      for (uint32_t i = 0; i < kChunk && first + i < n; ++i) {
+        const Site* s = cx.sites[i].get();
+        const Site* t = cy.sites[i].get();
+        if (s != t) f(first + i, s, t);
+      }
     }
   }
 }

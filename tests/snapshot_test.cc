@@ -170,7 +170,7 @@ TEST(SlotTable, LeastWeightsFollowEveryChange) {
     ASSERT_EQ(got.multiplicative, least_m);
     ASSERT_EQ(got.additive, least_a);
   };
-  const uint32_t kSlots = 3 * SlotTable::kChunk;
+  const uint32_t kSlots = SlotTable::kBlockSlots + 3 * SlotTable::kChunk;  // two blocks
   for (int step = 0; step < 20000; ++step) {
     const uint32_t slot = rng() % kSlots;
     if (rng() % 3 == 0) {
@@ -206,6 +206,68 @@ TEST(SlotTable, LeastWeightsFollowEveryChange) {
     model.erase(slot);
     ASSERT_NO_FATAL_FAILURE(check(table, model));
   }
+}
+
+// The table's record of where a plain point is (what raster lookups read instead of the site)
+// against the sites themselves: every kind and variant, replaced and freed slots, two blocks,
+// and a copy whose changes must not reach the original.
+TEST(SlotTable, PointRecordsFollowTheSites) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-2, 2);
+  const uint32_t kSlots = SlotTable::kBlockSlots + 2 * SlotTable::kChunk;
+  std::map<uint32_t, std::shared_ptr<const Site>> model;
+  auto check = [](const SlotTable& t, const std::map<uint32_t, std::shared_ptr<const Site>>& m,
+                  uint32_t slots) {
+    for (uint32_t s = 0; s < std::min(slots, t.size()); ++s) {
+      auto it = m.find(s);
+      const Site* site = it == m.end() ? nullptr : it->second.get();
+      ASSERT_EQ(t.get(s), site) << "slot " << s;
+      Vec2 p = t.point(s);
+      const bool plain_point = site != nullptr && std::holds_alternative<PointSite>(site->geometry) &&
+                               site->additive == 0 && site->multiplicative == 1 &&
+                               std::isinf(site->max_distance);
+      if (plain_point) {
+        ASSERT_EQ(p.x, std::get<PointSite>(site->geometry).p.x) << "slot " << s;
+        ASSERT_EQ(p.y, std::get<PointSite>(site->geometry).p.y) << "slot " << s;
+      } else {
+        ASSERT_TRUE(std::isnan(p.x) && std::isnan(p.y)) << "slot " << s;
+      }
+    }
+  };
+  SlotTable table;
+  for (int step = 0; step < 6000; ++step) {
+    const uint32_t slot = rng() % kSlots;
+    std::shared_ptr<const Site> site;
+    if (rng() % 4 != 0) {
+      Site x{std::to_string(slot), PointSite{{u(rng), u(rng)}}};
+      switch (rng() % 5) {
+        case 0: x.additive = 0.5; break;
+        case 1: x.multiplicative = 2; break;
+        case 2: x.max_distance = 1; break;
+        case 3: x.geometry = SegmentSite{{0, 0}, {u(rng), u(rng)}}; break;
+        default: break;
+      }
+      site = std::make_shared<const Site>(x);
+      model[slot] = site;
+    } else {
+      model.erase(slot);
+    }
+    table.Set(slot, site);
+    if (step % 211 == 0) {
+      ASSERT_NO_FATAL_FAILURE(check(table, model, kSlots));
+    }
+    if (step == 3000) {
+      SlotTable copy = table;
+      auto copy_model = model;
+      for (uint32_t s = 0; s < kSlots; s += 7) {
+        copy.Set(s, std::make_shared<const Site>(Site{"c", PointSite{{9, 9}}}));
+        copy_model[s] = copy.ptr(s);
+      }
+      ASSERT_NO_FATAL_FAILURE(check(copy, copy_model, kSlots));
+      ASSERT_NO_FATAL_FAILURE(check(table, model, kSlots));
+    }
+  }
+  ASSERT_NO_FATAL_FAILURE(check(table, model, kSlots));
 }
 
 TEST(Snapshot, FreedSlotsAreTakenAgainAndAbandonGivesThemBack) {
