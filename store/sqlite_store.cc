@@ -18,13 +18,18 @@ absl::Status SqliteError(sqlite3* db, const std::string& what) {
   return absl::InternalError(absl::StrCat("store: ", what, ": ", sqlite3_errmsg(db)));
 }
 
-// A prepared statement, finalized on scope exit.
+// A statement of the connection's cache (SqliteStore::Prepared), reset with its bindings
+// cleared when the scope ends so that the next user finds it fresh.
 class Statement {
  public:
-  Statement(sqlite3* db, const char* sql) {
-    if (sqlite3_prepare_v2(db, sql, -1, &stmt_, nullptr) != SQLITE_OK) stmt_ = nullptr;
+  explicit Statement(sqlite3_stmt* stmt) : stmt_(stmt) {}
+  ~Statement() {
+    if (stmt_ == nullptr) return;
+    sqlite3_reset(stmt_);
+    sqlite3_clear_bindings(stmt_);
   }
-  ~Statement() { sqlite3_finalize(stmt_); }
+  Statement(const Statement&) = delete;
+  Statement& operator=(const Statement&) = delete;
   bool ok() const { return stmt_ != nullptr; }
   sqlite3_stmt* get() { return stmt_; }
   void Text(int i, std::string_view s) {
@@ -105,7 +110,26 @@ absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string
   return store;
 }
 
-SqliteStore::~SqliteStore() { sqlite3_close(db_); }
+SqliteStore::~SqliteStore() {
+  for (const auto& [sql, stmt] : statements_) sqlite3_finalize(stmt);
+  sqlite3_close(db_);
+}
+
+sqlite3_stmt* SqliteStore::Prepared(const char* sql) {
+  auto [it, added] = statements_.try_emplace(sql, nullptr);
+  if (added &&
+      sqlite3_prepare_v3(db_, sql, -1, SQLITE_PREPARE_PERSISTENT, &it->second, nullptr) != SQLITE_OK) {
+    statements_.erase(it);
+    return nullptr;
+  }
+  return it->second;
+}
+
+absl::Status SqliteStore::Step(const char* sql) {
+  Statement s(Prepared(sql));
+  if (!s.ok() || !s.Run()) return SqliteError(db_, sql);
+  return absl::OkStatus();
+}
 
 absl::Status SqliteStore::Exec(const char* sql) {
   char* error = nullptr;
@@ -121,11 +145,11 @@ template <class Body>
 absl::Status SqliteStore::Transaction(Body body) {
   std::lock_guard<std::mutex> lock(mu_);
   auto start = std::chrono::steady_clock::now();
-  if (auto s = Exec("BEGIN IMMEDIATE"); !s.ok()) return s;
+  if (auto s = Step("BEGIN IMMEDIATE"); !s.ok()) return s;
   absl::Status s = body();
-  if (s.ok()) s = Exec("COMMIT");
+  if (s.ok()) s = Step("COMMIT");
   if (!s.ok()) {
-    Exec("ROLLBACK").IgnoreError();
+    Step("ROLLBACK").IgnoreError();
     return s;
   }
   last_commit_seconds_ =
@@ -140,7 +164,7 @@ double SqliteStore::last_commit_seconds() const {
 
 absl::Status SqliteStore::Migrate(const Legacy& legacy) {
   {
-    Statement old(db_, "SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'scenes'");
+    Statement old(Prepared("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'scenes'"));
     if (!old.ok()) return SqliteError(db_, "reading the schema");
     if (sqlite3_step(old.get()) != SQLITE_ROW) return absl::OkStatus();
   }
@@ -150,10 +174,10 @@ absl::Status SqliteStore::Migrate(const Legacy& legacy) {
                      "cannot convert it"));
   }
   return Transaction([&]() -> absl::Status {
-    Statement scenes(db_, "SELECT id, request, version FROM scenes ORDER BY id");
-    Statement sites(db_, "SELECT site FROM sites WHERE scene = ?");
-    Statement put_scene(db_, "INSERT INTO scene (id, settings, version) VALUES (?, ?, ?)");
-    Statement put_site(db_, "INSERT INTO site (scene, id, site) VALUES (?, ?, ?)");
+    Statement scenes(Prepared("SELECT id, request, version FROM scenes ORDER BY id"));
+    Statement sites(Prepared("SELECT site FROM sites WHERE scene = ?"));
+    Statement put_scene(Prepared("INSERT INTO scene (id, settings, version) VALUES (?, ?, ?)"));
+    Statement put_site(Prepared("INSERT INTO site (scene, id, site) VALUES (?, ?, ?)"));
     if (!scenes.ok() || !sites.ok() || !put_scene.ok() || !put_site.ok()) {
       return SqliteError(db_, "converting the earlier schema");
     }
@@ -196,7 +220,7 @@ absl::Status SqliteStore::Migrate(const Legacy& legacy) {
 absl::StatusOr<std::vector<StoredScene>> SqliteStore::Load() {
   std::lock_guard<std::mutex> lock(mu_);
   std::vector<StoredScene> scenes;
-  Statement s(db_, "SELECT id, settings, version FROM scene ORDER BY id");
+  Statement s(Prepared("SELECT id, settings, version FROM scene ORDER BY id"));
   if (!s.ok()) return SqliteError(db_, "reading scenes");
   int rc;
   while ((rc = sqlite3_step(s.get())) == SQLITE_ROW) {
@@ -211,7 +235,7 @@ absl::StatusOr<std::vector<StoredScene>> SqliteStore::Load() {
     scenes.push_back(std::move(scene));
   }
   if (rc != SQLITE_DONE) return SqliteError(db_, "reading scenes");
-  Statement sites(db_, "SELECT site FROM site WHERE scene = ?");
+  Statement sites(Prepared("SELECT site FROM site WHERE scene = ?"));
   if (!sites.ok()) return SqliteError(db_, "reading sites");
   for (StoredScene& scene : scenes) {
     sites.Text(1, scene.settings.id);
@@ -231,7 +255,7 @@ absl::StatusOr<std::vector<StoredScene>> SqliteStore::Load() {
 
 absl::Status SqliteStore::CreateScene(const SceneSettings& settings, uint64_t version) {
   return Transaction([&]() -> absl::Status {
-    Statement s(db_, "INSERT INTO scene (id, settings, version) VALUES (?, ?, ?)");
+    Statement s(Prepared("INSERT INTO scene (id, settings, version) VALUES (?, ?, ?)"));
     s.Text(1, settings.id);
     s.Blob(2, EncodeSettings(settings));
     s.Int(3, version);
@@ -242,7 +266,7 @@ absl::Status SqliteStore::CreateScene(const SceneSettings& settings, uint64_t ve
 
 absl::Status SqliteStore::DeleteScene(std::string_view scene_id) {
   return Transaction([&]() -> absl::Status {
-    Statement s(db_, "DELETE FROM scene WHERE id = ?");  // sites cascade
+    Statement s(Prepared("DELETE FROM scene WHERE id = ?"));  // sites cascade
     s.Text(1, scene_id);
     if (!s.ok() || !s.Run()) return SqliteError(db_, "deleting the scene");
     return absl::OkStatus();
@@ -251,9 +275,9 @@ absl::Status SqliteStore::DeleteScene(std::string_view scene_id) {
 
 absl::Status SqliteStore::Commit(const ChangeSet& changes) {
   return Transaction([&]() -> absl::Status {
-    Statement put(db_, "INSERT OR REPLACE INTO site (scene, id, site) VALUES (?, ?, ?)");
-    Statement del(db_, "DELETE FROM site WHERE scene = ? AND id = ?");
-    Statement version(db_, "UPDATE scene SET version = ? WHERE id = ?");
+    Statement put(Prepared("INSERT OR REPLACE INTO site (scene, id, site) VALUES (?, ?, ?)"));
+    Statement del(Prepared("DELETE FROM site WHERE scene = ? AND id = ?"));
+    Statement version(Prepared("UPDATE scene SET version = ? WHERE id = ?"));
     if (!put.ok() || !del.ok() || !version.ok()) return SqliteError(db_, "storing sites");
     version.Int(1, changes.version);
     version.Text(2, changes.scene_id);

@@ -8,11 +8,13 @@
 #include <mutex>
 #include <string>
 #include <string_view>
+#include <unordered_map>
 
 #include "absl/status/statusor.h"
 #include "core/store.h"
 
 struct sqlite3;
+struct sqlite3_stmt;
 
 namespace gvd {
 
@@ -47,6 +49,11 @@ class SqliteStore final : public SceneStore {
  private:
   SqliteStore(sqlite3* db, std::string path) : db_(db), path_(std::move(path)) {}
   absl::Status Exec(const char* sql);
+  // The statement prepared once for the connection's life (null if it cannot be prepared).
+  // CONTRACT: mu_ held, or the store not yet shared.
+  sqlite3_stmt* Prepared(const char* sql);
+  // Runs a cached statement that takes no parameters and returns no rows.
+  absl::Status Step(const char* sql);
   absl::Status Migrate(const Legacy& legacy);
   // Runs `body` inside BEGIN IMMEDIATE ... COMMIT, rolling back if it fails.
   template <class Body>
@@ -55,6 +62,7 @@ class SqliteStore final : public SceneStore {
   mutable std::mutex mu_;
   sqlite3* db_;
   std::string path_;
+  std::unordered_map<std::string, sqlite3_stmt*> statements_;  // by SQL text
   double last_commit_seconds_ = 0;
 };
 
