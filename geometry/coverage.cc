@@ -20,28 +20,44 @@ bool BeatsSomewhere(Vec2 s, Vec2 s1, const Window& c) {
   return false;
 }
 
-// The plain point of a site, or null.
-const PointSite* PlainPoint(const Site& s) {
-  return s.plain() ? std::get_if<PointSite>(&s.geometry) : nullptr;
-}
+// What the proof reads of the site in a slot: a plain point from the table's own record of it
+// (Site::plain: weights 1 and 0, no max_distance, no side), any other site from the site.
+struct SiteView {
+  const Site* site;  // null for a plain point
+  Vec2 point;        // the plain point
 
-// Whether the site is present (drawn) on the whole disc of radius h around c, whose
-// distance from the site is d.
-bool PresentOnDisc(const Site& s, double d, double h, double margin) {
-  if (!(d + h <= s.max_distance + margin)) return false;
-  const auto* poly = std::get_if<PolygonSite>(&s.geometry);
-  return poly == nullptr || poly->side == Side::kBoth;
-}
-
-// False when the site is a polygon restricted to its inside whose box, grown by the margin,
-// misses the cell: it is present nowhere there.
-bool InsideReach(const Site& s, const Window& cell, double margin) {
-  const auto* poly = std::get_if<PolygonSite>(&s.geometry);
-  if (poly == nullptr || poly->side != Side::kInside) return true;
-  Window b = BoundingBox(s.geometry);
-  return b.min_x - margin <= cell.max_x && cell.min_x <= b.max_x + margin &&
-         b.min_y - margin <= cell.max_y && cell.min_y <= b.max_y + margin;
-}
+  static SiteView Of(const SlotTable& sites, uint32_t slot) {
+    Vec2 p = sites.point(slot);
+    return std::isnan(p.x) ? SiteView{sites.get(slot), p} : SiteView{nullptr, p};
+  }
+  bool plain_point() const { return site == nullptr; }
+  double multiplicative() const { return site ? site->multiplicative : 1; }
+  double additive() const { return site ? site->additive : 0; }
+  double max_distance() const { return site ? site->max_distance : INFINITY; }
+  double DistanceFrom(Vec2 q) const {
+    return site ? ExactDistance(q, site->geometry) : Distance(q, point);
+  }
+  double FarthestFrom(const Window& box) const {
+    return site ? FarthestDistance(box, site->geometry) : box.FarthestDistance(point);
+  }
+  // Whether the site is present (drawn) on the whole disc of radius h around a point whose
+  // distance from the site is d.
+  bool PresentOnDisc(double d, double h, double margin) const {
+    if (site == nullptr) return true;
+    if (!(d + h <= site->max_distance + margin)) return false;
+    const auto* poly = std::get_if<PolygonSite>(&site->geometry);
+    return poly == nullptr || poly->side == Side::kBoth;
+  }
+  // False when the site is a polygon restricted to its inside whose box, grown by the
+  // margin, misses the cell: it is present nowhere there.
+  bool InsideReach(const Window& cell, double margin) const {
+    const auto* poly = site ? std::get_if<PolygonSite>(&site->geometry) : nullptr;
+    if (poly == nullptr || poly->side != Side::kInside) return true;
+    Window b = BoundingBox(site->geometry);
+    return b.min_x - margin <= cell.max_x && cell.min_x <= b.max_x + margin &&
+           b.min_y - margin <= cell.max_y && cell.min_y <= b.max_y + margin;
+  }
+};
 
 }  // namespace
 
@@ -63,15 +79,15 @@ uint32_t CoverTiles(const Grid& grid, const SlotTable& sites, const SiteIndex& i
   const double margin = DrawMargin(grid);
   // The margin absorbs rounding differences between these bounds and distances computed
   // elsewhere (a few ulps), so a radius can never fall short of them.
-  auto radius_for = [&](const Site& s, const Window& box) {
-    return std::min(FarthestDistance(box, s.geometry) * (1 + 0x1p-40), s.max_distance + margin);
+  auto radius_for = [&](const SiteView& s, const Window& box) {
+    return std::min(s.FarthestFrom(box) * (1 + 0x1p-40), s.max_distance() + margin);
   };
   if (region.empty()) return tile_px;
   if (diagram == Diagram::kFarthest) {
     Vec2 lo = grid.Center(region.x0, region.y0), hi = grid.Center(region.x1 - 1, region.y1 - 1);
     Window box{lo.x, lo.y, hi.x, hi.y};
     for (uint32_t s = 0; s < sites.size(); ++s) {
-      if (const Site* site = sites.get(s)) keep(s, radius_for(*site, box));
+      if (sites.get(s)) keep(s, radius_for(SiteView::Of(sites, s), box));
     }
     return tile_px;
   }
@@ -87,10 +103,11 @@ uint32_t CoverTiles(const Grid& grid, const SlotTable& sites, const SiteIndex& i
       double h = Distance(lo, hi) / 2;
       // U: an upper bound on the best drawn value at every centre of the cell.
       ExactNearest s0 = index.Nearest(c);
-      const Site* best_site = sites.get(static_cast<uint32_t>(s0.index));
+      uint32_t s1 = static_cast<uint32_t>(s0.index);
+      const SiteView best = SiteView::Of(sites, s1);
       double upper = INFINITY;
-      if (PresentOnDisc(*best_site, s0.distance, h, margin)) {
-        upper = best_site->multiplicative * (s0.distance + h) + best_site->additive;
+      if (best.PresentOnDisc(s0.distance, h, margin)) {
+        upper = best.multiplicative() * (s0.distance + h) + best.additive();
       }
       candidates.clear();
       if (std::isfinite(upper)) {
@@ -101,30 +118,35 @@ uint32_t CoverTiles(const Grid& grid, const SlotTable& sites, const SiteIndex& i
           if (sites.get(s)) candidates.push_back(s);
         }
       }
-      // Distances from c, and the least U among the candidates present on the whole cell.
+      // Distances from c, and the least U among the candidates present on the whole cell
+      // (s1: the site that has it).
+      thread_local std::vector<SiteView> views;
       thread_local std::vector<double> dist;
+      views.resize(candidates.size());
       dist.resize(candidates.size());
-      const Site* s1 = best_site;
+      SiteView v1 = best;
       for (size_t k = 0; k < candidates.size(); ++k) {
-        const Site& s = *sites.get(candidates[k]);
-        dist[k] = ExactDistance(c, s.geometry);
-        if (!PresentOnDisc(s, dist[k], h, margin)) continue;
-        double u = s.multiplicative * (dist[k] + h) + s.additive;
+        const SiteView& s = views[k] = SiteView::Of(sites, candidates[k]);
+        dist[k] = s.DistanceFrom(c);
+        if (!s.PresentOnDisc(dist[k], h, margin)) continue;
+        double u = s.multiplicative() * (dist[k] + h) + s.additive();
         if (u < upper) {
           upper = u;
-          s1 = &s;
+          s1 = candidates[k];
+          v1 = s;
         }
       }
-      const PointSite* p1 = PlainPoint(*s1);
       for (size_t k = 0; k < candidates.size(); ++k) {
         uint32_t slot = candidates[k];
-        const Site& s = *sites.get(slot);
-        double lower = s.multiplicative * std::max(0.0, dist[k] - h) + s.additive;
+        const SiteView& s = views[k];
+        double lower = s.multiplicative() * std::max(0.0, dist[k] - h) + s.additive();
         if (lower > upper * (1 + 1e-12)) continue;
-        if (dist[k] - h > (s.max_distance + margin) * (1 + 1e-12)) continue;  // absent on C
-        if (!InsideReach(s, cell, margin)) continue;
-        const PointSite* p = PlainPoint(s);
-        if (p && p1 && &s != s1 && !BeatsSomewhere(p->p, p1->p, cell)) continue;
+        if (dist[k] - h > (s.max_distance() + margin) * (1 + 1e-12)) continue;  // absent on C
+        if (!s.InsideReach(cell, margin)) continue;
+        if (s.plain_point() && v1.plain_point() && slot != s1 &&
+            !BeatsSomewhere(s.point, v1.point, cell)) {
+          continue;
+        }
         keep(slot, radius_for(s, cell));
       }
     }

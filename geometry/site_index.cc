@@ -24,11 +24,22 @@ BBox BoxOf(const Geometry& g) {
 struct SiteIndex::Entry {
   BBox box;
   uint32_t slot;
+  bool point;  // the site is a point: its distance is that to the box's corner
   std::shared_ptr<const Site> site;
   bool operator==(const Entry& o) const { return slot == o.slot && site == o.site; }
 };
 
 namespace {
+SiteIndex::Entry EntryOf(uint32_t slot, const std::shared_ptr<const Site>& site) {
+  return {BoxOf(site->geometry), slot, std::holds_alternative<PointSite>(site->geometry), site};
+}
+
+// The distance from q to the entry's site (ExactDistance), without reaching a point site.
+double EntryDistance(Vec2 q, const SiteIndex::Entry& e) {
+  if (e.point) return Distance(q, Vec2(e.box.min_corner().get<0>(), e.box.min_corner().get<1>()));
+  return ExactDistance(q, e.site->geometry);
+}
+
 struct EntryBox {
   using result_type = BBox;
   const BBox& operator()(const SiteIndex::Entry& e) const { return e.box; }
@@ -46,6 +57,10 @@ SiteIndex& SiteIndex::operator=(const SiteIndex&) = default;
 SiteIndex::SiteIndex(SiteIndex&&) noexcept = default;
 SiteIndex& SiteIndex::operator=(SiteIndex&&) noexcept = default;
 
+// Each live site has a live entry (Update adds one for every slot placed anew), so when
+// there are no more entries than live sites, no entry is dead.
+bool SiteIndex::AllLive() const { return entries_ == live_; }
+
 bool SiteIndex::Live(const Entry& e) const {
   return e.slot < sites_.size() && sites_.ptr(e.slot) == e.site;
 }
@@ -61,7 +76,7 @@ void SiteIndex::Rebuild() {
   std::vector<Entry> entries;
   entries.reserve(sites_.size());
   for (uint32_t i = 0; i < sites_.size(); ++i) {
-    if (const auto& s = sites_.ptr(i)) entries.push_back({BoxOf(s->geometry), i, s});
+    if (const auto& s = sites_.ptr(i)) entries.push_back(EntryOf(i, s));
   }
   live_ = entries_ = entries.size();
   levels_.clear();
@@ -94,7 +109,7 @@ SiteIndex SiteIndex::Update(const SlotTable& sites, std::span<const uint32_t> ch
     if (before) --next.live_;
     if (after) {
       ++next.live_;
-      added.push_back({BoxOf(after->geometry), s, after});
+      added.push_back(EntryOf(s, after));
     }
   }
   next.entries_ += added.size();
@@ -145,16 +160,22 @@ ExactNearest SiteIndex::Nearest(Vec2 q) const {
   auto consider = [&](const Entry& e) {
     double b = bg::distance(e.box, p);
     box_distance = std::min(box_distance, b);
-    double d = ExactDistance(q, e.site->geometry);
+    double d = EntryDistance(q, e);
     if (d < best.distance || best.index == ExactNearest::kNone) best = {e.slot, d};
   };
+  const bool all_live = AllLive();
   for (const Entry& e : *tail_) {
-    if (Live(e)) consider(e);
+    if (all_live || Live(e)) consider(e);
   }
   for (const auto& level : levels_) {
     if (!level) continue;
-    level->tree.query(bgi::nearest(p, 1) && bgi::satisfies([&](const Entry& e) { return Live(e); }),
-                      boost::make_function_output_iterator(consider));
+    auto out = boost::make_function_output_iterator(consider);
+    if (all_live) {
+      level->tree.query(bgi::nearest(p, 1), out);
+    } else {
+      level->tree.query(bgi::nearest(p, 1) && bgi::satisfies([&](const Entry& e) { return Live(e); }),
+                        out);
+    }
   }
   // Boxes bound distances from below, and each tree gave its nearest box: when the best site
   // is as near as the nearest box of all (a point always is), no other site can be nearer.
@@ -174,13 +195,15 @@ void SiteIndex::Within(Vec2 q, double r, std::vector<uint32_t>* out) const {
   BBox query(BPoint(q.x - r, q.y - r), BPoint(q.x + r, q.y + r));
   const double r2 = r * r;
   auto near = [&](const Entry& e) { return bg::comparable_distance(e.box, p) <= r2; };
+  const bool all_live = AllLive();
   for (const Entry& e : *tail_) {
-    if (Live(e) && near(e)) out->push_back(e.slot);
+    if ((all_live || Live(e)) && near(e)) out->push_back(e.slot);
   }
   for (const auto& level : levels_) {
     if (!level) continue;
-    level->tree.query(bgi::intersects(query) &&
-                          bgi::satisfies([&](const Entry& e) { return Live(e) && near(e); }),
+    level->tree.query(bgi::intersects(query) && bgi::satisfies([&](const Entry& e) {
+                        return (all_live || Live(e)) && near(e);
+                      }),
                       boost::make_function_output_iterator(
                           [&](const Entry& e) { out->push_back(e.slot); }));
   }

@@ -60,6 +60,7 @@ class SiteIndex {
   struct Level;
 
   bool Live(const Entry& e) const;
+  bool AllLive() const;
   void Rebuild();
 
   SlotTable sites_;

@@ -51,6 +51,8 @@ void BM_Render(benchmark::State& state) {
     benchmark::DoNotOptimize(frame);
   }
   state.counters["coverage_ms"] = stats.coverage_seconds * 1e3;
+  state.counters["draw_ms"] = stats.draw_seconds * 1e3;
+  state.counters["readback_ms"] = stats.readback_seconds * 1e3;
   state.counters["fill"] = stats.fill_ratio;
   state.SetLabel(gl.context->info().gl_renderer);
 }
