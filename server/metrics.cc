@@ -34,6 +34,12 @@ prometheus::Histogram::BucketBoundaries Seconds() {
   return b;
 }
 
+// Drawn area over the window's: an incremental render draws a small part of it, a full one
+// at least all of it (3 is the aim, tens what whole-tile coverage draws).
+prometheus::Histogram::BucketBoundaries FillRatios() {
+  return {1e-4, 1e-3, 0.01, 0.1, 1, 1.5, 2, 3, 5, 10, 20, 50, 100, 200, 500, 1000};
+}
+
 prometheus::MetricFamily Gauge(const std::string& name, const std::string& help) {
   prometheus::MetricFamily f;
   f.name = name;
@@ -104,6 +110,11 @@ Metrics::Metrics()
                           .Name("gvd_rendered_pixels_total")
                           .Help("Pixels redrawn and read back, by kind.")
                           .Register(*registry_);
+  fill_ratio_ = &prometheus::BuildHistogram()
+                     .Name("gvd_render_fill_ratio")
+                     .Help("Area of the meshes a render drew over the window's area, by kind "
+                           "(a full render covers the window at least once).")
+                     .Register(*registry_);
   commit_seconds_ = &prometheus::BuildHistogram()
                          .Name("gvd_store_commit_seconds")
                          .Help("Store transactions, BEGIN to durable COMMIT.")
@@ -140,9 +151,10 @@ void Metrics::ObserveRpc(const std::string& method, grpc::StatusCode code, doubl
 }
 
 void Metrics::ObserveRender(bool full, double render_seconds, double readback_seconds,
-                            double pixels) {
+                            double pixels, double fill_ratio) {
   const char* kind = full ? "full" : "incremental";
   render_seconds_->Add({{"kind", kind}}, Seconds()).Observe(render_seconds);
+  fill_ratio_->Add({{"kind", kind}}, FillRatios()).Observe(fill_ratio);
   readback_seconds_->Observe(readback_seconds);
   rendered_pixels_->Add({{"kind", kind}}).Increment(pixels);
 }

@@ -43,7 +43,9 @@ class Metrics {
   void RpcStarted(const std::string& method);
   void RpcEnded(const std::string& method);
   void ObserveRpc(const std::string& method, grpc::StatusCode code, double seconds);
-  void ObserveRender(bool full, double render_seconds, double readback_seconds, double pixels);
+  // One render: `fill_ratio` is the area its meshes drew over the window's (RenderStats).
+  void ObserveRender(bool full, double render_seconds, double readback_seconds, double pixels,
+                     double fill_ratio);
   void ObserveCommit(double seconds);
 
  private:
@@ -57,6 +59,7 @@ class Metrics {
   prometheus::Family<prometheus::Histogram>* render_seconds_;
   prometheus::Histogram* readback_seconds_;
   prometheus::Family<prometheus::Counter>* rendered_pixels_;
+  prometheus::Family<prometheus::Histogram>* fill_ratio_;
   prometheus::Histogram* commit_seconds_;
 };
 

@@ -1,6 +1,8 @@
 // /metrics on its own port, scraped as Prometheus would, after calls whose counts are known.
 #include <gtest/gtest.h>
 
+#include <regex>
+#include <string>
 #include <thread>
 
 #include <grpcpp/create_channel.h>
@@ -50,6 +52,7 @@ TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
            "gvd_rpc_total{code=\"OK\",method=\"FindNearest\"} 1",
            "gvd_rpc_duration_seconds_count{method=\"FindNearest\"} 1",
            "gvd_render_seconds_count{kind=\"full\"} 1",
+           "gvd_render_fill_ratio_count{kind=\"full\"} 1",
            "gvd_store_commit_seconds_count 2",  // the scene, then the sites
            "gvd_scene_sites{scene=\"metered\"} 3",
            "gvd_scene_version_lag{scene=\"metered\"} 0",
@@ -57,6 +60,13 @@ TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
        }) {
     EXPECT_NE(text.find(want), std::string::npos) << "missing: " << want << "\n" << text;
   }
+  // The full render's meshes reach every pixel centre, so together they cover at least the
+  // square through the outermost centres: (63/64)^2 of the window.
+  std::smatch fill;
+  ASSERT_TRUE(std::regex_search(text, fill,
+                                std::regex("gvd_render_fill_ratio_sum\\{kind=\"full\"\\} (\\S+)")))
+      << text;
+  EXPECT_GE(std::stod(fill[1]), (63.0 / 64) * (63.0 / 64));
 }
 
 // A query cancelled while it computes stops there: the server records it as cancelled
