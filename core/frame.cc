@@ -102,7 +102,7 @@ std::optional<NearestAnswer> Frame::Nearest(Vec2 q) const {
     for (uint32_t s = 0; s < sites().size(); ++s) {
       const Site* site = sites().get(s);
       if (site == nullptr) continue;
-      double value = SlotValue(q, sites(), s);
+      double value = SiteView::Of(sites(), s).ValueAt(q);
       if (std::isfinite(value) && (!best.found || Beats(diagram, value, best.distance))) {
         best = {s, value, 0, true};
       }
@@ -137,7 +137,7 @@ std::optional<NearestAnswer> Frame::Nearest(Vec2 q) const {
                       : std::min(limit, error_.UpperBound(d) + step);
       uint32_t index = id - 1;
       if (best.found && index == best.site_index) continue;
-      double value = SlotValue(q, sites(), index);
+      double value = SiteView::Of(sites(), index).ValueAt(q);
       if (!std::isfinite(value)) continue;
       if (!best.found || Beats(diagram, value, best.distance) ||
           (value == best.distance && index < best.site_index)) {
@@ -167,7 +167,7 @@ NearestAnswer Frame::Refine(Vec2 q, const NearestAnswer& answer) const {
   auto consider = [&](uint32_t s) {
     const Site* site = sites().get(s);
     if (site == nullptr || s == best.site_index) return;
-    double value = SlotValue(q, sites(), s);
+    double value = SiteView::Of(sites(), s).ValueAt(q);
     if (!std::isfinite(value)) return;
     if (Beats(error_.diagram, value, best.distance) ||
         (value == best.distance && s < best.site_index)) {

@@ -20,44 +20,24 @@ bool BeatsSomewhere(Vec2 s, Vec2 s1, const Window& c) {
   return false;
 }
 
-// What the proof reads of the site in a slot: a plain point from the table's own record of it
-// (Site::plain: weights 1 and 0, no max_distance, no side), any other site from the site.
-struct SiteView {
-  const Site* site;  // null for a plain point
-  Vec2 point;        // the plain point
+// Whether the site is present (drawn) on the whole disc of radius h around a point whose
+// distance from the site is d.
+bool PresentOnDisc(const SiteView& s, double d, double h, double margin) {
+  if (s.plain_point()) return true;
+  if (!(d + h <= s.site->max_distance + margin)) return false;
+  const auto* poly = std::get_if<PolygonSite>(&s.site->geometry);
+  return poly == nullptr || poly->side == Side::kBoth;
+}
 
-  static SiteView Of(const SlotTable& sites, uint32_t slot) {
-    Vec2 p = sites.point(slot);
-    return std::isnan(p.x) ? SiteView{sites.get(slot), p} : SiteView{nullptr, p};
-  }
-  bool plain_point() const { return site == nullptr; }
-  double multiplicative() const { return site ? site->multiplicative : 1; }
-  double additive() const { return site ? site->additive : 0; }
-  double max_distance() const { return site ? site->max_distance : INFINITY; }
-  double DistanceFrom(Vec2 q) const {
-    return site ? ExactDistance(q, site->geometry) : Distance(q, point);
-  }
-  double FarthestFrom(const Window& box) const {
-    return site ? FarthestDistance(box, site->geometry) : box.FarthestDistance(point);
-  }
-  // Whether the site is present (drawn) on the whole disc of radius h around a point whose
-  // distance from the site is d.
-  bool PresentOnDisc(double d, double h, double margin) const {
-    if (site == nullptr) return true;
-    if (!(d + h <= site->max_distance + margin)) return false;
-    const auto* poly = std::get_if<PolygonSite>(&site->geometry);
-    return poly == nullptr || poly->side == Side::kBoth;
-  }
-  // False when the site is a polygon restricted to its inside whose box, grown by the
-  // margin, misses the cell: it is present nowhere there.
-  bool InsideReach(const Window& cell, double margin) const {
-    const auto* poly = site ? std::get_if<PolygonSite>(&site->geometry) : nullptr;
-    if (poly == nullptr || poly->side != Side::kInside) return true;
-    Window b = BoundingBox(site->geometry);
-    return b.min_x - margin <= cell.max_x && cell.min_x <= b.max_x + margin &&
-           b.min_y - margin <= cell.max_y && cell.min_y <= b.max_y + margin;
-  }
-};
+// False when the site is a polygon restricted to its inside whose box, grown by the margin,
+// misses the cell: it is present nowhere there.
+bool InsideReach(const SiteView& s, const Window& cell, double margin) {
+  const auto* poly = s.site ? std::get_if<PolygonSite>(&s.site->geometry) : nullptr;
+  if (poly == nullptr || poly->side != Side::kInside) return true;
+  Window b = BoundingBox(s.site->geometry);
+  return b.min_x - margin <= cell.max_x && cell.min_x <= b.max_x + margin &&
+         b.min_y - margin <= cell.max_y && cell.min_y <= b.max_y + margin;
+}
 
 }  // namespace
 
@@ -106,7 +86,7 @@ uint32_t CoverTiles(const Grid& grid, const SlotTable& sites, const SiteIndex& i
       uint32_t s1 = static_cast<uint32_t>(s0.index);
       const SiteView best = SiteView::Of(sites, s1);
       double upper = INFINITY;
-      if (best.PresentOnDisc(s0.distance, h, margin)) {
+      if (PresentOnDisc(best, s0.distance, h, margin)) {
         upper = best.multiplicative() * (s0.distance + h) + best.additive();
       }
       candidates.clear();
@@ -128,7 +108,7 @@ uint32_t CoverTiles(const Grid& grid, const SlotTable& sites, const SiteIndex& i
       for (size_t k = 0; k < candidates.size(); ++k) {
         const SiteView& s = views[k] = SiteView::Of(sites, candidates[k]);
         dist[k] = s.DistanceFrom(c);
-        if (!s.PresentOnDisc(dist[k], h, margin)) continue;
+        if (!PresentOnDisc(s, dist[k], h, margin)) continue;
         double u = s.multiplicative() * (dist[k] + h) + s.additive();
         if (u < upper) {
           upper = u;
@@ -142,7 +122,7 @@ uint32_t CoverTiles(const Grid& grid, const SlotTable& sites, const SiteIndex& i
         double lower = s.multiplicative() * std::max(0.0, dist[k] - h) + s.additive();
         if (lower > upper * (1 + 1e-12)) continue;
         if (dist[k] - h > (s.max_distance() + margin) * (1 + 1e-12)) continue;  // absent on C
-        if (!s.InsideReach(cell, margin)) continue;
+        if (!InsideReach(s, cell, margin)) continue;
         if (s.plain_point() && v1.plain_point() && slot != s1 &&
             !BeatsSomewhere(s.point, v1.point, cell)) {
           continue;

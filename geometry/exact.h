@@ -1,6 +1,7 @@
 // Exact distance functions in double precision: the oracle for tests and for query answers.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -42,12 +43,6 @@ bool InsidePolygon(Vec2 q, const std::vector<Vec2>& vertices);
 // candidate (beyond its max_distance, or on the side of a polygon it excludes; the boundary
 // itself belongs to both sides).
 double SiteValue(Vec2 q, const Site& site);
-// SiteValue of the site in `slot`, from the table's own record of it when it is a plain point
-// (equal, as that site's value is its distance). CONTRACT: the slot holds a site.
-inline double SlotValue(Vec2 q, const SlotTable& sites, uint32_t slot) {
-  Vec2 p = sites.point(slot);
-  return std::isnan(p.x) ? SiteValue(q, *sites.get(slot)) : Distance(q, p);
-}
 
 // A polyline through points of the Bezier curve (3 or 4 control points) that stays within
 // `tolerance` of it: uniform in the parameter, with n pieces where the bound
@@ -101,5 +96,32 @@ void ForEachSegment(const Geometry& g, F&& f) {
     for (size_t i = 0; i + 1 < b->flat.size(); ++i) f(b->flat[i], b->flat[i + 1]);
   }
 }
+
+// The site in a slot as the hot paths (raster lookups, the coverage proof) read it: a plain
+// point (Site::plain: weights 1 and 0, no max_distance, no side) from the slot table's own
+// record of it, without reaching the site object; any other site from the site.
+struct SiteView {
+  const Site* site;  // null for a plain point
+  Vec2 point;        // the plain point
+
+  // CONTRACT: the slot holds a site.
+  static SiteView Of(const SlotTable& sites, uint32_t slot) {
+    Vec2 p = sites.point(slot);
+    return std::isnan(p.x) ? SiteView{sites.get(slot), p} : SiteView{nullptr, p};
+  }
+  bool plain_point() const { return site == nullptr; }
+  double multiplicative() const { return site ? site->multiplicative : 1; }
+  double additive() const { return site ? site->additive : 0; }
+  double max_distance() const { return site ? site->max_distance : INFINITY; }
+  // ExactDistance, FarthestDistance and SiteValue of the site (a plain point's value is its
+  // distance).
+  double DistanceFrom(Vec2 q) const {
+    return site ? ExactDistance(q, site->geometry) : Distance(q, point);
+  }
+  double FarthestFrom(const Window& box) const {
+    return site ? FarthestDistance(box, site->geometry) : box.FarthestDistance(point);
+  }
+  double ValueAt(Vec2 q) const { return site ? SiteValue(q, *site) : Distance(q, point); }
+};
 
 }  // namespace gvd
