@@ -46,6 +46,96 @@ uint32_t DefaultTilePx(const Grid& grid, size_t n) {
   return static_cast<uint32_t>(std::clamp(2 * spacing, 4.0, 64.0));
 }
 
+TileCover::TileCover(const Grid& grid, const SlotTable& sites, const SiteIndex& index)
+    : grid_(grid), sites_(sites), index_(index), least_(sites.least()),
+      margin_(DrawMargin(grid)) {}
+
+double TileCover::RadiusFor(const SiteView& s, const Window& box) const {
+  // The margin absorbs rounding differences between these bounds and distances computed
+  // elsewhere (a few ulps), so a radius can never fall short of them.
+  return std::min(s.FarthestFrom(box) * (1 + 0x1p-40), s.max_distance() + margin_);
+}
+
+double TileCover::PresenceReach() const {
+  std::call_once(reach_once_, [&] {
+    double reach = 0;
+    for (uint32_t s = 0; s < sites_.size() && std::isfinite(reach); ++s) {
+      const Site* site = sites_.get(s);
+      if (site == nullptr) continue;
+      const auto* poly = std::get_if<PolygonSite>(&site->geometry);
+      // An inside-only polygon is present within DrawMargin of its box at most.
+      reach = poly && poly->side == Side::kInside ? reach : std::max(reach, site->max_distance);
+    }
+    reach_ = reach;
+  });
+  return reach_;
+}
+
+void TileCover::Cover(PixelRect tile, std::vector<uint32_t>* slots,
+                      std::vector<double>* radii) const {
+  const SiteIndex& index = index_;
+  const SlotTable& sites = sites_;
+  const double margin = margin_;
+  Vec2 lo = grid_.Center(tile.x0, tile.y0), hi = grid_.Center(tile.x1 - 1, tile.y1 - 1);
+  Window cell{lo.x, lo.y, hi.x, hi.y};
+  Vec2 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2};
+  double h = Distance(lo, hi) / 2;
+  // U: an upper bound on the best drawn value at every centre of the cell.
+  ExactNearest s0 = index.Nearest(c);
+  uint32_t s1 = static_cast<uint32_t>(s0.index);
+  const SiteView best = SiteView::Of(sites, s1);
+  double upper = INFINITY;
+  if (PresentOnDisc(best, s0.distance, h, margin)) {
+    upper = best.multiplicative() * (s0.distance + h) + best.additive();
+  }
+  thread_local std::vector<uint32_t> candidates;
+  candidates.clear();
+  if (std::isfinite(upper)) {
+    // Rounding slack on the search radius keeps the candidate set a superset.
+    index.Within(c, ((upper - least_.additive) / least_.multiplicative + h) * (1 + 1e-12),
+                 &candidates);
+  } else if (double reach = PresenceReach(); std::isfinite(reach)) {
+    // No U: the sites present somewhere on C, whose boxes come within h + reach of c.
+    index.Within(c, (h + reach + margin) * (1 + 1e-12), &candidates);
+  } else {
+    for (uint32_t s = 0; s < sites.size(); ++s) {
+      if (sites.get(s)) candidates.push_back(s);
+    }
+  }
+  // Distances from c, and the least U among the candidates present on the whole cell
+  // (s1: the site that has it).
+  thread_local std::vector<SiteView> views;
+  thread_local std::vector<double> dist;
+  views.resize(candidates.size());
+  dist.resize(candidates.size());
+  SiteView v1 = best;
+  for (size_t k = 0; k < candidates.size(); ++k) {
+    const SiteView& s = views[k] = SiteView::Of(sites, candidates[k]);
+    dist[k] = s.DistanceFrom(c);
+    if (!PresentOnDisc(s, dist[k], h, margin)) continue;
+    double u = s.multiplicative() * (dist[k] + h) + s.additive();
+    if (u < upper) {
+      upper = u;
+      s1 = candidates[k];
+      v1 = s;
+    }
+  }
+  for (size_t k = 0; k < candidates.size(); ++k) {
+    uint32_t slot = candidates[k];
+    const SiteView& s = views[k];
+    double lower = s.multiplicative() * std::max(0.0, dist[k] - h) + s.additive();
+    if (lower > upper * (1 + 1e-12)) continue;
+    if (dist[k] - h > (s.max_distance() + margin) * (1 + 1e-12)) continue;  // absent on C
+    if (!InsideReach(s, cell, margin)) continue;
+    if (s.plain_point() && v1.plain_point() && slot != s1 &&
+        !BeatsSomewhere(s.point, v1.point, cell)) {
+      continue;
+    }
+    slots->push_back(slot);
+    radii->push_back(RadiusFor(s, cell));
+  }
+}
+
 namespace {
 
 // The proof of ComputeCoverage, tile by tile: calls keep(slot, radius) for every site that
@@ -54,81 +144,26 @@ namespace {
 template <class Keep>
 uint32_t CoverTiles(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
                     PixelRect region, uint32_t tile_px, Diagram diagram, Keep&& keep) {
-  const LeastWeights least = sites.least();
   tile_px = tile_px ? tile_px : DefaultTilePx(grid, index.size());
-  const double margin = DrawMargin(grid);
-  // The margin absorbs rounding differences between these bounds and distances computed
-  // elsewhere (a few ulps), so a radius can never fall short of them.
-  auto radius_for = [&](const SiteView& s, const Window& box) {
-    return std::min(s.FarthestFrom(box) * (1 + 0x1p-40), s.max_distance() + margin);
-  };
   if (region.empty()) return tile_px;
+  const TileCover cover(grid, sites, index);
   if (diagram == Diagram::kFarthest) {
     Vec2 lo = grid.Center(region.x0, region.y0), hi = grid.Center(region.x1 - 1, region.y1 - 1);
     Window box{lo.x, lo.y, hi.x, hi.y};
     for (uint32_t s = 0; s < sites.size(); ++s) {
-      if (sites.get(s)) keep(s, radius_for(SiteView::Of(sites, s), box));
+      if (sites.get(s)) keep(s, cover.RadiusFor(SiteView::Of(sites, s), box));
     }
     return tile_px;
   }
-  const double min_m = least.multiplicative, min_a = least.additive;
-  std::vector<uint32_t> candidates;
+  std::vector<uint32_t> slots;
+  std::vector<double> radii;
   for (uint32_t ty = region.y0; ty < region.y1; ty += tile_px) {
     for (uint32_t tx = region.x0; tx < region.x1; tx += tile_px) {
-      uint32_t x1 = std::min(tx + tile_px, region.x1) - 1;
-      uint32_t y1 = std::min(ty + tile_px, region.y1) - 1;
-      Vec2 lo = grid.Center(tx, ty), hi = grid.Center(x1, y1);
-      Window cell{lo.x, lo.y, hi.x, hi.y};
-      Vec2 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2};
-      double h = Distance(lo, hi) / 2;
-      // U: an upper bound on the best drawn value at every centre of the cell.
-      ExactNearest s0 = index.Nearest(c);
-      uint32_t s1 = static_cast<uint32_t>(s0.index);
-      const SiteView best = SiteView::Of(sites, s1);
-      double upper = INFINITY;
-      if (PresentOnDisc(best, s0.distance, h, margin)) {
-        upper = best.multiplicative() * (s0.distance + h) + best.additive();
-      }
-      candidates.clear();
-      if (std::isfinite(upper)) {
-        // Rounding slack on the search radius keeps the candidate set a superset.
-        index.Within(c, ((upper - min_a) / min_m + h) * (1 + 1e-12), &candidates);
-      } else {
-        for (uint32_t s = 0; s < sites.size(); ++s) {
-          if (sites.get(s)) candidates.push_back(s);
-        }
-      }
-      // Distances from c, and the least U among the candidates present on the whole cell
-      // (s1: the site that has it).
-      thread_local std::vector<SiteView> views;
-      thread_local std::vector<double> dist;
-      views.resize(candidates.size());
-      dist.resize(candidates.size());
-      SiteView v1 = best;
-      for (size_t k = 0; k < candidates.size(); ++k) {
-        const SiteView& s = views[k] = SiteView::Of(sites, candidates[k]);
-        dist[k] = s.DistanceFrom(c);
-        if (!PresentOnDisc(s, dist[k], h, margin)) continue;
-        double u = s.multiplicative() * (dist[k] + h) + s.additive();
-        if (u < upper) {
-          upper = u;
-          s1 = candidates[k];
-          v1 = s;
-        }
-      }
-      for (size_t k = 0; k < candidates.size(); ++k) {
-        uint32_t slot = candidates[k];
-        const SiteView& s = views[k];
-        double lower = s.multiplicative() * std::max(0.0, dist[k] - h) + s.additive();
-        if (lower > upper * (1 + 1e-12)) continue;
-        if (dist[k] - h > (s.max_distance() + margin) * (1 + 1e-12)) continue;  // absent on C
-        if (!InsideReach(s, cell, margin)) continue;
-        if (s.plain_point() && v1.plain_point() && slot != s1 &&
-            !BeatsSomewhere(s.point, v1.point, cell)) {
-          continue;
-        }
-        keep(slot, radius_for(s, cell));
-      }
+      slots.clear();
+      radii.clear();
+      cover.Cover({tx, ty, std::min(tx + tile_px, region.x1), std::min(ty + tile_px, region.y1)},
+                  &slots, &radii);
+      for (size_t k = 0; k < slots.size(); ++k) keep(slots[k], radii[k]);
     }
   }
   return tile_px;

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <mutex>
 #include <utility>
 #include <vector>
 
@@ -53,6 +54,37 @@ Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteInd
                          PixelRect region, uint32_t tile_px = 0,
                          Diagram diagram = Diagram::kNearest);
 
+
+// The proof above for one tile at a time (kNearest), for renders that keep a candidate list
+// per tile (the compute path) and for ComputeCoverage itself. Thread-safe: tiles may be
+// covered concurrently. CONTRACT: as ComputeCoverage's; the grid, table and index outlive it.
+class TileCover {
+ public:
+  TileCover(const Grid& grid, const SlotTable& sites, const SiteIndex& index);
+
+  // Appends to `slots` every site that can be best at some pixel centre of `tile` (a
+  // non-empty rectangle of the grid's pixels), in no particular order, and to `radii` the
+  // radius it needs there: at least its distance from every pixel centre of the tile, capped
+  // at its presence (max_distance + DrawMargin).
+  void Cover(PixelRect tile, std::vector<uint32_t>* slots, std::vector<double>* radii) const;
+
+  // The radius a site needs over `box` (a rectangle of pixel centres).
+  double RadiusFor(const SiteView& s, const Window& box) const;
+
+ private:
+  const Grid& grid_;
+  const SlotTable& sites_;
+  const SiteIndex& index_;
+  // How far from its bounding box any site is present, less DrawMargin (infinite when some
+  // site is present everywhere): for the tiles with no site present on the whole of them.
+  // Computed on first use, O(sites).
+  double PresenceReach() const;
+
+  const LeastWeights least_;
+  const double margin_;
+  mutable std::once_flag reach_once_;
+  mutable double reach_ = INFINITY;
+};
 
 // The same radii as ComputeCoverage, as a list of (slot, radius) for the sites with one, in
 // slot order: for a small region of a large scene (a zoom window), whose cost then depends

@@ -33,9 +33,16 @@ absl::Status GlError(const char* what) {
   return absl::InternalError(absl::StrCat(what, ": GL error 0x", absl::Hex(e)));
 }
 
-absl::StatusOr<GLuint> Compile(GLenum kind, const char* source) {
+absl::StatusOr<GLuint> Compile(GLenum kind, const char* text) {
+  // The one file shaders share, put in place of its #include line.
+  std::string source = text;
+  const std::string include = "#include \"segments.glsl\"\n";
+  if (size_t at = source.find(include); at != std::string::npos) {
+    source.replace(at, include.size(), shaders::kSegments);
+  }
+  const char* sources[] = {source.c_str()};
   GLuint shader = glCreateShader(kind);
-  glShaderSource(shader, 1, &source, nullptr);
+  glShaderSource(shader, 1, sources, nullptr);
   glCompileShader(shader);
   GLint ok = 0;
   glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
@@ -128,6 +135,25 @@ absl::StatusOr<std::unique_ptr<Rasterizer>> Rasterizer::Create() {
     if (!linked.ok()) return linked.status();
     *program = *linked;
   }
+  {
+    auto resolve = Link(shaders::kResolveVert, shaders::kResolveFrag);
+    if (!resolve.ok()) return resolve.status();
+    r->resolve_ = *resolve;
+    auto compute = Compile(GL_COMPUTE_SHADER, shaders::kNearestComp);
+    if (!compute.ok()) return compute.status();
+    r->nearest_ = glCreateProgram();
+    glAttachShader(r->nearest_, *compute);
+    glLinkProgram(r->nearest_);
+    glDeleteShader(*compute);
+    GLint ok = 0;
+    glGetProgramiv(r->nearest_, GL_LINK_STATUS, &ok);
+    if (!ok) {
+      char log[2048] = {};
+      glGetProgramInfoLog(r->nearest_, sizeof log, nullptr, log);
+      return absl::InternalError(absl::StrCat("compute shader link failed: ", log));
+    }
+    glGenBuffers(6, r->compute_buffers_);
+  }
   glGenVertexArrays(1, &r->vao_);
   glGenBuffers(1, &r->instances_);
   glGenBuffers(1, &r->segments_);
@@ -150,7 +176,11 @@ Rasterizer::~Rasterizer() {
   for (auto& [n, buffer] : cones_) glDeleteBuffers(1, &buffer);
   for (unsigned b : {quad_, tent_mesh_, instances_, segments_}) glDeleteBuffers(1, &b);
   glDeleteVertexArrays(1, &vao_);
-  for (const Program* p : {&cone_, &tent_, &exact_, &exact_point_}) glDeleteProgram(p->id);
+  for (const Program* p : {&cone_, &tent_, &exact_, &exact_point_, &resolve_}) {
+    glDeleteProgram(p->id);
+  }
+  glDeleteProgram(nearest_);
+  glDeleteBuffers(6, compute_buffers_);
 }
 
 unsigned Rasterizer::ConeBuffer(uint32_t segments) {
@@ -217,6 +247,31 @@ void ForEachPiece(const Geometry& geometry, F&& f, G&& g) {
     f(b);
     if (a.x != b.x || a.y != b.y) g(a, b);
   });
+}
+
+// A site drawn per fragment as exact.vert and nearest.comp take it: its first segment, (m,
+// a, reach) and (id, index of the first segment, segment count, side), its segments appended
+// to `segments`, all relative to `origin`.
+struct PerFragmentSite {
+  glm::vec4 first;
+  glm::vec3 weight;
+  glm::uvec4 info;
+};
+PerFragmentSite PerFragmentOf(const Site& site, uint32_t id, double reach, Vec2 origin,
+                              std::vector<glm::vec4>* segments) {
+  auto rel = [&](Vec2 p) { return glm::vec2(p - origin); };
+  uint32_t first = static_cast<uint32_t>(segments->size()), count = 0;
+  ForEachSegment(site.geometry, [&](Vec2 p, Vec2 q) {
+    segments->emplace_back(rel(p), rel(q));
+    ++count;
+  });
+  uint32_t side = 0;
+  if (const auto* poly = std::get_if<PolygonSite>(&site.geometry)) {
+    side = poly->side == Side::kOutside ? 1 : poly->side == Side::kInside ? 2 : 0;
+  }
+  return {(*segments)[first],
+          glm::vec3(site.multiplicative, site.additive, reach),
+          glm::uvec4(id, first, count, side)};
 }
 
 }  // namespace
@@ -315,18 +370,9 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
     if (shape.per_fragment) {
       Window b = BoundingBox(site.geometry);
       const double r = shape.extent;
-      uint32_t first = static_cast<uint32_t>(segments.size()), count = 0;
-      ForEachSegment(site.geometry, [&](Vec2 p, Vec2 q) {
-        segments.emplace_back(rel(p), rel(q));
-        ++count;
-      });
-      uint32_t side = 0;
-      if (const auto* poly = std::get_if<PolygonSite>(&site.geometry)) {
-        side = poly->side == Side::kOutside ? 1 : poly->side == Side::kInside ? 2 : 0;
-      }
+      PerFragmentSite f = PerFragmentOf(site, id, r, origin, &segments);
       glm::vec2 lo = rel({b.min_x - r, b.min_y - r}), hi = rel({b.max_x + r, b.max_y + r});
-      quads.push_back({glm::vec4(lo, hi), glm::vec3(weight, r), segments[first],
-                       glm::uvec4(id, first, count, side)});
+      quads.push_back({glm::vec4(lo, hi), f.weight, f.first, f.info});
       continue;
     }
     const float rho = static_cast<float>(shape.extent);
@@ -423,6 +469,91 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
   glDisable(GL_SCISSOR_TEST);
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   return GlError("drawing distance meshes");
+}
+
+absl::Status Rasterizer::Compute(const Grid& grid, const DrawParams& params,
+                                 const SlotTable& sites, const std::vector<SiteDraw>& draws,
+                                 const TileLists& lists, RenderTarget& target,
+                                 std::vector<uint32_t>* ids, std::vector<float>* distances) {
+  const uint32_t tiles_x = (grid.width + kComputeTile - 1) / kComputeTile;
+  const uint32_t tiles_y = (grid.height + kComputeTile - 1) / kComputeTile;
+  if (grid.width > target.width() || grid.height > target.height() ||
+      lists.offsets.size() != 2 * (size_t{tiles_x} * tiles_y + 1)) {
+    return absl::InternalError("the grid or its tiles do not match the render target");
+  }
+  struct Record {  // nearest.comp's Site, std430
+    glm::vec4 first;
+    glm::vec4 weight;
+    glm::uvec4 info;
+  };
+  static_assert(sizeof(Record) == 12 * 4);
+  std::vector<Record> records;
+  records.reserve(draws.size());
+  std::vector<glm::vec4> segments;
+  const Vec2 origin{grid.window.min_x, grid.window.min_y};
+  for (const SiteDraw& d : draws) {
+    const Site& site = *sites.get(d.slot);
+    const SiteShape shape = Shape(grid, params, site, d.radius);
+    PerFragmentSite f = PerFragmentOf(site, d.slot + 1, shape.extent, origin, &segments);
+    records.push_back({f.first, glm::vec4(f.weight, 0), f.info});
+  }
+  if (segments.empty()) segments.emplace_back();  // no buffer may be empty
+  if (records.empty()) records.emplace_back();
+  const size_t pixels = grid.pixel_count();
+  const GLuint segment_buffer = segments_;
+  auto upload = [](GLuint buffer, GLuint binding, const void* data, size_t bytes) {
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffer);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(bytes), data, GL_STREAM_DRAW);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, binding, buffer);
+  };
+  static_assert(sizeof(Point) == 4 * 4);
+  const uint32_t no_site = 0;
+  const Point no_point{};
+  upload(segment_buffer, 0, segments.data(), segments.size() * sizeof(glm::vec4));
+  upload(compute_buffers_[0], 1, records.data(), records.size() * sizeof(Record));
+  upload(compute_buffers_[1], 2, lists.offsets.data(), lists.offsets.size() * sizeof(uint32_t));
+  upload(compute_buffers_[2], 3, lists.sites.empty() ? &no_site : lists.sites.data(),
+         std::max<size_t>(lists.sites.size(), 1) * sizeof(uint32_t));
+  upload(compute_buffers_[5], 6, lists.points.empty() ? &no_point : lists.points.data(),
+         std::max<size_t>(lists.points.size(), 1) * sizeof(Point));
+  upload(compute_buffers_[3], 4, nullptr, pixels * sizeof(uint32_t));
+  upload(compute_buffers_[4], 5, nullptr, pixels * sizeof(float));
+  glUseProgram(nearest_);
+  glUniform2ui(glGetUniformLocation(nearest_, "u_size"), grid.width, grid.height);
+  glUniform2f(glGetUniformLocation(nearest_, "u_pixel"), static_cast<float>(grid.pixel_width()),
+              static_cast<float>(grid.pixel_height()));
+  glUniform1f(glGetUniformLocation(nearest_, "u_margin"), static_cast<float>(DrawMargin(grid)));
+  glUniform1f(glGetUniformLocation(nearest_, "u_none"), static_cast<float>(params.depth_scale));
+  glDispatchCompute(tiles_x, tiles_y, 1);
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+  // The frame's copy, then the target's: a triangle over the grid writes each pixel's id and
+  // depth from the same buffers.
+  ids->resize(pixels);
+  distances->resize(pixels);
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, compute_buffers_[3]);
+  glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, pixels * sizeof(uint32_t), ids->data());
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, compute_buffers_[4]);
+  glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, pixels * sizeof(float), distances->data());
+  glBindFramebuffer(GL_FRAMEBUFFER, target.framebuffer());
+  glViewport(0, 0, grid.width, grid.height);
+  glDisable(GL_SCISSOR_TEST);
+  glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
+  const GLuint zero_id[4] = {0, 0, 0, 0};
+  glClearBufferuiv(GL_COLOR, 0, zero_id);
+  glClearBufferfi(GL_DEPTH_STENCIL, 0, 1.0f, 0);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_ALWAYS);
+  glDepthMask(GL_TRUE);
+  glDisable(GL_BLEND);
+  glDisable(GL_CULL_FACE);
+  glUseProgram(resolve_.id);
+  glUniform1ui(glGetUniformLocation(resolve_.id, "u_width"), grid.width);
+  glUniform1f(resolve_.u_inv_depth, static_cast<float>(1 / params.depth_scale));
+  glBindVertexArray(vao_);
+  for (GLuint location = 0; location < 5; ++location) glDisableVertexAttribArray(location);
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  return GlError("computing a render");
 }
 
 absl::Status Rasterizer::ReadBack(RenderTarget& target, PixelRect rect, double depth_scale,

@@ -46,6 +46,8 @@ struct RenderStats {
   size_t windows = 0;          // separate windows redrawn
   uint64_t pixels = 0;         // pixels redrawn and read back
   bool full = false;           // a render from scratch
+  bool computed = false;       // by Rasterizer::Compute (no mesh drawn)
+  double candidates_per_pixel = 0;  // when computed: the mean length of the lists scanned
 };
 
 
@@ -118,6 +120,36 @@ class Rasterizer {
                     const SlotTable& sites, const std::vector<SiteDraw>& draws,
                     RenderTarget& target, uint32_t x0 = 0, uint32_t y0 = 0);
 
+  // The side of the tiles whose candidate lists Compute takes.
+  static constexpr uint32_t kComputeTile = 8;
+
+  // Candidate lists for Compute, by tile of kComputeTile pixels, row-major: tile t's plain
+  // points (Site::plain) are points[offsets[2t] .. offsets[2t + 2]), its other sites
+  // draws[sites[k]] for k in [offsets[2t + 1], offsets[2t + 3]).
+  struct Point {  // nearest.comp's Point, std430
+    float x, y;   // relative to the window's min corner
+    uint32_t id;  // slot + 1
+    uint32_t unused = 0;
+  };
+  struct TileLists {
+    std::vector<uint32_t> offsets;  // 2 (tiles + 1) entries
+    std::vector<Point> points;
+    std::vector<uint32_t> sites;
+  };
+
+  // A full render of a kNearest diagram into `target` (the grid at its pixel (0, 0)) by a
+  // compute shader over per-tile candidate lists, no mesh drawn. Each pixel centre gets the
+  // least value among its tile's candidates present there (ties to the lower slot), computed
+  // as a per-fragment site's, so the lists must hold every site that can be best at some
+  // pixel centre of the tile (TileCover), and each draw's radius must reach all of them.
+  // Fills `ids` and `distances` as ReadBack would, and leaves the target holding the diagram
+  // as Draw would have (depths at params.depth_scale), for later draws over it. CONTRACT:
+  // params.diagram is kNearest; every site's value is below params.depth_scale.
+  absl::Status Compute(const Grid& grid, const DrawParams& params, const SlotTable& sites,
+                       const std::vector<SiteDraw>& draws, const TileLists& lists,
+                       RenderTarget& target, std::vector<uint32_t>* ids,
+                       std::vector<float>* distances);
+
   // Reads `rect` of the target: ids, and distances (depth * depth_scale), row-major.
   absl::Status ReadBack(RenderTarget& target, PixelRect rect, double depth_scale,
                         std::vector<uint32_t>* ids, std::vector<float>* distances);
@@ -133,8 +165,11 @@ class Rasterizer {
   };
   static absl::StatusOr<Program> Link(const char* vertex, const char* fragment);
 
-  Program cone_, tent_, exact_, exact_point_;
+  Program cone_, tent_, exact_, exact_point_, resolve_;
+  unsigned nearest_ = 0;  // the compute program (nearest.comp)
   unsigned vao_ = 0, instances_ = 0, quad_ = 0, tent_mesh_ = 0, segments_ = 0;
+  // Compute's inputs and outputs: sites, tile offsets, candidate sites, ids, values, points.
+  unsigned compute_buffers_[6] = {};
   std::map<uint32_t, unsigned> cones_;  // segments -> vertex buffer
 };
 

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <numbers>
 
+#include "core/cpu_pool.h"
 #include "geometry/coverage.h"
 #include "geometry/exact.h"
 
@@ -28,15 +29,93 @@ double NearestDistance(const Window& box, const Geometry& g) {
   return std::hypot(dx, dy);  // a lower bound; exact for points
 }
 
+// The candidate lists of Rasterizer::Compute for the whole grid, the other sites by slot
+// (Apply maps them to draws); the radii are the largest each site needs over its tiles (as
+// ComputeCoverage's), and pairs counts the list entries. Tile rows are covered in parallel.
+Coverage TileCandidates(const Grid& grid, const SlotTable& slots, const SiteIndex& index,
+                        Rasterizer::TileLists* lists) {
+  constexpr uint32_t kTile = Rasterizer::kComputeTile;
+  const uint32_t tiles_x = (grid.width + kTile - 1) / kTile;
+  const uint32_t tiles_y = (grid.height + kTile - 1) / kTile;
+  const TileCover cover(grid, slots, index);
+  struct Row {
+    std::vector<uint32_t> ends;  // per tile: where its points and other sites end
+    std::vector<Rasterizer::Point> points;
+    std::vector<uint32_t> sites;
+    std::vector<uint32_t> slots;  // scratch: one tile's
+    std::vector<double> radii;    // the radius of each list entry, points first
+  };
+  std::vector<Row> rows(tiles_y);
+  ParallelFor(tiles_y, 1, [&](size_t begin, size_t end) {
+    std::vector<double> radii;
+    for (size_t ty = begin; ty < end; ++ty) {
+      Row& row = rows[ty];
+      row.ends.reserve(2 * tiles_x);
+      const uint32_t y0 = static_cast<uint32_t>(ty) * kTile;
+      std::vector<double> site_radii;
+      for (uint32_t tx = 0; tx < tiles_x; ++tx) {
+        row.slots.clear();
+        radii.clear();
+        cover.Cover({tx * kTile, y0, std::min(tx * kTile + kTile, grid.width),
+                     std::min(y0 + kTile, grid.height)},
+                    &row.slots, &radii);
+        for (size_t k = 0; k < row.slots.size(); ++k) {
+          const uint32_t slot = row.slots[k];
+          const Vec2 p = slots.point(slot);
+          if (std::isnan(p.x)) {
+            row.sites.push_back(slot);
+            site_radii.push_back(radii[k]);
+          } else {
+            row.points.push_back({static_cast<float>(p.x - grid.window.min_x),
+                                  static_cast<float>(p.y - grid.window.min_y), slot + 1});
+            row.radii.push_back(radii[k]);
+          }
+        }
+        row.ends.push_back(static_cast<uint32_t>(row.points.size()));
+        row.ends.push_back(static_cast<uint32_t>(row.sites.size()));
+      }
+      row.radii.insert(row.radii.end(), site_radii.begin(), site_radii.end());
+    }
+  });
+  Coverage cov;
+  cov.tile_px = kTile;
+  cov.radius.assign(slots.size(), -1);
+  lists->offsets.assign(2, 0);
+  lists->offsets.reserve(2 * (size_t{tiles_x} * tiles_y + 1));
+  lists->points.clear();
+  lists->sites.clear();
+  for (const Row& row : rows) {
+    const uint32_t points = static_cast<uint32_t>(lists->points.size());
+    const uint32_t sites = static_cast<uint32_t>(lists->sites.size());
+    for (size_t k = 0; k < row.ends.size(); k += 2) {
+      lists->offsets.push_back(points + row.ends[k]);
+      lists->offsets.push_back(sites + row.ends[k + 1]);
+    }
+    lists->points.insert(lists->points.end(), row.points.begin(), row.points.end());
+    lists->sites.insert(lists->sites.end(), row.sites.begin(), row.sites.end());
+    for (size_t k = 0; k < row.points.size(); ++k) {
+      double& r = cov.radius[row.points[k].id - 1];
+      r = std::max(r, row.radii[k]);
+    }
+    for (size_t k = 0; k < row.sites.size(); ++k) {
+      double& r = cov.radius[row.sites[k]];
+      r = std::max(r, row.radii[row.points.size() + k]);
+    }
+  }
+  cov.pairs = lists->points.size() + lists->sites.size();
+  return cov;
+}
+
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<SceneRaster>> SceneRaster::Create(const Grid& grid, double eps,
                                                                   RenderMode mode,
-                                                                  Diagram diagram) {
+                                                                  Diagram diagram,
+                                                                  FullRender path) {
   auto target = RenderTarget::Create(grid.width, grid.height);
   if (!target.ok()) return target.status();
   return std::unique_ptr<SceneRaster>(
-      new SceneRaster(grid, eps, mode, diagram, std::move(*target)));
+      new SceneRaster(grid, eps, mode, diagram, path, std::move(*target)));
 }
 
 PixelRect SceneRaster::Reach(const Geometry& g, double extent) const {
@@ -60,7 +139,16 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
                                                                     RenderStats* stats) {
   auto start = std::chrono::steady_clock::now();
   const SlotTable& slots = drawn_->sites();
-  Coverage cov = ComputeCoverage(grid_, slots, drawn_->index(), grid_.all(), 0, params_.diagram);
+  const bool compute = params_.diagram == Diagram::kNearest &&
+                       (path_ == FullRender::kCompute ||
+                        (path_ == FullRender::kAuto && params_.mode == RenderMode::kExact));
+  Coverage cov;
+  Rasterizer::TileLists lists;
+  if (compute) {
+    cov = TileCandidates(grid_, slots, drawn_->index(), &lists);
+  } else {
+    cov = ComputeCoverage(grid_, slots, drawn_->index(), grid_.all(), 0, params_.diagram);
+  }
   double coverage_seconds = Seconds(start);
   std::vector<SiteDraw> draws;
   double max_value = 0, area = 0;
@@ -85,25 +173,45 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
   // scale.
   params_.depth_scale = std::max(2 * max_value, 4 * grid_.window.diagonal());
   auto draw_start = std::chrono::steady_clock::now();
-  if (auto s = rasterizer.Draw(grid_, params_, grid_.all(), true, slots, draws, *target_);
-      !s.ok()) {
-    return s;
-  }
   std::vector<uint32_t> ids;
   std::vector<float> distances;
-  auto read_start = std::chrono::steady_clock::now();
-  double draw_seconds = Seconds(draw_start);
-  if (auto s = rasterizer.ReadBack(*target_, grid_.all(), params_.depth_scale, &ids, &distances);
-      !s.ok()) {
-    return s;
+  double draw_seconds = 0, readback_seconds = 0;
+  if (compute) {
+    // The lists' other sites index the draws, which are in slot order.
+    std::vector<uint32_t> draw_of(slots.size(), 0);
+    for (uint32_t k = 0; k < draws.size(); ++k) draw_of[draws[k].slot] = k;
+    for (uint32_t& c : lists.sites) c = draw_of[c];
+    if (auto s = rasterizer.Compute(grid_, params_, slots, draws, lists, *target_, &ids,
+                                    &distances);
+        !s.ok()) {
+      return s;
+    }
+    draw_seconds = Seconds(draw_start);
+  } else {
+    if (auto s = rasterizer.Draw(grid_, params_, grid_.all(), true, slots, draws, *target_);
+        !s.ok()) {
+      return s;
+    }
+    auto read_start = std::chrono::steady_clock::now();
+    draw_seconds = Seconds(draw_start);
+    if (auto s = rasterizer.ReadBack(*target_, grid_.all(), params_.depth_scale, &ids,
+                                     &distances);
+        !s.ok()) {
+      return s;
+    }
+    readback_seconds = Seconds(read_start);
   }
-  double readback_seconds = Seconds(read_start);
   valid_ = true;
   Publish(grid_.all(), ids, distances);
   if (stats) {
     stats->cone_segments = max_segments;
     stats->sites_drawn = draws.size();
     stats->fill_ratio = area / (grid_.window.width() * grid_.window.height());
+    stats->computed = compute;
+    stats->candidates_per_pixel =
+        compute ? double(cov.pairs) * Rasterizer::kComputeTile * Rasterizer::kComputeTile /
+                      double(grid_.pixel_count())
+                : 0;
     stats->tile_px = cov.tile_px;
     stats->coverage_seconds = coverage_seconds;
     stats->draw_seconds = draw_seconds;
@@ -286,8 +394,9 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
 absl::StatusOr<std::shared_ptr<const Frame>> RenderOnce(Rasterizer& rasterizer, const Grid& grid,
                                                         double eps, uint64_t version,
                                                         const SiteTable& sites, RenderStats* stats,
-                                                        RenderMode mode, Diagram diagram) {
-  auto scene = SceneRaster::Create(grid, eps, mode, diagram);
+                                                        RenderMode mode, Diagram diagram,
+                                                        FullRender path) {
+  auto scene = SceneRaster::Create(grid, eps, mode, diagram, path);
   if (!scene.ok()) return scene.status();
   return (*scene)->Apply(rasterizer, SiteSnapshot::Of(version, sites), stats);
 }

@@ -16,12 +16,19 @@
 
 namespace gvd {
 
+// How a render from scratch is made.
+enum class FullRender {
+  kAuto,     // kCompute for a kNearest diagram in RenderMode::kExact, else kRaster
+  kRaster,   // every site's mesh (or per-fragment quad) drawn over its coverage radius
+  kCompute,  // for kNearest: a compute shader over per-tile candidate lists (exact values)
+};
+
 // Not thread-safe: the render thread owns it (it holds GL objects).
 class SceneRaster {
  public:
   static absl::StatusOr<std::unique_ptr<SceneRaster>> Create(
       const Grid& grid, double eps, RenderMode mode = RenderMode::kMesh,
-      Diagram diagram = Diagram::kNearest);
+      Diagram diagram = Diagram::kNearest, FullRender path = FullRender::kAuto);
 
   // Renders `sites`, drawing what changed since the snapshot last drawn (by slot: a site
   // differs when its slot holds another Site object, SlotTable::Diff):
@@ -42,9 +49,10 @@ class SceneRaster {
   const std::shared_ptr<const SiteSnapshot>& drawn() const { return drawn_; }
 
  private:
-  SceneRaster(const Grid& grid, double eps, RenderMode mode, Diagram diagram,
+  SceneRaster(const Grid& grid, double eps, RenderMode mode, Diagram diagram, FullRender path,
               std::unique_ptr<RenderTarget> target)
-      : grid_(grid), eps_(eps), params_{eps, mode, diagram, 1}, target_(std::move(target)) {}
+      : grid_(grid), eps_(eps), params_{eps, mode, diagram, 1}, path_(path),
+        target_(std::move(target)) {}
 
   // The pixels whose centres lie within `extent` of the geometry's bounding box.
   PixelRect Reach(const Geometry& g, double extent) const;
@@ -56,6 +64,7 @@ class SceneRaster {
   const Grid grid_;
   const double eps_;
   DrawParams params_;  // depth_scale: fixed between full renders, so old depths stay comparable
+  const FullRender path_;
   std::unique_ptr<RenderTarget> target_;
 
   std::shared_ptr<const SiteSnapshot> drawn_;  // the sites the target holds
@@ -74,6 +83,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> RenderOnce(Rasterizer& rasterizer, 
                                                         const SiteTable& sites,
                                                         RenderStats* stats = nullptr,
                                                         RenderMode mode = RenderMode::kMesh,
-                                                        Diagram diagram = Diagram::kNearest);
+                                                        Diagram diagram = Diagram::kNearest,
+                                                        FullRender path = FullRender::kAuto);
 
 }  // namespace gvd

@@ -115,6 +115,11 @@ Metrics::Metrics()
                      .Help("Area of the meshes a render drew over the window's area, by kind "
                            "(a full render covers the window at least once).")
                      .Register(*registry_);
+  candidates_per_pixel_ = &prometheus::BuildHistogram()
+                               .Name("gvd_render_candidates_per_pixel")
+                               .Help("Sites a computed render scanned per pixel, on average, "
+                                     "by kind.")
+                               .Register(*registry_);
   commit_seconds_ = &prometheus::BuildHistogram()
                          .Name("gvd_store_commit_seconds")
                          .Help("Store transactions, BEGIN to durable COMMIT.")
@@ -150,13 +155,16 @@ void Metrics::ObserveRpc(const std::string& method, grpc::StatusCode code, doubl
   rpc_total_->Add({{"method", method}, {"code", CodeName(code)}}).Increment();
 }
 
-void Metrics::ObserveRender(bool full, double render_seconds, double readback_seconds,
-                            double pixels, double fill_ratio) {
-  const char* kind = full ? "full" : "incremental";
+void Metrics::ObserveRender(const RenderStats& stats, double render_seconds) {
+  const char* kind = stats.full ? "full" : "incremental";
   render_seconds_->Add({{"kind", kind}}, Seconds()).Observe(render_seconds);
-  fill_ratio_->Add({{"kind", kind}}, FillRatios()).Observe(fill_ratio);
-  readback_seconds_->Observe(readback_seconds);
-  rendered_pixels_->Add({{"kind", kind}}).Increment(pixels);
+  if (stats.computed) {
+    candidates_per_pixel_->Add({{"kind", kind}}, FillRatios()).Observe(stats.candidates_per_pixel);
+  } else {
+    fill_ratio_->Add({{"kind", kind}}, FillRatios()).Observe(stats.fill_ratio);
+  }
+  readback_seconds_->Observe(stats.readback_seconds);
+  rendered_pixels_->Add({{"kind", kind}}).Increment(static_cast<double>(stats.pixels));
 }
 
 void Metrics::ObserveCommit(double seconds) { commit_seconds_->Observe(seconds); }

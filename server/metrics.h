@@ -9,6 +9,7 @@
 #include <grpcpp/support/status.h>
 
 #include "absl/status/statusor.h"
+#include "gl/raster.h"
 
 namespace prometheus {
 class Exposer;
@@ -43,9 +44,9 @@ class Metrics {
   void RpcStarted(const std::string& method);
   void RpcEnded(const std::string& method);
   void ObserveRpc(const std::string& method, grpc::StatusCode code, double seconds);
-  // One render: `fill_ratio` is the area its meshes drew over the window's (RenderStats).
-  void ObserveRender(bool full, double render_seconds, double readback_seconds, double pixels,
-                     double fill_ratio);
+  // One render of `render_seconds`, as its stats describe it: for a render that drew meshes,
+  // the area they drew over the window's; for a computed one, its mean candidates per pixel.
+  void ObserveRender(const RenderStats& stats, double render_seconds);
   void ObserveCommit(double seconds);
 
  private:
@@ -60,6 +61,7 @@ class Metrics {
   prometheus::Histogram* readback_seconds_;
   prometheus::Family<prometheus::Counter>* rendered_pixels_;
   prometheus::Family<prometheus::Histogram>* fill_ratio_;
+  prometheus::Family<prometheus::Histogram>* candidates_per_pixel_;
   prometheus::Histogram* commit_seconds_;
 };
 

@@ -160,8 +160,7 @@ void RenderLoop::Run(DevicePreference preference) {
     }
     // Recorded before publishing: publishing releases the queries waiting for this frame.
     if (metrics_) {
-      metrics_->ObserveRender(render_stats.full, seconds, render_stats.readback_seconds,
-                              static_cast<double>(render_stats.pixels), render_stats.fill_ratio);
+      metrics_->ObserveRender(render_stats, seconds);
     }
     scene->Publish(*frame);
     const PixelRect& w = render_stats.window;

@@ -16,6 +16,10 @@ namespace gvd {
 
 inline constexpr RenderMode kModes[] = {RenderMode::kMesh, RenderMode::kExact};
 inline const char* Name(RenderMode m) { return m == RenderMode::kMesh ? "mesh" : "exact"; }
+inline constexpr FullRender kPaths[] = {FullRender::kRaster, FullRender::kCompute};
+inline const char* Name(FullRender p) {
+  return p == FullRender::kAuto ? "auto" : p == FullRender::kRaster ? "raster" : "compute";
+}
 
 class GlTest : public ::testing::Test {
  protected:
@@ -48,8 +52,10 @@ class GlTest : public ::testing::Test {
   // A render from scratch of the sites (slot i = sites[i]), eps one pixel, at version 1.
   std::shared_ptr<const Frame> Render(const Grid& grid, const SiteTable& sites,
                                       RenderMode mode = RenderMode::kMesh,
-                                      Diagram diagram = Diagram::kNearest) {
-    auto frame = RenderOnce(*rasterizer_, grid, grid.pixel_size(), 1, sites, nullptr, mode, diagram);
+                                      Diagram diagram = Diagram::kNearest,
+                                      FullRender path = FullRender::kAuto) {
+    auto frame = RenderOnce(*rasterizer_, grid, grid.pixel_size(), 1, sites, nullptr, mode,
+                            diagram, path);
     EXPECT_TRUE(frame.ok()) << frame.status();
     return frame.ok() ? *frame : nullptr;
   }

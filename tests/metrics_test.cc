@@ -67,6 +67,29 @@ TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
                                 std::regex("gvd_render_fill_ratio_sum\\{kind=\"full\"\\} (\\S+)")))
       << text;
   EXPECT_GE(std::stod(fill[1]), (63.0 / 64) * (63.0 / 64));
+
+  // An EXACT scene's first render is computed: it reports its candidates per pixel instead,
+  // at least one (every pixel centre scans the site nearest to it).
+  c = testing::UnitScene("computed", 64, 64);
+  c.set_render_mode(v1::EXACT);
+  ASSERT_TRUE(client->CreateScene(c, &scene).ok());
+  u.set_scene_id("computed");
+  ASSERT_TRUE(client->UpsertSites(u, &v).ok());
+  q.set_scene_id("computed");
+  q.set_min_version(v);
+  ASSERT_TRUE(client->FindNearest(q, &r).ok());
+  text = testing::Scrape(port);
+  for (const char* want : {"gvd_render_seconds_count{kind=\"full\"} 2",
+                           "gvd_render_fill_ratio_count{kind=\"full\"} 1",
+                           "gvd_render_candidates_per_pixel_count{kind=\"full\"} 1"}) {
+    EXPECT_NE(text.find(want), std::string::npos) << "missing: " << want << "\n" << text;
+  }
+  std::smatch candidates;
+  ASSERT_TRUE(std::regex_search(
+      text, candidates,
+      std::regex("gvd_render_candidates_per_pixel_sum\\{kind=\"full\"\\} (\\S+)")))
+      << text;
+  EXPECT_GE(std::stod(candidates[1]), 1.0);
 }
 
 // A query cancelled while it computes stops there: the server records it as cancelled

@@ -23,8 +23,10 @@ class RenderGLTest : public GlTest {
   // Renders from scratch; the frame's slot i holds sites[i] (ids are distinct).
   std::shared_ptr<const Frame> Render(const Grid& grid, double eps, const std::vector<Site>& sites,
                                       RenderStats* stats = nullptr,
-                                      RenderMode mode = RenderMode::kMesh) {
-    auto frame = RenderOnce(*rasterizer_, grid, eps, 1, sites, stats, mode);
+                                      RenderMode mode = RenderMode::kMesh,
+                                      FullRender path = FullRender::kAuto) {
+    auto frame = RenderOnce(*rasterizer_, grid, eps, 1, sites, stats, mode, Diagram::kNearest,
+                            path);
     EXPECT_TRUE(frame.ok()) << frame.status();
     for (uint32_t i = 0; i < sites.size(); ++i) EXPECT_EQ((*frame)->sites().get(i)->id, sites[i].id);
     return *frame;
@@ -96,21 +98,28 @@ TEST_F(RenderGLTest, SinglePointIsItsOwnCone) {
 // Exact mode: the same scenes, every stored distance within the arithmetic slack alone.
 TEST_F(RenderGLTest, ExactModeRandomAndAdversarialScenes) {
   Window w{-2, 1, 3, 5};
-  for (size_t n : {1, 100, 3000}) {
-    Grid grid{w, 200, 160};
-    auto sites = RandomPoints(n, w, n + 7);
-    auto f = Render(grid, grid.pixel_size(), sites, nullptr, RenderMode::kExact);
-    EXPECT_EQ(f->error().max_excess, 0);
-    EXPECT_EQ(f->error().overestimate, 1);
-    CheckEveryPixel(*f, sites);
+  for (FullRender path : kPaths) {
+    SCOPED_TRACE(Name(path));
+    for (size_t n : {1, 100, 3000}) {
+      Grid grid{w, 200, 160};
+      auto sites = RandomPoints(n, w, n + 7);
+      RenderStats stats;
+      auto f = Render(grid, grid.pixel_size(), sites, &stats, RenderMode::kExact, path);
+      EXPECT_EQ(stats.computed, path == FullRender::kCompute);
+      EXPECT_EQ(f->error().max_excess, 0);
+      EXPECT_EQ(f->error().overestimate, 1);
+      CheckEveryPixel(*f, sites);
+    }
+    SiteTable outside = {{"left", PointSite{{-0.5, 0.5}}}, {"far", PointSite{{30, -40}}},
+                         {"same1", PointSite{{0.7, 0.2}}}, {"same2", PointSite{{0.7, 0.2}}}};
+    Grid unit{{0, 0, 1, 1}, 96, 64};
+    CheckEveryPixel(*Render(unit, unit.pixel_size(), outside, nullptr, RenderMode::kExact, path),
+                    outside);
+    Grid far{{1e7, -1e7, 1e7 + 2, -1e7 + 1}, 200, 100};
+    auto sites = RandomPoints(300, far.window, 5);
+    CheckEveryPixel(*Render(far, far.pixel_size(), sites, nullptr, RenderMode::kExact, path),
+                    sites);
   }
-  SiteTable outside = {{"left", PointSite{{-0.5, 0.5}}}, {"far", PointSite{{30, -40}}},
-                       {"same1", PointSite{{0.7, 0.2}}}, {"same2", PointSite{{0.7, 0.2}}}};
-  Grid unit{{0, 0, 1, 1}, 96, 64};
-  CheckEveryPixel(*Render(unit, unit.pixel_size(), outside, nullptr, RenderMode::kExact), outside);
-  Grid far{{1e7, -1e7, 1e7 + 2, -1e7 + 1}, 200, 100};
-  auto sites = RandomPoints(300, far.window, 5);
-  CheckEveryPixel(*Render(far, far.pixel_size(), sites, nullptr, RenderMode::kExact), sites);
 }
 
 TEST_F(RenderGLTest, RandomScenesAtSeveralResolutions) {

@@ -23,10 +23,13 @@ class SitesGLTest : public GlTest {
   void RenderAndCheck(const Grid& grid, const SiteTable& sites, const std::string& what,
                       Diagram diagram = Diagram::kNearest, PixelReport* report = nullptr) {
     for (RenderMode mode : kModes) {
-      auto f = Render(grid, sites, mode, diagram);
-      ASSERT_NE(f, nullptr);
-      PixelReport r = CheckEveryPixel(*f, sites, what + " (" + Name(mode) + ")");
-      if (report) *report = r;
+      for (FullRender path : kPaths) {
+        auto f = Render(grid, sites, mode, diagram, path);
+        ASSERT_NE(f, nullptr);
+        PixelReport r =
+            CheckEveryPixel(*f, sites, what + " (" + Name(mode) + ", " + Name(path) + ")");
+        if (report) *report = r;
+      }
     }
   }
 };

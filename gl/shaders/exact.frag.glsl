@@ -8,20 +8,11 @@ uniform vec2 u_origin;
 uniform float u_inv_depth;
 uniform float u_margin;
 layout(location = 0) out uint o_site;
-vec2 p;
-float d = 3.0e38;
-bool inside = false;
-void visit(vec4 s) {
-  vec2 ab = s.zw - s.xy, ap = p - s.xy;
-  float len2 = dot(ab, ab);
-  float t = len2 > 0.0 ? clamp(dot(ap, ab) / len2, 0.0, 1.0) : 0.0;
-  d = min(d, length(ap - t * ab));
-  if ((s.y > p.y) != (s.w > p.y) && p.x < s.x + (p.y - s.y) / (s.w - s.y) * (s.z - s.x)) {
-    inside = !inside;
-  }
-}
+#include "segments.glsl"
 void main() {
   p = (gl_FragCoord.xy - u_origin) * u_pixel;  // the grid's pixel (0, 0) is at u_origin
+  d = 3.0e38;
+  inside = false;
   visit(v_first);  // a point's only segment comes with the instance: no buffer read
   for (uint i = v_info.y + 1u; i < v_info.y + v_info.z; ++i) visit(segments[i]);
   if (d > v_weight.z) discard;

@@ -54,6 +54,7 @@ void BM_Render(benchmark::State& state) {
   state.counters["draw_ms"] = stats.draw_seconds * 1e3;
   state.counters["readback_ms"] = stats.readback_seconds * 1e3;
   state.counters["fill"] = stats.fill_ratio;
+  state.counters["candidates_px"] = stats.candidates_per_pixel;
   state.SetLabel(gl.context->info().gl_renderer);
 }
 BENCHMARK(BM_Render)
