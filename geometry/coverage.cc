@@ -1,6 +1,8 @@
 #include "geometry/coverage.h"
 
 #include <algorithm>
+#include <array>
+#include <cstdint>
 #include <cmath>
 #include <unordered_map>
 
@@ -120,9 +122,34 @@ void TileCover::Cover(PixelRect tile, std::vector<uint32_t>* slots,
       v1 = s;
     }
   }
+  // Plain points clipped by the bisectors of the plain points nearest to the cell's corners:
+  // a plain point farther than one of those from every corner is farther from all of C (the
+  // points nearer to w than to s form a half-plane, which is convex), and plain points are
+  // present everywhere, so it is best nowhere on C.
+  const Vec2 corners[4] = {lo, {hi.x, lo.y}, {lo.x, hi.y}, hi};
+  thread_local std::vector<std::array<double, 4>> at;  // distances from the corners
+  at.resize(candidates.size());
+  size_t nearest[4] = {SIZE_MAX, SIZE_MAX, SIZE_MAX, SIZE_MAX};
+  for (size_t k = 0; k < candidates.size(); ++k) {
+    if (!views[k].plain_point()) continue;
+    for (int i = 0; i < 4; ++i) {
+      at[k][i] = Distance(corners[i], views[k].point);
+      if (nearest[i] == SIZE_MAX || at[k][i] < at[nearest[i]][i]) nearest[i] = k;
+    }
+  }
+  auto clipped = [&](size_t k) {
+    for (size_t w : nearest) {
+      if (w == SIZE_MAX || w == k) continue;
+      bool beaten = true;
+      for (int i = 0; i < 4 && beaten; ++i) beaten = at[k][i] > at[w][i] * (1 + 1e-12) + 1e-300;
+      if (beaten) return true;
+    }
+    return false;
+  };
   for (size_t k = 0; k < candidates.size(); ++k) {
     uint32_t slot = candidates[k];
     const SiteView& s = views[k];
+    if (s.plain_point() && clipped(k)) continue;
     double lower = s.multiplicative() * std::max(0.0, dist[k] - h) + s.additive();
     if (lower > upper * (1 + 1e-12)) continue;
     if (dist[k] - h > (s.max_distance() + margin) * (1 + 1e-12)) continue;  // absent on C
