@@ -1,6 +1,6 @@
 # shellcheck shell=bash
 # Sourced by the setup scripts: installs Debian 12 packages that are missing, idempotently.
-# Usage: gvd_install_packages GROUP...   (groups: build, test)
+# Usage: gvd_install_packages GROUP...   (groups: build, test, bench)
 
 gvd_packages() {
   case "$1" in
@@ -13,6 +13,9 @@ gvd_packages() {
     test)
       echo libgtest-dev libgmock-dev libbenchmark-dev libnanoflann-dev libqhull-dev openssl \
         shellcheck yamllint python3-yaml
+      ;;
+    bench)  # the reference libraries of tests/bench/run.sh beyond the test group's
+      echo libopencv-dev
       ;;
     *)
       echo "gvd_packages: unknown group $1" >&2

@@ -206,7 +206,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
   if (stats) {
     stats->cone_segments = max_segments;
     stats->sites_drawn = draws.size();
-    stats->fill_ratio = area / (grid_.window.width() * grid_.window.height());
+    stats->fill_ratio = compute ? 0 : area / (grid_.window.width() * grid_.window.height());
     stats->computed = compute;
     stats->candidates_per_pixel =
         compute ? double(cov.pairs) * Rasterizer::kComputeTile * Rasterizer::kComputeTile /

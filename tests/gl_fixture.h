@@ -23,8 +23,16 @@ inline const char* Name(FullRender p) {
 
 class GlTest : public ::testing::Test {
  protected:
+  // GVD_EGL_DEVICE (auto, hardware or software; default auto) picks the EGL device, so that
+  // a GPU run (tests/bench/gpu.sh) fails instead of falling back to llvmpipe.
   static void SetUpTestSuite() {
-    auto ctx = GlContext::Create(DevicePreference::kAuto);
+    const char* device = std::getenv("GVD_EGL_DEVICE");
+    auto preference = ParseDevicePreference(device && *device ? device : "auto");
+    if (!preference.ok()) {
+      skip_reason_ = new std::string(preference.status().ToString());
+      return;
+    }
+    auto ctx = GlContext::Create(*preference);
     if (!ctx.ok()) {
       skip_reason_ = new std::string(ctx.status().ToString());
       return;

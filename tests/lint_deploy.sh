@@ -4,7 +4,7 @@
 # consistently), and that every file the Dockerfile copies exists.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-shellcheck -x deploy/run-server.sh deploy/debian-deps.sh tests/run-tests.sh tests/bench/run.sh \
+shellcheck -x deploy/run-server.sh deploy/debian-deps.sh tests/run-tests.sh tests/bench/run.sh tests/bench/gpu.sh \
   tests/lint_deploy.sh tests/sanitizers/run.sh tests/smoke-server.sh tests/gallery/make.sh .ci/run
 yamllint -s -c deploy/.yamllint deploy/compose.yaml deploy/k8s/*.yaml
 python3 - deploy/k8s/*.yaml <<'PY'

@@ -1,6 +1,7 @@
 // What the benchmark programs share: one GL context for the run, random sites.
 #pragma once
 
+#include <cstdlib>
 #include <memory>
 #include <random>
 #include <string>
@@ -27,7 +28,11 @@ struct Gl {
   static Gl& Get() {
     static Gl gl = [] {
       Gl g;
-      auto c = GlContext::Create(DevicePreference::kAuto);
+      // GVD_EGL_DEVICE (auto, hardware or software; default auto) picks the EGL device.
+      const char* name = std::getenv("GVD_EGL_DEVICE");
+      auto preference = ParseDevicePreference(name && *name ? name : "auto");
+      if (!preference.ok()) return g;
+      auto c = GlContext::Create(*preference);
       if (!c.ok()) return g;
       g.context = std::move(*c);
       g.rasterizer = std::move(*Rasterizer::Create());

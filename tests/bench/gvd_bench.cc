@@ -119,6 +119,7 @@ void BM_RenderKind(benchmark::State& state) {
   static const char* kNames[] = {"segment",      "polyline8", "polygon6", "polygon6-inside",
                                  "cubic-bezier", "weighted-bounded-point", "farthest-point"};
   state.counters["fill"] = stats.fill_ratio;
+  state.counters["candidates_px"] = stats.candidates_per_pixel;
   state.SetLabel(std::string(kNames[kind]) + " " + gl.context->info().gl_renderer);
 }
 BENCHMARK(BM_RenderKind)
@@ -146,9 +147,32 @@ void BM_OpenCVDistanceTransform(benchmark::State& state) {
 }
 BENCHMARK(BM_OpenCVDistanceTransform)
     ->ArgsProduct({{1000, 10000, 100000, 1000000}, {1024, 2048}})
+    ->Args({1000000, 4096})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 #endif
+
+// 1'''. The GPU rows (tests/bench/gpu.sh; run.sh leaves them out): 1,000,000 points at
+// 4096x4096, range(0): 0 mesh, 1 exact (computed), 2 exact drawn as quads.
+void BM_Large4096(benchmark::State& state) {
+  Gl& gl = Gl::Get();
+  if (!gl.context) return state.SkipWithError("no EGL context");
+  const int path = static_cast<int>(state.range(0));
+  Grid grid{kUnit, 4096, 4096};
+  auto sites = RandomSites(1000000, kUnit, 1);
+  RenderStats stats;
+  for (auto _ : state) {
+    auto frame = RenderOnce(*gl.rasterizer, grid, grid.pixel_size(), 1, sites, &stats,
+                            path ? RenderMode::kExact : RenderMode::kMesh, Diagram::kNearest,
+                            path == 2 ? FullRender::kRaster : FullRender::kAuto);
+    benchmark::DoNotOptimize(frame);
+  }
+  state.counters["coverage_ms"] = stats.coverage_seconds * 1e3;
+  state.counters["fill"] = stats.fill_ratio;
+  state.counters["candidates_px"] = stats.candidates_per_pixel;
+  state.SetLabel(gl.context->info().gl_renderer);
+}
+BENCHMARK(BM_Large4096)->DenseRange(0, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // 2. One-site add (0), move (1) and delete (2) in a scene of 100,000 points at 1024 x 1024:
 // the time until the new frame exists (publishing it is a pointer swap).

@@ -31,8 +31,31 @@ def main(paths):
                     continue
                 ref = f"{ms(o):.1f} ms (OpenCV distanceTransform, labels)" if o else "n/a"
                 ratio = f"{ms(o) / ms(g):.2f}x" if o else ""
+                how = (f"computed, {g['candidates_px']:.1f} candidates/px"
+                       if g.get("candidates_px") else f"fill {g['fill']:.0f}x grid")
                 print(f"| full render, {n:,} points, {size}x{size}, {label} mode | {ms(g):.1f} ms "
-                      f"(fill {g['fill']:.0f}x grid) | {ref} | {ratio} |")
+                      f"({how}) | {ref} | {ratio} |")
+    o = rows.get("BM_OpenCVDistanceTransform/1000000/4096")
+    for path, label in ((0, "mesh mode"), (1, "exact mode, computed"), (2, "exact mode, drawn")):
+        g = rows.get(f"BM_Large4096/{path}")
+        if g:
+            how = (f"{g['candidates_px']:.1f} candidates/px" if g.get("candidates_px")
+                   else f"fill {g['fill']:.0f}x grid")
+            ref = f"{ms(o):.1f} ms (OpenCV distanceTransform, labels)" if o else ""
+            ratio = f"{ms(o) / ms(g):.2f}x" if o else ""
+            print(f"| full render, 1,000,000 points, 4096x4096, {label} | {ms(g):.1f} ms ({how}) "
+                  f"| {ref} | {ratio} |")
+    kinds = ("segment", "polyline, 8 points", "polygon, 6 vertices",
+             "polygon, 6 vertices, inside only", "cubic Bezier", "weighted point, max_distance",
+             "point, FARTHEST (100 sites)")
+    for kind, name in enumerate(kinds):
+        for mode, label in ((0, "mesh"), (1, "exact")):
+            g = rows.get(f"BM_RenderKind/{kind}/{mode}")
+            if g:
+                how = (f"computed, {g['candidates_px']:.1f} candidates/px"
+                       if g.get("candidates_px") else f"fill {g['fill']:.0f}x grid")
+                print(f"| full render, 1,000 sites: {name}, 1024x1024, {label} mode | "
+                      f"{ms(g):.1f} ms ({how}) | | |")
     full = rows.get("BM_Render/100000/1024/0")
     ocv = rows.get("BM_OpenCVDistanceTransform/100000/1024")
     for kind, name in ((0, "add"), (1, "move"), (2, "delete")):
