@@ -153,6 +153,9 @@ absl::StatusOr<std::unique_ptr<Rasterizer>> Rasterizer::Create() {
       return absl::InternalError(absl::StrCat("compute shader link failed: ", log));
     }
     glGenBuffers(6, r->compute_buffers_);
+    GLint64 max_block = 0;
+    glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &max_block);
+    r->max_storage_block_ = max_block;
   }
   glGenVertexArrays(1, &r->vao_);
   glGenBuffers(1, &r->instances_);
@@ -500,6 +503,17 @@ absl::Status Rasterizer::Compute(const Grid& grid, const DrawParams& params,
   if (segments.empty()) segments.emplace_back();  // no buffer may be empty
   if (records.empty()) records.emplace_back();
   const size_t pixels = grid.pixel_count();
+  for (auto [bytes, what] : {std::pair{pixels * sizeof(uint32_t), "the pixels' ids"},
+                             {segments.size() * sizeof(glm::vec4), "the segments"},
+                             {records.size() * sizeof(Record), "the sites"},
+                             {lists.points.size() * sizeof(Point), "the tiles' points"},
+                             {lists.sites.size() * sizeof(uint32_t), "the tiles' sites"}}) {
+    if (bytes > static_cast<uint64_t>(max_storage_block_)) {
+      return absl::ResourceExhaustedError(
+          absl::StrCat(what, " take ", bytes, " bytes; GL_MAX_SHADER_STORAGE_BLOCK_SIZE is ",
+                       max_storage_block_));
+    }
+  }
   const GLuint segment_buffer = segments_;
   auto upload = [](GLuint buffer, GLuint binding, const void* data, size_t bytes) {
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffer);

@@ -144,7 +144,9 @@ class Rasterizer {
   // pixel centre of the tile (TileCover), and each draw's radius must reach all of them.
   // Fills `ids` and `distances` as ReadBack would, and leaves the target holding the diagram
   // as Draw would have (depths at params.depth_scale), for later draws over it. CONTRACT:
-  // params.diagram is kNearest; every site's value is below params.depth_scale.
+  // params.diagram is kNearest; every site's value is below params.depth_scale. Returns
+  // RESOURCE_EXHAUSTED, having changed nothing, when a buffer would exceed the GL's
+  // GL_MAX_SHADER_STORAGE_BLOCK_SIZE (llvmpipe's is 128 MiB: 32M pixels); Draw then serves.
   absl::Status Compute(const Grid& grid, const DrawParams& params, const SlotTable& sites,
                        const std::vector<SiteDraw>& draws, const TileLists& lists,
                        RenderTarget& target, std::vector<uint32_t>* ids,
@@ -170,6 +172,7 @@ class Rasterizer {
   unsigned vao_ = 0, instances_ = 0, quad_ = 0, tent_mesh_ = 0, segments_ = 0;
   // Compute's inputs and outputs: sites, tile offsets, candidate sites, ids, values, points.
   unsigned compute_buffers_[6] = {};
+  int64_t max_storage_block_ = 0;  // GL_MAX_SHADER_STORAGE_BLOCK_SIZE, bytes
   std::map<uint32_t, unsigned> cones_;  // segments -> vertex buffer
 };
 

@@ -139,7 +139,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
                                                                     RenderStats* stats) {
   auto start = std::chrono::steady_clock::now();
   const SlotTable& slots = drawn_->sites();
-  const bool compute = params_.diagram == Diagram::kNearest &&
+  bool compute = params_.diagram == Diagram::kNearest &&
                        (path_ == FullRender::kCompute ||
                         (path_ == FullRender::kAuto && params_.mode == RenderMode::kExact));
   Coverage cov;
@@ -181,13 +181,17 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
     std::vector<uint32_t> draw_of(slots.size(), 0);
     for (uint32_t k = 0; k < draws.size(); ++k) draw_of[draws[k].slot] = k;
     for (uint32_t& c : lists.sites) c = draw_of[c];
-    if (auto s = rasterizer.Compute(grid_, params_, slots, draws, lists, *target_, &ids,
-                                    &distances);
-        !s.ok()) {
+    absl::Status s =
+        rasterizer.Compute(grid_, params_, slots, draws, lists, *target_, &ids, &distances);
+    // Too large for the GL's storage buffers: the same radii serve the meshes.
+    if (absl::IsResourceExhausted(s)) {
+      compute = false;
+    } else if (!s.ok()) {
       return s;
     }
     draw_seconds = Seconds(draw_start);
-  } else {
+  }
+  if (!compute) {
     if (auto s = rasterizer.Draw(grid_, params_, grid_.all(), true, slots, draws, *target_);
         !s.ok()) {
       return s;

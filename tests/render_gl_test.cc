@@ -122,6 +122,26 @@ TEST_F(RenderGLTest, ExactModeRandomAndAdversarialScenes) {
   }
 }
 
+// A computed render whose buffers exceed the GL's storage-buffer limit (llvmpipe's 128 MiB:
+// 32M pixels of ids) is drawn with meshes instead: the scene still renders, and right.
+TEST_F(RenderGLTest, LargeExactScenesRenderWhateverTheStorageLimit) {
+  Grid grid{{0, 0, 2, 1}, 8192, 4100};
+  SiteTable sites = {{"a", PointSite{{0.3, 0.4}}}, {"b", PointSite{{1.7, 0.6}}},
+                     {"c", PointSite{{1.0, 0.9}}}};
+  RenderStats stats;
+  auto frame = Render(grid, grid.pixel_size(), sites, &stats, RenderMode::kExact,
+                      FullRender::kCompute);
+  ASSERT_NE(frame, nullptr);
+  RecordProperty("computed", stats.computed ? "yes" : "no");
+  for (uint32_t j = 0; j < grid.height; j += 97) {
+    for (uint32_t i = 0; i < grid.width; i += 89) {
+      Vec2 p = grid.Center(i, j);
+      auto best = oracle::BestSite(p, sites);
+      ASSERT_EQ(frame->id_at(i, j), best.index + 1) << i << "," << j;
+    }
+  }
+}
+
 TEST_F(RenderGLTest, RandomScenesAtSeveralResolutions) {
   struct Case {
     size_t sites;
