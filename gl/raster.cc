@@ -514,7 +514,6 @@ absl::Status Rasterizer::Compute(const Grid& grid, const DrawParams& params,
                        max_storage_block_));
     }
   }
-  const GLuint segment_buffer = segments_;
   auto upload = [](GLuint buffer, GLuint binding, const void* data, size_t bytes) {
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffer);
     glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(bytes), data, GL_STREAM_DRAW);
@@ -523,7 +522,7 @@ absl::Status Rasterizer::Compute(const Grid& grid, const DrawParams& params,
   static_assert(sizeof(Point) == 4 * 4);
   const uint32_t no_site = 0;
   const Point no_point{};
-  upload(segment_buffer, 0, segments.data(), segments.size() * sizeof(glm::vec4));
+  upload(segments_, 0, segments.data(), segments.size() * sizeof(glm::vec4));
   upload(compute_buffers_[0], 1, records.data(), records.size() * sizeof(Record));
   upload(compute_buffers_[1], 2, lists.offsets.data(), lists.offsets.size() * sizeof(uint32_t));
   upload(compute_buffers_[2], 3, lists.sites.empty() ? &no_site : lists.sites.data(),

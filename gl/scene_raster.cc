@@ -42,39 +42,37 @@ Coverage TileCandidates(const Grid& grid, const SlotTable& slots, const SiteInde
     std::vector<uint32_t> ends;  // per tile: where its points and other sites end
     std::vector<Rasterizer::Point> points;
     std::vector<uint32_t> sites;
-    std::vector<uint32_t> slots;  // scratch: one tile's
-    std::vector<double> radii;    // the radius of each list entry, points first
+    std::vector<double> point_radii, site_radii;  // the radius each entry needs there
   };
   std::vector<Row> rows(tiles_y);
   ParallelFor(tiles_y, 1, [&](size_t begin, size_t end) {
-    std::vector<double> radii;
+    std::vector<uint32_t> tile_slots;  // one tile's
+    std::vector<double> tile_radii;
     for (size_t ty = begin; ty < end; ++ty) {
       Row& row = rows[ty];
       row.ends.reserve(2 * tiles_x);
       const uint32_t y0 = static_cast<uint32_t>(ty) * kTile;
-      std::vector<double> site_radii;
       for (uint32_t tx = 0; tx < tiles_x; ++tx) {
-        row.slots.clear();
-        radii.clear();
+        tile_slots.clear();
+        tile_radii.clear();
         cover.Cover({tx * kTile, y0, std::min(tx * kTile + kTile, grid.width),
                      std::min(y0 + kTile, grid.height)},
-                    &row.slots, &radii);
-        for (size_t k = 0; k < row.slots.size(); ++k) {
-          const uint32_t slot = row.slots[k];
+                    &tile_slots, &tile_radii);
+        for (size_t k = 0; k < tile_slots.size(); ++k) {
+          const uint32_t slot = tile_slots[k];
           const Vec2 p = slots.point(slot);
           if (std::isnan(p.x)) {
             row.sites.push_back(slot);
-            site_radii.push_back(radii[k]);
+            row.site_radii.push_back(tile_radii[k]);
           } else {
             row.points.push_back({static_cast<float>(p.x - grid.window.min_x),
                                   static_cast<float>(p.y - grid.window.min_y), slot + 1});
-            row.radii.push_back(radii[k]);
+            row.point_radii.push_back(tile_radii[k]);
           }
         }
         row.ends.push_back(static_cast<uint32_t>(row.points.size()));
         row.ends.push_back(static_cast<uint32_t>(row.sites.size()));
       }
-      row.radii.insert(row.radii.end(), site_radii.begin(), site_radii.end());
     }
   });
   Coverage cov;
@@ -95,11 +93,11 @@ Coverage TileCandidates(const Grid& grid, const SlotTable& slots, const SiteInde
     lists->sites.insert(lists->sites.end(), row.sites.begin(), row.sites.end());
     for (size_t k = 0; k < row.points.size(); ++k) {
       double& r = cov.radius[row.points[k].id - 1];
-      r = std::max(r, row.radii[k]);
+      r = std::max(r, row.point_radii[k]);
     }
     for (size_t k = 0; k < row.sites.size(); ++k) {
       double& r = cov.radius[row.sites[k]];
-      r = std::max(r, row.radii[row.points.size() + k]);
+      r = std::max(r, row.site_radii[k]);
     }
   }
   cov.pairs = lists->points.size() + lists->sites.size();
