@@ -14,8 +14,10 @@ gvd_packages() {
       echo libgtest-dev libgmock-dev libbenchmark-dev libnanoflann-dev libqhull-dev openssl \
         shellcheck yamllint python3-yaml
       ;;
-    bench)  # the reference libraries of tests/bench/run.sh beyond the test group's
-      echo libopencv-dev
+    bench)  # the reference libraries of tests/bench/run.sh beyond the test group's, and the
+      # stock Python gRPC client of tests/bench/serve.py
+      echo libopencv-dev python3-opencv python3-scipy python3-numpy python3-grpcio \
+        python3-protobuf
       ;;
     *)
       echo "gvd_packages: unknown group $1" >&2

@@ -34,7 +34,7 @@ absl::StatusOr<std::vector<uint32_t>> EmbeddedDiagram(DevicePreference device, c
                                                       const std::vector<Vec2>& sites) {
   auto context = GlContext::Create(device);
   if (!context.ok()) return context.status();
-  auto rasterizer = Rasterizer::Create();
+  auto rasterizer = Rasterizer::Create((*context)->info());
   if (!rasterizer.ok()) return rasterizer.status();
   SiteTable table;
   table.reserve(sites.size());

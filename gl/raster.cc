@@ -124,8 +124,9 @@ absl::StatusOr<Rasterizer::Program> Rasterizer::Link(const char* vertex, const c
   return p;
 }
 
-absl::StatusOr<std::unique_ptr<Rasterizer>> Rasterizer::Create() {
+absl::StatusOr<std::unique_ptr<Rasterizer>> Rasterizer::Create(const DeviceInfo& device) {
   std::unique_ptr<Rasterizer> r(new Rasterizer());
+  r->software_ = device.software;
   for (auto [program, vertex, fragment] :
        {std::tuple{&r->cone_, shaders::kConeVert, shaders::kIdFrag},
         std::tuple{&r->tent_, shaders::kTentVert, shaders::kIdFrag},

@@ -8,6 +8,7 @@
 
 #include "absl/status/statusor.h"
 #include "core/frame.h"
+#include "gl/context.h"
 #include "geometry/exact.h"
 #include "geometry/geometry.h"
 #include "geometry/site.h"
@@ -103,10 +104,15 @@ class ErrorTally {
 // Compiled shaders and mesh buffers. Not thread-safe; use on the context's thread.
 class Rasterizer {
  public:
-  static absl::StatusOr<std::unique_ptr<Rasterizer>> Create();
+  // For the context current on this thread, made on `device`.
+  static absl::StatusOr<std::unique_ptr<Rasterizer>> Create(const DeviceInfo& device);
   ~Rasterizer();
   Rasterizer(const Rasterizer&) = delete;
   Rasterizer& operator=(const Rasterizer&) = delete;
+
+  // Whether the context renders on Mesa's software rasterizer (llvmpipe), where a compute
+  // pass over candidate lists beats drawing meshes for every site kind (tests/bench/README.md).
+  bool software() const { return software_; }
 
   // How a site that must cover `radius` is drawn.
   SiteShape Shape(const Grid& grid, const DrawParams& params, const Site& site,
@@ -173,6 +179,7 @@ class Rasterizer {
   // Compute's inputs and outputs: sites, tile offsets, candidate sites, ids, values, points.
   unsigned compute_buffers_[6] = {};
   int64_t max_storage_block_ = 0;  // GL_MAX_SHADER_STORAGE_BLOCK_SIZE, bytes
+  bool software_ = false;
   std::map<uint32_t, unsigned> cones_;  // segments -> vertex buffer
 };
 

@@ -137,9 +137,11 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
                                                                     RenderStats* stats) {
   auto start = std::chrono::steady_clock::now();
   const SlotTable& slots = drawn_->sites();
-  bool compute = params_.diagram == Diagram::kNearest &&
-                       (path_ == FullRender::kCompute ||
-                        (path_ == FullRender::kAuto && params_.mode == RenderMode::kExact));
+  bool compute =
+      params_.diagram == Diagram::kNearest &&
+      (path_ == FullRender::kCompute ||
+       (path_ == FullRender::kAuto &&
+        (params_.mode == RenderMode::kExact || rasterizer.software())));
   Coverage cov;
   Rasterizer::TileLists lists;
   if (compute) {

@@ -76,7 +76,7 @@ void RenderLoop::Run(DevicePreference preference) {
     auto ctx = GlContext::Create(preference);
     if (ctx.ok()) {
       context = std::move(*ctx);
-      auto r = Rasterizer::Create();
+      auto r = Rasterizer::Create(context->info());
       if (r.ok()) {
         rasterizer = std::move(*r);
       } else {

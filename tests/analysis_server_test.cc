@@ -387,7 +387,8 @@ TEST_F(AnalysisServerTest, HiddenSitesAreReportedAndRecovered) {
 // site.
 TEST_F(AnalysisServerTest, AmbiguousAnswersAreRefined) {
   {
-    // Meshes four pixels off: many pixels hold a close second.
+    // Meshes four pixels off: many pixels hold a close second. (Where full renders are
+    // computed, pixel centres hold exact values, but a point between centres still can.)
     v1::CreateSceneRequest c = testing::UnitScene("ambiguous", 64, 64);
     c.set_max_error(4.0 / 64);
     v1::Scene scene;
@@ -430,7 +431,7 @@ TEST_F(AnalysisServerTest, AmbiguousAnswersAreRefined) {
               wrong[0], certified[0], wrong[1], certified[1]);
   // Refining only replaces answers by exact ones, so it can only mend: here it does, though
   // answers whose four pixels hold a single site are not ambiguous and stay as they are.
-  EXPECT_GT(wrong[1], 20u) << "the raster alone should sometimes pick a close second";
+  EXPECT_GT(wrong[1], 5u) << "the raster alone should sometimes pick a close second";
   EXPECT_LT(wrong[0], wrong[1]);
   EXPECT_GT(certified[0], 1000u);
   EXPECT_EQ(certified[1], 0u);

@@ -38,7 +38,7 @@ class GlTest : public ::testing::Test {
       return;
     }
     context_ = ctx->release();
-    auto r = Rasterizer::Create();
+    auto r = Rasterizer::Create(context_->info());
     ASSERT_TRUE(r.ok()) << r.status();
     rasterizer_ = r->release();
   }

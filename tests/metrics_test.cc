@@ -22,7 +22,9 @@ TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
   ASSERT_NE(port, 0) << server.log();
 
   auto client = Client::Connect(server.address());
+  // A FARTHEST diagram is drawn as meshes on every device, so its full render reports a fill.
   v1::CreateSceneRequest c = testing::UnitScene("metered", 64, 64);
+  c.set_diagram(v1::FARTHEST);
   v1::Scene scene;
   ASSERT_TRUE(client->CreateScene(c, &scene).ok());
   EXPECT_EQ(client->CreateScene(c, &scene).error_code(), grpc::StatusCode::ALREADY_EXISTS);
@@ -68,8 +70,8 @@ TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
       << text;
   EXPECT_GE(std::stod(fill[1]), (63.0 / 64) * (63.0 / 64));
 
-  // An EXACT scene's first render is computed: it reports its candidates per pixel instead,
-  // at least one (every pixel centre scans the site nearest to it).
+  // An EXACT nearest diagram's first render is computed: it reports its candidates per pixel
+  // instead, at least one (every pixel centre scans the site nearest to it).
   c = testing::UnitScene("computed", 64, 64);
   c.set_render_mode(v1::EXACT);
   ASSERT_TRUE(client->CreateScene(c, &scene).ok());

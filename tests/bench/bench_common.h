@@ -35,7 +35,7 @@ struct Gl {
       auto c = GlContext::Create(*preference);
       if (!c.ok()) return g;
       g.context = std::move(*c);
-      g.rasterizer = std::move(*Rasterizer::Create());
+      g.rasterizer = std::move(*Rasterizer::Create(g.context->info()));
       return g;
     }();
     return gl;

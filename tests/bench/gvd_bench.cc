@@ -36,7 +36,8 @@ std::vector<Vec2> RandomPoints(size_t n, uint64_t seed) {
 const Window kUnit{0, 0, 1, 1};
 
 // 1. Full render of N random points on a size x size grid, one pixel of error, readback and
-// frame included; range(2): 0 = mesh mode, 1 = exact mode.
+// frame included; range(2): 0 = mesh mode, meshes drawn (as on a GPU), 1 = exact mode,
+// computed (as every nearest diagram on a software rasterizer).
 void BM_Render(benchmark::State& state) {
   Gl& gl = Gl::Get();
   if (!gl.context) return state.SkipWithError("no EGL context");
@@ -47,7 +48,9 @@ void BM_Render(benchmark::State& state) {
   auto sites = RandomSites(n, kUnit, 1);
   RenderStats stats;
   for (auto _ : state) {
-    auto frame = RenderOnce(*gl.rasterizer, grid, grid.pixel_size(), 1, sites, &stats, mode);
+    auto frame = RenderOnce(*gl.rasterizer, grid, grid.pixel_size(), 1, sites, &stats, mode,
+                            Diagram::kNearest,
+                            state.range(2) ? FullRender::kAuto : FullRender::kRaster);
     benchmark::DoNotOptimize(frame);
   }
   state.counters["coverage_ms"] = stats.coverage_seconds * 1e3;
@@ -113,7 +116,8 @@ void BM_RenderKind(benchmark::State& state) {
   const Diagram diagram = kind == 6 ? Diagram::kFarthest : Diagram::kNearest;
   RenderStats stats;
   for (auto _ : state) {
-    auto frame = RenderOnce(*gl.rasterizer, grid, grid.pixel_size(), 1, sites, &stats, mode, diagram);
+    auto frame = RenderOnce(*gl.rasterizer, grid, grid.pixel_size(), 1, sites, &stats, mode, diagram,
+                            state.range(1) ? FullRender::kAuto : FullRender::kRaster);
     benchmark::DoNotOptimize(frame);
   }
   static const char* kNames[] = {"segment",      "polyline8", "polygon6", "polygon6-inside",

@@ -7,7 +7,7 @@ cd "$(dirname "$0")/../.."
 . deploy/debian-deps.sh
 gvd_install_packages build test bench
 cmake -S . -B build/bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DGVD_BUILD_TESTS=ON >/dev/null
-cmake --build build/bench --target gvd_bench gvd_analysis_bench
+cmake --build build/bench --target gvd_bench gvd_analysis_bench gvd-server
 bench=build/bench/tests/bench/gvd_bench
 # Full renders with llvmpipe's rasterizer threads (one per core, its default); updates and
 # queries as gvd-server runs them by default (rasterizing on the render thread).
@@ -19,3 +19,5 @@ LP_NUM_THREADS=0 "$bench" --benchmark_filter='Update|Nearest|Grpc|Latency' \
 LP_NUM_THREADS=0 build/bench/tests/bench/gvd_analysis_bench \
   --benchmark_out=build/bench/analysis.json --benchmark_out_format=json "$@" >&2
 python3 tests/bench/table.py build/bench/render.json build/bench/serve.json build/bench/analysis.json
+# What users wait for, through a real gvd-server on its default flags and a Python client.
+/usr/bin/python3 tests/bench/serve.py build/bench/server/gvd-server

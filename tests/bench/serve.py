@@ -1,0 +1,196 @@
+#!/usr/bin/python3
+"""What users wait for, through a real gvd-server and a stock Python grpcio client, beside
+what they would use instead (OpenCV, scipy) in the same run.
+
+Usage: serve.py GVD_SERVER [--points N] [--size PX] [--queries N] [--moves N] [--json FILE]
+
+Starts GVD_SERVER on loopback with its default flags and a store on disk (acknowledged means
+committed), then measures:
+  - bulk load: one UpsertSites of N points into a new scene, until acknowledged, and until a
+    FindNearest with min_version is answered (the frame is published);
+  - one-site move: UpsertSites of one point, then FindNearest with min_version at the new
+    position (the round trip to a published frame), repeated;
+  - one packed FindNearest (`xy`) of Q random points, raster answers and exact answers.
+References: OpenCV's distanceTransformWithLabels (DIST_L2, DIST_MASK_PRECISE, labels per
+pixel) on the points snapped to the grid, scipy's cKDTree build and query (one worker and
+all cores).
+"""
+import argparse
+import json
+import os
+import shutil
+import signal
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+import cv2
+import grpc
+import numpy as np
+from scipy.spatial import cKDTree
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def load_messages(workdir):
+    """Compiles voronoi.proto to Python messages with protoc; the RPCs are called by name."""
+    subprocess.run(["protoc", "-I", os.path.join(ROOT, "proto"), "--python_out", workdir,
+                    "gvd/v1/voronoi.proto"], check=True)
+    sys.path.insert(0, workdir)
+    from gvd.v1 import voronoi_pb2  # pylint: disable=import-outside-toplevel
+    return voronoi_pb2
+
+
+class Voronoi:
+    """The gvd.v1.Voronoi calls this script makes."""
+
+    def __init__(self, channel, pb):
+        def call(name, request, response):
+            return channel.unary_unary("/gvd.v1.Voronoi/" + name,
+                                       request_serializer=request.SerializeToString,
+                                       response_deserializer=response.FromString)
+        self.CreateScene = call("CreateScene", pb.CreateSceneRequest, pb.Scene)
+        self.UpsertSites = call("UpsertSites", pb.UpsertSitesRequest, pb.UpsertSitesResponse)
+        self.FindNearest = call("FindNearest", pb.FindNearestRequest, pb.FindNearestResponse)
+
+
+def start_server(binary, workdir):
+    port_file = os.path.join(workdir, "port")
+    server = subprocess.Popen([binary, "--listen", "127.0.0.1:0", "--port-file", port_file,
+                               "--data", os.path.join(workdir, "store"), "--log-level", "warn"])
+    deadline = time.monotonic() + 60
+    while not (os.path.exists(port_file) and os.path.getsize(port_file) > 0):
+        if server.poll() is not None or time.monotonic() > deadline:
+            raise SystemExit("gvd-server did not start")
+        time.sleep(0.05)
+    with open(port_file, encoding="ascii") as f:
+        return server, "127.0.0.1:" + f.read().strip()
+
+
+def best(fn, repeat):
+    """The least time of `repeat` calls of fn, in seconds, and fn's last result."""
+    times, result = [], None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        result = fn()
+        times.append(time.perf_counter() - t0)
+    return min(times), result
+
+
+def opencv_labels(points, size):
+    """OpenCV's exact labelled distance transform of the points snapped to size x size pixels."""
+    image = np.ones((size, size), np.uint8)
+    px = np.clip((points * size).astype(np.int64), 0, size - 1)
+    image[px[:, 1], px[:, 0]] = 0
+    cv2.setNumThreads(1)
+    return lambda: cv2.distanceTransformWithLabels(image, cv2.DIST_L2, cv2.DIST_MASK_PRECISE,
+                                                   labelType=cv2.DIST_LABEL_PIXEL)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("server")
+    ap.add_argument("--points", type=int, default=100_000)
+    ap.add_argument("--size", type=int, default=1024)
+    ap.add_argument("--queries", type=int, default=1_000_000)
+    ap.add_argument("--moves", type=int, default=300)
+    ap.add_argument("--json", help="also write the figures here")
+    args = ap.parse_args()
+
+    rng = np.random.default_rng(1)
+    points = rng.random((args.points, 2))
+    queries = rng.random((args.queries, 2))
+    workdir = tempfile.mkdtemp(prefix="gvd-serve-")
+    pb = load_messages(workdir)
+    server, address = start_server(args.server, workdir)
+    rows = []
+    try:
+        channel = grpc.insecure_channel(address, options=[
+            ("grpc.max_send_message_length", 1 << 30),
+            ("grpc.max_receive_message_length", 1 << 30)])
+        api = Voronoi(channel, pb)
+        create = pb.CreateSceneRequest(scene_id="load", width_px=args.size, height_px=args.size)
+        create.window.max_x = 1
+        create.window.max_y = 1
+        api.CreateScene(create)
+        upsert = pb.UpsertSitesRequest(scene_id="load")
+        for i, (x, y) in enumerate(points):
+            site = upsert.sites.add(id=str(i))
+            site.point.x = x
+            site.point.y = y
+        body = upsert.SerializeToString()
+        print(f"gvd-server at {address}; UpsertSites of {args.points} points: "
+              f"{len(body) / 1e6:.1f} MB", file=sys.stderr)
+
+        # Bulk load, until acknowledged and until a query can read the frame.
+        t0 = time.perf_counter()
+        version = api.UpsertSites(upsert).version
+        acked = time.perf_counter() - t0
+        probe = pb.FindNearestRequest(scene_id="load", min_version=version)
+        probe.points.add(x=0.5, y=0.5)
+        api.FindNearest(probe, timeout=600)
+        queryable = time.perf_counter() - t0
+        cv_full, _ = best(opencv_labels(points, args.size), 5)
+        kd_build, tree = best(lambda: cKDTree(points), 5)
+        rows.append(("bulk load, until acknowledged", acked, None))
+        rows.append(("bulk load, until queryable", queryable, cv_full))
+        rows.append(("scipy cKDTree build", kd_build, None))
+
+        # One-site moves, each until a query at the new position sees it.
+        move = pb.UpsertSitesRequest(scene_id="load")
+        site = move.sites.add(id="0")
+        ask = pb.FindNearestRequest(scene_id="load")
+        at = ask.points.add()
+        trips = []
+        for k in range(args.moves):
+            x, y = rng.random(2)
+            site.point.x, site.point.y = x, y
+            t0 = time.perf_counter()
+            ask.min_version = api.UpsertSites(move).version
+            at.x, at.y = x, y
+            answer = api.FindNearest(ask).results[0]
+            trips.append(time.perf_counter() - t0)
+            if answer.site_id != "0":
+                raise SystemExit(f"move {k}: the query at ({x}, {y}) saw {answer.site_id}")
+        rows.append(("one-site move, round trip (median)", statistics.median(trips), cv_full))
+        rows.append(("one-site move, round trip (p99)",
+                     sorted(trips)[len(trips) * 99 // 100], cv_full))
+
+        # One packed batch of queries, raster then exact answers; cKDTree beside them.
+        batch = pb.FindNearestRequest(scene_id="load")
+        batch.xy.extend(queries.ravel().tolist())
+        for exact in (False, True):
+            batch.exact = exact
+            seconds, reply = best(lambda: api.FindNearest(batch, timeout=600), 3)
+            if len(reply.packed.site) != args.queries:
+                raise SystemExit("the batch came back short")
+            rows.append((f"{args.queries} points in one packed FindNearest, "
+                         f"{'exact' if exact else 'raster'}", seconds, None))
+        kd1, _ = best(lambda: tree.query(queries, workers=1), 3)
+        kdn, _ = best(lambda: tree.query(queries, workers=-1), 3)
+        rows.append((f"scipy cKDTree query, {args.queries} points, one worker", kd1, None))
+        rows.append((f"scipy cKDTree query, {args.queries} points, all cores", kdn, None))
+        rows.append(("OpenCV distanceTransformWithLabels, exact mask", cv_full, None))
+    finally:
+        server.send_signal(signal.SIGTERM)
+        server.wait(timeout=60)
+        shutil.rmtree(workdir, ignore_errors=True)
+
+    print(f"\n{args.points} random points, {args.size}x{args.size}, gvd-server defaults, "
+          f"store on disk; {os.cpu_count()} CPUs\n")
+    print("| what a user does | time | OpenCV exact labels, same run | ratio |")
+    print("|---|---|---|---|")
+    for name, seconds, reference in rows:
+        ratio = f"{reference / seconds:.2f}x" if reference else ""
+        ref = f"{reference * 1e3:.1f} ms" if reference else ""
+        print(f"| {name} | {seconds * 1e3:.2f} ms | {ref} | {ratio} |")
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as f:
+            json.dump([{"name": n, "seconds": s, "opencv_seconds": r} for n, s, r in rows], f,
+                      indent=1)
+
+
+if __name__ == "__main__":
+    main()
