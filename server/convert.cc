@@ -17,17 +17,17 @@ using grpc::StatusCode;
 
 Status Invalid(std::string message) { return Status(StatusCode::INVALID_ARGUMENT, message); }
 
-// "sites[3].point" and the like.
+// "ids[3]" and the like.
 std::string Indexed(const std::string& field, size_t i) { return absl::StrCat(field, "[", i, "]"); }
 
-Status CheckFinite(double v, const std::string& field) {
+Status CheckFinite(double v, const FieldPath& field) {
   if (std::isfinite(v)) return Status::OK;
-  return Invalid(absl::StrCat(field, " is ", FormatNumber(v), "; coordinates must be finite"));
+  return Invalid(absl::StrCat(field.str(), " is ", FormatNumber(v), "; coordinates must be finite"));
 }
 
-Status CheckPoint(const v1::Point& p, const std::string& field) {
-  if (auto s = CheckFinite(p.x(), absl::StrCat(field, ".x")); !s.ok()) return s;
-  return CheckFinite(p.y(), absl::StrCat(field, ".y"));
+Status CheckPoint(const v1::Point& p, const FieldPath& field) {
+  if (auto s = CheckFinite(p.x(), field.Member("x")); !s.ok()) return s;
+  return CheckFinite(p.y(), field.Member("y"));
 }
 
 std::string Quoted(const std::string& s, size_t max = 64) {
@@ -35,6 +35,16 @@ std::string Quoted(const std::string& s, size_t max = 64) {
 }
 
 }  // namespace
+
+std::string FieldPath::str() const {
+  std::string s = parent_ == nullptr ? "" : parent_->str();
+  if (!name_.empty()) {
+    if (!s.empty()) s += '.';
+    s.append(name_);
+  }
+  if (index_ >= 0) absl::StrAppend(&s, "[", index_, "]");
+  return s;
+}
 
 std::string FormatNumber(double v) {
   if (std::isnan(v)) return "NaN";
@@ -110,44 +120,46 @@ Status ToSceneSettings(const v1::CreateSceneRequest& r, const ServerLimits& limi
   return Status::OK;
 }
 
-Status ToSite(const v1::Site& s, const std::string& field, const ServerLimits& limits,
+Status ToSite(const v1::Site& s, const FieldPath& field, const ServerLimits& limits,
               Site* site) {
   site->id = s.id();
-  auto points = [&](const auto& list, const std::string& name, size_t min,
+  auto points = [&](const auto& list, const FieldPath& name, size_t min,
                     std::vector<Vec2>* out) -> Status {
     if (size_t(list.size()) < min) {
-      return Invalid(absl::StrCat(name, " has ", list.size(), " points; it needs at least ", min,
-                                  " (site ", Quoted(s.id()), ")"));
+      return Invalid(absl::StrCat(name.str(), " has ", list.size(), " points; it needs at least ",
+                                  min, " (site ", Quoted(s.id()), ")"));
     }
     if (size_t(list.size()) > limits.max_vertices_per_site) {
       return Status(StatusCode::RESOURCE_EXHAUSTED,
-                    absl::StrCat(name, " has ", list.size(), " points; the limit is ",
+                    absl::StrCat(name.str(), " has ", list.size(), " points; the limit is ",
                                  limits.max_vertices_per_site, " (--max-vertices-per-site)"));
     }
     out->clear();
     out->reserve(list.size());
     for (int k = 0; k < list.size(); ++k) {
-      if (auto st = CheckPoint(list[k], Indexed(name, k)); !st.ok()) return st;
+      if (auto st = CheckPoint(list[k], name[k]); !st.ok()) return st;
       out->push_back({list[k].x(), list[k].y()});
     }
     return Status::OK;
   };
   switch (s.geometry_case()) {
     case v1::Site::kPoint: {
-      if (auto st = CheckPoint(s.point(), field + ".point"); !st.ok()) return st;
+      if (auto st = CheckPoint(s.point(), field.Member("point")); !st.ok()) return st;
       site->geometry = PointSite{{s.point().x(), s.point().y()}};
       break;
     }
     case v1::Site::kSegment: {
-      if (auto st = CheckPoint(s.segment().a(), field + ".segment.a"); !st.ok()) return st;
-      if (auto st = CheckPoint(s.segment().b(), field + ".segment.b"); !st.ok()) return st;
+      const FieldPath segment = field.Member("segment");
+      if (auto st = CheckPoint(s.segment().a(), segment.Member("a")); !st.ok()) return st;
+      if (auto st = CheckPoint(s.segment().b(), segment.Member("b")); !st.ok()) return st;
       site->geometry = SegmentSite{{s.segment().a().x(), s.segment().a().y()},
                                    {s.segment().b().x(), s.segment().b().y()}};
       break;
     }
     case v1::Site::kPolyline: {
       PolylineSite l;
-      if (auto st = points(s.polyline().points(), field + ".polyline.points", 2, &l.points);
+      const FieldPath polyline = field.Member("polyline");
+      if (auto st = points(s.polyline().points(), polyline.Member("points"), 2, &l.points);
           !st.ok()) {
         return st;
       }
@@ -156,7 +168,8 @@ Status ToSite(const v1::Site& s, const std::string& field, const ServerLimits& l
     }
     case v1::Site::kPolygon: {
       PolygonSite poly;
-      if (auto st = points(s.polygon().vertices(), field + ".polygon.vertices", 3, &poly.vertices);
+      const FieldPath polygon = field.Member("polygon");
+      if (auto st = points(s.polygon().vertices(), polygon.Member("vertices"), 3, &poly.vertices);
           !st.ok()) {
         return st;
       }
@@ -165,7 +178,7 @@ Status ToSite(const v1::Site& s, const std::string& field, const ServerLimits& l
         case v1::Polygon::OUTSIDE: poly.side = Side::kOutside; break;
         case v1::Polygon::INSIDE: poly.side = Side::kInside; break;
         default:
-          return Invalid(absl::StrCat(field, ".polygon.side is ", s.polygon().side(),
+          return Invalid(absl::StrCat(field.str(), ".polygon.side is ", s.polygon().side(),
                                       "; it must be SIDE_UNSPECIFIED, OUTSIDE or INSIDE"));
       }
       site->geometry = std::move(poly);
@@ -173,15 +186,16 @@ Status ToSite(const v1::Site& s, const std::string& field, const ServerLimits& l
     }
     case v1::Site::kBezier: {
       std::vector<Vec2> control;
-      std::string name = field + ".bezier.control_points";
+      const FieldPath bezier = field.Member("bezier");
+      const FieldPath name = bezier.Member("control_points");
       if (auto st = points(s.bezier().control_points(), name, 3, &control); !st.ok()) return st;
       if (control.size() > 4) {
-        return Invalid(absl::StrCat(name, " has ", control.size(),
+        return Invalid(absl::StrCat(name.str(), " has ", control.size(),
                                     " points; a Bezier takes 3 (quadratic) or 4 (cubic)"));
       }
       double tol = s.bezier().tolerance();
       if (!std::isfinite(tol) || tol < 0) {
-        return Invalid(absl::StrCat(field, ".bezier.tolerance is ", FormatNumber(tol),
+        return Invalid(absl::StrCat(field.str(), ".bezier.tolerance is ", FormatNumber(tol),
                                     "; it must be finite and not negative (0 means a "
                                     "thousandth of the control polygon)"));
       }
@@ -189,26 +203,26 @@ Status ToSite(const v1::Site& s, const std::string& field, const ServerLimits& l
       break;
     }
     case v1::Site::GEOMETRY_NOT_SET:
-      return Invalid(absl::StrCat(field, ".geometry is not set (site ", Quoted(s.id()), ")"));
+      return Invalid(absl::StrCat(field.str(), ".geometry is not set (site ", Quoted(s.id()), ")"));
   }
   // Extents must stay finite for distances to be.
   Window box = BoundingBox(site->geometry);
   if (!std::isfinite(box.width()) || !std::isfinite(box.height())) {
-    return Invalid(absl::StrCat(field, " spans ", FormatNumber(box.width()), " x ",
+    return Invalid(absl::StrCat(field.str(), " spans ", FormatNumber(box.width()), " x ",
                                 FormatNumber(box.height()),
                                 ", which overflows a double (site ", Quoted(s.id()), ")"));
   }
   double a = s.additive_weight(), m = s.multiplicative_weight(), r = s.max_distance();
   if (!std::isfinite(a) || a < 0 || a > 1e15) {
-    return Invalid(absl::StrCat(field, ".additive_weight is ", FormatNumber(a),
+    return Invalid(absl::StrCat(field.str(), ".additive_weight is ", FormatNumber(a),
                                 "; it must be 0 to 1e15"));
   }
   if (!std::isfinite(m) || m < 0 || m > 1e6 || (m != 0 && m < 1e-6)) {
-    return Invalid(absl::StrCat(field, ".multiplicative_weight is ", FormatNumber(m),
+    return Invalid(absl::StrCat(field.str(), ".multiplicative_weight is ", FormatNumber(m),
                                 "; it must be 0 (meaning 1) or 1e-6 to 1e6"));
   }
   if (!std::isfinite(r) || r < 0) {
-    return Invalid(absl::StrCat(field, ".max_distance is ", FormatNumber(r),
+    return Invalid(absl::StrCat(field.str(), ".max_distance is ", FormatNumber(r),
                                 "; it must be finite and positive, or 0 for none"));
   }
   site->additive = a;
@@ -226,20 +240,22 @@ Status ToSites(const v1::UpsertSitesRequest& r, const ServerLimits& limits,
                                limits.max_sites_per_request, " (--max-sites-per-request)"));
   }
   std::unordered_map<std::string_view, size_t> seen;
+  seen.reserve(r.sites_size());
   sites->clear();
   sites->reserve(r.sites_size());
+  const FieldPath all("sites");
   for (int i = 0; i < r.sites_size(); ++i) {
     const v1::Site& s = r.sites(i);
-    std::string field = Indexed("sites", i);
-    if (s.id().empty()) return Invalid(absl::StrCat(field, ".id is empty"));
+    const FieldPath field = all[i];
+    if (s.id().empty()) return Invalid(absl::StrCat(field.str(), ".id is empty"));
     if (s.id().size() > limits.max_site_id_bytes) {
-      return Invalid(absl::StrCat(field, ".id ", Quoted(s.id()), " is ", s.id().size(),
+      return Invalid(absl::StrCat(field.str(), ".id ", Quoted(s.id()), " is ", s.id().size(),
                                   " bytes; the limit is ", limits.max_site_id_bytes));
     }
     auto [it, fresh] = seen.emplace(s.id(), i);
     if (!fresh) {
-      return Invalid(absl::StrCat(field, ".id ", Quoted(s.id()), " repeats sites[", it->second,
-                                  "].id; ids in one request must be distinct"));
+      return Invalid(absl::StrCat(field.str(), ".id ", Quoted(s.id()), " repeats sites[",
+                                  it->second, "].id; ids in one request must be distinct"));
     }
     Site site;
     if (auto st = ToSite(s, field, limits, &site); !st.ok()) return st;
@@ -290,12 +306,12 @@ Status ToQueryPoints(const v1::FindNearestRequest& r, const Window& w, const Ser
   *outside = false;
   if (r.xy_size() > 0) {
     for (int i = 0; i < r.xy_size(); ++i) {
-      if (auto s = CheckFinite(r.xy(i), Indexed("xy", i)); !s.ok()) return s;
+      if (auto s = CheckFinite(r.xy(i), FieldPath("xy")[i]); !s.ok()) return s;
     }
     for (size_t i = 0; i < n; ++i) (*points)[i] = {r.xy(2 * i), r.xy(2 * i + 1)};
   } else {
     for (int i = 0; i < r.points_size(); ++i) {
-      if (auto s = CheckPoint(r.points(i), Indexed("points", i)); !s.ok()) return s;
+      if (auto s = CheckPoint(r.points(i), FieldPath("points")[i]); !s.ok()) return s;
       (*points)[i] = {r.points(i).x(), r.points(i).y()};
     }
   }
@@ -370,9 +386,10 @@ grpc::Status ToPixelRect(const v1::Window& w, const Grid& grid, PixelRect* rect)
 }
 
 grpc::Status ToWindow(const v1::Window& w, const std::string& field, Window* out) {
-  for (auto [v, name] : {std::pair{w.min_x(), ".min_x"}, {w.min_y(), ".min_y"},
-                         {w.max_x(), ".max_x"}, {w.max_y(), ".max_y"}}) {
-    if (auto s = CheckFinite(v, field + name); !s.ok()) return s;
+  const FieldPath window(field.c_str());
+  for (auto [v, name] : {std::pair{w.min_x(), "min_x"}, {w.min_y(), "min_y"},
+                         {w.max_x(), "max_x"}, {w.max_y(), "max_y"}}) {
+    if (auto s = CheckFinite(v, window.Member(name)); !s.ok()) return s;
   }
   if (!(w.min_x() < w.max_x())) {
     return Invalid(absl::StrCat(field, ".min_x ", FormatNumber(w.min_x()), " must be less than ",
@@ -469,16 +486,16 @@ grpc::Status ToImageOptions(const v1::RenderImageRequest& request, const Grid& g
   }
   for (int k = 0; k < request.polyline_size(); ++k) {
     Vec2 p;
-    if (auto s = ToPoint(request.polyline(k), Indexed("polyline", k), &p); !s.ok()) return s;
+    if (auto s = ToPoint(request.polyline(k), FieldPath("polyline")[k], &p); !s.ok()) return s;
     options->polyline.push_back(p);
   }
   if (!options->polyline.empty() && exr) return Invalid("polyline needs format PNG");
   return Status::OK;
 }
 
-grpc::Status ToPoint(const v1::Point& p, const std::string& field, Vec2* out) {
+grpc::Status ToPoint(const v1::Point& p, const FieldPath& field, Vec2* out) {
   if (!std::isfinite(p.x()) || !std::isfinite(p.y())) {
-    return Invalid(absl::StrCat(field, " is (", FormatNumber(p.x()), ", ", FormatNumber(p.y()),
+    return Invalid(absl::StrCat(field.str(), " is (", FormatNumber(p.x()), ", ", FormatNumber(p.y()),
                                 "); coordinates must be finite"));
   }
   *out = {p.x(), p.y()};

@@ -30,10 +30,29 @@ grpc::Status ValidateSceneId(const std::string& id, const ServerLimits& limits,
 grpc::Status ToSceneSettings(const v1::CreateSceneRequest& request, const ServerLimits& limits,
                              SceneSettings* settings);
 
+// A request field's name in error messages, such as sites[3].polygon.vertices[7].x, spelled
+// out only when an error names it: a large request is checked without building a name per
+// value. A path refers to its parent, which must outlive it (pass them down the stack).
+class FieldPath {
+ public:
+  FieldPath(const char* name) : name_(name) {}  // NOLINT: a top-level field
+  FieldPath(const FieldPath& parent, std::string_view member, int64_t index = -1)
+      : parent_(&parent), name_(member), index_(index) {}
+  // parent.member, and parent[i].
+  FieldPath Member(std::string_view member) const { return {*this, member}; }
+  FieldPath operator[](size_t i) const { return {*this, "", static_cast<int64_t>(i)}; }
+  std::string str() const;
+
+ private:
+  const FieldPath* parent_ = nullptr;
+  std::string_view name_;  // after the parent's name and a dot, or the whole name
+  int64_t index_ = -1;     // appended as [index] when not negative
+};
+
 // Checks one site (`field` names it in messages, e.g. "sites[3]") and converts it: geometry
 // set with enough points, coordinates finite, weights and max_distance in range. Bezier
 // curves are flattened here.
-grpc::Status ToSite(const v1::Site& site, const std::string& field, const ServerLimits& limits,
+grpc::Status ToSite(const v1::Site& site, const FieldPath& field, const ServerLimits& limits,
                     Site* out);
 
 // Checks every site (ids non-empty, short, distinct; each as ToSite).
@@ -65,7 +84,7 @@ grpc::Status ToGridSize(uint32_t width, uint32_t height, const ServerLimits& lim
 SqliteStore::Legacy LegacyRecords(const ServerLimits& limits);
 
 // A point given in field `field`, checked finite.
-grpc::Status ToPoint(const v1::Point& p, const std::string& field, Vec2* out);
+grpc::Status ToPoint(const v1::Point& p, const FieldPath& field, Vec2* out);
 
 // RenderImageRequest's layer, format, drawing options, window and polyline, checked together.
 grpc::Status ToImageOptions(const v1::RenderImageRequest& request, const Grid& grid,
