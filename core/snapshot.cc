@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <map>
 
+#include "core/cpu_pool.h"
+
 namespace gvd {
 
 // ---- IdMap ----
@@ -142,11 +144,20 @@ std::shared_ptr<const SiteSnapshot> SnapshotBuilder::Build(uint64_t version) {
   std::shared_ptr<SiteSnapshot> s(new SiteSnapshot);
   s->version_ = version;
   s->non_plain_ = non_plain_;
-  s->index_ = base_->index_.Update(table_, changed_);
-  s->least_ = table_.least();
-  std::sort(id_changes_.begin(), id_changes_.end(),
-            [](const IdMap::Change& a, const IdMap::Change& b) { return a.first < b.first; });
-  s->ids_ = base_->ids_.With(id_changes_);
+  auto index = [&] {
+    s->index_ = base_->index_.Update(table_, changed_);
+    s->least_ = table_.least();
+  };
+  auto ids = [&] {
+    std::sort(id_changes_.begin(), id_changes_.end(),
+              [](const IdMap::Change& a, const IdMap::Change& b) { return a.first < b.first; });
+    s->ids_ = base_->ids_.With(id_changes_);
+  };
+  // Bulk changes build the index and the id map side by side; small ones on this thread.
+  constexpr size_t kSideBySide = 4096;
+  ParallelFor(2, changed_.size() >= kSideBySide ? 1 : 2, [&](size_t begin, size_t end) {
+    for (size_t k = begin; k < end; ++k) k == 0 ? index() : ids();
+  });
   return s;
 }
 
