@@ -356,6 +356,13 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
     extent_[slot] = std::max(extent_[slot], shape.extent);
     tally_.Drawn(grid_, *slots.get(slot), shape);
   }
+  // The sites placed now hold no pixel outside these windows. Their extents, drawn from
+  // coarse tile bounds, shrink to the pixels they won (read back below), so that moving or
+  // deleting one of them later clears only that much.
+  std::sort(placed.begin(), placed.end());
+  std::vector<double> won(placed.size(), -1);
+  std::vector<Window> boxes;
+  for (uint32_t s : placed) boxes.push_back(BoundingBox(slots.get(s)->geometry));
   double draw_seconds = 0, readback_seconds = 0;
   PixelRect all_windows;
   for (size_t w = 0; w < windows.size(); ++w) {
@@ -375,8 +382,23 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
       return s;
     }
     readback_seconds += Seconds(read_start);
+    for (uint32_t j = rect.y0, k = 0; j < rect.y1; ++j) {
+      for (uint32_t i = rect.x0; i < rect.x1; ++i, ++k) {
+        if (ids[k] == 0) continue;
+        auto it = std::lower_bound(placed.begin(), placed.end(), ids[k] - 1);
+        if (it == placed.end() || *it != ids[k] - 1) continue;
+        const Window& b = boxes[it - placed.begin()];
+        const Vec2 c = grid_.Center(i, j);
+        double& e = won[it - placed.begin()];
+        e = std::max({e, b.min_x - c.x, c.x - b.max_x, b.min_y - c.y, c.y - b.max_y, 0.0});
+      }
+    }
     Publish(rect, ids, distances);
     all_windows = all_windows.Union(rect);
+  }
+  // Reach(geometry, extent) then holds every pixel they won (half a pixel spare for rounding).
+  for (size_t k = 0; k < placed.size(); ++k) {
+    extent_[placed[k]] = won[k] < 0 ? -1 : won[k] + 0.5 * grid_.pixel_size();
   }
   if (windows.empty()) Publish({}, {}, {});  // nothing visible changed
   if (stats) {

@@ -59,7 +59,7 @@ class Voronoi:
 def start_server(binary, workdir):
     port_file = os.path.join(workdir, "port")
     server = subprocess.Popen([binary, "--listen", "127.0.0.1:0", "--port-file", port_file,
-                               "--data", os.path.join(workdir, "store"), "--log-level", "warn"])
+                               "--data", os.path.join(workdir, "store"), "--log-level", os.environ.get("GVD_LOG", "warn")])
     deadline = time.monotonic() + 60
     while not (os.path.exists(port_file) and os.path.getsize(port_file) > 0):
         if server.poll() is not None or time.monotonic() > deadline:
