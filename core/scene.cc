@@ -138,7 +138,7 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
   auto answer = [&](Vec2 q, uint32_t slot, double value) {
     const Site* site = slots.get(slot);
     FeatureHit f = NearestFeature(q, site->geometry);
-    return ExactAnswer{site->id, value, f.kind, f.index, true};
+    return ExactAnswer{site->id, value, f.kind, f.index, true, slot};
   };
   // Cancellation is checked about every million site evaluations: every 4,096 points when
   // the index answers, more often when each point scores every site.

@@ -88,6 +88,7 @@ class Scene {
     FeatureKind feature_kind = FeatureKind::kVertex;
     uint32_t feature_index = 0;
     bool found = false;
+    uint32_t slot = 0;  // the site's slot in the answering version's table
   };
   // `cancelled`, when given, is polled every few thousand points; once it says true the
   // answers are left incomplete and the call returns 0.

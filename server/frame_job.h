@@ -39,6 +39,7 @@ struct NearestQuery {
 // One answer, pointing into storage its NearestJob keeps alive.
 struct AnswerRow {
   const std::string* site_id;  // null: no site is a candidate at the point
+  uint32_t slot;               // the site's slot in the answering version's table
   double distance;
   double error_bound;
   bool exact;
@@ -70,7 +71,7 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
       }
       rows_.reserve(exact_answers_.size());
       for (const auto& a : exact_answers_) {
-        rows_.push_back({a.found ? &a.site_id : nullptr, a.distance, 0, true, a.feature_kind,
+        rows_.push_back({a.found ? &a.site_id : nullptr, a.slot, a.distance, 0, true, a.feature_kind,
                          a.feature_index});
       }
       done_(grpc::Status::OK);
@@ -134,14 +135,15 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
         }
         if (!query_.skip_refinement && a->ambiguous()) a = frame_->Refine(query_.points[i], *a);
         if (!a->found) {
-          rows_[i] = {nullptr, INFINITY, 0, true, FeatureKind::kVertex, 0};
+          rows_[i] = {nullptr, 0, INFINITY, 0, true, FeatureKind::kVertex, 0};
           continue;
         }
         const Site& site = *frame_->sites().get(a->site_index);
         FeatureHit f = std::holds_alternative<PointSite>(site.geometry)
                            ? FeatureHit{}
                            : NearestFeature(query_.points[i], site.geometry);
-        rows_[i] = {&site.id, a->distance, a->error_bound, a->error_bound == 0, f.kind, f.index};
+        rows_[i] = {&site.id, a->site_index, a->distance, a->error_bound, a->error_bound == 0, f.kind,
+                    f.index};
       }
     });
     if (cancelled) {

@@ -12,7 +12,6 @@
 
 #include <atomic>
 #include <thread>
-#include <unordered_map>
 
 namespace gvd {
 
@@ -44,29 +43,42 @@ void Fill(const std::vector<AnswerRow>& rows, size_t begin, size_t end, bool pac
     }
     return;
   }
+  // Each column is sized once and written in place; a site's index in site_ids is looked up
+  // by its slot (all rows come from one version).
   v1::PackedNearest* p = response->mutable_packed();
   const int n = static_cast<int>(end - begin);
-  p->mutable_site()->Reserve(n);
-  p->mutable_distance()->Reserve(n);
-  p->mutable_error_bound()->Reserve(n);
-  p->mutable_exact()->Reserve(n);
-  p->mutable_feature_index()->Reserve(n);
-  p->mutable_feature_kind()->Reserve(n);
-  std::unordered_map<const std::string*, uint32_t> ref;
-  for (size_t i = begin; i < end; ++i) {
-    if (rows[i].site_id == nullptr) {
-      p->add_site(UINT32_MAX);
-      p->add_distance(INFINITY);
+  p->mutable_site()->Resize(n, 0);
+  p->mutable_distance()->Resize(n, 0);
+  p->mutable_error_bound()->Resize(n, 0);
+  p->mutable_exact()->Resize(n, false);
+  p->mutable_feature_index()->Resize(n, 0);
+  p->mutable_feature_kind()->Resize(n, 0);
+  uint32_t* site = p->mutable_site()->mutable_data();
+  double* distance = p->mutable_distance()->mutable_data();
+  double* error_bound = p->mutable_error_bound()->mutable_data();
+  bool* exact = p->mutable_exact()->mutable_data();
+  uint32_t* feature_index = p->mutable_feature_index()->mutable_data();
+  int* feature_kind = p->mutable_feature_kind()->mutable_data();
+  uint32_t slots = 0;
+  for (size_t i = begin; i < end; ++i) slots = std::max(slots, rows[i].slot + 1);
+  std::vector<uint32_t> named(slots, UINT32_MAX);  // slot -> index in site_ids
+  for (size_t i = begin, k = 0; i < end; ++i, ++k) {
+    const AnswerRow& row = rows[i];
+    if (row.site_id == nullptr) {
+      site[k] = UINT32_MAX;
     } else {
-      auto [it, fresh] = ref.emplace(rows[i].site_id, static_cast<uint32_t>(ref.size()));
-      if (fresh) p->add_site_ids(*rows[i].site_id);
-      p->add_site(it->second);
-      p->add_distance(rows[i].distance);
+      uint32_t& name = named[row.slot];
+      if (name == UINT32_MAX) {
+        name = static_cast<uint32_t>(p->site_ids_size());
+        p->add_site_ids(*row.site_id);
+      }
+      site[k] = name;
     }
-    p->add_error_bound(rows[i].error_bound);
-    p->add_exact(rows[i].exact);
-    p->add_feature_index(rows[i].feature_index);
-    p->add_feature_kind(ToProto(rows[i].feature_kind));
+    distance[k] = row.distance;
+    error_bound[k] = row.error_bound;
+    exact[k] = row.exact;
+    feature_index[k] = row.feature_index;
+    feature_kind[k] = ToProto(row.feature_kind);
   }
 }
 

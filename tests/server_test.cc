@@ -6,6 +6,7 @@
 #include <map>
 #include <mutex>
 #include <random>
+#include <set>
 #include <thread>
 
 #include <grpcpp/create_channel.h>
@@ -602,6 +603,20 @@ TEST_F(ServerTest, PackedAndStreamedAnswersAgree) {
     EXPECT_EQ(a.results(i).distance(), b.packed().distance(i));
     EXPECT_EQ(a.results(i).error_bound(), b.packed().error_bound(i));
   }
+  // Exact answers too, each id named once (2,000 sites answer 5,000 points).
+  for (auto* r : {&plain, &packed}) r->set_exact(true);
+  ASSERT_TRUE(client_->FindNearest(plain, &a).ok());
+  ASSERT_TRUE(client_->FindNearest(packed, &b).ok());
+  ASSERT_EQ(b.packed().site_size(), 5000);
+  std::set<std::string> named(b.packed().site_ids().begin(), b.packed().site_ids().end());
+  EXPECT_EQ(named.size(), size_t(b.packed().site_ids_size())) << "an id is named twice";
+  EXPECT_LE(named.size(), sites.size());
+  for (int i = 0; i < 5000; ++i) {
+    EXPECT_EQ(a.results(i).site_id(), b.packed().site_ids(b.packed().site(i)));
+    EXPECT_EQ(a.results(i).distance(), b.packed().distance(i));
+    EXPECT_TRUE(b.packed().exact(i));
+  }
+  for (auto* r : {&plain, &packed}) r->set_exact(false);
   packed.set_chunk_size(1200);
   std::vector<v1::FindNearestResponse> chunks;
   ASSERT_TRUE(client_->FindNearestStream(packed, &chunks).ok());
