@@ -12,6 +12,7 @@
 
 #include <atomic>
 #include <thread>
+#include <unordered_map>
 
 namespace gvd {
 
@@ -59,15 +60,19 @@ void Fill(const std::vector<AnswerRow>& rows, size_t begin, size_t end, bool pac
   bool* exact = p->mutable_exact()->mutable_data();
   uint32_t* feature_index = p->mutable_feature_index()->mutable_data();
   int* feature_kind = p->mutable_feature_kind()->mutable_data();
+  // slot -> index in site_ids: a table over the slots when the rows are many for the slots
+  // they span (a large batch), a hash map otherwise (small stream chunks of a large scene).
   uint32_t slots = 0;
   for (size_t i = begin; i < end; ++i) slots = std::max(slots, rows[i].slot + 1);
-  std::vector<uint32_t> named(slots, UINT32_MAX);  // slot -> index in site_ids
+  const bool dense = slots <= 4 * size_t(n) + 1024;
+  std::vector<uint32_t> table(dense ? slots : 0, UINT32_MAX);
+  std::unordered_map<uint32_t, uint32_t> map;
   for (size_t i = begin, k = 0; i < end; ++i, ++k) {
     const AnswerRow& row = rows[i];
     if (row.site_id == nullptr) {
       site[k] = UINT32_MAX;
     } else {
-      uint32_t& name = named[row.slot];
+      uint32_t& name = dense ? table[row.slot] : map.try_emplace(row.slot, UINT32_MAX).first->second;
       if (name == UINT32_MAX) {
         name = static_cast<uint32_t>(p->site_ids_size());
         p->add_site_ids(*row.site_id);

@@ -630,6 +630,18 @@ TEST_F(ServerTest, PackedAndStreamedAnswersAgree) {
     }
   }
   EXPECT_EQ(i, 5000);
+  // Small chunks of a larger scene: each names its own sites, once.
+  packed.set_chunk_size(97);
+  ASSERT_TRUE(client_->FindNearestStream(packed, &chunks).ok());
+  i = 0;
+  for (const auto& c : chunks) {
+    std::set<std::string> ids(c.packed().site_ids().begin(), c.packed().site_ids().end());
+    EXPECT_EQ(ids.size(), size_t(c.packed().site_ids_size()));
+    for (int k = 0; k < c.packed().site_size(); ++k, ++i) {
+      EXPECT_EQ(c.packed().site_ids(c.packed().site(k)), a.results(i).site_id());
+    }
+  }
+  EXPECT_EQ(i, 5000);
   // A stream for an unknown scene fails with its status.
   packed.set_scene_id("nowhere");
   EXPECT_EQ(client_->FindNearestStream(packed, &chunks).error_code(), StatusCode::NOT_FOUND);
