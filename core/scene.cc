@@ -120,7 +120,7 @@ Scene::Picked Scene::Pick(Vec2 q, double max_distance) const {
 }
 
 uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactAnswer>* answers,
-                             const std::function<bool()>& cancelled) const {
+                             const std::function<bool()>& cancelled, bool features) const {
   std::atomic<bool> stop{false};
   const auto snapshot = snapshot_.load();
   const auto frame = frame_.load();
@@ -137,7 +137,7 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
   answers->resize(points.size());
   auto answer = [&](Vec2 q, uint32_t slot, double value) {
     const Site* site = slots.get(slot);
-    FeatureHit f = NearestFeature(q, site->geometry);
+    FeatureHit f = features ? NearestFeature(q, site->geometry) : FeatureHit{};
     return ExactAnswer{site->id, value, f.kind, f.index, true, slot};
   };
   // Cancellation is checked about every million site evaluations: every 4,096 points when

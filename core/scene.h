@@ -92,8 +92,10 @@ class Scene {
   };
   // `cancelled`, when given, is polled every few thousand points; once it says true the
   // answers are left incomplete and the call returns 0.
+  // Without `features`, feature_kind and feature_index are left at their defaults.
   uint64_t NearestExact(const std::vector<Vec2>& points, std::vector<ExactAnswer>* answers,
-                        const std::function<bool()>& cancelled = nullptr) const;
+                        const std::function<bool()>& cancelled = nullptr,
+                        bool features = true) const;
 
   // The site whose geometry is nearest to q by Euclidean distance (weights, sides,
   // max_distance and the diagram do not apply: selection, paper sec. 7.2), exact, at the

@@ -27,6 +27,10 @@ struct NearestQuery {
   std::vector<Vec2> points;
   bool exact = false;
   bool skip_refinement = false;  // leave ambiguous raster answers as they are
+  // The packed columns asked for: bit f for v1::FindNearestRequest::Field f.
+  uint32_t fields = kAllFields;
+  static constexpr uint32_t kAllFields = 0x3e;  // SITE .. FEATURE
+  bool wants(v1::FindNearestRequest::Field f) const { return fields & (1u << f); }
   uint64_t min_version = 0;
   // When set, the job hands the frame to this instead of answering points (RenderImage).
   std::function<grpc::Status(const Frame&)> on_frame;
@@ -64,7 +68,8 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
     };
     if (query_.exact) {
       version_ = query_.scene->NearestExact(query_.points, &exact_answers_,
-                                            [this] { return query_.ctx->IsCancelled(); });
+                                            [this] { return query_.ctx->IsCancelled(); },
+                                            query_.wants(v1::FindNearestRequest::FEATURE));
       if (version_ == 0) {
         done_(grpc::Status(grpc::StatusCode::CANCELLED, "the call was cancelled"));
         return;
@@ -95,6 +100,7 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
   }
 
   const std::vector<AnswerRow>& rows() const { return rows_; }
+  uint32_t fields() const { return query_.fields; }
   uint64_t version() const { return version_; }
 
  private:
@@ -121,6 +127,7 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
       return;
     }
     rows_.resize(query_.points.size());
+    const bool features = query_.wants(v1::FindNearestRequest::FEATURE);
     std::atomic<bool> missing{false}, cancelled{false};
     ParallelFor(rows_.size(), 8192, [&](size_t begin, size_t end) {
       for (size_t i = begin; i < end; ++i) {
@@ -139,7 +146,7 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
           continue;
         }
         const Site& site = *frame_->sites().get(a->site_index);
-        FeatureHit f = std::holds_alternative<PointSite>(site.geometry)
+        FeatureHit f = std::holds_alternative<PointSite>(site.geometry) || !features
                            ? FeatureHit{}
                            : NearestFeature(query_.points[i], site.geometry);
         rows_[i] = {&site.id, a->site_index, a->distance, a->error_bound, a->error_bound == 0, f.kind,

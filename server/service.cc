@@ -21,9 +21,10 @@ namespace {
 using grpc::Status;
 using grpc::StatusCode;
 
-// Writes rows [begin, end) into the response: as NearestSite results, or packed.
+// Writes rows [begin, end) into the response: as NearestSite results, or packed (only the
+// columns in `fields`, NearestQuery::fields).
 void Fill(const std::vector<AnswerRow>& rows, size_t begin, size_t end, bool packed,
-          v1::FindNearestResponse* response) {
+          uint32_t fields, v1::FindNearestResponse* response) {
   if (!packed) {
     auto* results = response->mutable_results();
     results->Reserve(static_cast<int>(end - begin));
@@ -44,34 +45,38 @@ void Fill(const std::vector<AnswerRow>& rows, size_t begin, size_t end, bool pac
     }
     return;
   }
-  // Each column is sized once and written in place; a site's index in site_ids is looked up
-  // by its slot (all rows come from one version).
+  // Each column asked for is sized once and written in place; a site's index in site_ids is
+  // looked up by its slot (all rows come from one version).
   v1::PackedNearest* p = response->mutable_packed();
   const int n = static_cast<int>(end - begin);
-  p->mutable_site()->Resize(n, 0);
-  p->mutable_distance()->Resize(n, 0);
-  p->mutable_error_bound()->Resize(n, 0);
-  p->mutable_exact()->Resize(n, false);
-  p->mutable_feature_index()->Resize(n, 0);
-  p->mutable_feature_kind()->Resize(n, 0);
-  uint32_t* site = p->mutable_site()->mutable_data();
-  double* distance = p->mutable_distance()->mutable_data();
-  double* error_bound = p->mutable_error_bound()->mutable_data();
-  bool* exact = p->mutable_exact()->mutable_data();
-  uint32_t* feature_index = p->mutable_feature_index()->mutable_data();
-  int* feature_kind = p->mutable_feature_kind()->mutable_data();
-  // slot -> index in site_ids: a table over the slots when the rows are many for the slots
-  // they span (a large batch), a hash map otherwise (small stream chunks of a large scene).
-  uint32_t slots = 0;
-  for (size_t i = begin; i < end; ++i) slots = std::max(slots, rows[i].slot + 1);
-  const bool dense = slots <= 4 * size_t(n) + 1024;
-  std::vector<uint32_t> table(dense ? slots : 0, UINT32_MAX);
-  std::unordered_map<uint32_t, uint32_t> map;
-  for (size_t i = begin, k = 0; i < end; ++i, ++k) {
-    const AnswerRow& row = rows[i];
-    if (row.site_id == nullptr) {
-      site[k] = UINT32_MAX;
-    } else {
+  auto wants = [fields](v1::FindNearestRequest::Field f) { return (fields & (1u << f)) != 0; };
+  auto column = [n](auto* field, bool wanted) {
+    if (!wanted) return decltype(field->mutable_data())(nullptr);
+    field->Resize(n, {});
+    return field->mutable_data();
+  };
+  uint32_t* site = column(p->mutable_site(), wants(v1::FindNearestRequest::SITE));
+  double* distance = column(p->mutable_distance(), wants(v1::FindNearestRequest::DISTANCE));
+  double* error_bound =
+      column(p->mutable_error_bound(), wants(v1::FindNearestRequest::ERROR_BOUND));
+  bool* exact = column(p->mutable_exact(), wants(v1::FindNearestRequest::EXACT));
+  uint32_t* feature_index =
+      column(p->mutable_feature_index(), wants(v1::FindNearestRequest::FEATURE));
+  int* feature_kind = column(p->mutable_feature_kind(), wants(v1::FindNearestRequest::FEATURE));
+  if (site != nullptr) {
+    // slot -> index in site_ids: a table over the slots when the rows are many for the slots
+    // they span (a large batch), a hash map otherwise (small stream chunks of a large scene).
+    uint32_t slots = 0;
+    for (size_t i = begin; i < end; ++i) slots = std::max(slots, rows[i].slot + 1);
+    const bool dense = slots <= 4 * size_t(n) + 1024;
+    std::vector<uint32_t> table(dense ? slots : 0, UINT32_MAX);
+    std::unordered_map<uint32_t, uint32_t> map;
+    for (size_t i = begin, k = 0; i < end; ++i, ++k) {
+      const AnswerRow& row = rows[i];
+      if (row.site_id == nullptr) {
+        site[k] = UINT32_MAX;
+        continue;
+      }
       uint32_t& name = dense ? table[row.slot] : map.try_emplace(row.slot, UINT32_MAX).first->second;
       if (name == UINT32_MAX) {
         name = static_cast<uint32_t>(p->site_ids_size());
@@ -79,11 +84,16 @@ void Fill(const std::vector<AnswerRow>& rows, size_t begin, size_t end, bool pac
       }
       site[k] = name;
     }
-    distance[k] = row.distance;
-    error_bound[k] = row.error_bound;
-    exact[k] = row.exact;
-    feature_index[k] = row.feature_index;
-    feature_kind[k] = ToProto(row.feature_kind);
+  }
+  for (size_t i = begin, k = 0; i < end; ++i, ++k) {
+    const AnswerRow& row = rows[i];
+    if (distance) distance[k] = row.distance;
+    if (error_bound) error_bound[k] = row.error_bound;
+    if (exact) exact[k] = row.exact;
+    if (feature_index) {
+      feature_index[k] = row.feature_index;
+      feature_kind[k] = ToProto(row.feature_kind);
+    }
   }
 }
 
@@ -99,7 +109,7 @@ class NearestUnaryReactor final : public grpc::ServerUnaryReactor {
     job->Start([this](const Status& s) {
       if (s.ok()) {
         response_->set_version(job_->version());
-        Fill(job_->rows(), 0, job_->rows().size(), packed_, response_);
+        Fill(job_->rows(), 0, job_->rows().size(), packed_, job_->fields(), response_);
       }
       Finish(s);
     });
@@ -149,7 +159,7 @@ class NearestStreamReactor final : public grpc::ServerWriteReactor<v1::FindNeare
     message_.Clear();
     message_.set_version(job_->version());
     message_.set_offset(offset_);
-    Fill(rows, offset_, end, /*packed=*/true, &message_);
+    Fill(rows, offset_, end, /*packed=*/true, job_->fields(), &message_);
     offset_ = end;
     StartWrite(&message_);
   }
@@ -424,6 +434,18 @@ Status VoronoiService::ParseNearest(const v1::FindNearestRequest& request,
   if (auto s = WaitFor(request.min_version(), query); !s.ok()) return s;
   query->exact = request.exact() || outside;
   query->skip_refinement = request.skip_refinement();
+  if (request.fields_size() > 0) {
+    query->fields = 0;
+    for (int i = 0; i < request.fields_size(); ++i) {
+      const int f = request.fields(i);
+      if (f < v1::FindNearestRequest::SITE || f > v1::FindNearestRequest::FEATURE) {
+        return Status(StatusCode::INVALID_ARGUMENT,
+                      absl::StrCat("fields[", i, "] is ", f,
+                                   "; it must be SITE, DISTANCE, ERROR_BOUND, EXACT or FEATURE"));
+      }
+      query->fields |= 1u << f;
+    }
+  }
   if (query->exact && query->scene->site_count() == 0) {
     return Status(StatusCode::FAILED_PRECONDITION,
                   absl::StrCat("scene \"", query->scene->id(), "\" has no sites at version ",
@@ -453,6 +475,11 @@ grpc::ServerUnaryReactor* VoronoiService::FindNearest(grpc::CallbackServerContex
   Call call = Begin(ctx, "FindNearest", Access::kRead, &request->scene_id());
   if (!call.ok()) return call.Finish(ctx);
   NearestQuery query{call.scope, ctx, call.scene};
+  if (request->fields_size() > 0 && request->points_size() > 0) {
+    return call.Finish(ctx, Status(StatusCode::INVALID_ARGUMENT,
+                                   "fields selects the columns of packed answers; send the "
+                                   "points as xy, or leave fields empty"));
+  }
   if (auto s = ParseNearest(*request, &query); !s.ok()) return call.Finish(ctx, s);
   auto* reactor = new NearestUnaryReactor(std::move(query), request->xy_size() > 0, response);
   reactor->Start();

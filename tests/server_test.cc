@@ -2,6 +2,7 @@
 // library, answers checked against the exact oracle.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <map>
 #include <mutex>
@@ -16,6 +17,7 @@
 #include "gvd/client.h"
 #include "geometry/exact.h"
 #include "server_process.h"
+#include "test_scenes.h"
 
 namespace gvd {
 namespace {
@@ -45,13 +47,7 @@ class ServerTest : public testing::SharedServerTest {
   static uint64_t Upsert(const std::string& scene, const std::vector<Site>& sites) {
     v1::UpsertSitesRequest r;
     r.set_scene_id(scene);
-    for (const Site& s : sites) {
-      auto* site = r.add_sites();
-      site->set_id(s.id);
-      const Vec2& p = std::get<PointSite>(s.geometry).p;
-      site->mutable_point()->set_x(p.x);
-      site->mutable_point()->set_y(p.y);
-    }
+    for (const Site& s : sites) *r.add_sites() = testing::ToProtoSite(s);
     uint64_t version = 0;
     grpc::Status s = client_->UpsertSites(r, &version);
     EXPECT_TRUE(s.ok()) << s.error_message();
@@ -645,6 +641,101 @@ TEST_F(ServerTest, PackedAndStreamedAnswersAgree) {
   // A stream for an unknown scene fails with its status.
   packed.set_scene_id("nowhere");
   EXPECT_EQ(client_->FindNearestStream(packed, &chunks).error_code(), StatusCode::NOT_FOUND);
+}
+
+// A packed answer carries the columns asked for, with the values of the full answer; the
+// others come back empty. Bad field lists are refused by name.
+TEST_F(ServerTest, PackedAnswersCarryTheFieldsAskedFor) {
+  Window w{0, 0, 1, 1};
+  Create("fields", w, 128, 128);
+  SiteTable sites = RandomSites(300, w, 31);
+  sites.push_back({"seg", SegmentSite{{0.1, 0.1}, {0.9, 0.2}}});
+  sites.push_back({"poly", PolylineSite{{{0.2, 0.8}, {0.5, 0.6}, {0.8, 0.9}}}});
+  uint64_t v = Upsert("fields", sites);
+  std::mt19937_64 rng(10);
+  std::uniform_real_distribution<double> u(-0.1, 1.1);  // some outside: exact answers
+  v1::FindNearestRequest all;
+  all.set_scene_id("fields");
+  all.set_min_version(v);
+  for (int i = 0; i < 2000; ++i) {
+    all.add_xy(u(rng));
+    all.add_xy(u(rng));
+  }
+  using F = v1::FindNearestRequest;
+  for (bool exact : {false, true}) {
+    all.set_exact(exact);
+    v1::FindNearestResponse full;
+    ASSERT_TRUE(client_->FindNearest(all, &full).ok());
+    const auto& f = full.packed();
+    ASSERT_EQ(f.site_size(), 2000);
+    ASSERT_EQ(f.feature_kind_size(), 2000);
+    // The full answer keeps the contract, against the oracle.
+    for (int i = 0; i < 2000 && !HasFailure(); ++i) {
+      v1::NearestSite n;
+      n.set_site_id(f.site_ids(f.site(i)));
+      n.set_distance(f.distance(i));
+      n.set_error_bound(f.error_bound(i));
+      n.set_feature_index(f.feature_index(i));
+      n.set_feature_kind(f.feature_kind(i));
+      ExpectContract(sites, {all.xy(2 * i), all.xy(2 * i + 1)}, n);
+      EXPECT_TRUE(f.exact(i) || !exact);
+    }
+    for (const std::vector<F::Field>& want :
+         {std::vector<F::Field>{F::SITE, F::DISTANCE}, {F::FEATURE}, {F::EXACT, F::ERROR_BOUND},
+          {F::DISTANCE, F::DISTANCE}}) {
+      v1::FindNearestRequest some = all;
+      for (F::Field field : want) some.add_fields(field);
+      v1::FindNearestResponse r;
+      ASSERT_TRUE(client_->FindNearest(some, &r).ok());
+      const auto& p = r.packed();
+      auto has = [&](F::Field x) { return std::find(want.begin(), want.end(), x) != want.end(); };
+      EXPECT_EQ(p.site_size(), has(F::SITE) ? 2000 : 0);
+      EXPECT_EQ(p.site_ids_size() > 0, has(F::SITE));
+      EXPECT_EQ(p.distance_size(), has(F::DISTANCE) ? 2000 : 0);
+      EXPECT_EQ(p.error_bound_size(), has(F::ERROR_BOUND) ? 2000 : 0);
+      EXPECT_EQ(p.exact_size(), has(F::EXACT) ? 2000 : 0);
+      EXPECT_EQ(p.feature_index_size(), has(F::FEATURE) ? 2000 : 0);
+      EXPECT_EQ(p.feature_kind_size(), has(F::FEATURE) ? 2000 : 0);
+      for (int i = 0; i < 2000; ++i) {
+        if (has(F::SITE)) {
+          ASSERT_EQ(p.site_ids(p.site(i)), f.site_ids(f.site(i)));
+        }
+        if (has(F::DISTANCE)) {
+          ASSERT_EQ(p.distance(i), f.distance(i));
+        }
+        if (has(F::ERROR_BOUND)) {
+          ASSERT_EQ(p.error_bound(i), f.error_bound(i));
+        }
+        if (has(F::EXACT)) {
+          ASSERT_EQ(p.exact(i), f.exact(i));
+        }
+        if (has(F::FEATURE)) {
+          ASSERT_EQ(p.feature_index(i), f.feature_index(i));
+          ASSERT_EQ(p.feature_kind(i), f.feature_kind(i));
+        }
+      }
+    }
+  }
+  // Bad lists: an unset or unknown field, and fields with per-point answers.
+  v1::FindNearestResponse r;
+  v1::FindNearestRequest bad = all;
+  bad.add_fields(F::SITE);
+  bad.add_fields(F::FIELD_UNSPECIFIED);
+  grpc::Status s = client_->FindNearest(bad, &r);
+  EXPECT_EQ(s.error_code(), StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(s.error_message().find("fields[1] is 0"), std::string::npos) << s.error_message();
+  bad.set_fields(1, static_cast<F::Field>(9));
+  s = client_->FindNearest(bad, &r);
+  EXPECT_NE(s.error_message().find("fields[1] is 9"), std::string::npos) << s.error_message();
+  bad.clear_xy();
+  bad.clear_fields();
+  bad.add_fields(F::SITE);
+  bad.add_points()->set_x(0.5);
+  s = client_->FindNearest(bad, &r);
+  EXPECT_EQ(s.error_code(), StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(s.error_message().find("fields selects the columns of packed answers"),
+            std::string::npos)
+      << s.error_message();
 }
 
 // Each limit, set small on a server of its own, refuses with its code and names its flag.

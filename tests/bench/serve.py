@@ -10,7 +10,8 @@ committed), then measures:
     FindNearest with min_version is answered (the frame is published);
   - one-site move: UpsertSites of one point, then FindNearest with min_version at the new
     position (the round trip to a published frame), repeated;
-  - one packed FindNearest (`xy`) of Q random points, raster answers and exact answers.
+  - one packed FindNearest (`xy`) of Q random points, raster answers and exact answers, with
+    every column and with the site and distance alone (`fields`).
 References: OpenCV's distanceTransformWithLabels (DIST_L2, DIST_MASK_PRECISE, labels per
 pixel) on the points snapped to the grid, scipy's cKDTree build and query (one worker and
 all cores).
@@ -161,13 +162,17 @@ def main():
         # One packed batch of queries, raster then exact answers; cKDTree beside them.
         batch = pb.FindNearestRequest(scene_id="load")
         batch.xy.extend(queries.ravel().tolist())
-        for exact in (False, True):
+        for exact, fields in ((False, []), (True, []), (False, ["SITE", "DISTANCE"]),
+                              (True, ["SITE", "DISTANCE"])):
             batch.exact = exact
+            del batch.fields[:]
+            batch.fields.extend(pb.FindNearestRequest.Field.Value(f) for f in fields)
             seconds, reply = best(lambda: api.FindNearest(batch, timeout=600), 3)
             if len(reply.packed.site) != args.queries:
                 raise SystemExit("the batch came back short")
             rows.append((f"{args.queries} points in one packed FindNearest, "
-                         f"{'exact' if exact else 'raster'}", seconds, None))
+                         f"{'exact' if exact else 'raster'}"
+                         f"{', fields ' + ' and '.join(fields) if fields else ''}", seconds, None))
         kd1, _ = best(lambda: tree.query(queries, workers=1), 3)
         kdn, _ = best(lambda: tree.query(queries, workers=-1), 3)
         rows.append((f"scipy cKDTree query, {args.queries} points, one worker", kd1, None))
