@@ -274,31 +274,73 @@ absl::Status SqliteStore::DeleteScene(std::string_view scene_id) {
 }
 
 absl::Status SqliteStore::Commit(const ChangeSet& changes) {
-  return Transaction([&]() -> absl::Status {
-    Statement put(Prepared("INSERT OR REPLACE INTO site (scene, id, site) VALUES (?, ?, ?)"));
-    Statement del(Prepared("DELETE FROM site WHERE scene = ? AND id = ?"));
-    Statement version(Prepared("UPDATE scene SET version = ? WHERE id = ?"));
-    if (!put.ok() || !del.ok() || !version.ok()) return SqliteError(db_, "storing sites");
-    version.Int(1, changes.version);
-    version.Text(2, changes.scene_id);
-    if (!version.Run()) return SqliteError(db_, "storing the version");
-    if (sqlite3_changes(db_) != 1) {
-      return absl::NotFoundError(
-          absl::StrCat("store: scene \"", std::string(changes.scene_id), "\" is not stored"));
-    }
-    for (const auto& site : changes.put) {
-      put.Text(1, changes.scene_id);
-      put.Text(2, site->id);
-      put.Blob(3, EncodeSite(*site));
-      if (!put.Run()) return SqliteError(db_, "storing a site");
-    }
-    for (const std::string& id : changes.removed) {
-      del.Text(1, changes.scene_id);
-      del.Text(2, id);
-      if (!del.Run()) return SqliteError(db_, "deleting a site");
+  Waiter me{&changes};
+  std::vector<Waiter*> group;
+  {
+    std::unique_lock<std::mutex> lock(group_mu_);
+    waiting_.push_back(&me);
+    group_cv_.wait(lock, [&] { return me.done || !committing_; });
+    if (me.done) return me.status;  // a leader committed it
+    committing_ = true;             // lead: take every waiter so far, this one included
+    group.swap(waiting_);
+  }
+  absl::Status s = Transaction([&]() -> absl::Status {
+    for (Waiter* w : group) {
+      if (auto st = Step("SAVEPOINT change_set"); !st.ok()) return st;
+      w->status = Write(*w->changes);
+      // A failed change set leaves nothing behind; the others go on.
+      if (!w->status.ok()) {
+        if (auto st = Step("ROLLBACK TO change_set"); !st.ok()) return st;
+      }
+      if (auto st = Step("RELEASE change_set"); !st.ok()) return st;
     }
     return absl::OkStatus();
   });
+  {
+    std::lock_guard<std::mutex> lock(group_mu_);
+    for (Waiter* w : group) {
+      if (!s.ok()) w->status = s;  // nothing of the transaction is stored
+      w->done = true;
+    }
+    committing_ = false;
+    if (s.ok()) {
+      ++group_stats_.transactions;
+      for (Waiter* w : group) group_stats_.change_sets += w->status.ok();
+    }
+  }
+  group_cv_.notify_all();
+  return me.status;
+}
+
+SqliteStore::GroupStats SqliteStore::group_stats() const {
+  std::lock_guard<std::mutex> lock(group_mu_);
+  return group_stats_;
+}
+
+absl::Status SqliteStore::Write(const ChangeSet& changes) {
+  Statement put(Prepared("INSERT OR REPLACE INTO site (scene, id, site) VALUES (?, ?, ?)"));
+  Statement del(Prepared("DELETE FROM site WHERE scene = ? AND id = ?"));
+  Statement version(Prepared("UPDATE scene SET version = ? WHERE id = ?"));
+  if (!put.ok() || !del.ok() || !version.ok()) return SqliteError(db_, "storing sites");
+  version.Int(1, changes.version);
+  version.Text(2, changes.scene_id);
+  if (!version.Run()) return SqliteError(db_, "storing the version");
+  if (sqlite3_changes(db_) != 1) {
+    return absl::NotFoundError(
+        absl::StrCat("store: scene \"", std::string(changes.scene_id), "\" is not stored"));
+  }
+  for (const auto& site : changes.put) {
+    put.Text(1, changes.scene_id);
+    put.Text(2, site->id);
+    put.Blob(3, EncodeSite(*site));
+    if (!put.Run()) return SqliteError(db_, "storing a site");
+  }
+  for (const std::string& id : changes.removed) {
+    del.Text(1, changes.scene_id);
+    del.Text(2, id);
+    if (!del.Run()) return SqliteError(db_, "deleting a site");
+  }
+  return absl::OkStatus();
 }
 
 }  // namespace gvd

@@ -1,8 +1,11 @@
-// SceneStore on SQLite: one database file in WAL mode with synchronous=FULL, one transaction
-// per call, durable before the call returns. Sites and settings are kept in the core's byte
+// SceneStore on SQLite: one database file in WAL mode with synchronous=FULL, durable before
+// each call returns. Commits of change sets that arrive while another is being made durable
+// share the next transaction (group commit: one fsync for all of them), each in a savepoint
+// of its own, so that one that fails rolls back alone. Sites and settings are kept in the core's byte
 // form (core/codec.h), so every site kind the core gains is stored without a schema change.
 #pragma once
 
+#include <condition_variable>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -45,6 +48,12 @@ class SqliteStore final : public SceneStore {
 
   // Seconds the last transaction took (BEGIN to durable COMMIT).
   double last_commit_seconds() const;
+  // Transactions that committed change sets, and the change sets they committed.
+  struct GroupStats {
+    uint64_t transactions = 0;
+    uint64_t change_sets = 0;
+  };
+  GroupStats group_stats() const;
 
  private:
   SqliteStore(sqlite3* db, std::string path) : db_(db), path_(std::move(path)) {}
@@ -58,6 +67,21 @@ class SqliteStore final : public SceneStore {
   // Runs `body` inside BEGIN IMMEDIATE ... COMMIT, rolling back if it fails.
   template <class Body>
   absl::Status Transaction(Body body);
+  // One change set's writes, inside the open transaction. CONTRACT: mu_ held.
+  absl::Status Write(const ChangeSet& changes);
+
+  // Group commit: the change sets waiting for the next transaction, and whether one is under
+  // way (its leader commits every waiter it took).
+  struct Waiter {
+    const ChangeSet* changes;
+    absl::Status status;
+    bool done = false;
+  };
+  mutable std::mutex group_mu_;
+  std::condition_variable group_cv_;
+  std::vector<Waiter*> waiting_;
+  bool committing_ = false;
+  GroupStats group_stats_;
 
   mutable std::mutex mu_;
   sqlite3* db_;

@@ -4,6 +4,8 @@
 #include <sqlite3.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -13,6 +15,7 @@
 #include <memory>
 #include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -309,6 +312,67 @@ SqliteStore::Legacy TestLegacy(bool refuse_r = false) {
         return Site{id, PointSite{{x, y}}};
       },
   };
+}
+
+// Writers of several scenes commit at once: whatever transactions their change sets share,
+// each acknowledged one is stored after a reopen, and the ones refused (a scene that is not
+// stored, committed in the middle of the others) leave nothing behind.
+TEST(Store, ConcurrentWritersShareTransactionsAndFailAlone) {
+  TempDir dir;
+  constexpr int kWriters = 6, kCommits = 40;
+  StoreModel model;
+  {
+    auto store = SqliteStore::Open(dir.path() + "/data");
+    ASSERT_TRUE(store.ok()) << store.status();
+    for (int w = 0; w < kWriters; ++w) {
+      const std::string scene = "w" + std::to_string(w);
+      ASSERT_TRUE((*store)->CreateScene(Settings(scene), 1).ok());
+      model.versions[scene] = 1 + kCommits;
+      model.sites[scene] = {};
+    }
+    std::vector<SceneModel> written(kWriters);
+    std::vector<std::thread> writers;
+    std::atomic<uint64_t> failures{0};
+    for (int w = 0; w <= kWriters; ++w) {  // the last one writes to a scene never stored
+      writers.emplace_back([&, w] {
+        std::mt19937_64 rng(100 + w);
+        const std::string scene = w < kWriters ? "w" + std::to_string(w) : "missing";
+        for (int c = 0; c < kCommits; ++c) {
+          std::vector<std::shared_ptr<const Site>> put;
+          for (int k = 0; k < 3; ++k) {
+            put.push_back(std::make_shared<const Site>(
+                RandomSite(rng, static_cast<int>(rng()), "id" + std::to_string(rng() % 20))));
+          }
+          std::sort(put.begin(), put.end(), [](const auto& a, const auto& b) { return a->id < b->id; });
+          put.erase(std::unique(put.begin(), put.end(),
+                                [](const auto& a, const auto& b) { return a->id == b->id; }),
+                    put.end());
+          absl::Status s = (*store)->Commit({scene, uint64_t(2 + c), put, {}});
+          if (w == kWriters) {
+            if (s.code() != absl::StatusCode::kNotFound) ++failures;
+            continue;
+          }
+          if (!s.ok()) {
+            ++failures;
+            continue;
+          }
+          for (const auto& site : put) written[w][site->id] = *site;
+        }
+      });
+    }
+    for (auto& t : writers) t.join();
+    ASSERT_EQ(failures.load(), 0u);
+    for (int w = 0; w < kWriters; ++w) model.sites["w" + std::to_string(w)] = written[w];
+    SqliteStore::GroupStats stats = (*store)->group_stats();
+    EXPECT_EQ(stats.change_sets, uint64_t(kWriters) * kCommits);
+    EXPECT_LE(stats.transactions, stats.change_sets);
+    std::printf("%llu change sets in %llu transactions\n",
+                static_cast<unsigned long long>(stats.change_sets),
+                static_cast<unsigned long long>(stats.transactions));
+  }
+  auto store = SqliteStore::Open(dir.path() + "/data");
+  ASSERT_TRUE(store.ok()) << store.status();
+  ExpectStoreHolds(**store, model);
 }
 
 TEST(Store, ConvertsTheEarlierSchemaOnce) {

@@ -10,6 +10,7 @@ committed), then measures:
     FindNearest with min_version is answered (the frame is published);
   - one-site move: UpsertSites of one point, then FindNearest with min_version at the new
     position (the round trip to a published frame), repeated;
+  - one-site upserts from 1 and from 8 concurrent writers, each on a scene of its own;
   - one packed FindNearest (`xy`) of Q random points, raster answers and exact answers, with
     every column and with the site and distance alone (`fields`).
 References: OpenCV's distanceTransformWithLabels (DIST_L2, DIST_MASK_PRECISE, labels per
@@ -25,6 +26,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 
 import cv2
@@ -90,6 +92,33 @@ def opencv_labels(points, size):
                                                    labelType=cv2.DIST_LABEL_PIXEL)
 
 
+def concurrent_upserts(api, pb, writers, writes):
+    """Seconds per acknowledged one-site upsert with `writers` threads, each on a 256x256
+    scene of its own."""
+    for w in range(writers):
+        create = pb.CreateSceneRequest(scene_id=f"w{writers}-{w}", width_px=256, height_px=256)
+        create.window.max_x = 1
+        create.window.max_y = 1
+        api.CreateScene(create)
+
+    def write(w):
+        rng = np.random.default_rng(100 + w)
+        move = pb.UpsertSitesRequest(scene_id=f"w{writers}-{w}")
+        site = move.sites.add()
+        for k in range(writes):
+            site.id = str(k % 50)
+            site.point.x, site.point.y = rng.random(2)
+            api.UpsertSites(move)
+
+    threads = [threading.Thread(target=write, args=(w,)) for w in range(writers)]
+    t0 = time.perf_counter()
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return (time.perf_counter() - t0) / (writers * writes)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("server")
@@ -97,6 +126,7 @@ def main():
     ap.add_argument("--size", type=int, default=1024)
     ap.add_argument("--queries", type=int, default=1_000_000)
     ap.add_argument("--moves", type=int, default=300)
+    ap.add_argument("--writes", type=int, default=200, help="upserts per concurrent writer")
     ap.add_argument("--json", help="also write the figures here")
     args = ap.parse_args()
 
@@ -158,6 +188,13 @@ def main():
         rows.append(("one-site move, round trip (median)", statistics.median(trips), cv_full))
         rows.append(("one-site move, round trip (p99)",
                      sorted(trips)[len(trips) * 99 // 100], cv_full))
+
+        # Concurrent writers, each moving sites of a small scene of its own, one site per call:
+        # commits that arrive together share one fsync.
+        for writers in (1, 8):
+            rows.append((f"{writers} writer{'s' if writers > 1 else ''}, one-site upserts, "
+                         "each acknowledged (per upsert, all writers together)",
+                         concurrent_upserts(api, pb, writers, args.writes), None))
 
         # One packed batch of queries, raster then exact answers; cKDTree beside them.
         batch = pb.FindNearestRequest(scene_id="load")
