@@ -42,14 +42,35 @@ absl::StatusOr<uint64_t> Scene::Write(const std::function<absl::Status(SnapshotB
   auto base = snapshot_.load();
   SnapshotBuilder builder(base, &free_slots_);
   absl::Status status = edit(builder);
-  if (status.ok() && persist) {
-    status = persist(ChangeSet{id(), base->version() + 1, builder.put(), builder.removed()});
+  std::shared_ptr<const SiteSnapshot> next;
+  if (status.ok()) {
+    auto store = [&] {
+      if (persist) {
+        status = persist(ChangeSet{id(), base->version() + 1, builder.put(), builder.removed()});
+      }
+    };
+    // A bulk change builds the next snapshot while the store makes it durable (the snapshot
+    // is dropped if the store refuses); a small one builds only what the store took.
+    constexpr size_t kBulk = 4096;
+    if (builder.put().size() + builder.removed().size() >= kBulk) {
+      ParallelFor(2, 1, [&](size_t begin, size_t end) {
+        for (size_t k = begin; k < end; ++k) {
+          if (k == 0) {
+            store();
+          } else {
+            next = builder.Build(base->version() + 1);
+          }
+        }
+      });
+    } else {
+      store();
+      if (status.ok()) next = builder.Build(base->version() + 1);
+    }
   }
   if (!status.ok()) {
     builder.Abandon();
     return status;
   }
-  auto next = builder.Build(base->version() + 1);
   // Freed slots are taken again only by later snapshots: this one's frames may still show
   // them until the render of the next.
   free_slots_.insert(free_slots_.end(), builder.freed().rbegin(), builder.freed().rend());

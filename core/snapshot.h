@@ -118,9 +118,11 @@ class SnapshotBuilder {
   const std::vector<std::shared_ptr<const Site>>& put() const { return put_; }
   const std::vector<std::string>& removed() const { return removed_; }
 
-  // The snapshot at `version`. Call once.
+  // The snapshot at `version`. Call once. It leaves put() and removed() as they are: another
+  // thread may read them meanwhile.
   std::shared_ptr<const SiteSnapshot> Build(uint64_t version);
-  // Gives the slots taken from `free_slots` back. Instead of Build.
+  // Gives the slots taken from `free_slots` back, when the change is not published (after
+  // Build too, if its snapshot is dropped).
   void Abandon();
 
  private:

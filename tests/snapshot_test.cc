@@ -320,6 +320,24 @@ TEST(SceneCore, RefusedWritesChangeNothing) {
   EXPECT_EQ(scene.version(), 2u);
   Scene::Picked p = scene.Pick({0.12, 0.1}, INFINITY);
   EXPECT_EQ(p.site_id, "a");
+  // A bulk write, whose snapshot is built while the store works, refused by the store (after
+  // a deletion left a slot free for it to take).
+  ASSERT_TRUE(scene.Delete({"b"}).ok());
+  before = scene.snapshot();
+  std::vector<Site> bulk;
+  for (int i = 0; i < 5000; ++i) bulk.push_back({"bulk" + std::to_string(i), PointSite{{0.5, 0.5}}});
+  bool stored = false;
+  auto refused = scene.Upsert(bulk, 10000, [&](const ChangeSet& c) {
+    stored = c.put.size() == bulk.size();
+    return absl::UnavailableError("disk");
+  });
+  EXPECT_TRUE(stored);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_EQ(scene.snapshot(), before);
+  // The slot it took was given back: the next site takes it.
+  ASSERT_TRUE(scene.Upsert({{"c", PointSite{{0.3, 0.3}}}}, 10).ok());
+  EXPECT_EQ(scene.snapshot()->Find("c"), std::optional<uint32_t>(1));
+  EXPECT_EQ(scene.snapshot()->size(), 2u);
 }
 
 // A durable commit holds only the writer lock: readers (and the render thread, which reads
