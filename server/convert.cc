@@ -22,7 +22,8 @@ std::string Indexed(const std::string& field, size_t i) { return absl::StrCat(fi
 
 Status CheckFinite(double v, const FieldPath& field) {
   if (std::isfinite(v)) return Status::OK;
-  return Invalid(absl::StrCat(field.str(), " is ", FormatNumber(v), "; coordinates must be finite"));
+  return Invalid(
+      absl::StrCat(field.str(), " is ", FormatNumber(v), "; coordinates must be finite"));
 }
 
 Status CheckPoint(const v1::Point& p, const FieldPath& field) {

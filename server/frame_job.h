@@ -76,8 +76,8 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
       }
       rows_.reserve(exact_answers_.size());
       for (const auto& a : exact_answers_) {
-        rows_.push_back({a.found ? &a.site_id : nullptr, a.slot, a.distance, 0, true, a.feature_kind,
-                         a.feature_index});
+        rows_.push_back({a.found ? &a.site_id : nullptr, a.slot, a.distance, 0, true,
+                         a.feature_kind, a.feature_index});
       }
       done_(grpc::Status::OK);
       return;
@@ -149,8 +149,8 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
         FeatureHit f = std::holds_alternative<PointSite>(site.geometry) || !features
                            ? FeatureHit{}
                            : NearestFeature(query_.points[i], site.geometry);
-        rows_[i] = {&site.id, a->site_index, a->distance, a->error_bound, a->error_bound == 0, f.kind,
-                    f.index};
+        rows_[i] = {&site.id, a->site_index, a->distance, a->error_bound,
+                    a->error_bound == 0, f.kind, f.index};
       }
     });
     if (cancelled) {
