@@ -17,9 +17,6 @@ using grpc::StatusCode;
 
 Status Invalid(std::string message) { return Status(StatusCode::INVALID_ARGUMENT, message); }
 
-// "ids[3]" and the like.
-std::string Indexed(const std::string& field, size_t i) { return absl::StrCat(field, "[", i, "]"); }
-
 Status CheckFinite(double v, const FieldPath& field) {
   if (std::isfinite(v)) return Status::OK;
   return Invalid(
@@ -276,10 +273,10 @@ Status ToSiteIds(const v1::DeleteSitesRequest& r, const ServerLimits& limits,
   std::unordered_map<std::string_view, size_t> seen;
   for (int i = 0; i < r.ids_size(); ++i) {
     const std::string& id = r.ids(i);
-    if (id.empty()) return Invalid(absl::StrCat(Indexed("ids", i), " is empty"));
+    if (id.empty()) return Invalid(absl::StrCat(FieldPath("ids")[i].str(), " is empty"));
     auto [it, fresh] = seen.emplace(id, i);
     if (!fresh) {
-      return Invalid(absl::StrCat(Indexed("ids", i), " ", Quoted(id), " repeats ids[",
+      return Invalid(absl::StrCat(FieldPath("ids")[i].str(), " ", Quoted(id), " repeats ids[",
                                   it->second, "]"));
     }
   }
