@@ -45,7 +45,17 @@ bool InsideReach(const SiteView& s, const Window& cell, double margin) {
 
 uint32_t DefaultTilePx(const Grid& grid, size_t n) {
   double spacing = std::sqrt(double(grid.pixel_count()) / std::max<size_t>(n, 1));
-  return static_cast<uint32_t>(std::clamp(2 * spacing, 4.0, 64.0));
+  uint32_t leaf = 1;
+  while (leaf < 4 && 2 * leaf <= spacing / 3) leaf *= 2;
+  return leaf;
+}
+
+uint32_t TopTilePx(const Grid& grid, size_t n, uint32_t leaf_px) {
+  double spacing = std::sqrt(double(grid.pixel_count()) / std::max<size_t>(n, 1));
+  const double want = std::clamp(2 * spacing, 8.0, 64.0);
+  uint32_t top = std::max(leaf_px, 1u);
+  while (top < want && top <= 64 / 2) top *= 2;
+  return top;
 }
 
 TileCover::TileCover(const Grid& grid, const SlotTable& sites, const SiteIndex& index)
@@ -73,44 +83,53 @@ double TileCover::PresenceReach() const {
   return reach_;
 }
 
+void TileCover::Candidates(PixelRect tile, std::vector<uint32_t>* out) const {
+  const SiteIndex& index = index_;
+  Vec2 lo = grid_.Center(tile.x0, tile.y0), hi = grid_.Center(tile.x1 - 1, tile.y1 - 1);
+  Vec2 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2};
+  double h = Distance(lo, hi) / 2;
+  // U: an upper bound on the best drawn value at every centre of the cell, from the site
+  // nearest to its middle; every site whose least value there can reach U is a candidate.
+  ExactNearest s0 = index.Nearest(c);
+  const SiteView best = SiteView::Of(sites_, static_cast<uint32_t>(s0.index));
+  if (PresentOnDisc(best, s0.distance, h, margin_)) {
+    double upper = best.multiplicative() * (s0.distance + h) + best.additive();
+    // Rounding slack on the search radius keeps the candidate set a superset.
+    index.Within(c, ((upper - least_.additive) / least_.multiplicative + h) * (1 + 1e-12), out);
+  } else if (double reach = PresenceReach(); std::isfinite(reach)) {
+    // No U: the sites present somewhere on C, whose boxes come within h + reach of c.
+    index.Within(c, (h + reach + margin_) * (1 + 1e-12), out);
+  } else {
+    for (uint32_t s = 0; s < sites_.size(); ++s) {
+      if (sites_.get(s)) out->push_back(s);
+    }
+  }
+}
+
 void TileCover::Cover(PixelRect tile, std::vector<uint32_t>* slots,
                       std::vector<double>* radii) const {
-  const SiteIndex& index = index_;
+  thread_local std::vector<uint32_t> candidates;
+  candidates.clear();
+  Candidates(tile, &candidates);
+  Keep(tile, candidates, slots, radii);
+}
+
+void TileCover::Keep(PixelRect tile, std::span<const uint32_t> candidates,
+                     std::vector<uint32_t>* slots, std::vector<double>* radii) const {
   const SlotTable& sites = sites_;
   const double margin = margin_;
   Vec2 lo = grid_.Center(tile.x0, tile.y0), hi = grid_.Center(tile.x1 - 1, tile.y1 - 1);
   Window cell{lo.x, lo.y, hi.x, hi.y};
   Vec2 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2};
   double h = Distance(lo, hi) / 2;
-  // U: an upper bound on the best drawn value at every centre of the cell.
-  ExactNearest s0 = index.Nearest(c);
-  uint32_t s1 = static_cast<uint32_t>(s0.index);
-  const SiteView best = SiteView::Of(sites, s1);
-  double upper = INFINITY;
-  if (PresentOnDisc(best, s0.distance, h, margin)) {
-    upper = best.multiplicative() * (s0.distance + h) + best.additive();
-  }
-  thread_local std::vector<uint32_t> candidates;
-  candidates.clear();
-  if (std::isfinite(upper)) {
-    // Rounding slack on the search radius keeps the candidate set a superset.
-    index.Within(c, ((upper - least_.additive) / least_.multiplicative + h) * (1 + 1e-12),
-                 &candidates);
-  } else if (double reach = PresenceReach(); std::isfinite(reach)) {
-    // No U: the sites present somewhere on C, whose boxes come within h + reach of c.
-    index.Within(c, (h + reach + margin) * (1 + 1e-12), &candidates);
-  } else {
-    for (uint32_t s = 0; s < sites.size(); ++s) {
-      if (sites.get(s)) candidates.push_back(s);
-    }
-  }
-  // Distances from c, and the least U among the candidates present on the whole cell
-  // (s1: the site that has it).
+  // Distances from c, and U: the least upper bound on the drawn value over the cell among
+  // the candidates present on the whole of it (s1: the site that has it).
   thread_local std::vector<SiteView> views;
   thread_local std::vector<double> dist;
   views.resize(candidates.size());
   dist.resize(candidates.size());
-  SiteView v1 = best;
+  double upper = INFINITY;
+  size_t s1 = SIZE_MAX;
   for (size_t k = 0; k < candidates.size(); ++k) {
     const SiteView& s = views[k] = SiteView::Of(sites, candidates[k]);
     dist[k] = s.DistanceFrom(c);
@@ -118,8 +137,7 @@ void TileCover::Cover(PixelRect tile, std::vector<uint32_t>* slots,
     double u = s.multiplicative() * (dist[k] + h) + s.additive();
     if (u < upper) {
       upper = u;
-      s1 = candidates[k];
-      v1 = s;
+      s1 = k;
     }
   }
   // Plain points clipped by the bisectors of the plain points nearest to the cell's corners:
@@ -146,31 +164,68 @@ void TileCover::Cover(PixelRect tile, std::vector<uint32_t>* slots,
     }
     return false;
   };
+  const bool plain_best = s1 != SIZE_MAX && views[s1].plain_point();
   for (size_t k = 0; k < candidates.size(); ++k) {
-    uint32_t slot = candidates[k];
     const SiteView& s = views[k];
     if (s.plain_point() && clipped(k)) continue;
     double lower = s.multiplicative() * std::max(0.0, dist[k] - h) + s.additive();
     if (lower > upper * (1 + 1e-12)) continue;
     if (dist[k] - h > (s.max_distance() + margin) * (1 + 1e-12)) continue;  // absent on C
     if (!InsideReach(s, cell, margin)) continue;
-    if (s.plain_point() && v1.plain_point() && slot != s1 &&
-        !BeatsSomewhere(s.point, v1.point, cell)) {
+    if (s.plain_point() && plain_best && k != s1 &&
+        !BeatsSomewhere(s.point, views[s1].point, cell)) {
       continue;
     }
-    slots->push_back(slot);
-    radii->push_back(RadiusFor(s, cell));
+    slots->push_back(candidates[k]);
+    if (radii) radii->push_back(RadiusFor(s, cell));
+  }
+}
+
+void TileCover::CoverDown(PixelRect tile, uint32_t leaf_px, const Leaf& leaf) const {
+  thread_local std::vector<uint32_t> candidates;
+  candidates.clear();
+  Candidates(tile, &candidates);
+  Descend(tile, candidates, std::max(leaf_px, 1u), 0, leaf);
+}
+
+void TileCover::Descend(PixelRect tile, std::span<const uint32_t> parent, uint32_t leaf_px,
+                        size_t depth, const Leaf& leaf) const {
+  // One list per depth, reused; sized once, so that a parent's list never moves while its
+  // halves are kept (64 levels split 2^64 leaves).
+  thread_local std::vector<std::vector<uint32_t>> lists(64);
+  thread_local std::vector<double> radii;
+  std::vector<uint32_t>& slots = lists[depth];
+  slots.clear();
+  if (tile.width() <= leaf_px && tile.height() <= leaf_px) {
+    radii.clear();
+    Keep(tile, parent, &slots, &radii);
+    leaf(tile, slots, radii);
+    return;
+  }
+  Keep(tile, parent, &slots, nullptr);
+  // Split where the first half holds half the leaves (rounded up).
+  auto mid = [&](uint32_t a, uint32_t b) {
+    uint32_t leaves = (b - a + leaf_px - 1) / leaf_px;
+    return b - a <= leaf_px ? b : a + (leaves + 1) / 2 * leaf_px;
+  };
+  const uint32_t xs[3] = {tile.x0, mid(tile.x0, tile.x1), tile.x1};
+  const uint32_t ys[3] = {tile.y0, mid(tile.y0, tile.y1), tile.y1};
+  for (int j = 0; j < 2; ++j) {
+    for (int i = 0; i < 2; ++i) {
+      PixelRect half{xs[i], ys[j], xs[i + 1], ys[j + 1]};
+      if (!half.empty()) Descend(half, slots, leaf_px, depth + 1, leaf);
+    }
   }
 }
 
 namespace {
 
-// The proof of ComputeCoverage, tile by tile: calls keep(slot, radius) for every site that
-// must cover some pixel centre of a tile, with the radius that tile needs (a site may be
-// kept by several tiles). Returns the tile side used.
-template <class Keep>
+// The proof of ComputeCoverage, tile by tile: calls keep(slot, radius, leaf) for every site
+// that must cover some pixel centre of a smallest tile `leaf`, with the radius that tile
+// needs (a site may be kept by several tiles). Returns the smallest tiles' side.
+template <class KeepFn>
 uint32_t CoverTiles(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
-                    PixelRect region, uint32_t tile_px, Diagram diagram, Keep&& keep) {
+                    PixelRect region, uint32_t tile_px, Diagram diagram, KeepFn&& keep) {
   tile_px = tile_px ? tile_px : DefaultTilePx(grid, index.size());
   if (region.empty()) return tile_px;
   const TileCover cover(grid, sites, index);
@@ -178,19 +233,19 @@ uint32_t CoverTiles(const Grid& grid, const SlotTable& sites, const SiteIndex& i
     Vec2 lo = grid.Center(region.x0, region.y0), hi = grid.Center(region.x1 - 1, region.y1 - 1);
     Window box{lo.x, lo.y, hi.x, hi.y};
     for (uint32_t s = 0; s < sites.size(); ++s) {
-      if (sites.get(s)) keep(s, cover.RadiusFor(SiteView::Of(sites, s), box));
+      if (sites.get(s)) keep(s, cover.RadiusFor(SiteView::Of(sites, s), box), region);
     }
     return tile_px;
   }
-  std::vector<uint32_t> slots;
-  std::vector<double> radii;
-  for (uint32_t ty = region.y0; ty < region.y1; ty += tile_px) {
-    for (uint32_t tx = region.x0; tx < region.x1; tx += tile_px) {
-      slots.clear();
-      radii.clear();
-      cover.Cover({tx, ty, std::min(tx + tile_px, region.x1), std::min(ty + tile_px, region.y1)},
-                  &slots, &radii);
-      for (size_t k = 0; k < slots.size(); ++k) keep(slots[k], radii[k]);
+  const uint32_t top = TopTilePx(grid, index.size(), tile_px);
+  const TileCover::Leaf leaf = [&](PixelRect rect, std::span<const uint32_t> slots,
+                                   std::span<const double> radii) {
+    for (size_t k = 0; k < slots.size(); ++k) keep(slots[k], radii[k], rect);
+  };
+  for (uint32_t ty = region.y0; ty < region.y1; ty += top) {
+    for (uint32_t tx = region.x0; tx < region.x1; tx += top) {
+      cover.CoverDown({tx, ty, std::min(tx + top, region.x1), std::min(ty + top, region.y1)},
+                      tile_px, leaf);
     }
   }
   return tile_px;
@@ -202,26 +257,33 @@ Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteInd
                          PixelRect region, uint32_t tile_px, Diagram diagram) {
   Coverage cov;
   cov.radius.assign(sites.size(), -1);
+  cov.clip.assign(sites.size(), PixelRect{});
   cov.tile_px = CoverTiles(grid, sites, index, region, tile_px, diagram,
-                           [&](uint32_t slot, double radius) {
+                           [&](uint32_t slot, double radius, PixelRect rect) {
                              cov.radius[slot] = std::max(cov.radius[slot], radius);
+                             cov.clip[slot] = cov.clip[slot].Union(rect);
                              ++cov.pairs;
                            });
   return cov;
 }
 
-std::vector<std::pair<uint32_t, double>> SparseCoverage(const Grid& grid, const SlotTable& sites,
-                                                        const SiteIndex& index,
-                                                        PixelRect region, uint32_t tile_px,
-                                                        Diagram diagram) {
-  std::unordered_map<uint32_t, double> radius;
+std::vector<SiteDraw> SparseCoverage(const Grid& grid, const SlotTable& sites,
+                                     const SiteIndex& index, PixelRect region, uint32_t tile_px,
+                                     Diagram diagram) {
+  std::unordered_map<uint32_t, SiteDraw> drawn;
   CoverTiles(grid, sites, index, region, tile_px, diagram,
-             [&](uint32_t slot, double r) {
-               auto [it, fresh] = radius.emplace(slot, r);
-               if (!fresh) it->second = std::max(it->second, r);
+             [&](uint32_t slot, double r, PixelRect rect) {
+               auto [it, fresh] = drawn.try_emplace(slot, SiteDraw{slot, r, rect});
+               if (!fresh) {
+                 it->second.radius = std::max(it->second.radius, r);
+                 it->second.clip = it->second.clip.Union(rect);
+               }
              });
-  std::vector<std::pair<uint32_t, double>> out(radius.begin(), radius.end());
-  std::sort(out.begin(), out.end());
+  std::vector<SiteDraw> out;
+  out.reserve(drawn.size());
+  for (const auto& [slot, d] : drawn) out.push_back(d);
+  std::sort(out.begin(), out.end(),
+            [](const SiteDraw& a, const SiteDraw& b) { return a.slot < b.slot; });
   return out;
 }
 

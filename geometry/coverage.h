@@ -5,7 +5,9 @@
 
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <mutex>
+#include <span>
 #include <utility>
 #include <vector>
 
@@ -15,21 +17,40 @@
 
 namespace gvd {
 
+// A site to draw: it must cover every pixel centre within `radius` of its geometry that lies
+// in `clip` (a rectangle of the grid's pixels); outside it, no pixel is the site's.
+struct SiteDraw {
+  uint32_t slot = 0;
+  double radius = 0;
+  PixelRect clip{0, 0, UINT32_MAX, UINT32_MAX};
+};
+
 struct Coverage {
   // radius[s] >= the distance from the site in slot s to every pixel centre of the region
   // whose exact nearest site it is (ties included); negative when it is nearest to none of
   // them (or the slot is free), so its mesh need not be drawn there.
   std::vector<double> radius;
-  uint32_t tile_px = 0;  // side of the tiles used
-  uint64_t pairs = 0;    // (tile, candidate site) pairs examined
+  // clip[s] holds every pixel whose centre's exact nearest site s can be (the union of the
+  // tiles that keep it), so its mesh need not be drawn outside; empty where radius < 0.
+  std::vector<PixelRect> clip;
+  uint32_t tile_px = 0;  // side of the smallest tiles used
+  uint64_t pairs = 0;    // (tile, candidate site) pairs kept in the smallest tiles
 };
 
-// The tile side that ComputeCoverage uses by default for n sites on the grid: about twice the
-// mean spacing of the sites, in pixels, within [4, 64].
+// The side of the smallest tiles that ComputeCoverage uses by default for n sites on the
+// grid: a power of two about a third of the sites' mean spacing, in pixels, within [1, 4], so
+// that a site's clip is little more than its cell's box.
 uint32_t DefaultTilePx(const Grid& grid, size_t n);
 
+// The side of the tiles whose candidates are looked up in the index before they are split
+// down to leaves of leaf_px: leaf_px times a power of two, about twice the sites' mean
+// spacing, within [8, 64] (or leaf_px if that is larger).
+uint32_t TopTilePx(const Grid& grid, size_t n, uint32_t leaf_px);
+
 // Computes how far each site must reach to cover the pixel centres of `region` it is nearest
-// to. `index` indexes `sites` by slot. O(tiles * candidates per tile * log n).
+// to, and where. `index` indexes `sites` by slot. Tiles of TopTilePx are looked up in the
+// index and split down to leaves of tile_px (see TileCover::CoverDown): O(top tiles * log n +
+// tiles * candidates per tile).
 //
 // What is drawn. A site s is drawn with value v_s(p) = m_s d(p, s) + a_s wherever it is
 // "present": within max_distance + DrawMargin of its geometry and, for a polygon restricted to
@@ -48,7 +69,15 @@ uint32_t DefaultTilePx(const Grid& grid, size_t n);
 // radius >= max over C of d(., s) (capped at its presence, max_distance + DrawMargin), so
 // every pixel centre lies within the radius of each site best there. With no site present
 // on all of C, every site present near C is kept. kFarthest keeps every site, over the whole
-// region. tests/coverage_test.cc checks this pixel by pixel against the oracle.
+// region.
+//
+// Why the smaller tiles are enough. A site best at some pixel centre of a half of a tile is
+// best at that centre of the tile, so the tile's list holds it. The tests above drop a site
+// only by comparing it with sites that are present (U) or plain points (the half-planes):
+// any such sites give valid bounds, so taking them from the parent's list instead of the
+// index can only keep more sites, never fewer. The clip of a site is the union of the
+// smallest tiles that keep it, so it holds every pixel centre where the site is best.
+// tests/coverage_test.cc checks radii and clips pixel by pixel against the oracle.
 // CONTRACT: index holds exactly the live slots of the table, at least one.
 Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
                          PixelRect region, uint32_t tile_px = 0,
@@ -68,6 +97,20 @@ class TileCover {
   // at its presence (max_distance + DrawMargin).
   void Cover(PixelRect tile, std::vector<uint32_t>* slots, std::vector<double>* radii) const;
 
+  // The same for `tile` from `candidates` instead of the index: those of them that pass the
+  // tests on `tile` (radii left alone when null). CONTRACT: `candidates` holds every site
+  // that can be best at some pixel centre of `tile`, such as the list of a tile holding it:
+  // the tests only drop sites, never add any.
+  void Keep(PixelRect tile, std::span<const uint32_t> candidates, std::vector<uint32_t>* slots,
+            std::vector<double>* radii) const;
+
+  // Covers `tile` from the index, then splits it in halves along each side longer than
+  // leaf_px (at multiples of leaf_px from its corner), each half keeping of its parent's list
+  // what passes on it, down to tiles of at most leaf_px a side: calls leaf(rect, slots, radii)
+  // once for each of those, in row-major order within each split. O(log n + the lists).
+  using Leaf = std::function<void(PixelRect, std::span<const uint32_t>, std::span<const double>)>;
+  void CoverDown(PixelRect tile, uint32_t leaf_px, const Leaf& leaf) const;
+
   // The radius a site needs over `box` (a rectangle of pixel centres).
   double RadiusFor(const SiteView& s, const Window& box) const;
 
@@ -79,6 +122,10 @@ class TileCover {
   // site is present everywhere): for the tiles with no site present on the whole of them.
   // Computed on first use, O(sites).
   double PresenceReach() const;
+  // Appends to `out` the sites the index finds near `tile` (a superset of Cover's).
+  void Candidates(PixelRect tile, std::vector<uint32_t>* out) const;
+  void Descend(PixelRect tile, std::span<const uint32_t> parent, uint32_t leaf_px, size_t depth,
+               const Leaf& leaf) const;
 
   const LeastWeights least_;
   const double margin_;
@@ -86,13 +133,11 @@ class TileCover {
   mutable double reach_ = INFINITY;
 };
 
-// The same radii as ComputeCoverage, as a list of (slot, radius) for the sites with one, in
-// slot order: for a small region of a large scene (a zoom window), whose cost then depends
-// on the region and the sites near it, not on the scene's size (but for kFarthest, which
-// keeps every site).
-std::vector<std::pair<uint32_t, double>> SparseCoverage(const Grid& grid, const SlotTable& sites,
-                                                        const SiteIndex& index,
-                                                        PixelRect region, uint32_t tile_px,
-                                                        Diagram diagram);
+// The same radii and clips as ComputeCoverage, as draws in slot order: for a small region of
+// a large scene (a zoom window), whose cost then depends on the region and the sites near
+// it, not on the scene's size (but for kFarthest, which keeps every site).
+std::vector<SiteDraw> SparseCoverage(const Grid& grid, const SlotTable& sites,
+                                     const SiteIndex& index, PixelRect region, uint32_t tile_px,
+                                     Diagram diagram);
 
 }  // namespace gvd

@@ -96,6 +96,15 @@ struct Grid {
     return {(p.x - window.min_x) / pixel_width(), (p.y - window.min_y) / pixel_height()};
   }
   PixelRect all() const { return {0, 0, width, height}; }
+  // The area the pixels of `r` cover, cut to the grid grown by a pixel (so that a rectangle
+  // reaching past the grid stays finite).
+  Window Area(PixelRect r) const {
+    auto at = [](uint32_t i, uint32_t n, double lo, double size) {
+      return lo + std::min(i, n + 1) * size;
+    };
+    return {at(r.x0, width, window.min_x, pixel_width()), at(r.y0, height, window.min_y, pixel_height()),
+            at(r.x1, width, window.min_x, pixel_width()), at(r.y1, height, window.min_y, pixel_height())};
+  }
   // The pixels whose centres lie within the axis-aligned box [lo, hi].
   PixelRect CentresIn(Vec2 lo, Vec2 hi) const {
     Vec2 a = ToPixel(lo), b = ToPixel(hi);

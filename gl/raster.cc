@@ -161,6 +161,7 @@ absl::StatusOr<std::unique_ptr<Rasterizer>> Rasterizer::Create(const DeviceInfo&
   glGenVertexArrays(1, &r->vao_);
   glGenBuffers(1, &r->instances_);
   glGenBuffers(1, &r->segments_);
+  glGenBuffers(1, &r->indirect_);
   // Two triangles spanning [0, 1]^2.
   const float quad[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 0, 0, 1, 1, 0, 0, 1, 0};
   glGenBuffers(1, &r->quad_);
@@ -178,7 +179,7 @@ absl::StatusOr<std::unique_ptr<Rasterizer>> Rasterizer::Create(const DeviceInfo&
 
 Rasterizer::~Rasterizer() {
   for (auto& [n, buffer] : cones_) glDeleteBuffers(1, &buffer);
-  for (unsigned b : {quad_, tent_mesh_, instances_, segments_}) glDeleteBuffers(1, &b);
+  for (unsigned b : {quad_, tent_mesh_, instances_, segments_, indirect_}) glDeleteBuffers(1, &b);
   glDeleteVertexArrays(1, &vao_);
   for (const Program* p : {&cone_, &tent_, &exact_, &exact_point_, &resolve_}) {
     glDeleteProgram(p->id);
@@ -190,7 +191,11 @@ Rasterizer::~Rasterizer() {
 unsigned Rasterizer::ConeBuffer(uint32_t segments) {
   auto it = cones_.find(segments);
   if (it == cones_.end()) {
+    // Two turns, so that any range of up to `segments` triangles is contiguous (FanTriangles).
     ConeMesh mesh = BuildUnitCone(segments);
+    const size_t turn = mesh.vertices.size();
+    mesh.vertices.resize(2 * turn);
+    std::copy_n(mesh.vertices.begin(), turn, mesh.vertices.begin() + turn);
     GLuint buffer = 0;
     glGenBuffers(1, &buffer);
     glBindBuffer(GL_ARRAY_BUFFER, buffer);
@@ -235,22 +240,68 @@ bool ExactPoint(const DrawParams& params, const Site& site) {
          std::holds_alternative<PointSite>(site.geometry);
 }
 
-// Calls f(p) for each vertex of the geometry that gets a cone in kMesh, and g(a, b) for each
-// edge of positive length that gets a tent.
+// The triangles of a fan of `n` that cover the directions from `from` to `to` (radians,
+// from <= to): `count` of them from triangle `first` on (mod n; ConeBuffer holds two turns,
+// so they are contiguous there), with one more on each side so that rounding cannot leave a
+// pixel centre on a boundary ray uncovered.
+struct FanRange {
+  uint32_t first = 0, count = 0;
+};
+FanRange FanTriangles(double from, double to, uint32_t n) {
+  constexpr double kTurn = 2 * std::numbers::pi;
+  if (!(to - from < kTurn)) return {0, n};
+  const double k0 = std::floor(from / kTurn * n) - 1, k1 = std::ceil(to / kTurn * n) + 1;
+  if (!(k1 - k0 < n)) return {0, n};
+  const int64_t first = static_cast<int64_t>(k0) % int64_t{n};
+  return {static_cast<uint32_t>(first < 0 ? first + n : first), static_cast<uint32_t>(k1 - k0)};
+}
+
+// The pieces of a site's distance mesh in kMesh (paper sec. 4): g(a, b) for each edge of
+// positive length, which gets a tent (its slab), and f(p, from, to) for each vertex, which
+// gets a fan over the directions (radians, from <= to <= from + 2 pi) in which it is the
+// site's nearest point: all of them for a point, the half-plane beyond the end of an open
+// chain, the wedge between the normals of the two edges at a joint (empty on the inner side
+// of the turn). A point q whose nearest point on the site is inside an edge lies in that
+// edge's slab; one whose nearest point is a vertex v lies beyond the end of the edge
+// arriving at v and before the start of the edge leaving it: in v's wedge.
 template <class F, class G>
 void ForEachPiece(const Geometry& geometry, F&& f, G&& g) {
+  constexpr double kPi = std::numbers::pi;
   if (const auto* p = std::get_if<PointSite>(&geometry)) {
-    f(p->p);
+    f(p->p, 0.0, 2 * kPi);
     return;
   }
-  bool first = true;
-  const bool closed = std::holds_alternative<PolygonSite>(geometry);
+  thread_local std::vector<std::pair<Vec2, Vec2>> edges;
+  edges.clear();
+  Vec2 any;
   ForEachSegment(geometry, [&](Vec2 a, Vec2 b) {
-    if (first && !closed) f(a);  // a polygon's first vertex is the last edge's end
-    first = false;
-    f(b);
-    if (a.x != b.x || a.y != b.y) g(a, b);
+    any = a;
+    if (a.x != b.x || a.y != b.y) edges.emplace_back(a, b);
   });
+  if (edges.empty()) {  // every vertex at one point
+    f(any, 0.0, 2 * kPi);
+    return;
+  }
+  auto angle = [](Vec2 from, Vec2 to) { return std::atan2(to.y - from.y, to.x - from.x); };
+  for (const auto& [a, b] : edges) g(a, b);
+  const bool closed = std::holds_alternative<PolygonSite>(geometry);
+  if (!closed) {
+    const double first = angle(edges.front().second, edges.front().first);
+    const double last = angle(edges.back().first, edges.back().second);
+    f(edges.front().first, first - kPi / 2, first + kPi / 2);
+    f(edges.back().second, last - kPi / 2, last + kPi / 2);
+  }
+  const size_t joints = closed ? edges.size() : edges.size() - 1;
+  for (size_t i = 0; i < joints; ++i) {
+    const auto& [a, v] = edges[i];
+    const Vec2 b = edges[(i + 1) % edges.size()].second;
+    // Beyond the arriving edge: within pi/2 of its direction c1; before the leaving edge:
+    // within pi/2 of its reverse c2. Both half-planes meet in the wedge around the middle.
+    const double c1 = angle(a, v), c2 = angle(b, v);
+    const double delta = std::remainder(c2 - c1, 2 * kPi);
+    const double half = kPi / 2 - std::abs(delta) / 2;
+    f(v, c1 + delta / 2 - half, c1 + delta / 2 + half);
+  }
 }
 
 // A site drawn per fragment as exact.vert and nearest.comp take it: its first segment, (m,
@@ -278,10 +329,18 @@ PerFragmentSite PerFragmentOf(const Site& site, uint32_t id, double reach, Vec2 
           glm::uvec4(id, first, count, side)};
 }
 
+// The area of the box within `lo`..`hi` that lies in `clip`.
+double AreaWithin(const Window& clip, Vec2 lo, Vec2 hi) {
+  return std::max(0.0, std::min(hi.x, clip.max_x) - std::max(lo.x, clip.min_x)) *
+         std::max(0.0, std::min(hi.y, clip.max_y) - std::max(lo.y, clip.min_y));
+}
+
 }  // namespace
 
 SiteShape Rasterizer::Shape(const Grid& grid, const DrawParams& params, const Site& site,
-                            double radius) const {
+                            const SiteDraw& draw) const {
+  const double radius = draw.radius;
+  const Window clip = grid.Area(draw.clip);
   // A sixteenth of a pixel beyond the proven radius keeps centres on the edge inside,
   // whatever the rasterizer's snapping (1/256 pixel), and 2^-18 of the largest float
   // coordinate involved keeps them inside whatever the rounding of positions and distances
@@ -297,14 +356,15 @@ SiteShape Rasterizer::Shape(const Grid& grid, const DrawParams& params, const Si
   const double r = radius + grid.pixel_size() / 16 + scale * 0x1p-18;
   SiteShape shape;
   const double m = site.multiplicative, a = site.additive;
+  // Areas: each piece's, or its box's within the clip where that is less.
   if (ExactPoint(params, site)) {
     shape.per_fragment = true;
     shape.extent = r * std::numbers::sqrt2 * (1 + 0x1p-20);
-    shape.area = 4 * r * r;
+    shape.area = AreaWithin(clip, {box.min_x - r, box.min_y - r}, {box.max_x + r, box.max_y + r});
   } else if (PerFragment(params, site)) {
     shape.per_fragment = true;
     shape.extent = r;
-    shape.area = (box.width() + 2 * r) * (box.height() + 2 * r);
+    shape.area = AreaWithin(clip, {box.min_x - r, box.min_y - r}, {box.max_x + r, box.max_y + r});
   } else {
     const uint32_t needed = ConeSegments(r + params.eps, params.eps);
     shape.segments = SegmentBucket(needed);
@@ -312,9 +372,20 @@ SiteShape Rasterizer::Shape(const Grid& grid, const DrawParams& params, const Si
     shape.extent = r * shape.overestimate * (1 + 0x1p-20);
     shape.excess = needed > kMaxConeSegments ? m * (shape.overestimate - 1) * shape.extent
                                              : m * params.eps;
+    const double e = shape.extent;
     ForEachPiece(
-        site.geometry, [&](Vec2) { shape.area += std::numbers::pi * r * r; },
-        [&](Vec2 p, Vec2 q) { shape.area += 2 * r * Distance(p, q); });
+        site.geometry,
+        [&](Vec2 p, double from, double to) {
+          const double share = double(FanTriangles(from, to, shape.segments).count) /
+                               shape.segments;
+          shape.area += std::min(share * std::numbers::pi * e * e,
+                                 AreaWithin(clip, {p.x - e, p.y - e}, {p.x + e, p.y + e}));
+        },
+        [&](Vec2 p, Vec2 q) {
+          shape.area += std::min(2 * e * Distance(p, q),
+                                 AreaWithin(clip, {std::min(p.x, q.x) - e, std::min(p.y, q.y) - e},
+                                            {std::max(p.x, q.x) + e, std::max(p.y, q.y) + e}));
+        });
   }
   shape.max_value = (m * shape.extent + a) * (1 + 0x1p-20);
   return shape;
@@ -333,11 +404,13 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
   struct Cone {  // cone.vert
     glm::vec3 cone;  // (x, y, rho)
     glm::vec2 weight;
+    glm::vec4 clip;
     uint32_t site;
   };
   struct Tent {  // tent.vert
     glm::vec4 ends;
     glm::vec3 tent;  // (half-width, m, a)
+    glm::vec4 clip;
     uint32_t site;
   };
   struct Quad {  // exact.vert
@@ -347,13 +420,19 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
     glm::uvec4 info;
   };
   struct Square {  // exact_point.vert
-    glm::vec3 square;  // (x, y, half side)
+    glm::vec4 rect;
+    glm::vec2 point;
     glm::vec2 weight;
     uint32_t site;
   };
-  static_assert(sizeof(Cone) == 6 * 4 && sizeof(Tent) == 8 * 4 && sizeof(Quad) == 15 * 4 &&
-                sizeof(Square) == 6 * 4);
-  std::map<uint32_t, std::vector<Cone>> cones;  // by triangle count
+  static_assert(sizeof(Cone) == 10 * 4 && sizeof(Tent) == 12 * 4 && sizeof(Quad) == 15 * 4 &&
+                sizeof(Square) == 9 * 4);
+  struct Fans {
+    std::vector<Cone> whole;        // drawn instanced
+    std::vector<Cone> parts;        // each drawn over ranges[k] (an indirect draw each)
+    std::vector<FanRange> ranges;
+  };
+  std::map<uint32_t, Fans> cones;  // by triangle count
   std::vector<Tent> tents;
   std::vector<Quad> quads;
   std::vector<Square> squares;
@@ -362,29 +441,52 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
   auto rel = [&](Vec2 p) { return glm::vec2(p - origin); };
   for (const SiteDraw& d : draws) {
     const Site& site = *sites.get(d.slot);
-    SiteShape shape = Shape(grid, params, site, d.radius);
+    SiteShape shape = Shape(grid, params, site, d);
     const glm::vec2 weight(site.multiplicative, site.additive);
     const uint32_t id = d.slot + 1;
+    const Window c = grid.Area(d.clip);
+    const glm::vec2 clip_lo = rel({c.min_x, c.min_y}), clip_hi = rel({c.max_x, c.max_y});
+    // A rectangle cut to the clip; false when nothing of it is left.
+    auto cut = [&](Vec2 lo, Vec2 hi, glm::vec4* rect) {
+      *rect = glm::vec4(glm::max(rel(lo), clip_lo), glm::min(rel(hi), clip_hi));
+      return rect->x < rect->z && rect->y < rect->w;
+    };
     if (ExactPoint(params, site)) {
       // Half side: the radius with its margins (the shape's extent is the corners' reach).
       const double half = shape.extent / (std::numbers::sqrt2 * (1 + 0x1p-20));
-      squares.push_back({glm::vec3(rel(std::get<PointSite>(site.geometry).p), half), weight, id});
+      const Vec2 p = std::get<PointSite>(site.geometry).p;
+      glm::vec4 rect;
+      if (cut({p.x - half, p.y - half}, {p.x + half, p.y + half}, &rect)) {
+        squares.push_back({rect, rel(p), weight, id});
+      }
       continue;
     }
     if (shape.per_fragment) {
       Window b = BoundingBox(site.geometry);
       const double r = shape.extent;
+      glm::vec4 rect;
+      if (!cut({b.min_x - r, b.min_y - r}, {b.max_x + r, b.max_y + r}, &rect)) continue;
       PerFragmentSite f = PerFragmentOf(site, id, r, origin, &segments);
-      glm::vec2 lo = rel({b.min_x - r, b.min_y - r}), hi = rel({b.max_x + r, b.max_y + r});
-      quads.push_back({glm::vec4(lo, hi), f.weight, f.first, f.info});
+      quads.push_back({rect, f.weight, f.first, f.info});
       continue;
     }
     const float rho = static_cast<float>(shape.extent);
+    const glm::vec4 clip(clip_lo, clip_hi);
     ForEachPiece(
         site.geometry,
-        [&](Vec2 p) { cones[shape.segments].push_back({glm::vec3(rel(p), rho), weight, id}); },
+        [&](Vec2 p, double from, double to) {
+          Fans& fans = cones[shape.segments];
+          const Cone cone{glm::vec3(rel(p), rho), weight, clip, id};
+          const FanRange range = FanTriangles(from, to, shape.segments);
+          if (range.count == shape.segments) {
+            fans.whole.push_back(cone);
+          } else {
+            fans.parts.push_back(cone);
+            fans.ranges.push_back(range);
+          }
+        },
         [&](Vec2 p, Vec2 q) {
-          tents.push_back({glm::vec4(rel(p), rel(q)), glm::vec3(rho, weight), id});
+          tents.push_back({glm::vec4(rel(p), rel(q)), glm::vec3(rho, weight), clip, id});
         });
   }
   glBindFramebuffer(GL_FRAMEBUFFER, target.framebuffer());
@@ -438,24 +540,48 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
   };
   glBindVertexArray(vao_);
   for (GLuint location = 0; location < 5; ++location) glDisableVertexAttribArray(location);
+  // The cones and tents are cut to their sites' clips (cone.vert and tent.vert write the
+  // distances); the other programs write none, and their rectangles are cut above.
+  for (GLenum plane = 0; plane < 4; ++plane) glEnable(GL_CLIP_DISTANCE0 + plane);
   if (!cones.empty()) {
     use(cone_);
-    for (const auto& [n, list] : cones) {
-      bind(ConeBuffer(n), list.data(), list.size(), sizeof(Cone), {3, 2}, 1);
-      glDrawArraysInstanced(GL_TRIANGLES, 0, static_cast<GLsizei>(n * 3),
-                            static_cast<GLsizei>(list.size()));
+    // glMultiDrawArraysIndirect's command; the instances are the whole fans, then the parts.
+    struct Command {
+      GLuint count, instances, first, base_instance;
+    };
+    std::vector<Command> commands;
+    for (auto& [n, fans] : cones) {
+      const size_t whole = fans.whole.size();
+      fans.whole.insert(fans.whole.end(), fans.parts.begin(), fans.parts.end());
+      bind(ConeBuffer(n), fans.whole.data(), fans.whole.size(), sizeof(Cone), {3, 2, 4}, 1);
+      if (whole > 0) {
+        glDrawArraysInstanced(GL_TRIANGLES, 0, static_cast<GLsizei>(n * 3),
+                              static_cast<GLsizei>(whole));
+      }
+      if (fans.parts.empty()) continue;
+      commands.clear();
+      for (size_t k = 0; k < fans.ranges.size(); ++k) {
+        commands.push_back({3 * fans.ranges[k].count, 1, 3 * fans.ranges[k].first,
+                            static_cast<GLuint>(whole + k)});
+      }
+      glBindBuffer(GL_DRAW_INDIRECT_BUFFER, indirect_);
+      glBufferData(GL_DRAW_INDIRECT_BUFFER, commands.size() * sizeof(Command), commands.data(),
+                   GL_STREAM_DRAW);
+      glMultiDrawArraysIndirect(GL_TRIANGLES, nullptr, static_cast<GLsizei>(commands.size()), 0);
+      glBindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
     }
   }
   if (!tents.empty()) {
     use(tent_);
-    bind(tent_mesh_, tents.data(), tents.size(), sizeof(Tent), {4, 3}, 1);
+    bind(tent_mesh_, tents.data(), tents.size(), sizeof(Tent), {4, 3, 4}, 1);
     glDrawArraysInstanced(GL_TRIANGLES, 0, 12, static_cast<GLsizei>(tents.size()));
   }
+  for (GLenum plane = 0; plane < 4; ++plane) glDisable(GL_CLIP_DISTANCE0 + plane);
   if (!squares.empty()) {
     use(exact_point_);
     glUniform2fv(exact_point_.u_pixel, 1, glm::value_ptr(pixel));
     glUniform2fv(exact_point_.u_origin, 1, glm::value_ptr(target_origin));
-    bind(quad_, squares.data(), squares.size(), sizeof(Square), {3, 2}, 1);
+    bind(quad_, squares.data(), squares.size(), sizeof(Square), {4, 2, 2}, 1);
     glDrawArraysInstanced(GL_TRIANGLES, 0, 6, static_cast<GLsizei>(squares.size()));
   }
   if (!quads.empty()) {
@@ -497,7 +623,7 @@ absl::Status Rasterizer::Compute(const Grid& grid, const DrawParams& params,
   const Vec2 origin{grid.window.min_x, grid.window.min_y};
   for (const SiteDraw& d : draws) {
     const Site& site = *sites.get(d.slot);
-    const SiteShape shape = Shape(grid, params, site, d.radius);
+    const SiteShape shape = Shape(grid, params, site, d);
     PerFragmentSite f = PerFragmentOf(site, d.slot + 1, shape.extent, origin, &segments);
     records.push_back({f.first, glm::vec4(f.weight, 0), f.info});
   }

@@ -9,6 +9,7 @@
 #include "absl/status/statusor.h"
 #include "core/frame.h"
 #include "gl/context.h"
+#include "geometry/coverage.h"
 #include "geometry/exact.h"
 #include "geometry/geometry.h"
 #include "geometry/site.h"
@@ -52,19 +53,13 @@ struct RenderStats {
 };
 
 
-// A site to draw: it must cover every pixel centre within `radius` of its geometry.
-struct SiteDraw {
-  uint32_t slot = 0;
-  double radius = 0;
-};
-
 // What drawing one site with a given radius amounts to.
 struct SiteShape {
   double extent = 0;        // no fragment lies farther than this from the geometry
   double max_value = 0;     // no value written exceeds this (m * extent + a)
   double overestimate = 1;  // k of its fans (1 when none)
   uint32_t segments = 0;    // triangles in each of its fans (0 when none)
-  double area = 0;          // the area its pieces cover
+  double area = 0;          // the area its pieces cover within the clip
   bool per_fragment = false;  // drawn as a quad evaluated per fragment
   // A bound on height - value over what is drawn: m * eps for fans with enough triangles;
   // m * (k - 1) * extent for a fan that would need more than kMaxConeSegments (a site far
@@ -114,9 +109,9 @@ class Rasterizer {
   // pass over candidate lists beats drawing meshes for every site kind (tests/bench/README.md).
   bool software() const { return software_; }
 
-  // How a site that must cover `radius` is drawn.
+  // How a site that must cover `draw.radius` within `draw.clip` is drawn.
   SiteShape Shape(const Grid& grid, const DrawParams& params, const Site& site,
-                  double radius) const;
+                  const SiteDraw& draw) const;
 
   // Draws the sites' distance functions into `target` inside `scissor` (clearing it first
   // when `clear`). The grid's pixel (0, 0) is the target's pixel (x0, y0); the scissor is in
@@ -164,7 +159,8 @@ class Rasterizer {
 
  private:
   Rasterizer() = default;
-  // The vertex buffer of the unit cone with `segments` triangles, made on first use.
+  // The vertex buffer of the unit cone with `segments` triangles, two turns of it, made on
+  // first use.
   unsigned ConeBuffer(uint32_t segments);
 
   struct Program {
@@ -175,7 +171,7 @@ class Rasterizer {
 
   Program cone_, tent_, exact_, exact_point_, resolve_;
   unsigned nearest_ = 0;  // the compute program (nearest.comp)
-  unsigned vao_ = 0, instances_ = 0, quad_ = 0, tent_mesh_ = 0, segments_ = 0;
+  unsigned vao_ = 0, instances_ = 0, quad_ = 0, tent_mesh_ = 0, segments_ = 0, indirect_ = 0;
   // Compute's inputs and outputs: sites, tile offsets, candidate sites, ids, values, points.
   unsigned compute_buffers_[6] = {};
   int64_t max_storage_block_ = 0;  // GL_MAX_SHADER_STORAGE_BLOCK_SIZE, bytes

@@ -29,75 +29,109 @@ double NearestDistance(const Window& box, const Geometry& g) {
   return std::hypot(dx, dy);  // a lower bound; exact for points
 }
 
+// How far beyond the geometry's box a site drawn with `extent` within `clip` can have drawn:
+// Reach(geometry, result) holds every pixel it can have written.
+double ClippedExtent(const Grid& grid, const Geometry& g, double extent, PixelRect clip) {
+  const Window b = BoundingBox(g), c = grid.Area(clip);
+  return std::min(extent, std::max({0.0, b.min_x - c.min_x, c.max_x - b.max_x,
+                                    b.min_y - c.min_y, c.max_y - b.max_y}));
+}
+
 // The candidate lists of Rasterizer::Compute for the whole grid, the other sites by slot
-// (Apply maps them to draws); the radii are the largest each site needs over its tiles (as
-// ComputeCoverage's), and pairs counts the list entries. Tile rows are covered in parallel.
+// (Apply maps them to draws); the radii are the largest each site needs over its tiles and
+// the clips the union of those tiles (as ComputeCoverage's), and pairs counts the list
+// entries. Rows of TopTilePx tiles are covered in parallel, each split down to the compute
+// tiles (TileCover::CoverDown).
 Coverage TileCandidates(const Grid& grid, const SlotTable& slots, const SiteIndex& index,
                         Rasterizer::TileLists* lists) {
   constexpr uint32_t kTile = Rasterizer::kComputeTile;
   const uint32_t tiles_x = (grid.width + kTile - 1) / kTile;
   const uint32_t tiles_y = (grid.height + kTile - 1) / kTile;
+  const uint32_t top = TopTilePx(grid, index.size(), kTile);
   const TileCover cover(grid, slots, index);
+  struct Leaf {
+    uint32_t tile;                    // row-major index of the compute tile
+    uint32_t points_end, sites_end;   // where its entries end in the row's lists
+  };
   struct Row {
-    std::vector<uint32_t> ends;  // per tile: where its points and other sites end
+    std::vector<Leaf> leaves;
     std::vector<Rasterizer::Point> points;
     std::vector<uint32_t> sites;
     std::vector<double> point_radii, site_radii;  // the radius each entry needs there
   };
-  std::vector<Row> rows(tiles_y);
-  ParallelFor(tiles_y, 1, [&](size_t begin, size_t end) {
-    std::vector<uint32_t> tile_slots;  // one tile's
-    std::vector<double> tile_radii;
+  const uint32_t rows_count = (grid.height + top - 1) / top;
+  std::vector<Row> rows(rows_count);
+  ParallelFor(rows_count, 1, [&](size_t begin, size_t end) {
     for (size_t ty = begin; ty < end; ++ty) {
       Row& row = rows[ty];
-      row.ends.reserve(2 * tiles_x);
-      const uint32_t y0 = static_cast<uint32_t>(ty) * kTile;
-      for (uint32_t tx = 0; tx < tiles_x; ++tx) {
-        tile_slots.clear();
-        tile_radii.clear();
-        cover.Cover({tx * kTile, y0, std::min(tx * kTile + kTile, grid.width),
-                     std::min(y0 + kTile, grid.height)},
-                    &tile_slots, &tile_radii);
-        for (size_t k = 0; k < tile_slots.size(); ++k) {
-          const uint32_t slot = tile_slots[k];
+      const TileCover::Leaf leaf = [&](PixelRect rect, std::span<const uint32_t> kept,
+                                       std::span<const double> radii) {
+        for (size_t k = 0; k < kept.size(); ++k) {
+          const uint32_t slot = kept[k];
           const Vec2 p = slots.point(slot);
           if (std::isnan(p.x)) {
             row.sites.push_back(slot);
-            row.site_radii.push_back(tile_radii[k]);
+            row.site_radii.push_back(radii[k]);
           } else {
             row.points.push_back({static_cast<float>(p.x - grid.window.min_x),
                                   static_cast<float>(p.y - grid.window.min_y), slot + 1});
-            row.point_radii.push_back(tile_radii[k]);
+            row.point_radii.push_back(radii[k]);
           }
         }
-        row.ends.push_back(static_cast<uint32_t>(row.points.size()));
-        row.ends.push_back(static_cast<uint32_t>(row.sites.size()));
+        row.leaves.push_back({rect.y0 / kTile * tiles_x + rect.x0 / kTile,
+                              static_cast<uint32_t>(row.points.size()),
+                              static_cast<uint32_t>(row.sites.size())});
+      };
+      const uint32_t y0 = static_cast<uint32_t>(ty) * top;
+      for (uint32_t x0 = 0; x0 < grid.width; x0 += top) {
+        cover.CoverDown({x0, y0, std::min(x0 + top, grid.width), std::min(y0 + top, grid.height)},
+                        kTile, leaf);
       }
     }
   });
+  // Each tile's entries, in row-major tile order: counts, then offsets, then the entries.
+  const size_t tiles = size_t{tiles_x} * tiles_y;
+  std::vector<uint32_t> counts(2 * tiles, 0);
+  for (const Row& row : rows) {
+    uint32_t points = 0, sites = 0;
+    for (const Leaf& l : row.leaves) {
+      counts[2 * l.tile] = l.points_end - points;
+      counts[2 * l.tile + 1] = l.sites_end - sites;
+      points = l.points_end;
+      sites = l.sites_end;
+    }
+  }
+  lists->offsets.assign(2 * (tiles + 1), 0);
+  for (size_t t = 0; t < tiles; ++t) {
+    lists->offsets[2 * t + 2] = lists->offsets[2 * t] + counts[2 * t];
+    lists->offsets[2 * t + 3] = lists->offsets[2 * t + 1] + counts[2 * t + 1];
+  }
+  lists->points.resize(lists->offsets[2 * tiles]);
+  lists->sites.resize(lists->offsets[2 * tiles + 1]);
   Coverage cov;
   cov.tile_px = kTile;
   cov.radius.assign(slots.size(), -1);
-  lists->offsets.assign(2, 0);
-  lists->offsets.reserve(2 * (size_t{tiles_x} * tiles_y + 1));
-  lists->points.clear();
-  lists->sites.clear();
+  cov.clip.assign(slots.size(), PixelRect{});
   for (const Row& row : rows) {
-    const uint32_t points = static_cast<uint32_t>(lists->points.size());
-    const uint32_t sites = static_cast<uint32_t>(lists->sites.size());
-    for (size_t k = 0; k < row.ends.size(); k += 2) {
-      lists->offsets.push_back(points + row.ends[k]);
-      lists->offsets.push_back(sites + row.ends[k + 1]);
-    }
-    lists->points.insert(lists->points.end(), row.points.begin(), row.points.end());
-    lists->sites.insert(lists->sites.end(), row.sites.begin(), row.sites.end());
-    for (size_t k = 0; k < row.points.size(); ++k) {
-      double& r = cov.radius[row.points[k].id - 1];
-      r = std::max(r, row.point_radii[k]);
-    }
-    for (size_t k = 0; k < row.sites.size(); ++k) {
-      double& r = cov.radius[row.sites[k]];
-      r = std::max(r, row.site_radii[k]);
+    uint32_t points = 0, sites = 0;
+    for (const Leaf& l : row.leaves) {
+      const PixelRect rect{l.tile % tiles_x * kTile, l.tile / tiles_x * kTile,
+                           std::min(l.tile % tiles_x * kTile + kTile, grid.width),
+                           std::min(l.tile / tiles_x * kTile + kTile, grid.height)};
+      std::copy(row.points.begin() + points, row.points.begin() + l.points_end,
+                lists->points.begin() + lists->offsets[2 * l.tile]);
+      std::copy(row.sites.begin() + sites, row.sites.begin() + l.sites_end,
+                lists->sites.begin() + lists->offsets[2 * l.tile + 1]);
+      for (; points < l.points_end; ++points) {
+        const uint32_t slot = row.points[points].id - 1;
+        cov.radius[slot] = std::max(cov.radius[slot], row.point_radii[points]);
+        cov.clip[slot] = cov.clip[slot].Union(rect);
+      }
+      for (; sites < l.sites_end; ++sites) {
+        const uint32_t slot = row.sites[sites];
+        cov.radius[slot] = std::max(cov.radius[slot], row.site_radii[sites]);
+        cov.clip[slot] = cov.clip[slot].Union(rect);
+      }
     }
   }
   cov.pairs = lists->points.size() + lists->sites.size();
@@ -160,9 +194,9 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
     if (site == nullptr) continue;
     tally_.Live(*site);
     if (cov.radius[s] < 0) continue;
-    draws.push_back({s, cov.radius[s]});
-    SiteShape shape = rasterizer.Shape(grid_, params_, *site, cov.radius[s]);
-    extent_[s] = shape.extent;
+    const SiteDraw& d = draws.emplace_back(SiteDraw{s, cov.radius[s], cov.clip[s]});
+    SiteShape shape = rasterizer.Shape(grid_, params_, *site, d);
+    extent_[s] = ClippedExtent(grid_, site->geometry, shape.extent, d.clip);
     max_value = std::max(max_value, shape.max_value);
     max_segments = std::max(max_segments, shape.segments);
     tally_.Drawn(grid_, *site, shape);
@@ -299,7 +333,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
                                            site.max_distance + margin));
       }
     }
-    if (radius >= 0) windows.push_back({grown, false, {{s, radius}}});
+    if (radius >= 0) windows.push_back({grown, false, {{s, radius, grown}}});
   }
   // Merge overlapping windows until none overlap (a merged window is cleared if either was).
   for (bool merged = true; merged;) {
@@ -333,7 +367,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
     Coverage cov = ComputeCoverage(grid_, slots, drawn_->index(), windows[w].rect);
     tile_px = cov.tile_px;
     for (uint32_t s = 0; s < slots.size(); ++s) {
-      if (cov.radius[s] >= 0) draws[w].push_back({s, cov.radius[s]});
+      if (cov.radius[s] >= 0) draws[w].push_back({s, cov.radius[s], cov.clip[s]});
     }
   }
   double coverage_seconds = Seconds(start);
@@ -341,19 +375,23 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
   uint32_t max_segments = 0;
   size_t drawn = 0;
   std::vector<std::pair<uint32_t, SiteShape>> shapes;
+  std::vector<double> extents;  // each shape's, cut to its clip
   for (const auto& list : draws) {
     for (const SiteDraw& d : list) {
-      SiteShape shape = rasterizer.Shape(grid_, params_, *slots.get(d.slot), d.radius);
+      const Site& site = *slots.get(d.slot);
+      SiteShape shape = rasterizer.Shape(grid_, params_, site, d);
       max_value = std::max(max_value, shape.max_value);
       max_segments = std::max(max_segments, shape.segments);
       fill += shape.area;
+      extents.push_back(ClippedExtent(grid_, site.geometry, shape.extent, d.clip));
       shapes.emplace_back(d.slot, shape);
       ++drawn;
     }
   }
   if (max_value > params_.depth_scale) return RenderAll(rasterizer, stats);  // rescale
-  for (const auto& [slot, shape] : shapes) {
-    extent_[slot] = std::max(extent_[slot], shape.extent);
+  for (size_t k = 0; k < shapes.size(); ++k) {
+    const auto& [slot, shape] = shapes[k];
+    extent_[slot] = std::max(extent_[slot], extents[k]);
     tally_.Drawn(grid_, *slots.get(slot), shape);
   }
   // The sites placed now hold no pixel outside these windows. Their extents, drawn from

@@ -74,12 +74,11 @@ absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> ZoomRenderer::Render(
       std::vector<SiteDraw> draws;
       ErrorTally tally = live;
       double max_value = 0;
-      for (auto [slot, radius] : SparseCoverage(g, sites, snapshot.index(), g.all(),
-                                                kZoomTilePx, diagram)) {
-        draws.push_back({slot, radius});
-        SiteShape shape = rasterizer.Shape(g, params, *sites.get(slot), radius);
+      draws = SparseCoverage(g, sites, snapshot.index(), g.all(), kZoomTilePx, diagram);
+      for (const SiteDraw& d : draws) {
+        SiteShape shape = rasterizer.Shape(g, params, *sites.get(d.slot), d);
         max_value = std::max(max_value, shape.max_value);
-        tally.Drawn(g, *sites.get(slot), shape);
+        tally.Drawn(g, *sites.get(d.slot), shape);
       }
       params.depth_scale = std::max(max_value, g.window.diagonal());
       depth_scale[k] = params.depth_scale;

@@ -12,6 +12,22 @@
 namespace gvd {
 namespace {
 
+// A site's value as drawn (geometry/coverage.h): present DrawMargin beyond its max_distance
+// and beyond the boundary of the side of a polygon it excludes; +infinity elsewhere.
+double DrawnValue(Vec2 q, const Site& s, double margin) {
+  const double d = oracle::Distance(q, s.geometry);
+  if (d > s.max_distance + margin) return INFINITY;
+  if (auto* poly = std::get_if<PolygonSite>(&s.geometry)) {
+    if (poly->side != Side::kBoth && d > margin &&
+        oracle::Inside(q, poly->vertices) != (poly->side == Side::kInside)) {
+      return INFINITY;
+    }
+  }
+  return s.multiplicative * d + s.additive;
+}
+
+// Every site best at a pixel centre in the drawn diagram, ties included, must reach it
+// within its clip.
 void ExpectCovered(const Grid& grid, const SiteTable& sites, uint32_t tile_px = 0) {
   SlotTable slots(sites);
   SiteIndex index = SiteIndex::Build(slots);
@@ -20,13 +36,22 @@ void ExpectCovered(const Grid& grid, const SiteTable& sites, uint32_t tile_px = 
   for (uint32_t j = 0; j < grid.height && failures < 5; ++j) {
     for (uint32_t i = 0; i < grid.width && failures < 5; ++i) {
       Vec2 p = grid.Center(i, j);
-      double best = oracle::BestSite(p, sites).value;
-      for (size_t s = 0; s < sites.size(); ++s) {
-        double d = oracle::Distance(p, sites[s].geometry);
-        if (d == best && !(d <= cov.radius[s])) {
+      double best = INFINITY;
+      for (const Site& s : sites) best = std::min(best, DrawnValue(p, s, DrawMargin(grid)));
+      for (size_t s = 0; s < sites.size() && std::isfinite(best); ++s) {
+        if (DrawnValue(p, sites[s], DrawMargin(grid)) != best) continue;
+        const double d = oracle::Distance(p, sites[s].geometry);
+        if (!(d <= cov.radius[s])) {
           ++failures;
           ADD_FAILURE() << "pixel " << i << "," << j << ": nearest site " << s << " at " << d
                         << " but radius " << cov.radius[s] << " (tile " << cov.tile_px << ")";
+        }
+        const PixelRect& c = cov.clip[s];
+        if (!(i >= c.x0 && i < c.x1 && j >= c.y0 && j < c.y1)) {
+          ++failures;
+          ADD_FAILURE() << "pixel " << i << "," << j << ": nearest site " << s
+                        << " but its clip is [" << c.x0 << ", " << c.x1 << ") x [" << c.y0
+                        << ", " << c.y1 << ") (tile " << cov.tile_px << ")";
         }
       }
     }
@@ -75,17 +100,65 @@ TEST(Coverage, SitesOutsideTheWindowAndSitesThatOwnNothing) {
   EXPECT_LT(cov.radius[1], 0);
 }
 
-// Dense random points: the radii stay near the cells' size, so the meshes fill a small
-// multiple of the window (the point of the exercise), not sites x window.
+// Every kind of site, weights, max_distance and sides, ties between coincident sites, and
+// sites beyond the window: radii and clips hold every pixel centre each is best at.
+TEST(Coverage, SitesOfEveryKind) {
+  Window w{0, 0, 1, 1};
+  Grid grid{w, 96, 80};
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-0.2, 1.2), d(-0.08, 0.08), weight(0.5, 3);
+  for (int scene = 0; scene < 4; ++scene) {
+    SiteTable sites;
+    for (int k = 0; k < 60; ++k) {
+      Vec2 c{u(rng), u(rng)};
+      auto near = [&] { return Vec2{c.x + d(rng), c.y + d(rng)}; };
+      Site s{std::to_string(k), PointSite{c}};
+      switch (k % 6) {
+        case 0: s.geometry = SegmentSite{near(), near()}; break;
+        case 1: s.geometry = PolylineSite{{near(), near(), near(), near()}}; break;
+        case 2: {
+          PolygonSite poly{{near(), near(), near(), near(), near()}};
+          poly.side = static_cast<Side>(k / 6 % 3);
+          s.geometry = poly;
+          break;
+        }
+        case 3: s.geometry = MakeBezier({near(), near(), near(), near()}, grid.pixel_size()); break;
+        case 4:
+          s.multiplicative = weight(rng);
+          s.additive = 0.01 * weight(rng);
+          s.max_distance = 0.1 * weight(rng);
+          break;
+        default: break;
+      }
+      sites.push_back(s);
+    }
+    sites.push_back(sites[5]);  // coincident twins tie everywhere
+    for (uint32_t tile : {0u, 1u, 3u, 8u}) ExpectCovered(grid, sites, tile);
+  }
+}
+
+// Dense random points: the radii stay near the cells' size, and the clips near the cells'
+// boxes, so the meshes are drawn over a small multiple of the window (the point of the
+// exercise), not sites x window.
 TEST(Coverage, FillIsASmallMultipleOfTheGrid) {
   Window w{0, 0, 1, 1};
   Grid grid{w, 512, 512};
   SlotTable slots(RandomPoints(20000, w, 5));
   SiteIndex index = SiteIndex::Build(slots);
   Coverage cov = ComputeCoverage(grid, slots, index, {0, 0, 512, 512});
-  double area = 0;
-  for (double r : cov.radius) area += r > 0 ? M_PI * r * r : 0;
-  EXPECT_LT(area, 40.0);  // against 20,000 for full cones
+  double discs = 0, clipped = 0;
+  for (uint32_t s = 0; s < slots.size(); ++s) {
+    const double r = cov.radius[s];
+    if (r < 0) continue;
+    discs += M_PI * r * r;
+    // The part of the disc's box inside the clip.
+    const Vec2 p = std::get<PointSite>(slots.get(s)->geometry).p;
+    const Window c = grid.Area(cov.clip[s]);
+    clipped += std::max(0.0, std::min(p.x + r, c.max_x) - std::max(p.x - r, c.min_x)) *
+               std::max(0.0, std::min(p.y + r, c.max_y) - std::max(p.y - r, c.min_y));
+  }
+  EXPECT_LT(discs, 5.0);  // against 20,000 for full cones
+  EXPECT_LT(clipped, 3.0);
 }
 
 TEST(SiteIndex, NearestAndWithinAgreeWithBruteForce) {

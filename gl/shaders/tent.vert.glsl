@@ -1,13 +1,16 @@
 #version 450 core
 // Edge tents, instanced: `unit` = (u, v, |v|) spans the segment (u in [0, 1]) and its
-// normal (v in [-1, 1]); `ends` = (a, b), `tent` = (half-width r, m, a). Each half is a plane,
-// so the interpolated height is the distance to the segment's line, exactly.
+// normal (v in [-1, 1]); `ends` = (a, b), `tent` = (half-width r, m, a), `clip` as in
+// cone.vert. Each half is a plane, so the interpolated height is the distance to the
+// segment's line, exactly.
 layout(location = 0) in vec3 unit;
 layout(location = 1) in vec4 ends;
 layout(location = 2) in vec3 tent;
-layout(location = 3) in uint site;
+layout(location = 3) in vec4 clip;
+layout(location = 4) in uint site;
 uniform vec2 u_scale;
 uniform float u_inv_depth;
+out float gl_ClipDistance[4];
 flat out uint v_site;
 void main() {
   vec2 ab = ends.zw - ends.xy;
@@ -15,5 +18,9 @@ void main() {
   vec2 p = ends.xy + unit.x * ab + unit.y * tent.x * n;
   float value = tent.y * tent.x * unit.z + tent.z;
   gl_Position = vec4(p * u_scale - 1.0, value * u_inv_depth, 1.0);
+  gl_ClipDistance[0] = p.x - clip.x;
+  gl_ClipDistance[1] = p.y - clip.y;
+  gl_ClipDistance[2] = clip.z - p.x;
+  gl_ClipDistance[3] = clip.w - p.y;
   v_site = site;
 }

@@ -69,7 +69,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       const double tolerance = gvd::oracle::Tolerance(p, best);
       for (uint32_t s = 0; s < count; ++s) {
         const double d = gvd::oracle::Distance(p, table[s].geometry);
-        if (d <= best + tolerance) Check(d <= cov.radius[s] + tolerance);
+        if (d > best + tolerance) continue;
+        Check(d <= cov.radius[s] + tolerance);
+        if (d == best) {  // ties within the tolerance may fall to either side of a clip
+          const gvd::PixelRect& c = cov.clip[s];
+          Check(i >= c.x0 && i < c.x1 && j >= c.y0 && j < c.y1);
+        }
       }
     }
   }
@@ -80,7 +85,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   size_t drawn = 0;
   for (uint32_t s = 0; s < count; ++s) drawn += cov.radius[s] >= 0;
   Check(sparse.size() == drawn);
-  for (auto [slot, r] : sparse) Check(r == cov.radius[slot]);
+  for (const gvd::SiteDraw& d : sparse) {
+    Check(d.radius == cov.radius[d.slot] && d.clip == cov.clip[d.slot]);
+  }
 
   // Structure of an id image: the oracle's labels, a few of them changed by the input.
   gvd::IdImage image{grid, std::vector<uint32_t>(grid.pixel_count())};
