@@ -4,9 +4,11 @@
 #include <array>
 #include <cstdint>
 #include <cmath>
+#include <numbers>
 #include <unordered_map>
 
 #include "geometry/exact.h"
+#include "geometry/mesh.h"
 
 namespace gvd {
 namespace {
@@ -40,6 +42,89 @@ bool InsideReach(const SiteView& s, const Window& cell, double margin) {
   return b.min_x - margin <= cell.max_x && cell.min_x <= b.max_x + margin &&
          b.min_y - margin <= cell.max_y && cell.min_y <= b.max_y + margin;
 }
+
+// One piece of a site's mesh as PieceCover tests it: the tent of the edge ab, or the fan at
+// a (a == b); its region is the side of the line through a where (x - a) . n1 >= 0 and of
+// the line through b where (x - b) . n2 >= 0 (a tent's slab, a fan's wedge), or the whole
+// plane for a fan that turns half-way or more.
+struct PieceRegion {
+  Vec2 a, b, n1, n2;
+  bool bounded = true;
+};
+
+std::vector<PieceRegion> Regions(const Site& site) {
+  std::vector<PieceRegion> out;
+  ForEachPiece(
+      site.geometry,
+      [&](Vec2 v, double from, double to) {
+        // Left of the direction `from`, right of the direction `to`.
+        out.push_back({v, v, {-std::sin(from), std::cos(from)}, {std::sin(to), -std::cos(to)},
+                       to - from <= std::numbers::pi});
+      },
+      [&](Vec2 a, Vec2 b) { out.push_back({a, b, b - a, a - b, true}); });
+  return out;
+}
+
+// The pieces of a site's mesh that a tile keeping it needs (Coverage::pieces). With c the
+// middle of the tile's centres and h their half-diagonal, a feature at d_k from c is
+// between d_k - h and d_k + h from each centre p, and the site at most min_k d_k + h. The
+// piece holding the site's nearest point to p is therefore no farther than that, and, if the
+// site is best at p, its value there is at most the tile's upper bound U (Keep). Pieces that
+// fail either bound are not needed there, nor those whose region the tile misses (they hold
+// no nearest point there); the others get the tile's pixels and a radius of d_k + h, capped
+// at the site's presence.
+class PieceCover {
+ public:
+  explicit PieceCover(const Grid& grid) : grid_(grid), margin_(DrawMargin(grid)) {}
+
+  void Cover(const SlotTable& sites, uint32_t slot, PixelRect rect, double upper,
+             std::vector<PieceDraw>* pieces) {
+    if (!std::isnan(sites.point(slot).x)) return;  // a plain point is its one piece
+    const Site& site = *sites.get(slot);
+    auto [it, fresh] = regions_.try_emplace(slot);
+    if (fresh) it->second = Regions(site);
+    const std::vector<PieceRegion>& regions = it->second;
+    const Window box = grid_.CentreBox(rect);
+    const Vec2 c{(box.min_x + box.max_x) / 2, (box.min_y + box.max_y) / 2};
+    const double h = Distance({box.min_x, box.min_y}, {box.max_x, box.max_y}) / 2;
+    const Vec2 corners[4] = {{box.min_x, box.min_y}, {box.max_x, box.min_y},
+                             {box.min_x, box.max_y}, {box.max_x, box.max_y}};
+    // Whether some corner x has (x - o) . n >= 0, with slack for rounding: the box meets
+    // that half-plane.
+    auto meets = [&](Vec2 o, Vec2 n) {
+      const double slack = 1e-9 * Length(n) * (h + Distance(c, o));
+      for (Vec2 x : corners) {
+        if (glm::dot(x - o, n) >= -slack) return true;
+      }
+      return false;
+    };
+    dist_.resize(regions.size());
+    double nearest = INFINITY;
+    for (size_t k = 0; k < regions.size(); ++k) {
+      const PieceRegion& r = regions[k];
+      dist_[k] = r.a == r.b ? Distance(c, r.a) : SegmentDistance(c, r.a, r.b);
+      nearest = std::min(nearest, dist_[k] + h);
+    }
+    if (pieces->size() < regions.size()) pieces->resize(regions.size());
+    const double presence = site.max_distance + margin_;
+    for (size_t k = 0; k < regions.size(); ++k) {
+      const PieceRegion& r = regions[k];
+      const double lower = std::max(0.0, dist_[k] - h);
+      if (lower > nearest * (1 + 1e-12)) continue;
+      if (site.multiplicative * lower + site.additive > upper * (1 + 1e-12)) continue;
+      if (r.bounded && !(meets(r.a, r.n1) && meets(r.b, r.n2))) continue;
+      PieceDraw& p = (*pieces)[k];
+      p.radius = std::max(p.radius, std::min((dist_[k] + h) * (1 + 0x1p-40), presence));
+      p.clip = p.clip.Union(rect);
+    }
+  }
+
+ private:
+  const Grid& grid_;
+  const double margin_;
+  std::unordered_map<uint32_t, std::vector<PieceRegion>> regions_;  // by slot, made on use
+  std::vector<double> dist_;
+};
 
 }  // namespace
 
@@ -114,8 +199,8 @@ void TileCover::Cover(PixelRect tile, std::vector<uint32_t>* slots,
   Keep(tile, candidates, slots, radii);
 }
 
-void TileCover::Keep(PixelRect tile, std::span<const uint32_t> candidates,
-                     std::vector<uint32_t>* slots, std::vector<double>* radii) const {
+double TileCover::Keep(PixelRect tile, std::span<const uint32_t> candidates,
+                       std::vector<uint32_t>* slots, std::vector<double>* radii) const {
   const SlotTable& sites = sites_;
   const double margin = margin_;
   Vec2 lo = grid_.Center(tile.x0, tile.y0), hi = grid_.Center(tile.x1 - 1, tile.y1 - 1);
@@ -177,8 +262,15 @@ void TileCover::Keep(PixelRect tile, std::span<const uint32_t> candidates,
       continue;
     }
     slots->push_back(candidates[k]);
-    if (radii) radii->push_back(RadiusFor(s, cell));
+    // A plain point's farthest distance over the cell is exact and cheap; another site's
+    // bound (four corners by every segment) costs more than d(c) + h, which also holds.
+    if (radii) {
+      radii->push_back(s.plain_point() ? RadiusFor(s, cell)
+                                       : std::min((dist[k] + h) * (1 + 0x1p-40),
+                                                  s.max_distance() + margin));
+    }
   }
+  return upper;
 }
 
 void TileCover::CoverDown(PixelRect tile, uint32_t leaf_px, const Leaf& leaf) const {
@@ -198,8 +290,8 @@ void TileCover::Descend(PixelRect tile, std::span<const uint32_t> parent, uint32
   slots.clear();
   if (tile.width() <= leaf_px && tile.height() <= leaf_px) {
     radii.clear();
-    Keep(tile, parent, &slots, &radii);
-    leaf(tile, slots, radii);
+    const double upper = Keep(tile, parent, &slots, &radii);
+    leaf(tile, slots, radii, upper);
     return;
   }
   Keep(tile, parent, &slots, nullptr);
@@ -230,17 +322,16 @@ uint32_t CoverTiles(const Grid& grid, const SlotTable& sites, const SiteIndex& i
   if (region.empty()) return tile_px;
   const TileCover cover(grid, sites, index);
   if (diagram == Diagram::kFarthest) {
-    Vec2 lo = grid.Center(region.x0, region.y0), hi = grid.Center(region.x1 - 1, region.y1 - 1);
-    Window box{lo.x, lo.y, hi.x, hi.y};
+    const Window box = grid.CentreBox(region);
     for (uint32_t s = 0; s < sites.size(); ++s) {
-      if (sites.get(s)) keep(s, cover.RadiusFor(SiteView::Of(sites, s), box), region);
+      if (sites.get(s)) keep(s, cover.RadiusFor(SiteView::Of(sites, s), box), region, INFINITY);
     }
     return tile_px;
   }
   const uint32_t top = TopTilePx(grid, index.size(), tile_px);
   const TileCover::Leaf leaf = [&](PixelRect rect, std::span<const uint32_t> slots,
-                                   std::span<const double> radii) {
-    for (size_t k = 0; k < slots.size(); ++k) keep(slots[k], radii[k], rect);
+                                   std::span<const double> radii, double upper) {
+    for (size_t k = 0; k < slots.size(); ++k) keep(slots[k], radii[k], rect, upper);
   };
   for (uint32_t ty = region.y0; ty < region.y1; ty += top) {
     for (uint32_t tx = region.x0; tx < region.x1; tx += top) {
@@ -254,34 +345,41 @@ uint32_t CoverTiles(const Grid& grid, const SlotTable& sites, const SiteIndex& i
 }  // namespace
 
 Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
-                         PixelRect region, uint32_t tile_px, Diagram diagram) {
+                         PixelRect region, uint32_t tile_px, Diagram diagram, bool pieces) {
   Coverage cov;
   cov.radius.assign(sites.size(), -1);
   cov.clip.assign(sites.size(), PixelRect{});
+  if (pieces) cov.pieces.resize(sites.size());
+  PieceCover piece_cover(grid);
   cov.tile_px = CoverTiles(grid, sites, index, region, tile_px, diagram,
-                           [&](uint32_t slot, double radius, PixelRect rect) {
+                           [&](uint32_t slot, double radius, PixelRect rect, double upper) {
                              cov.radius[slot] = std::max(cov.radius[slot], radius);
                              cov.clip[slot] = cov.clip[slot].Union(rect);
                              ++cov.pairs;
+                             if (pieces) {
+                               piece_cover.Cover(sites, slot, rect, upper, &cov.pieces[slot]);
+                             }
                            });
   return cov;
 }
 
 std::vector<SiteDraw> SparseCoverage(const Grid& grid, const SlotTable& sites,
                                      const SiteIndex& index, PixelRect region, uint32_t tile_px,
-                                     Diagram diagram) {
+                                     Diagram diagram, bool pieces) {
   std::unordered_map<uint32_t, SiteDraw> drawn;
+  PieceCover piece_cover(grid);
   CoverTiles(grid, sites, index, region, tile_px, diagram,
-             [&](uint32_t slot, double r, PixelRect rect) {
+             [&](uint32_t slot, double r, PixelRect rect, double upper) {
                auto [it, fresh] = drawn.try_emplace(slot, SiteDraw{slot, r, rect});
                if (!fresh) {
                  it->second.radius = std::max(it->second.radius, r);
                  it->second.clip = it->second.clip.Union(rect);
                }
+               if (pieces) piece_cover.Cover(sites, slot, rect, upper, &it->second.pieces);
              });
   std::vector<SiteDraw> out;
   out.reserve(drawn.size());
-  for (const auto& [slot, d] : drawn) out.push_back(d);
+  for (auto& [slot, d] : drawn) out.push_back(std::move(d));
   std::sort(out.begin(), out.end(),
             [](const SiteDraw& a, const SiteDraw& b) { return a.slot < b.slot; });
   return out;

@@ -17,12 +17,22 @@
 
 namespace gvd {
 
+// One piece of a site's mesh (ForEachPiece, geometry/mesh.h), drawn on its own: it must
+// cover every pixel centre within `radius` of its feature that lies in `clip` and where the
+// feature holds the site's nearest point; radius < 0: none.
+struct PieceDraw {
+  double radius = -1;
+  PixelRect clip;
+};
+
 // A site to draw: it must cover every pixel centre within `radius` of its geometry that lies
-// in `clip` (a rectangle of the grid's pixels); outside it, no pixel is the site's.
+// in `clip` (a rectangle of the grid's pixels); outside it, no pixel is the site's. When
+// `pieces` is not empty, each piece of its mesh (in ForEachPiece's order) needs only its own.
 struct SiteDraw {
   uint32_t slot = 0;
   double radius = 0;
   PixelRect clip{0, 0, UINT32_MAX, UINT32_MAX};
+  std::vector<PieceDraw> pieces;
 };
 
 struct Coverage {
@@ -33,6 +43,9 @@ struct Coverage {
   // clip[s] holds every pixel whose centre's exact nearest site s can be (the union of the
   // tiles that keep it), so its mesh need not be drawn outside; empty where radius < 0.
   std::vector<PixelRect> clip;
+  // When asked for: pieces[s] for each site s other than a plain point, as
+  // SiteDraw::pieces (see PieceCover in coverage.cc for when a tile needs a piece).
+  std::vector<std::vector<PieceDraw>> pieces;
   uint32_t tile_px = 0;  // side of the smallest tiles used
   uint64_t pairs = 0;    // (tile, candidate site) pairs kept in the smallest tiles
 };
@@ -81,7 +94,7 @@ uint32_t TopTilePx(const Grid& grid, size_t n, uint32_t leaf_px);
 // CONTRACT: index holds exactly the live slots of the table, at least one.
 Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
                          PixelRect region, uint32_t tile_px = 0,
-                         Diagram diagram = Diagram::kNearest);
+                         Diagram diagram = Diagram::kNearest, bool pieces = false);
 
 
 // The proof above for one tile at a time (kNearest), for renders that keep a candidate list
@@ -101,14 +114,17 @@ class TileCover {
   // tests on `tile` (radii left alone when null). CONTRACT: `candidates` holds every site
   // that can be best at some pixel centre of `tile`, such as the list of a tile holding it:
   // the tests only drop sites, never add any.
-  void Keep(PixelRect tile, std::span<const uint32_t> candidates, std::vector<uint32_t>* slots,
-            std::vector<double>* radii) const;
+  // Returns U: an upper bound on the best drawn value at every centre of the tile (INFINITY
+  // when no candidate is present on the whole of it).
+  double Keep(PixelRect tile, std::span<const uint32_t> candidates, std::vector<uint32_t>* slots,
+              std::vector<double>* radii) const;
 
   // Covers `tile` from the index, then splits it in halves along each side longer than
   // leaf_px (at multiples of leaf_px from its corner), each half keeping of its parent's list
-  // what passes on it, down to tiles of at most leaf_px a side: calls leaf(rect, slots, radii)
-  // once for each of those, in row-major order within each split. O(log n + the lists).
-  using Leaf = std::function<void(PixelRect, std::span<const uint32_t>, std::span<const double>)>;
+  // what passes on it, down to tiles of at most leaf_px a side: calls leaf(rect, slots, radii,
+  // U) once for each of those, in row-major order within each split. O(log n + the lists).
+  using Leaf = std::function<void(PixelRect, std::span<const uint32_t>, std::span<const double>,
+                                  double)>;
   void CoverDown(PixelRect tile, uint32_t leaf_px, const Leaf& leaf) const;
 
   // The radius a site needs over `box` (a rectangle of pixel centres).
@@ -138,6 +154,6 @@ class TileCover {
 // it, not on the scene's size (but for kFarthest, which keeps every site).
 std::vector<SiteDraw> SparseCoverage(const Grid& grid, const SlotTable& sites,
                                      const SiteIndex& index, PixelRect region, uint32_t tile_px,
-                                     Diagram diagram);
+                                     Diagram diagram, bool pieces = false);
 
 }  // namespace gvd

@@ -96,6 +96,11 @@ struct Grid {
     return {(p.x - window.min_x) / pixel_width(), (p.y - window.min_y) / pixel_height()};
   }
   PixelRect all() const { return {0, 0, width, height}; }
+  // The rectangle spanned by the pixel centres of `r` (not empty).
+  Window CentreBox(PixelRect r) const {
+    Vec2 lo = Center(r.x0, r.y0), hi = Center(r.x1 - 1, r.y1 - 1);
+    return {lo.x, lo.y, hi.x, hi.y};
+  }
   // The area the pixels of `r` cover, cut to the grid grown by a pixel (so that a rectangle
   // reaching past the grid stays finite).
   Window Area(PixelRect r) const {

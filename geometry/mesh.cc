@@ -39,4 +39,13 @@ ConeMesh ConeForReach(double reach, double eps) {
   return BuildUnitCone(ConeSegments(reach + eps, eps));
 }
 
+FanRange FanTriangles(double from, double to, uint32_t n) {
+  constexpr double kTurn = 2 * std::numbers::pi;
+  if (!(to - from < kTurn)) return {0, n};
+  const double k0 = std::floor(from / kTurn * n) - 1, k1 = std::ceil(to / kTurn * n) + 1;
+  if (!(k1 - k0 < n)) return {0, n};
+  const int64_t first = static_cast<int64_t>(k0) % int64_t{n};
+  return {static_cast<uint32_t>(first < 0 ? first + n : first), static_cast<uint32_t>(k1 - k0)};
+}
+
 }  // namespace gvd

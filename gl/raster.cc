@@ -240,70 +240,6 @@ bool ExactPoint(const DrawParams& params, const Site& site) {
          std::holds_alternative<PointSite>(site.geometry);
 }
 
-// The triangles of a fan of `n` that cover the directions from `from` to `to` (radians,
-// from <= to): `count` of them from triangle `first` on (mod n; ConeBuffer holds two turns,
-// so they are contiguous there), with one more on each side so that rounding cannot leave a
-// pixel centre on a boundary ray uncovered.
-struct FanRange {
-  uint32_t first = 0, count = 0;
-};
-FanRange FanTriangles(double from, double to, uint32_t n) {
-  constexpr double kTurn = 2 * std::numbers::pi;
-  if (!(to - from < kTurn)) return {0, n};
-  const double k0 = std::floor(from / kTurn * n) - 1, k1 = std::ceil(to / kTurn * n) + 1;
-  if (!(k1 - k0 < n)) return {0, n};
-  const int64_t first = static_cast<int64_t>(k0) % int64_t{n};
-  return {static_cast<uint32_t>(first < 0 ? first + n : first), static_cast<uint32_t>(k1 - k0)};
-}
-
-// The pieces of a site's distance mesh in kMesh (paper sec. 4): g(a, b) for each edge of
-// positive length, which gets a tent (its slab), and f(p, from, to) for each vertex, which
-// gets a fan over the directions (radians, from <= to <= from + 2 pi) in which it is the
-// site's nearest point: all of them for a point, the half-plane beyond the end of an open
-// chain, the wedge between the normals of the two edges at a joint (empty on the inner side
-// of the turn). A point q whose nearest point on the site is inside an edge lies in that
-// edge's slab; one whose nearest point is a vertex v lies beyond the end of the edge
-// arriving at v and before the start of the edge leaving it: in v's wedge.
-template <class F, class G>
-void ForEachPiece(const Geometry& geometry, F&& f, G&& g) {
-  constexpr double kPi = std::numbers::pi;
-  if (const auto* p = std::get_if<PointSite>(&geometry)) {
-    f(p->p, 0.0, 2 * kPi);
-    return;
-  }
-  thread_local std::vector<std::pair<Vec2, Vec2>> edges;
-  edges.clear();
-  Vec2 any;
-  ForEachSegment(geometry, [&](Vec2 a, Vec2 b) {
-    any = a;
-    if (a.x != b.x || a.y != b.y) edges.emplace_back(a, b);
-  });
-  if (edges.empty()) {  // every vertex at one point
-    f(any, 0.0, 2 * kPi);
-    return;
-  }
-  auto angle = [](Vec2 from, Vec2 to) { return std::atan2(to.y - from.y, to.x - from.x); };
-  for (const auto& [a, b] : edges) g(a, b);
-  const bool closed = std::holds_alternative<PolygonSite>(geometry);
-  if (!closed) {
-    const double first = angle(edges.front().second, edges.front().first);
-    const double last = angle(edges.back().first, edges.back().second);
-    f(edges.front().first, first - kPi / 2, first + kPi / 2);
-    f(edges.back().second, last - kPi / 2, last + kPi / 2);
-  }
-  const size_t joints = closed ? edges.size() : edges.size() - 1;
-  for (size_t i = 0; i < joints; ++i) {
-    const auto& [a, v] = edges[i];
-    const Vec2 b = edges[(i + 1) % edges.size()].second;
-    // Beyond the arriving edge: within pi/2 of its direction c1; before the leaving edge:
-    // within pi/2 of its reverse c2. Both half-planes meet in the wedge around the middle.
-    const double c1 = angle(a, v), c2 = angle(b, v);
-    const double delta = std::remainder(c2 - c1, 2 * kPi);
-    const double half = kPi / 2 - std::abs(delta) / 2;
-    f(v, c1 + delta / 2 - half, c1 + delta / 2 + half);
-  }
-}
-
 // A site drawn per fragment as exact.vert and nearest.comp take it: its first segment, (m,
 // a, reach) and (id, index of the first segment, segment count, side), its segments appended
 // to `segments`, all relative to `origin`.
@@ -329,10 +265,80 @@ PerFragmentSite PerFragmentOf(const Site& site, uint32_t id, double reach, Vec2 
           glm::uvec4(id, first, count, side)};
 }
 
+// The area of the convex polygon within `clip` (Sutherland-Hodgman, one side at a time).
+double AreaWithin(const Window& clip, std::vector<Vec2> polygon) {
+  std::vector<Vec2> next;
+  // Keeps the part where s * (coordinate axis of p - bound) <= 0.
+  auto cut = [&](int axis, double bound, double s) {
+    next.clear();
+    for (size_t i = 0; i < polygon.size(); ++i) {
+      const Vec2 p = polygon[i], q = polygon[(i + 1) % polygon.size()];
+      const double fp = s * (p[axis] - bound), fq = s * (q[axis] - bound);
+      if (fp <= 0) next.push_back(p);
+      if ((fp < 0) != (fq < 0) && fp != fq) next.push_back(p + (q - p) * (fp / (fp - fq)));
+    }
+    polygon.swap(next);
+  };
+  cut(0, clip.min_x, -1);
+  cut(0, clip.max_x, 1);
+  cut(1, clip.min_y, -1);
+  cut(1, clip.max_y, 1);
+  double twice = 0;
+  for (size_t i = 0; i < polygon.size(); ++i) {
+    const Vec2 p = polygon[i], q = polygon[(i + 1) % polygon.size()];
+    twice += p.x * q.y - q.x * p.y;
+  }
+  return std::abs(twice) / 2;
+}
+
 // The area of the box within `lo`..`hi` that lies in `clip`.
 double AreaWithin(const Window& clip, Vec2 lo, Vec2 hi) {
   return std::max(0.0, std::min(hi.x, clip.max_x) - std::max(lo.x, clip.min_x)) *
          std::max(0.0, std::min(hi.y, clip.max_y) - std::max(lo.y, clip.min_y));
+}
+
+// How the fan of a site drawn with `segments` triangles a turn is drawn over the directions
+// [from, to]: the whole cone, or a range of a finer one (eight times the triangles a turn,
+// so that the triangle of margin FanTriangles adds on each side costs little area). A finer
+// fan with the same extent covers at least the same radius, with a smaller overestimate.
+struct FanDraw {
+  uint32_t segments = 0;
+  FanRange range;
+  bool whole() const { return range.count == segments; }
+};
+FanDraw FanOf(uint32_t segments, double from, double to) {
+  FanDraw fan{segments, FanTriangles(from, to, segments)};
+  if (fan.whole()) return fan;
+  const uint32_t fine = SegmentBucket(std::min(8 * segments, kMaxConeSegments));
+  return {fine, FanTriangles(from, to, fine)};
+}
+
+// ForEachPiece of a site drawn as `shape`, with each piece's extent and clip: its own from
+// draw.pieces where the coverage gave them (pieces with none are left out), else the site's.
+template <class F, class G>
+void ForEachPieceDrawn(const SiteShape& shape, const SiteDraw& draw, const Geometry& geometry,
+                       F&& f, G&& g) {
+  size_t k = 0;
+  auto piece = [&](double* extent, PixelRect* clip) {
+    *extent = shape.extent;
+    *clip = draw.clip;
+    if (k >= draw.pieces.size()) return true;
+    const PieceDraw& p = draw.pieces[k++];
+    if (p.radius < 0) return false;
+    *extent = std::min(shape.extent, (p.radius + shape.pad) * shape.overestimate * (1 + 0x1p-20));
+    *clip = p.clip;
+    return true;
+  };
+  double e;
+  PixelRect clip;
+  ForEachPiece(
+      geometry,
+      [&](Vec2 p, double from, double to) {
+        if (piece(&e, &clip)) f(e, clip, p, from, to);
+      },
+      [&](Vec2 a, Vec2 b) {
+        if (piece(&e, &clip)) g(e, clip, a, b);
+      });
 }
 
 }  // namespace
@@ -353,8 +359,9 @@ SiteShape Rasterizer::Shape(const Grid& grid, const DrawParams& params, const Si
                                  std::abs(box.min_y - w.min_y), std::abs(box.max_y - w.min_y),
                                  w.width(), w.height()}) +
                        radius;
-  const double r = radius + grid.pixel_size() / 16 + scale * 0x1p-18;
   SiteShape shape;
+  shape.pad = grid.pixel_size() / 16 + scale * 0x1p-18;
+  const double r = radius + shape.pad;
   const double m = site.multiplicative, a = site.additive;
   // Areas: each piece's, or its box's within the clip where that is less.
   if (ExactPoint(params, site)) {
@@ -372,20 +379,25 @@ SiteShape Rasterizer::Shape(const Grid& grid, const DrawParams& params, const Si
     shape.extent = r * shape.overestimate * (1 + 0x1p-20);
     shape.excess = needed > kMaxConeSegments ? m * (shape.overestimate - 1) * shape.extent
                                              : m * params.eps;
-    const double e = shape.extent;
-    ForEachPiece(
-        site.geometry,
-        [&](Vec2 p, double from, double to) {
-          const double share = double(FanTriangles(from, to, shape.segments).count) /
-                               shape.segments;
-          shape.area += std::min(share * std::numbers::pi * e * e,
-                                 AreaWithin(clip, {p.x - e, p.y - e}, {p.x + e, p.y + e}));
-        },
-        [&](Vec2 p, Vec2 q) {
-          shape.area += std::min(2 * e * Distance(p, q),
-                                 AreaWithin(clip, {std::min(p.x, q.x) - e, std::min(p.y, q.y) - e},
-                                            {std::max(p.x, q.x) + e, std::max(p.y, q.y) + e}));
-        });
+    ForEachPieceDrawn(shape, draw, site.geometry, [&](double e, PixelRect piece_clip, Vec2 p,
+                                                      double from, double to) {
+      const FanDraw fan = FanOf(shape.segments, from, to);
+      const Window c = grid.Area(piece_clip);
+      if (fan.whole()) {  // a point's cone: its box's part within the clip, at most its own
+        shape.area += std::min(std::numbers::pi * e * e,
+                               AreaWithin(c, {p.x - e, p.y - e}, {p.x + e, p.y + e}));
+        return;
+      }
+      std::vector<Vec2> wedge = {p};
+      for (uint32_t k = 0; k <= fan.range.count; ++k) {
+        const double t = 2 * std::numbers::pi * (fan.range.first + k) / fan.segments;
+        wedge.push_back(p + e * Vec2{std::cos(t), std::sin(t)});
+      }
+      shape.area += AreaWithin(c, std::move(wedge));
+    }, [&](double e, PixelRect piece_clip, Vec2 p, Vec2 q) {
+      const Vec2 n = Vec2{p.y - q.y, q.x - p.x} * (e / Distance(p, q));
+      shape.area += AreaWithin(grid.Area(piece_clip), {p + n, q + n, q - n, p - n});
+    });
   }
   shape.max_value = (m * shape.extent + a) * (1 + 0x1p-20);
   return shape;
@@ -470,23 +482,26 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
       quads.push_back({rect, f.weight, f.first, f.info});
       continue;
     }
-    const float rho = static_cast<float>(shape.extent);
-    const glm::vec4 clip(clip_lo, clip_hi);
-    ForEachPiece(
-        site.geometry,
-        [&](Vec2 p, double from, double to) {
-          Fans& fans = cones[shape.segments];
-          const Cone cone{glm::vec3(rel(p), rho), weight, clip, id};
-          const FanRange range = FanTriangles(from, to, shape.segments);
-          if (range.count == shape.segments) {
+    auto clip_of = [&](PixelRect r) {
+      const Window c = grid.Area(r);
+      return glm::vec4(rel({c.min_x, c.min_y}), rel({c.max_x, c.max_y}));
+    };
+    ForEachPieceDrawn(shape, d, site.geometry, [&](double e, PixelRect piece_clip, Vec2 p,
+                                                   double from, double to) {
+          const FanDraw fan = FanOf(shape.segments, from, to);
+          Fans& fans = cones[fan.segments];
+          const Cone cone{glm::vec3(rel(p), static_cast<float>(e)), weight, clip_of(piece_clip),
+                          id};
+          if (fan.whole()) {
             fans.whole.push_back(cone);
           } else {
             fans.parts.push_back(cone);
-            fans.ranges.push_back(range);
+            fans.ranges.push_back(fan.range);
           }
         },
-        [&](Vec2 p, Vec2 q) {
-          tents.push_back({glm::vec4(rel(p), rel(q)), glm::vec3(rho, weight), clip, id});
+        [&](double e, PixelRect piece_clip, Vec2 p, Vec2 q) {
+          tents.push_back({glm::vec4(rel(p), rel(q)), glm::vec3(e, weight), clip_of(piece_clip),
+                           id});
         });
   }
   glBindFramebuffer(GL_FRAMEBUFFER, target.framebuffer());

@@ -56,6 +56,7 @@ struct RenderStats {
 // What drawing one site with a given radius amounts to.
 struct SiteShape {
   double extent = 0;        // no fragment lies farther than this from the geometry
+  double pad = 0;           // added to a radius for rounding before it is drawn
   double max_value = 0;     // no value written exceeds this (m * extent + a)
   double overestimate = 1;  // k of its fans (1 when none)
   uint32_t segments = 0;    // triangles in each of its fans (0 when none)

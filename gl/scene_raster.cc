@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <mutex>
 #include <numbers>
 
 #include "core/cpu_pool.h"
@@ -13,12 +14,6 @@ namespace {
 
 double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
-}
-
-// The rectangle spanned by the pixel centres of `rect`.
-Window CentreBox(const Grid& grid, PixelRect rect) {
-  Vec2 lo = grid.Center(rect.x0, rect.y0), hi = grid.Center(rect.x1 - 1, rect.y1 - 1);
-  return {lo.x, lo.y, hi.x, hi.y};
 }
 
 // Distance from the geometry to the nearest point of the box (0 inside).
@@ -35,6 +30,45 @@ double ClippedExtent(const Grid& grid, const Geometry& g, double extent, PixelRe
   const Window b = BoundingBox(g), c = grid.Area(clip);
   return std::min(extent, std::max({0.0, b.min_x - c.min_x, c.max_x - b.max_x,
                                     b.min_y - c.min_y, c.max_y - b.max_y}));
+}
+
+// ComputeCoverage of `region` in bands of TopTilePx rows covered in parallel (the tiles and
+// so the radii and clips are the same as in one pass), then merged.
+Coverage ParallelCoverage(const Grid& grid, const SlotTable& slots, const SiteIndex& index,
+                          PixelRect region, Diagram diagram, bool pieces) {
+  const uint32_t leaf = DefaultTilePx(grid, index.size());
+  const uint32_t top = TopTilePx(grid, index.size(), leaf);
+  const size_t bands = (size_t{region.height()} + top - 1) / top;
+  if (diagram == Diagram::kFarthest || bands < 2) {
+    return ComputeCoverage(grid, slots, index, region, leaf, diagram, pieces);
+  }
+  std::mutex mu;
+  std::vector<Coverage> parts;
+  ParallelFor(bands, 1, [&](size_t begin, size_t end) {
+    PixelRect band{region.x0, static_cast<uint32_t>(region.y0 + begin * top), region.x1,
+                   static_cast<uint32_t>(std::min<size_t>(region.y0 + end * top, region.y1))};
+    Coverage part = ComputeCoverage(grid, slots, index, band, leaf, diagram, pieces);
+    std::lock_guard<std::mutex> lock(mu);
+    parts.push_back(std::move(part));
+  });
+  Coverage cov = std::move(parts[0]);
+  for (size_t p = 1; p < parts.size(); ++p) {
+    const Coverage& part = parts[p];
+    cov.pairs += part.pairs;
+    for (uint32_t s = 0; s < slots.size(); ++s) {
+      if (part.radius[s] < 0) continue;
+      cov.radius[s] = std::max(cov.radius[s], part.radius[s]);
+      cov.clip[s] = cov.clip[s].Union(part.clip[s]);
+      if (!pieces || part.pieces[s].empty()) continue;
+      std::vector<PieceDraw>& into = cov.pieces[s];
+      into.resize(std::max(into.size(), part.pieces[s].size()));
+      for (size_t k = 0; k < part.pieces[s].size(); ++k) {
+        into[k].radius = std::max(into[k].radius, part.pieces[s][k].radius);
+        into[k].clip = into[k].clip.Union(part.pieces[s][k].clip);
+      }
+    }
+  }
+  return cov;
 }
 
 // The candidate lists of Rasterizer::Compute for the whole grid, the other sites by slot
@@ -65,7 +99,7 @@ Coverage TileCandidates(const Grid& grid, const SlotTable& slots, const SiteInde
     for (size_t ty = begin; ty < end; ++ty) {
       Row& row = rows[ty];
       const TileCover::Leaf leaf = [&](PixelRect rect, std::span<const uint32_t> kept,
-                                       std::span<const double> radii) {
+                                       std::span<const double> radii, double) {
         for (size_t k = 0; k < kept.size(); ++k) {
           const uint32_t slot = kept[k];
           const Vec2 p = slots.point(slot);
@@ -181,7 +215,8 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
   if (compute) {
     cov = TileCandidates(grid_, slots, drawn_->index(), &lists);
   } else {
-    cov = ComputeCoverage(grid_, slots, drawn_->index(), grid_.all(), 0, params_.diagram);
+    cov = ParallelCoverage(grid_, slots, drawn_->index(), grid_.all(), params_.diagram,
+                           params_.mode == RenderMode::kMesh);
   }
   double coverage_seconds = Seconds(start);
   std::vector<SiteDraw> draws;
@@ -194,7 +229,8 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
     if (site == nullptr) continue;
     tally_.Live(*site);
     if (cov.radius[s] < 0) continue;
-    const SiteDraw& d = draws.emplace_back(SiteDraw{s, cov.radius[s], cov.clip[s]});
+    SiteDraw& d = draws.emplace_back(SiteDraw{s, cov.radius[s], cov.clip[s]});
+    if (s < cov.pieces.size()) d.pieces = std::move(cov.pieces[s]);
     SiteShape shape = rasterizer.Shape(grid_, params_, *site, d);
     extent_[s] = ClippedExtent(grid_, site->geometry, shape.extent, d.clip);
     max_value = std::max(max_value, shape.max_value);
@@ -323,7 +359,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
         PixelRect rect{tx * Frame::kTile, ty * Frame::kTile,
                        std::min((tx + 1) * Frame::kTile, grid_.width),
                        std::min((ty + 1) * Frame::kTile, grid_.height)};
-        Window box = CentreBox(grid_, rect);
+        Window box = grid_.CentreBox(rect);
         double m = frame_->tile_at(tx, ty).max_distance;
         double near = NearestDistance(box, site.geometry);
         if (site.multiplicative * near + site.additive > m + err.Slack(m)) continue;
@@ -364,10 +400,13 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
       draws[w] = std::move(windows[w].added);
       continue;
     }
-    Coverage cov = ComputeCoverage(grid_, slots, drawn_->index(), windows[w].rect);
+    Coverage cov = ComputeCoverage(grid_, slots, drawn_->index(), windows[w].rect, 0,
+                                   params_.diagram, params_.mode == RenderMode::kMesh);
     tile_px = cov.tile_px;
     for (uint32_t s = 0; s < slots.size(); ++s) {
-      if (cov.radius[s] >= 0) draws[w].push_back({s, cov.radius[s], cov.clip[s]});
+      if (cov.radius[s] < 0) continue;
+      SiteDraw& d = draws[w].emplace_back(SiteDraw{s, cov.radius[s], cov.clip[s]});
+      if (s < cov.pieces.size()) d.pieces = std::move(cov.pieces[s]);
     }
   }
   double coverage_seconds = Seconds(start);

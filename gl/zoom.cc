@@ -74,7 +74,8 @@ absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> ZoomRenderer::Render(
       std::vector<SiteDraw> draws;
       ErrorTally tally = live;
       double max_value = 0;
-      draws = SparseCoverage(g, sites, snapshot.index(), g.all(), kZoomTilePx, diagram);
+      draws = SparseCoverage(g, sites, snapshot.index(), g.all(), kZoomTilePx, diagram,
+                             mode == RenderMode::kMesh);
       for (const SiteDraw& d : draws) {
         SiteShape shape = rasterizer.Shape(g, params, *sites.get(d.slot), d);
         max_value = std::max(max_value, shape.max_value);

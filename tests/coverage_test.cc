@@ -1,5 +1,6 @@
-// The coverage radii against the oracle, pixel by pixel: every pixel centre lies within the
-// radius of each of its exact nearest sites (geometry/coverage.h states the proof).
+// The coverage radii, clips and pieces against the oracle, pixel by pixel: every pixel centre
+// lies within the radius and clip of each of its exact best sites (geometry/coverage.h states
+// the proof).
 #include "geometry/coverage.h"
 
 #include <gtest/gtest.h>
@@ -7,6 +8,7 @@
 #include <random>
 
 #include "geometry/exact.h"
+#include "geometry/mesh.h"
 #include "tests/oracle.h"
 
 namespace gvd {
@@ -26,12 +28,41 @@ double DrawnValue(Vec2 q, const Site& s, double margin) {
   return s.multiplicative * d + s.additive;
 }
 
+// The features of a site's mesh pieces, in ForEachPiece's order: an edge (a != b) for a
+// tent, a vertex (a == b) for a fan.
+std::vector<std::pair<Vec2, Vec2>> PieceFeatures(const Geometry& g) {
+  std::vector<std::pair<Vec2, Vec2>> out;
+  ForEachPiece(g, [&](Vec2 v, double, double) { out.push_back({v, v}); },
+               [&](Vec2 a, Vec2 b) { out.push_back({a, b}); });
+  return out;
+}
+
+// How far a piece's feature is from q where q lies in the piece's region (a tent's slab, with
+// a little slack at its ends), else infinity. A fan's wedge is not tested: the callers only
+// ask for vertices as near as the whole site, and those lie in their wedges.
+oracle::Real PieceDistance(Vec2 q, std::pair<Vec2, Vec2> f) {
+  const auto [a, b] = f;
+  if (a == b) return oracle::ToSegment(q, a, a);
+  const oracle::Real dx = oracle::Real(b.x) - a.x, dy = oracle::Real(b.y) - a.y;
+  const oracle::Real t = ((oracle::Real(q.x) - a.x) * dx + (oracle::Real(q.y) - a.y) * dy) /
+                         (dx * dx + dy * dy);
+  if (t < -1e-9 || t > 1 + 1e-9) return INFINITY;
+  return oracle::ToSegment(q, a, b);
+}
+
+bool Holds(const PixelRect& c, uint32_t i, uint32_t j) {
+  return i >= c.x0 && i < c.x1 && j >= c.y0 && j < c.y1;
+}
+
 // Every site best at a pixel centre in the drawn diagram, ties included, must reach it
-// within its clip.
+// within its clip; and, unless it is a plain point, one of its pieces that holds its nearest
+// point to the centre must reach it within that piece's clip.
 void ExpectCovered(const Grid& grid, const SiteTable& sites, uint32_t tile_px = 0) {
   SlotTable slots(sites);
   SiteIndex index = SiteIndex::Build(slots);
-  Coverage cov = ComputeCoverage(grid, slots, index, {0, 0, grid.width, grid.height}, tile_px);
+  Coverage cov = ComputeCoverage(grid, slots, index, {0, 0, grid.width, grid.height}, tile_px,
+                                 Diagram::kNearest, true);
+  ASSERT_EQ(cov.pieces.size(), sites.size());
   int failures = 0;
   for (uint32_t j = 0; j < grid.height && failures < 5; ++j) {
     for (uint32_t i = 0; i < grid.width && failures < 5; ++i) {
@@ -47,11 +78,30 @@ void ExpectCovered(const Grid& grid, const SiteTable& sites, uint32_t tile_px = 
                         << " but radius " << cov.radius[s] << " (tile " << cov.tile_px << ")";
         }
         const PixelRect& c = cov.clip[s];
-        if (!(i >= c.x0 && i < c.x1 && j >= c.y0 && j < c.y1)) {
+        if (!Holds(c, i, j)) {
           ++failures;
           ADD_FAILURE() << "pixel " << i << "," << j << ": nearest site " << s
                         << " but its clip is [" << c.x0 << ", " << c.x1 << ") x [" << c.y0
                         << ", " << c.y1 << ") (tile " << cov.tile_px << ")";
+        }
+        const Site& site = sites[s];
+        if (std::holds_alternative<PointSite>(site.geometry) && site.multiplicative == 1 &&
+            site.additive == 0 && std::isinf(site.max_distance)) {
+          continue;  // a plain point is drawn as one cone
+        }
+        const auto features = PieceFeatures(site.geometry);
+        const std::vector<PieceDraw>& pieces = cov.pieces[s];
+        bool reached = false;
+        for (size_t k = 0; k < features.size() && !reached; ++k) {
+          const oracle::Real dk = PieceDistance(p, features[k]);
+          if (!(dk <= d + 1e-9 * (1 + d))) continue;  // not where the site's nearest point is
+          reached = k < pieces.size() && dk <= pieces[k].radius && Holds(pieces[k].clip, i, j);
+        }
+        if (!reached) {
+          ++failures;
+          ADD_FAILURE() << "pixel " << i << "," << j << ": nearest site " << s
+                        << " but none of its pieces nearest there reaches it (tile "
+                        << cov.tile_px << ")";
         }
       }
     }

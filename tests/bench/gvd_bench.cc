@@ -122,6 +122,7 @@ void BM_RenderKind(benchmark::State& state) {
   }
   static const char* kNames[] = {"segment",      "polyline8", "polygon6", "polygon6-inside",
                                  "cubic-bezier", "weighted-bounded-point", "farthest-point"};
+  state.counters["coverage_ms"] = stats.coverage_seconds * 1e3;
   state.counters["fill"] = stats.fill_ratio;
   state.counters["candidates_px"] = stats.candidates_per_pixel;
   state.SetLabel(std::string(kNames[kind]) + " " + gl.context->info().gl_renderer);
