@@ -143,8 +143,9 @@ uint32_t TopTilePx(const Grid& grid, size_t n, uint32_t leaf_px) {
   return top;
 }
 
-TileCover::TileCover(const Grid& grid, const SlotTable& sites, const SiteIndex& index)
-    : grid_(grid), sites_(sites), index_(index), least_(sites.least()),
+TileCover::TileCover(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
+                     Diagram diagram)
+    : grid_(grid), sites_(sites), index_(index), diagram_(diagram), least_(sites.least()),
       margin_(DrawMargin(grid)) {}
 
 double TileCover::RadiusFor(const SiteView& s, const Window& box) const {
@@ -169,6 +170,12 @@ double TileCover::PresenceReach() const {
 }
 
 void TileCover::Candidates(PixelRect tile, std::vector<uint32_t>* out) const {
+  if (diagram_ == Diagram::kFarthest) {  // the farthest sites are not found by nearness
+    for (uint32_t s = 0; s < sites_.size(); ++s) {
+      if (sites_.get(s)) out->push_back(s);
+    }
+    return;
+  }
   const SiteIndex& index = index_;
   Vec2 lo = grid_.Center(tile.x0, tile.y0), hi = grid_.Center(tile.x1 - 1, tile.y1 - 1);
   Vec2 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2};
@@ -201,6 +208,7 @@ void TileCover::Cover(PixelRect tile, std::vector<uint32_t>* slots,
 
 double TileCover::Keep(PixelRect tile, std::span<const uint32_t> candidates,
                        std::vector<uint32_t>* slots, std::vector<double>* radii) const {
+  if (diagram_ == Diagram::kFarthest) return KeepFarthest(tile, candidates, slots, radii);
   const SlotTable& sites = sites_;
   const double margin = margin_;
   Vec2 lo = grid_.Center(tile.x0, tile.y0), hi = grid_.Center(tile.x1 - 1, tile.y1 - 1);
@@ -273,6 +281,67 @@ double TileCover::Keep(PixelRect tile, std::span<const uint32_t> candidates,
   return upper;
 }
 
+double TileCover::KeepFarthest(PixelRect tile, std::span<const uint32_t> candidates,
+                               std::vector<uint32_t>* slots, std::vector<double>* radii) const {
+  const double margin = margin_;
+  Vec2 lo = grid_.Center(tile.x0, tile.y0), hi = grid_.Center(tile.x1 - 1, tile.y1 - 1);
+  Window cell{lo.x, lo.y, hi.x, hi.y};
+  Vec2 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2};
+  double h = Distance(lo, hi) / 2;
+  // L: the greatest lower bound on the drawn value over the cell among the candidates
+  // present on the whole of it.
+  thread_local std::vector<SiteView> views;
+  thread_local std::vector<double> dist;
+  views.resize(candidates.size());
+  dist.resize(candidates.size());
+  double lower = -INFINITY;
+  for (size_t k = 0; k < candidates.size(); ++k) {
+    const SiteView& s = views[k] = SiteView::Of(sites_, candidates[k]);
+    dist[k] = s.DistanceFrom(c);
+    if (!PresentOnDisc(s, dist[k], h, margin)) continue;
+    lower = std::max(lower, s.multiplicative() * std::max(0.0, dist[k] - h) + s.additive());
+  }
+  // Plain points clipped by the bisectors of the plain points farthest from the cell's
+  // corners: a plain point nearer than one of those to every corner is nearer to all of C
+  // (the points nearer to s than to w form a half-plane, which is convex), so it is best
+  // nowhere on C.
+  const Vec2 corners[4] = {lo, {hi.x, lo.y}, {lo.x, hi.y}, hi};
+  thread_local std::vector<std::array<double, 4>> at;
+  at.resize(candidates.size());
+  size_t farthest[4] = {SIZE_MAX, SIZE_MAX, SIZE_MAX, SIZE_MAX};
+  for (size_t k = 0; k < candidates.size(); ++k) {
+    if (!views[k].plain_point()) continue;
+    for (int i = 0; i < 4; ++i) {
+      at[k][i] = Distance(corners[i], views[k].point);
+      if (farthest[i] == SIZE_MAX || at[k][i] > at[farthest[i]][i]) farthest[i] = k;
+    }
+  }
+  auto clipped = [&](size_t k) {
+    for (size_t w : farthest) {
+      if (w == SIZE_MAX || w == k) continue;
+      bool beaten = true;
+      for (int i = 0; i < 4 && beaten; ++i) beaten = at[k][i] * (1 + 1e-12) + 1e-300 < at[w][i];
+      if (beaten) return true;
+    }
+    return false;
+  };
+  for (size_t k = 0; k < candidates.size(); ++k) {
+    const SiteView& s = views[k];
+    if (s.plain_point() && clipped(k)) continue;
+    const double upper = s.multiplicative() * (dist[k] + h) + s.additive();
+    if (upper * (1 + 1e-12) < lower - 1e-12 * std::abs(lower)) continue;
+    if (dist[k] - h > (s.max_distance() + margin) * (1 + 1e-12)) continue;  // absent on C
+    if (!InsideReach(s, cell, margin)) continue;
+    slots->push_back(candidates[k]);
+    if (radii) {
+      radii->push_back(s.plain_point() ? RadiusFor(s, cell)
+                                       : std::min((dist[k] + h) * (1 + 0x1p-40),
+                                                  s.max_distance() + margin));
+    }
+  }
+  return lower;
+}
+
 void TileCover::CoverDown(PixelRect tile, uint32_t leaf_px, const Leaf& leaf) const {
   thread_local std::vector<uint32_t> candidates;
   candidates.clear();
@@ -320,15 +389,11 @@ uint32_t CoverTiles(const Grid& grid, const SlotTable& sites, const SiteIndex& i
                     PixelRect region, uint32_t tile_px, Diagram diagram, KeepFn&& keep) {
   tile_px = tile_px ? tile_px : DefaultTilePx(grid, index.size());
   if (region.empty()) return tile_px;
-  const TileCover cover(grid, sites, index);
-  if (diagram == Diagram::kFarthest) {
-    const Window box = grid.CentreBox(region);
-    for (uint32_t s = 0; s < sites.size(); ++s) {
-      if (sites.get(s)) keep(s, cover.RadiusFor(SiteView::Of(sites, s), box), region, INFINITY);
-    }
-    return tile_px;
-  }
-  const uint32_t top = TopTilePx(grid, index.size(), tile_px);
+  const TileCover cover(grid, sites, index, diagram);
+  // kFarthest: every site is a candidate at first, so the region is one tile, split down.
+  const uint32_t top = diagram == Diagram::kFarthest
+                           ? std::max(region.width(), region.height())
+                           : TopTilePx(grid, index.size(), tile_px);
   const TileCover::Leaf leaf = [&](PixelRect rect, std::span<const uint32_t> slots,
                                    std::span<const double> radii, double upper) {
     for (size_t k = 0; k < slots.size(); ++k) keep(slots[k], radii[k], rect, upper);
@@ -349,6 +414,7 @@ Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteInd
   Coverage cov;
   cov.radius.assign(sites.size(), -1);
   cov.clip.assign(sites.size(), PixelRect{});
+  pieces = pieces && diagram == Diagram::kNearest;  // kFarthest draws no site by pieces
   if (pieces) cov.pieces.resize(sites.size());
   PieceCover piece_cover(grid);
   cov.tile_px = CoverTiles(grid, sites, index, region, tile_px, diagram,
@@ -367,6 +433,7 @@ std::vector<SiteDraw> SparseCoverage(const Grid& grid, const SlotTable& sites,
                                      const SiteIndex& index, PixelRect region, uint32_t tile_px,
                                      Diagram diagram, bool pieces) {
   std::unordered_map<uint32_t, SiteDraw> drawn;
+  pieces = pieces && diagram == Diagram::kNearest;  // kFarthest draws no site by pieces
   PieceCover piece_cover(grid);
   CoverTiles(grid, sites, index, region, tile_px, diagram,
              [&](uint32_t slot, double r, PixelRect rect, double upper) {

@@ -60,8 +60,8 @@ uint32_t DefaultTilePx(const Grid& grid, size_t n);
 // spacing, within [8, 64] (or leaf_px if that is larger).
 uint32_t TopTilePx(const Grid& grid, size_t n, uint32_t leaf_px);
 
-// Computes how far each site must reach to cover the pixel centres of `region` it is nearest
-// to, and where. `index` indexes `sites` by slot. Tiles of TopTilePx are looked up in the
+// Computes how far each site must reach to cover the pixel centres of `region` where it is
+// best (nearest, or farthest in kFarthest), and where. `index` indexes `sites` by slot. Tiles of TopTilePx are looked up in the
 // index and split down to leaves of tile_px (see TileCover::CoverDown): O(top tiles * log n +
 // tiles * candidates per tile).
 //
@@ -81,12 +81,19 @@ uint32_t TopTilePx(const Grid& grid, size_t n, uint32_t leaf_px);
 // lies in it too, and sites with no corner there are dropped. Every remaining candidate gets
 // radius >= max over C of d(., s) (capped at its presence, max_distance + DrawMargin), so
 // every pixel centre lies within the radius of each site best there. With no site present
-// on all of C, every site present near C is kept. kFarthest keeps every site, over the whole
-// region.
+// on all of C, every site present near C is kept.
+//
+// kFarthest, symmetrically: a site present on all of C gives L = m1 max(0, d(c, s1) - h) + a1
+// <= v_s1(p) on C, and the greatest L is taken over every site. A site s best at some p of C
+// has v_s(p) >= L, so m_s (d(c, s) + h) + a_s >= L; others are dropped, as are sites absent
+// from C. A plain point s is also dropped when some plain point w (one farthest from a corner
+// of C) is farther than s from every corner: {x : |x s| < |x w|} is a half-plane, so C lies
+// in it, and s is nowhere the farthest. The radii are as for kNearest. The farthest sites are
+// not found by nearness: the region is one tile, every site its candidate, split down.
 //
 // Why the smaller tiles are enough. A site best at some pixel centre of a half of a tile is
 // best at that centre of the tile, so the tile's list holds it. The tests above drop a site
-// only by comparing it with sites that are present (U) or plain points (the half-planes):
+// only by comparing it with sites that are present (U, L) or plain points (the half-planes):
 // any such sites give valid bounds, so taking them from the parent's list instead of the
 // index can only keep more sites, never fewer. The clip of a site is the union of the
 // smallest tiles that keep it, so it holds every pixel centre where the site is best.
@@ -97,12 +104,13 @@ Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteInd
                          Diagram diagram = Diagram::kNearest, bool pieces = false);
 
 
-// The proof above for one tile at a time (kNearest), for renders that keep a candidate list
+// The proof above for one tile at a time, for renders that keep a candidate list
 // per tile (the compute path) and for ComputeCoverage itself. Thread-safe: tiles may be
 // covered concurrently. CONTRACT: as ComputeCoverage's; the grid, table and index outlive it.
 class TileCover {
  public:
-  TileCover(const Grid& grid, const SlotTable& sites, const SiteIndex& index);
+  TileCover(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
+            Diagram diagram = Diagram::kNearest);
 
   // Appends to `slots` every site that can be best at some pixel centre of `tile` (a
   // non-empty rectangle of the grid's pixels), in no particular order, and to `radii` the
@@ -115,7 +123,8 @@ class TileCover {
   // that can be best at some pixel centre of `tile`, such as the list of a tile holding it:
   // the tests only drop sites, never add any.
   // Returns U: an upper bound on the best drawn value at every centre of the tile (INFINITY
-  // when no candidate is present on the whole of it).
+  // when no candidate is present on the whole of it); in kFarthest, L: a lower bound on it
+  // (-INFINITY when none is).
   double Keep(PixelRect tile, std::span<const uint32_t> candidates, std::vector<uint32_t>* slots,
               std::vector<double>* radii) const;
 
@@ -142,7 +151,10 @@ class TileCover {
   void Candidates(PixelRect tile, std::vector<uint32_t>* out) const;
   void Descend(PixelRect tile, std::span<const uint32_t> parent, uint32_t leaf_px, size_t depth,
                const Leaf& leaf) const;
+  double KeepFarthest(PixelRect tile, std::span<const uint32_t> candidates,
+                      std::vector<uint32_t>* slots, std::vector<double>* radii) const;
 
+  const Diagram diagram_;
   const LeastWeights least_;
   const double margin_;
   mutable std::once_flag reach_once_;
@@ -151,7 +163,7 @@ class TileCover {
 
 // The same radii and clips as ComputeCoverage, as draws in slot order: for a small region of
 // a large scene (a zoom window), whose cost then depends on the region and the sites near
-// it, not on the scene's size (but for kFarthest, which keeps every site).
+// it, not on the scene's size (but for kFarthest, whose first tile tests every site).
 std::vector<SiteDraw> SparseCoverage(const Grid& grid, const SlotTable& sites,
                                      const SiteIndex& index, PixelRect region, uint32_t tile_px,
                                      Diagram diagram, bool pieces = false);

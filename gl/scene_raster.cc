@@ -39,7 +39,7 @@ Coverage ParallelCoverage(const Grid& grid, const SlotTable& slots, const SiteIn
   const uint32_t leaf = DefaultTilePx(grid, index.size());
   const uint32_t top = TopTilePx(grid, index.size(), leaf);
   const size_t bands = (size_t{region.height()} + top - 1) / top;
-  if (diagram == Diagram::kFarthest || bands < 2) {
+  if (bands < 2) {
     return ComputeCoverage(grid, slots, index, region, leaf, diagram, pieces);
   }
   std::mutex mu;
@@ -59,7 +59,7 @@ Coverage ParallelCoverage(const Grid& grid, const SlotTable& slots, const SiteIn
       if (part.radius[s] < 0) continue;
       cov.radius[s] = std::max(cov.radius[s], part.radius[s]);
       cov.clip[s] = cov.clip[s].Union(part.clip[s]);
-      if (!pieces || part.pieces[s].empty()) continue;
+      if (s >= part.pieces.size() || part.pieces[s].empty()) continue;
       std::vector<PieceDraw>& into = cov.pieces[s];
       into.resize(std::max(into.size(), part.pieces[s].size()));
       for (size_t k = 0; k < part.pieces[s].size(); ++k) {

@@ -55,36 +55,44 @@ bool Holds(const PixelRect& c, uint32_t i, uint32_t j) {
 }
 
 // Every site best at a pixel centre in the drawn diagram, ties included, must reach it
-// within its clip; and, unless it is a plain point, one of its pieces that holds its nearest
-// point to the centre must reach it within that piece's clip.
-void ExpectCovered(const Grid& grid, const SiteTable& sites, uint32_t tile_px = 0) {
+// within its clip; and in kNearest, unless it is a plain point, one of its pieces that holds
+// its nearest point to the centre must reach it within that piece's clip.
+void ExpectCovered(const Grid& grid, const SiteTable& sites, uint32_t tile_px = 0,
+                   Diagram diagram = Diagram::kNearest) {
   SlotTable slots(sites);
   SiteIndex index = SiteIndex::Build(slots);
   Coverage cov = ComputeCoverage(grid, slots, index, {0, 0, grid.width, grid.height}, tile_px,
-                                 Diagram::kNearest, true);
-  ASSERT_EQ(cov.pieces.size(), sites.size());
+                                 diagram, true);
+  const bool farthest = diagram == Diagram::kFarthest;
+  ASSERT_EQ(cov.pieces.size(), farthest ? 0 : sites.size());
   int failures = 0;
   for (uint32_t j = 0; j < grid.height && failures < 5; ++j) {
     for (uint32_t i = 0; i < grid.width && failures < 5; ++i) {
       Vec2 p = grid.Center(i, j);
-      double best = INFINITY;
-      for (const Site& s : sites) best = std::min(best, DrawnValue(p, s, DrawMargin(grid)));
+      // The least value, or the greatest of those present (finite).
+      double best = farthest ? -INFINITY : INFINITY;
+      for (const Site& s : sites) {
+        const double v = DrawnValue(p, s, DrawMargin(grid));
+        if (!farthest) best = std::min(best, v);
+        if (farthest && std::isfinite(v)) best = std::max(best, v);
+      }
       for (size_t s = 0; s < sites.size() && std::isfinite(best); ++s) {
         if (DrawnValue(p, sites[s], DrawMargin(grid)) != best) continue;
         const double d = oracle::Distance(p, sites[s].geometry);
         if (!(d <= cov.radius[s])) {
           ++failures;
-          ADD_FAILURE() << "pixel " << i << "," << j << ": nearest site " << s << " at " << d
+          ADD_FAILURE() << "pixel " << i << "," << j << ": best site " << s << " at " << d
                         << " but radius " << cov.radius[s] << " (tile " << cov.tile_px << ")";
         }
         const PixelRect& c = cov.clip[s];
         if (!Holds(c, i, j)) {
           ++failures;
-          ADD_FAILURE() << "pixel " << i << "," << j << ": nearest site " << s
+          ADD_FAILURE() << "pixel " << i << "," << j << ": best site " << s
                         << " but its clip is [" << c.x0 << ", " << c.x1 << ") x [" << c.y0
                         << ", " << c.y1 << ") (tile " << cov.tile_px << ")";
         }
         const Site& site = sites[s];
+        if (farthest) continue;  // drawn whole
         if (std::holds_alternative<PointSite>(site.geometry) && site.multiplicative == 1 &&
             site.additive == 0 && std::isinf(site.max_distance)) {
           continue;  // a plain point is drawn as one cone
@@ -99,7 +107,7 @@ void ExpectCovered(const Grid& grid, const SiteTable& sites, uint32_t tile_px = 
         }
         if (!reached) {
           ++failures;
-          ADD_FAILURE() << "pixel " << i << "," << j << ": nearest site " << s
+          ADD_FAILURE() << "pixel " << i << "," << j << ": best site " << s
                         << " but none of its pieces nearest there reaches it (tile "
                         << cov.tile_px << ")";
         }
@@ -183,8 +191,46 @@ TEST(Coverage, SitesOfEveryKind) {
       sites.push_back(s);
     }
     sites.push_back(sites[5]);  // coincident twins tie everywhere
-    for (uint32_t tile : {0u, 1u, 3u, 8u}) ExpectCovered(grid, sites, tile);
+    for (uint32_t tile : {0u, 1u, 3u, 8u}) {
+      ExpectCovered(grid, sites, tile);
+      ExpectCovered(grid, sites, tile, Diagram::kFarthest);
+    }
   }
+}
+
+// Farthest-site diagrams of points, with ties on a lattice and twins; and points inside a
+// ring of others, which are farther than them from every point of the plane, are drawn
+// nowhere.
+TEST(Coverage, FarthestPoints) {
+  Window w{-3, 1, 5, 4};
+  Grid grid{w, 160, 90};
+  for (size_t n : {1, 2, 10, 300}) {
+    for (uint32_t tile : {0u, 1u, 4u, 13u}) {
+      ExpectCovered(grid, RandomPoints(n, w, n), tile, Diagram::kFarthest);
+    }
+  }
+  Grid lattice{{0, 0, 64, 64}, 64, 64};
+  SiteTable sites;
+  for (int y = 0; y <= 64; y += 16) {
+    for (int x = 0; x <= 64; x += 16) sites.push_back({"", PointSite{{x + 0.5, y + 0.5}}});
+  }
+  sites.push_back(sites[0]);
+  sites.push_back({"", PointSite{{-40, 32.5}}});
+  for (uint32_t tile : {0u, 3u, 8u}) ExpectCovered(lattice, sites, tile, Diagram::kFarthest);
+
+  Grid unit{{0, 0, 1, 1}, 128, 128};
+  SiteTable ring;
+  for (int k = 0; k < 24; ++k) {
+    const double t = 2 * M_PI * k / 24;
+    ring.push_back({"", PointSite{{0.5 + 0.4 * std::cos(t), 0.5 + 0.4 * std::sin(t)}}});
+  }
+  const size_t inner = ring.size();
+  for (const Site& s : RandomPoints(200, {0.4, 0.4, 0.6, 0.6}, 9)) ring.push_back(s);
+  ExpectCovered(unit, ring, 0, Diagram::kFarthest);
+  SlotTable slots(ring);
+  SiteIndex index = SiteIndex::Build(slots);
+  Coverage cov = ComputeCoverage(unit, slots, index, unit.all(), 0, Diagram::kFarthest);
+  for (size_t s = inner; s < ring.size(); ++s) EXPECT_LT(cov.radius[s], 0) << s;
 }
 
 // Dense random points: the radii stay near the cells' size, and the clips near the cells'

@@ -59,34 +59,35 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   gvd::Grid grid{{0, 0, 1, 1}, 1 + in.U16() % 24u, 1 + in.U16() % 24u};
   uint32_t tile = in.U16() % 9;
   gvd::SiteIndex index = gvd::SiteIndex::Build(sites);
-  gvd::Coverage cov = gvd::ComputeCoverage(grid, sites, index, grid.all(), tile);
-  for (uint32_t j = 0; j < grid.height; ++j) {
-    for (uint32_t i = 0; i < grid.width; ++i) {
-      // Every site that is nearest at a pixel centre (ties within the oracle's tolerance
-      // included) is drawn at least that far.
-      gvd::Vec2 p = grid.Center(i, j);
-      const double best = gvd::oracle::BestSite(p, table).value;
-      const double tolerance = gvd::oracle::Tolerance(p, best);
-      for (uint32_t s = 0; s < count; ++s) {
-        const double d = gvd::oracle::Distance(p, table[s].geometry);
-        if (d > best + tolerance) continue;
-        Check(d <= cov.radius[s] + tolerance);
-        if (d == best) {  // ties within the tolerance may fall to either side of a clip
-          const gvd::PixelRect& c = cov.clip[s];
-          Check(i >= c.x0 && i < c.x1 && j >= c.y0 && j < c.y1);
+  for (gvd::Diagram diagram : {gvd::Diagram::kNearest, gvd::Diagram::kFarthest}) {
+    gvd::Coverage cov = gvd::ComputeCoverage(grid, sites, index, grid.all(), tile, diagram);
+    for (uint32_t j = 0; j < grid.height; ++j) {
+      for (uint32_t i = 0; i < grid.width; ++i) {
+        // Every site that is best at a pixel centre (ties within the oracle's tolerance
+        // included) is drawn at least that far.
+        gvd::Vec2 p = grid.Center(i, j);
+        const double best = gvd::oracle::BestSite(p, table, diagram).value;
+        const double tolerance = gvd::oracle::Tolerance(p, best);
+        for (uint32_t s = 0; s < count; ++s) {
+          const double d = gvd::oracle::Distance(p, table[s].geometry);
+          if (std::abs(d - best) > tolerance) continue;
+          Check(d <= cov.radius[s] + tolerance);
+          if (d == best) {  // ties within the tolerance may fall to either side of a clip
+            const gvd::PixelRect& c = cov.clip[s];
+            Check(i >= c.x0 && i < c.x1 && j >= c.y0 && j < c.y1);
+          }
         }
       }
     }
-  }
-  // The sparse form of the proof gives the same radii.
-  auto sparse = gvd::SparseCoverage(grid, sites, index, grid.all(),
-                                    tile ? tile : gvd::DefaultTilePx(grid, count),
-                                    gvd::Diagram::kNearest);
-  size_t drawn = 0;
-  for (uint32_t s = 0; s < count; ++s) drawn += cov.radius[s] >= 0;
-  Check(sparse.size() == drawn);
-  for (const gvd::SiteDraw& d : sparse) {
-    Check(d.radius == cov.radius[d.slot] && d.clip == cov.clip[d.slot]);
+    // The sparse form of the proof gives the same radii.
+    auto sparse = gvd::SparseCoverage(grid, sites, index, grid.all(),
+                                      tile ? tile : gvd::DefaultTilePx(grid, count), diagram);
+    size_t drawn = 0;
+    for (uint32_t s = 0; s < count; ++s) drawn += cov.radius[s] >= 0;
+    Check(sparse.size() == drawn);
+    for (const gvd::SiteDraw& d : sparse) {
+      Check(d.radius == cov.radius[d.slot] && d.clip == cov.clip[d.slot]);
+    }
   }
 
   // Structure of an id image: the oracle's labels, a few of them changed by the input.
