@@ -43,12 +43,13 @@ bool InsideReach(const SiteView& s, const Window& cell, double margin) {
          b.min_y - margin <= cell.max_y && cell.min_y <= b.max_y + margin;
 }
 
-// One piece of a site's mesh as PieceCover tests it: the tent of the edge ab, or the fan at
-// a (a == b); its region is the side of the line through a where (x - a) . n1 >= 0 and of
-// the line through b where (x - b) . n2 >= 0 (a tent's slab, a fan's wedge), or the whole
-// plane for a fan that turns half-way or more.
+// One piece of a site's mesh as PieceCover tests it: the half-tent on the left of the edge
+// ab, or the fan at a (a == b); its region is the side of the line through a where
+// (x - a) . n1 >= 0 and of the line through b where (x - b) . n2 >= 0 (a tent's slab, a fan's
+// wedge), and for a half-tent (x - a) . n3 >= 0 (the left of ab); or the whole plane for a
+// fan that turns half-way or more.
 struct PieceRegion {
-  Vec2 a, b, n1, n2;
+  Vec2 a, b, n1, n2, n3;
   bool bounded = true;
 };
 
@@ -59,9 +60,9 @@ std::vector<PieceRegion> Regions(const Site& site) {
       [&](Vec2 v, double from, double to) {
         // Left of the direction `from`, right of the direction `to`.
         out.push_back({v, v, {-std::sin(from), std::cos(from)}, {std::sin(to), -std::cos(to)},
-                       to - from <= std::numbers::pi});
+                       {0, 0}, to - from <= std::numbers::pi});
       },
-      [&](Vec2 a, Vec2 b) { out.push_back({a, b, b - a, a - b, true}); });
+      [&](Vec2 a, Vec2 b) { out.push_back({a, b, b - a, a - b, {a.y - b.y, b.x - a.x}, true}); });
   return out;
 }
 
@@ -112,7 +113,7 @@ class PieceCover {
       const double lower = std::max(0.0, dist_[k] - h);
       if (lower > nearest * (1 + 1e-12)) continue;
       if (site.multiplicative * lower + site.additive > upper * (1 + 1e-12)) continue;
-      if (r.bounded && !(meets(r.a, r.n1) && meets(r.b, r.n2))) continue;
+      if (r.bounded && !(meets(r.a, r.n1) && meets(r.b, r.n2) && meets(r.a, r.n3))) continue;
       PieceDraw& p = (*pieces)[k];
       p.radius = std::max(p.radius, std::min((dist_[k] + h) * (1 + 0x1p-40), presence));
       p.clip = p.clip.Union(rect);

@@ -53,8 +53,10 @@ struct FanRange {
 };
 FanRange FanTriangles(double from, double to, uint32_t n);
 
-// The pieces of a site's distance mesh in kMesh (paper sec. 4), in this order: g(a, b) for
-// each edge of positive length, which gets a tent (its slab), then f(p, from, to) for each
+// The pieces of a site's distance mesh in kMesh (paper sec. 4), in this order: g(a, b) and
+// g(b, a) for each edge ab of positive length, which gets a tent (its slab), each call for
+// the half on the left of the direction given (so that the halves of a tent, one on each
+// side, can be drawn apart), then f(p, from, to) for each
 // vertex, which gets a fan over the directions (radians, from <= to <= from + 2 pi) in which
 // it is the site's nearest point: all of them for a point, the half-plane beyond the end of
 // an open chain, the wedge between the normals of the two edges at a joint (empty on the
@@ -80,7 +82,10 @@ void ForEachPiece(const Geometry& geometry, F&& f, G&& g) {
     return;
   }
   auto angle = [](Vec2 from, Vec2 to) { return std::atan2(to.y - from.y, to.x - from.x); };
-  for (const auto& [a, b] : edges) g(a, b);
+  for (const auto& [a, b] : edges) {
+    g(a, b);
+    g(b, a);
+  }
   const bool closed = std::holds_alternative<PolygonSite>(geometry);
   if (!closed) {
     const double first = angle(edges.front().second, edges.front().first);

@@ -167,9 +167,8 @@ absl::StatusOr<std::unique_ptr<Rasterizer>> Rasterizer::Create(const DeviceInfo&
   glGenBuffers(1, &r->quad_);
   glBindBuffer(GL_ARRAY_BUFFER, r->quad_);
   glBufferData(GL_ARRAY_BUFFER, sizeof quad, quad, GL_STATIC_DRAW);
-  // The two halves of a tent, (u, v, |v|): the segment at v = 0, the far sides at |v| = 1.
-  const float tent[] = {0, 0, 0, 1, 0, 0, 1, 1, 1, 0, 0, 0, 1, 1, 1, 0, 1, 1,
-                        0, 0, 0, 1, -1, 1, 1, 0, 0, 0, 0, 0, 0, -1, 1, 1, -1, 1};
+  // Half a tent, (u, v, |v|): the segment at v = 0, the far side at v = 1.
+  const float tent[] = {0, 0, 0, 1, 0, 0, 1, 1, 1, 0, 0, 0, 1, 1, 1, 0, 1, 1};
   glGenBuffers(1, &r->tent_mesh_);
   glBindBuffer(GL_ARRAY_BUFFER, r->tent_mesh_);
   glBufferData(GL_ARRAY_BUFFER, sizeof tent, tent, GL_STATIC_DRAW);
@@ -395,8 +394,8 @@ SiteShape Rasterizer::Shape(const Grid& grid, const DrawParams& params, const Si
       }
       shape.area += AreaWithin(c, std::move(wedge));
     }, [&](double e, PixelRect piece_clip, Vec2 p, Vec2 q) {
-      const Vec2 n = Vec2{p.y - q.y, q.x - p.x} * (e / Distance(p, q));
-      shape.area += AreaWithin(grid.Area(piece_clip), {p + n, q + n, q - n, p - n});
+      const Vec2 n = Vec2{p.y - q.y, q.x - p.x} * (e / Distance(p, q));  // to the left
+      shape.area += AreaWithin(grid.Area(piece_clip), {p, q, q + n, p + n});
     });
   }
   shape.max_value = (m * shape.extent + a) * (1 + 0x1p-20);
@@ -589,7 +588,7 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
   if (!tents.empty()) {
     use(tent_);
     bind(tent_mesh_, tents.data(), tents.size(), sizeof(Tent), {4, 3, 4}, 1);
-    glDrawArraysInstanced(GL_TRIANGLES, 0, 12, static_cast<GLsizei>(tents.size()));
+    glDrawArraysInstanced(GL_TRIANGLES, 0, 6, static_cast<GLsizei>(tents.size()));
   }
   for (GLenum plane = 0; plane < 4; ++plane) glDisable(GL_CLIP_DISTANCE0 + plane);
   if (!squares.empty()) {

@@ -28,8 +28,8 @@ double DrawnValue(Vec2 q, const Site& s, double margin) {
   return s.multiplicative * d + s.additive;
 }
 
-// The features of a site's mesh pieces, in ForEachPiece's order: an edge (a != b) for a
-// tent, a vertex (a == b) for a fan.
+// The features of a site's mesh pieces, in ForEachPiece's order: an edge (a != b) for the
+// half-tent on its left, a vertex (a == b) for a fan.
 std::vector<std::pair<Vec2, Vec2>> PieceFeatures(const Geometry& g) {
   std::vector<std::pair<Vec2, Vec2>> out;
   ForEachPiece(g, [&](Vec2 v, double, double) { out.push_back({v, v}); },
@@ -37,8 +37,8 @@ std::vector<std::pair<Vec2, Vec2>> PieceFeatures(const Geometry& g) {
   return out;
 }
 
-// How far a piece's feature is from q where q lies in the piece's region (a tent's slab, with
-// a little slack at its ends), else infinity. A fan's wedge is not tested: the callers only
+// How far a piece's feature is from q where q lies in the piece's region (a half-tent's half
+// of the slab, with a little slack at its edges), else infinity. A fan's wedge is not tested: the callers only
 // ask for vertices as near as the whole site, and those lie in their wedges.
 oracle::Real PieceDistance(Vec2 q, std::pair<Vec2, Vec2> f) {
   const auto [a, b] = f;
@@ -47,6 +47,8 @@ oracle::Real PieceDistance(Vec2 q, std::pair<Vec2, Vec2> f) {
   const oracle::Real t = ((oracle::Real(q.x) - a.x) * dx + (oracle::Real(q.y) - a.y) * dy) /
                          (dx * dx + dy * dy);
   if (t < -1e-9 || t > 1 + 1e-9) return INFINITY;
+  const oracle::Real left = dx * (oracle::Real(q.y) - a.y) - dy * (oracle::Real(q.x) - a.x);
+  if (left < -1e-9 * std::sqrt(dx * dx + dy * dy)) return INFINITY;
   return oracle::ToSegment(q, a, b);
 }
 

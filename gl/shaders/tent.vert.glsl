@@ -1,7 +1,7 @@
 #version 450 core
-// Edge tents, instanced: `unit` = (u, v, |v|) spans the segment (u in [0, 1]) and its
-// normal (v in [-1, 1]); `ends` = (a, b), `tent` = (half-width r, m, a), `clip` as in
-// cone.vert. Each half is a plane, so the interpolated height is the distance to the
+// Half-tents of edges, instanced: `unit` = (u, v, |v|) spans the segment (u in [0, 1]) and
+// its left normal (v in [0, 1]); `ends` = (a, b), `tent` = (width r, m, a), `clip` as in
+// cone.vert. A half is a plane, so the interpolated height is the distance to the
 // segment's line, exactly.
 layout(location = 0) in vec3 unit;
 layout(location = 1) in vec4 ends;
