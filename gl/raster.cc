@@ -18,6 +18,7 @@
 #include "geometry/coverage.h"
 #include "geometry/exact.h"
 #include "geometry/mesh.h"
+#include "core/cpu_pool.h"
 #include "gl/shaders.h"
 
 namespace gvd {
@@ -340,6 +341,56 @@ void ForEachPieceDrawn(const SiteShape& shape, const SiteDraw& draw, const Geome
       });
 }
 
+// nearest.comp's loop over a tile's plain points, as native code on the CPU pool: each pixel
+// centre gets the nearest of its tile's points in float (squared distances compared, ties to
+// the lower id), or id 0 and `none` where the tile has none. Point by point over the whole
+// tile, so that the pixels' loop vectorizes.
+void ScanPoints(const Grid& grid, const Rasterizer::TileLists& lists, float none,
+                std::vector<uint32_t>* ids, std::vector<float>* values) {
+  constexpr uint32_t kTile = Rasterizer::kComputeTile;
+  const uint32_t tiles_x = (grid.width + kTile - 1) / kTile;
+  const uint32_t tiles_y = (grid.height + kTile - 1) / kTile;
+  const float pw = static_cast<float>(grid.pixel_width());
+  const float ph = static_cast<float>(grid.pixel_height());
+  ids->resize(grid.pixel_count());
+  values->resize(grid.pixel_count());
+  ParallelFor(tiles_y, 1, [&](size_t begin, size_t end) {
+    float best[kTile][kTile], xs[kTile];
+    uint32_t id[kTile][kTile];
+    for (size_t ty = begin; ty < end; ++ty) {
+      const uint32_t y0 = static_cast<uint32_t>(ty) * kTile;
+      for (uint32_t tx = 0; tx < tiles_x; ++tx) {
+        const uint32_t x0 = tx * kTile;
+        for (uint32_t i = 0; i < kTile; ++i) xs[i] = (static_cast<float>(x0 + i) + 0.5f) * pw;
+        std::fill(&best[0][0], &best[0][0] + kTile * kTile, INFINITY);
+        std::fill(&id[0][0], &id[0][0] + kTile * kTile, 0u);
+        const size_t t = ty * tiles_x + tx;
+        for (uint32_t k = lists.offsets[2 * t]; k < lists.offsets[2 * t + 2]; ++k) {
+          const Rasterizer::Point q = lists.points[k];
+          for (uint32_t j = 0; j < kTile; ++j) {
+            const float dy = (static_cast<float>(y0 + j) + 0.5f) * ph - q.y;
+            for (uint32_t i = 0; i < kTile; ++i) {
+              const float dx = xs[i] - q.x;
+              const float d2 = dx * dx + dy * dy;
+              const bool take = d2 < best[j][i] || (d2 == best[j][i] && q.id < id[j][i]);
+              best[j][i] = take ? d2 : best[j][i];
+              id[j][i] = take ? q.id : id[j][i];
+            }
+          }
+        }
+        for (uint32_t y = y0; y < std::min(y0 + kTile, grid.height); ++y) {
+          for (uint32_t x = x0; x < std::min(x0 + kTile, grid.width); ++x) {
+            const size_t i = size_t{y} * grid.width + x;
+            const uint32_t site = id[y - y0][x - x0];
+            (*ids)[i] = site;
+            (*values)[i] = site == 0 ? none : std::sqrt(best[y - y0][x - x0]);
+          }
+        }
+      }
+    }
+  });
+}
+
 }  // namespace
 
 SiteShape Rasterizer::Shape(const Grid& grid, const DrawParams& params, const Site& site,
@@ -625,6 +676,22 @@ absl::Status Rasterizer::Compute(const Grid& grid, const DrawParams& params,
       lists.offsets.size() != 2 * (size_t{tiles_x} * tiles_y + 1)) {
     return absl::InternalError("the grid or its tiles do not match the render target");
   }
+  auto upload = [](GLuint buffer, GLuint binding, const void* data, size_t bytes) {
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffer);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(bytes), data, GL_STREAM_DRAW);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, binding, buffer);
+  };
+  const size_t pixels = grid.pixel_count();
+  if (software_ && lists.sites.empty() &&
+      pixels * sizeof(uint32_t) <= static_cast<uint64_t>(max_storage_block_)) {
+    // Plain points only, on a software device: the shader's loop runs as native code on
+    // every core (llvmpipe would run it on the render thread's alone by default), and the
+    // result goes where the shader would have written it.
+    ScanPoints(grid, lists, static_cast<float>(params.depth_scale), ids, distances);
+    upload(compute_buffers_[3], 4, ids->data(), pixels * sizeof(uint32_t));
+    upload(compute_buffers_[4], 5, distances->data(), pixels * sizeof(float));
+    return Resolve(grid, params, target);
+  }
   struct Record {  // nearest.comp's Site, std430
     glm::vec4 first;
     glm::vec4 weight;
@@ -643,7 +710,6 @@ absl::Status Rasterizer::Compute(const Grid& grid, const DrawParams& params,
   }
   if (segments.empty()) segments.emplace_back();  // no buffer may be empty
   if (records.empty()) records.emplace_back();
-  const size_t pixels = grid.pixel_count();
   for (auto [bytes, what] : {std::pair{pixels * sizeof(uint32_t), "the pixels' ids"},
                              {segments.size() * sizeof(glm::vec4), "the segments"},
                              {records.size() * sizeof(Record), "the sites"},
@@ -655,11 +721,6 @@ absl::Status Rasterizer::Compute(const Grid& grid, const DrawParams& params,
                        max_storage_block_));
     }
   }
-  auto upload = [](GLuint buffer, GLuint binding, const void* data, size_t bytes) {
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, buffer);
-    glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(bytes), data, GL_STREAM_DRAW);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, binding, buffer);
-  };
   static_assert(sizeof(Point) == 4 * 4);
   const uint32_t no_site = 0;
   const Point no_point{};
@@ -688,6 +749,11 @@ absl::Status Rasterizer::Compute(const Grid& grid, const DrawParams& params,
   glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, pixels * sizeof(uint32_t), ids->data());
   glBindBuffer(GL_SHADER_STORAGE_BUFFER, compute_buffers_[4]);
   glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, pixels * sizeof(float), distances->data());
+  return Resolve(grid, params, target);
+}
+
+absl::Status Rasterizer::Resolve(const Grid& grid, const DrawParams& params,
+                                 RenderTarget& target) {
   glBindFramebuffer(GL_FRAMEBUFFER, target.framebuffer());
   glViewport(0, 0, grid.width, grid.height);
   glDisable(GL_SCISSOR_TEST);

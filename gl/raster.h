@@ -140,7 +140,8 @@ class Rasterizer {
   };
 
   // A full render of a kNearest diagram into `target` (the grid at its pixel (0, 0)) by a
-  // compute shader over per-tile candidate lists, no mesh drawn. Each pixel centre gets the
+  // compute shader over per-tile candidate lists, no mesh drawn (on a software device, lists
+  // of plain points alone are scanned by the same loop in native code on the CPU pool). Each pixel centre gets the
   // least value among its tile's candidates present there (ties to the lower slot), computed
   // as a per-fragment site's, so the lists must hold every site that can be best at some
   // pixel centre of the tile (TileCover), and each draw's radius must reach all of them.
@@ -160,6 +161,9 @@ class Rasterizer {
 
  private:
   Rasterizer() = default;
+  // Writes the computed ids and values in the storage buffers at bindings 4 and 5 into the
+  // target's id and depth buffers (Compute's last step).
+  absl::Status Resolve(const Grid& grid, const DrawParams& params, RenderTarget& target);
   // The vertex buffer of the unit cone with `segments` triangles, two turns of it, made on
   // first use.
   unsigned ConeBuffer(uint32_t segments);
