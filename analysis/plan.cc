@@ -79,7 +79,7 @@ ClearanceField MakeClearanceField(const Frame& frame) {
         if (std::holds_alternative<PointSite>(s.geometry)) {
           field.feature[k] = 0;
         } else {
-          FeatureHit f = NearestFeature(g.Center(i, j), s.geometry);
+          FeatureHit f = NearestFeature(g.Center(i, j), s);
           field.feature[k] = (f.index << 2) | static_cast<uint32_t>(f.kind);
         }
       }

@@ -131,7 +131,7 @@ Scene::Picked Scene::Pick(Vec2 q, double max_distance) const {
   ExactNearest n = snapshot->index().Nearest(q);
   if (!n.found() || n.distance > max_distance) return p;
   const Site& site = *snapshot->sites().get(static_cast<uint32_t>(n.index));
-  FeatureHit f = NearestFeature(q, site.geometry);
+  FeatureHit f = NearestFeature(q, site);
   p.found = true;
   p.site_id = site.id;
   p.distance = n.distance;
@@ -158,7 +158,7 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
   answers->resize(points.size());
   auto answer = [&](Vec2 q, uint32_t slot, double value) {
     const Site* site = slots.get(slot);
-    FeatureHit f = features ? NearestFeature(q, site->geometry) : FeatureHit{};
+    FeatureHit f = features ? NearestFeature(q, *site) : FeatureHit{};
     return ExactAnswer{site->id, value, f.kind, f.index, true, slot};
   };
   // Cancellation is checked about every million site evaluations: every 4,096 points when
@@ -205,7 +205,7 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
       nearer.clear();
       index.Within(q, distance, &nearer);
       for (uint32_t s : nearer) {
-        double d = ExactDistance(q, slots.get(s)->geometry);
+        double d = ExactDistance(q, *slots.get(s));
         if (d < distance) {
           best = s;
           distance = d;

@@ -114,7 +114,7 @@ void SnapshotBuilder::Put(Site site) {
   }
   non_plain_ += !site.plain();
   changed_.push_back(slot);
-  table_.Set(slot, std::make_shared<const Site>(std::move(site)));
+  table_.Set(slot, std::optional<Site>(std::move(site)));
   put_.push_back(table_.ptr(slot));
 }
 

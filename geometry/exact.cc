@@ -4,6 +4,8 @@
 #include <cassert>
 #include <cmath>
 
+#include "geometry/segment_tree.h"
+
 namespace gvd {
 
 double SegmentDistance(Vec2 q, Vec2 a, Vec2 b, double* t) {
@@ -23,23 +25,13 @@ double ExactDistance(Vec2 q, const Geometry& g) {
   return best;
 }
 
-FeatureHit NearestFeature(Vec2 q, const Geometry& g) {
-  FeatureHit best{INFINITY, FeatureKind::kVertex, 0};
-  uint32_t i = 0;
-  ForEachSegment(g, [&](Vec2 a, Vec2 b) {
-    double t = 0;
-    double d = SegmentDistance(q, a, b, &t);
-    if (d < best.distance) {
-      if (t == 0) {
-        best = {d, FeatureKind::kVertex, i};
-      } else if (t == 1) {
-        best = {d, FeatureKind::kVertex, i + 1};
-      } else {
-        best = {d, FeatureKind::kEdge, i};
-      }
-    }
-    ++i;
-  });
+namespace {
+
+// The feature of g that segment i (in ForEachSegment order) at parameter t is, at distance d.
+FeatureHit FeatureOf(const Geometry& g, double d, uint32_t i, double t) {
+  FeatureHit best = t == 0   ? FeatureHit{d, FeatureKind::kVertex, i}
+                    : t == 1 ? FeatureHit{d, FeatureKind::kVertex, i + 1}
+                             : FeatureHit{d, FeatureKind::kEdge, i};
   if (const auto* poly = std::get_if<PolygonSite>(&g)) {
     if (best.kind == FeatureKind::kVertex) best.index %= poly->vertices.size();
   } else if (const auto* bez = std::get_if<BezierSite>(&g)) {
@@ -56,6 +48,40 @@ FeatureHit NearestFeature(Vec2 q, const Geometry& g) {
   return best;
 }
 
+}  // namespace
+
+FeatureHit NearestFeature(Vec2 q, const Geometry& g) {
+  double best = INFINITY, best_t = 0;
+  uint32_t i = 0, best_i = 0;
+  ForEachSegment(g, [&](Vec2 a, Vec2 b) {
+    double t = 0;
+    double d = SegmentDistance(q, a, b, &t);
+    if (d < best) {
+      best = d;
+      best_i = i;
+      best_t = t;
+    }
+    ++i;
+  });
+  return FeatureOf(g, best, best_i, best_t);
+}
+
+FeatureHit NearestFeature(Vec2 q, const Site& site) {
+  if (site.segment_tree == nullptr) return NearestFeature(q, site.geometry);
+  const SegmentTree::Hit hit = site.segment_tree->Nearest(q);
+  return FeatureOf(site.geometry, hit.distance, hit.index, hit.t);
+}
+
+double ExactDistance(Vec2 q, const Site& site) {
+  return site.segment_tree ? site.segment_tree->Nearest(q).distance
+                           : ExactDistance(q, site.geometry);
+}
+
+double FarthestDistance(const Window& rect, const Site& site) {
+  return site.segment_tree ? site.segment_tree->Farthest(rect)
+                           : FarthestDistance(rect, site.geometry);
+}
+
 bool InsidePolygon(Vec2 q, const std::vector<Vec2>& v) {
   bool inside = false;
   for (size_t i = 0, j = v.size() - 1; i < v.size(); j = i++) {
@@ -68,7 +94,7 @@ bool InsidePolygon(Vec2 q, const std::vector<Vec2>& v) {
 }
 
 double SiteValue(Vec2 q, const Site& site) {
-  double d = ExactDistance(q, site.geometry);
+  double d = ExactDistance(q, site);
   if (d > site.max_distance) return INFINITY;
   if (const auto* poly = std::get_if<PolygonSite>(&site.geometry)) {
     if (poly->side != Side::kBoth && d > 0 &&

@@ -36,6 +36,11 @@ struct FeatureHit {
 };
 FeatureHit NearestFeature(Vec2 q, const Geometry& g);
 
+// The same for a site, through its segment tree when it has one (the same values).
+double ExactDistance(Vec2 q, const Site& site);
+FeatureHit NearestFeature(Vec2 q, const Site& site);
+double FarthestDistance(const Window& rect, const Site& site);
+
 // Whether q lies inside the polygon by the even-odd rule.
 bool InsidePolygon(Vec2 q, const std::vector<Vec2>& vertices);
 
@@ -116,10 +121,10 @@ struct SiteView {
   // ExactDistance, FarthestDistance and SiteValue of the site (a plain point's value is its
   // distance).
   double DistanceFrom(Vec2 q) const {
-    return site ? ExactDistance(q, site->geometry) : Distance(q, point);
+    return site ? ExactDistance(q, *site) : Distance(q, point);
   }
   double FarthestFrom(const Window& box) const {
-    return site ? FarthestDistance(box, site->geometry) : box.FarthestDistance(point);
+    return site ? FarthestDistance(box, *site) : box.FarthestDistance(point);
   }
   double ValueAt(Vec2 q) const { return site ? SiteValue(q, *site) : Distance(q, point); }
 };

@@ -1,5 +1,7 @@
 #include "geometry/site.h"
 
+#include "geometry/segment_tree.h"
+
 namespace gvd {
 
 bool Site::plain() const {
@@ -9,7 +11,12 @@ bool Site::plain() const {
 }
 
 SlotTable::SlotTable(const SiteTable& sites) {
-  for (uint32_t i = 0; i < sites.size(); ++i) Set(i, std::make_shared<const Site>(sites[i]));
+  for (uint32_t i = 0; i < sites.size(); ++i) Set(i, std::optional<Site>(sites[i]));
+}
+
+void SlotTable::Set(uint32_t slot, std::optional<Site> site) {
+  if (site) IndexSegments(*site);
+  Set(slot, site ? std::make_shared<const Site>(std::move(*site)) : nullptr);
 }
 
 SlotTable::Chunk::Chunk() { points.fill(Vec2(NAN, NAN)); }

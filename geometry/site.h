@@ -57,6 +57,8 @@ using Geometry = std::variant<PointSite, SegmentSite, PolylineSite, PolygonSite,
 // What a site's part nearest to a point is (NearestSite.feature_kind in the API).
 enum class FeatureKind : uint8_t { kVertex, kEdge, kCurve };
 
+class SegmentTree;  // geometry/segment_tree.h
+
 struct Site {
   std::string id;
   Geometry geometry;
@@ -66,6 +68,10 @@ struct Site {
   double additive = 0;
   double multiplicative = 1;
   double max_distance = INFINITY;
+  // The geometry's segments in a tree, for sites of many segments (IndexSegments, which the
+  // slot table calls as a site enters it); null otherwise. The exact functions taking a Site
+  // (exact.h) use it: it changes how fast they find a value, never the value.
+  std::shared_ptr<const SegmentTree> segment_tree;
 
   bool weighted() const { return additive != 0 || multiplicative != 1; }
   // Whether the site is a candidate everywhere at its plain distance: unweighted, unbounded
@@ -112,9 +118,8 @@ class SlotTable {
   Vec2 point(uint32_t slot) const { return chunk(slot).points[slot % kChunk]; }
   // Puts a site in (or frees, with null) a slot, growing the table as needed.
   void Set(uint32_t slot, std::shared_ptr<const Site> site);
-  void Set(uint32_t slot, std::optional<Site> site) {
-    Set(slot, site ? std::make_shared<const Site>(std::move(*site)) : nullptr);
-  }
+  // The same for a site not yet shared, which gets its segment tree (IndexSegments) first.
+  void Set(uint32_t slot, std::optional<Site> site);
 
   // The least weights over the sites, exactly: O(slots / kBlockSlots), as each chunk and
   // block keeps its own.

@@ -37,7 +37,7 @@ SiteIndex::Entry EntryOf(uint32_t slot, const std::shared_ptr<const Site>& site)
 // The distance from q to the entry's site (ExactDistance), without reaching a point site.
 double EntryDistance(Vec2 q, const SiteIndex::Entry& e) {
   if (e.point) return Distance(q, Vec2(e.box.min_corner().get<0>(), e.box.min_corner().get<1>()));
-  return ExactDistance(q, e.site->geometry);
+  return ExactDistance(q, *e.site);
 }
 
 struct EntryBox {
@@ -184,7 +184,7 @@ ExactNearest SiteIndex::Nearest(Vec2 q) const {
   std::vector<uint32_t> nearer;
   Within(q, best.distance, &nearer);
   for (uint32_t s : nearer) {
-    double d = ExactDistance(q, sites_.get(s)->geometry);
+    double d = ExactDistance(q, *sites_.get(s));
     if (d < best.distance) best = {s, d};
   }
   return best;

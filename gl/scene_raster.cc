@@ -365,7 +365,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
         if (site.multiplicative * near + site.additive > m + err.Slack(m)) continue;
         if (near > site.max_distance + margin) continue;
         grown = grown.Union(rect);
-        radius = std::max(radius, std::min(FarthestDistance(box, site.geometry) * (1 + 0x1p-40),
+        radius = std::max(radius, std::min(FarthestDistance(box, site) * (1 + 0x1p-40),
                                            site.max_distance + margin));
       }
     }

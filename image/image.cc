@@ -144,7 +144,7 @@ absl::StatusOr<EncodedImage> EncodeImage(const Frame& f, const ImageOptions& o) 
         const Site& site = *f.sites().get(id - 1);
         uint32_t feature = 0;
         if (o.layer == ImageLayer::kFeatures) {
-          FeatureHit hit = NearestFeature(f.grid().Center(i, j), site.geometry);
+          FeatureHit hit = NearestFeature(f.grid().Center(i, j), site);
           feature = 1 + (hit.index << 2 | static_cast<uint32_t>(hit.kind));
         }
         SiteColour(site.id, feature, &rgb[(size_t(rect.y1 - 1 - j) * w + (i - rect.x0)) * 3]);

@@ -148,7 +148,7 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
         const Site& site = *frame_->sites().get(a->site_index);
         FeatureHit f = std::holds_alternative<PointSite>(site.geometry) || !features
                            ? FeatureHit{}
-                           : NearestFeature(query_.points[i], site.geometry);
+                           : NearestFeature(query_.points[i], site);
         rows_[i] = {&site.id, a->site_index, a->distance, a->error_bound,
                     a->error_bound == 0, f.kind, f.index};
       }
