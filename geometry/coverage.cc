@@ -13,13 +13,21 @@
 namespace gvd {
 namespace {
 
-// Whether some corner x of c satisfies |x s| <= |x s1| (with a little slack for rounding, so
-// the test can only keep too many sites, never too few).
+// How far a distance measured from a point near c may be off by rounding: a few ulps of
+// the coordinates, and far more to be safe. The tests below widen their bounds by it (a
+// tile's half-diagonal h by it, and comparisons of distances by twice it), so that rounding
+// can only keep a site or a piece too many, never drop one: at a pixel centre a hair's
+// breadth from an edge, say, the two halves of its tent measure distances a few ulps apart.
+double Rounding(Vec2 c) { return 0x1p-40 * (std::abs(c.x) + std::abs(c.y)) + 0x1p-1000; }
+
+// Whether some corner x of c satisfies |x s| <= |x s1| (with slack for rounding, so the
+// test can only keep too many sites, never too few).
 bool BeatsSomewhere(Vec2 s, Vec2 s1, const Window& c) {
+  const double slack = 2 * Rounding({(c.min_x + c.max_x) / 2, (c.min_y + c.max_y) / 2});
   for (Vec2 x : {Vec2{c.min_x, c.min_y}, Vec2{c.max_x, c.min_y}, Vec2{c.min_x, c.max_y},
                  Vec2{c.max_x, c.max_y}}) {
     double a = Distance(x, s), b = Distance(x, s1);
-    if (a <= b * (1 + 1e-12) + 1e-300) return true;
+    if (a <= b * (1 + 1e-12) + slack) return true;
   }
   return false;
 }
@@ -87,13 +95,16 @@ class PieceCover {
     const std::vector<PieceRegion>& regions = it->second;
     const Window box = grid_.CentreBox(rect);
     const Vec2 c{(box.min_x + box.max_x) / 2, (box.min_y + box.max_y) / 2};
-    const double h = Distance({box.min_x, box.min_y}, {box.max_x, box.max_y}) / 2;
+    const double h = Distance({box.min_x, box.min_y}, {box.max_x, box.max_y}) / 2 + Rounding(c);
     const Vec2 corners[4] = {{box.min_x, box.min_y}, {box.max_x, box.min_y},
                              {box.min_x, box.max_y}, {box.max_x, box.max_y}};
-    // Whether some corner x has (x - o) . n >= 0, with slack for rounding: the box meets
-    // that half-plane.
+    // Whether some corner x has (x - o) . n >= -snap |n|: the box comes within `snap` of
+    // that half-plane. The rasterizer snaps vertices to 1/256 pixel, which can move a pixel
+    // centre within that of an edge's line to the other half of its tent, so both halves
+    // must be drawn there; and rounding adds its own slack.
+    const double snap = grid_.pixel_size() / 64;
     auto meets = [&](Vec2 o, Vec2 n) {
-      const double slack = 1e-9 * Length(n) * (h + Distance(c, o));
+      const double slack = Length(n) * (snap + 1e-9 * (h + Distance(c, o)));
       for (Vec2 x : corners) {
         if (glm::dot(x - o, n) >= -slack) return true;
       }
@@ -180,7 +191,7 @@ void TileCover::Candidates(PixelRect tile, std::vector<uint32_t>* out) const {
   const SiteIndex& index = index_;
   Vec2 lo = grid_.Center(tile.x0, tile.y0), hi = grid_.Center(tile.x1 - 1, tile.y1 - 1);
   Vec2 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2};
-  double h = Distance(lo, hi) / 2;
+  const double h = Distance(lo, hi) / 2 + Rounding(c);
   // U: an upper bound on the best drawn value at every centre of the cell, from the site
   // nearest to its middle; every site whose least value there can reach U is a candidate.
   ExactNearest s0 = index.Nearest(c);
@@ -215,7 +226,7 @@ double TileCover::Keep(PixelRect tile, std::span<const uint32_t> candidates,
   Vec2 lo = grid_.Center(tile.x0, tile.y0), hi = grid_.Center(tile.x1 - 1, tile.y1 - 1);
   Window cell{lo.x, lo.y, hi.x, hi.y};
   Vec2 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2};
-  double h = Distance(lo, hi) / 2;
+  const double h = Distance(lo, hi) / 2 + Rounding(c);
   // Distances from c, and U: the least upper bound on the drawn value over the cell among
   // the candidates present on the whole of it (s1: the site that has it).
   thread_local std::vector<SiteView> views;
@@ -253,7 +264,9 @@ double TileCover::Keep(PixelRect tile, std::span<const uint32_t> candidates,
     for (size_t w : nearest) {
       if (w == SIZE_MAX || w == k) continue;
       bool beaten = true;
-      for (int i = 0; i < 4 && beaten; ++i) beaten = at[k][i] > at[w][i] * (1 + 1e-12) + 1e-300;
+      for (int i = 0; i < 4 && beaten; ++i) {
+        beaten = at[k][i] > at[w][i] * (1 + 1e-12) + 2 * Rounding(c);
+      }
       if (beaten) return true;
     }
     return false;
@@ -288,7 +301,7 @@ double TileCover::KeepFarthest(PixelRect tile, std::span<const uint32_t> candida
   Vec2 lo = grid_.Center(tile.x0, tile.y0), hi = grid_.Center(tile.x1 - 1, tile.y1 - 1);
   Window cell{lo.x, lo.y, hi.x, hi.y};
   Vec2 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2};
-  double h = Distance(lo, hi) / 2;
+  const double h = Distance(lo, hi) / 2 + Rounding(c);
   // L: the greatest lower bound on the drawn value over the cell among the candidates
   // present on the whole of it.
   thread_local std::vector<SiteView> views;
@@ -321,7 +334,9 @@ double TileCover::KeepFarthest(PixelRect tile, std::span<const uint32_t> candida
     for (size_t w : farthest) {
       if (w == SIZE_MAX || w == k) continue;
       bool beaten = true;
-      for (int i = 0; i < 4 && beaten; ++i) beaten = at[k][i] * (1 + 1e-12) + 1e-300 < at[w][i];
+      for (int i = 0; i < 4 && beaten; ++i) {
+        beaten = at[k][i] * (1 + 1e-12) + 2 * Rounding(c) < at[w][i];
+      }
       if (beaten) return true;
     }
     return false;

@@ -168,8 +168,10 @@ absl::StatusOr<std::unique_ptr<Rasterizer>> Rasterizer::Create(const DeviceInfo&
   glGenBuffers(1, &r->quad_);
   glBindBuffer(GL_ARRAY_BUFFER, r->quad_);
   glBufferData(GL_ARRAY_BUFFER, sizeof quad, quad, GL_STATIC_DRAW);
-  // Half a tent, (u, v, |v|): the segment at v = 0, the far side at v = 1.
-  const float tent[] = {0, 0, 0, 1, 0, 0, 1, 1, 1, 0, 0, 0, 1, 1, 1, 0, 1, 1};
+  // Half a tent, (u, v, unused): the segment at v = 0, the far side at v = 1; and a strip
+  // beyond the segment, v = -1 (tent.vert).
+  const float tent[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 0, 0, 1, 1, 0, 0, 1, 0,
+                        0, -1, 0, 1, -1, 0, 1, 0, 0, 0, -1, 0, 1, 0, 0, 0, 0, 0};
   glGenBuffers(1, &r->tent_mesh_);
   glBindBuffer(GL_ARRAY_BUFFER, r->tent_mesh_);
   glBufferData(GL_ARRAY_BUFFER, sizeof tent, tent, GL_STATIC_DRAW);
@@ -638,8 +640,10 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
   }
   if (!tents.empty()) {
     use(tent_);
+    glUniform1f(glGetUniformLocation(tent_.id, "u_overhang"),
+                static_cast<float>(grid.pixel_size() / 64));
     bind(tent_mesh_, tents.data(), tents.size(), sizeof(Tent), {4, 3, 4}, 1);
-    glDrawArraysInstanced(GL_TRIANGLES, 0, 6, static_cast<GLsizei>(tents.size()));
+    glDrawArraysInstanced(GL_TRIANGLES, 0, 12, static_cast<GLsizei>(tents.size()));
   }
   for (GLenum plane = 0; plane < 4; ++plane) glDisable(GL_CLIP_DISTANCE0 + plane);
   if (!squares.empty()) {

@@ -101,6 +101,20 @@ void ExpectCovered(const Grid& grid, const SiteTable& sites, uint32_t tile_px = 
         }
         const auto features = PieceFeatures(site.geometry);
         const std::vector<PieceDraw>& pieces = cov.pieces[s];
+        // A centre within a 128th of a pixel of an edge's line, in its slab: the rasterizer's
+        // snapping (1/256 pixel) may give it to either half of the tent, so both must reach it.
+        for (size_t k = 0; k < features.size(); ++k) {
+          const auto [a, b] = features[k];
+          if (a == b || !(PieceDistance(p, features[k]) <= d + 1e-9 * (1 + d))) continue;
+          if (!(d <= grid.pixel_size() / 128)) continue;
+          const size_t other = k ^ 1;  // the other half: g(a, b) and g(b, a) come in pairs
+          if (other >= pieces.size() || !(pieces[other].radius >= 0) ||
+              !Holds(pieces[other].clip, i, j)) {
+            ++failures;
+            ADD_FAILURE() << "pixel " << i << "," << j << ": best site " << s << " at " << d
+                          << " from an edge, but the far half of its tent does not reach it";
+          }
+        }
         bool reached = false;
         for (size_t k = 0; k < features.size() && !reached; ++k) {
           const oracle::Real dk = PieceDistance(p, features[k]);
