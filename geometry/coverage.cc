@@ -9,6 +9,7 @@
 
 #include "geometry/exact.h"
 #include "geometry/mesh.h"
+#include "geometry/segment_tree.h"
 
 namespace gvd {
 namespace {
@@ -74,6 +75,45 @@ std::vector<PieceRegion> Regions(const Site& site) {
   return out;
 }
 
+// For each segment of the site (ForEachSegment order), the pieces of its mesh (ForEachPiece
+// order, geometry/mesh.h) whose feature is part of it: its two half-tents and the fans at
+// its ends (kNone where there is none), so that a site with a segment tree finds its pieces
+// near a point from the segments near it.
+constexpr uint32_t kNone = UINT32_MAX;
+std::vector<std::array<uint32_t, 4>> PiecesOfSegments(const Geometry& g) {
+  std::vector<uint32_t> edges;  // the segments of positive length, in order
+  uint32_t count = 0;
+  ForEachSegment(g, [&](Vec2 a, Vec2 b) {
+    if (a.x != b.x || a.y != b.y) edges.push_back(count);
+    ++count;
+  });
+  std::vector<std::array<uint32_t, 4>> out(count, {kNone, kNone, kNone, kNone});
+  const uint32_t n = static_cast<uint32_t>(edges.size());
+  if (n == 0) {  // every vertex at one point: one fan
+    for (auto& pieces : out) pieces[0] = 0;
+    return out;
+  }
+  for (uint32_t e = 0; e < n; ++e) {
+    out[edges[e]][0] = 2 * e;
+    out[edges[e]][1] = 2 * e + 1;
+  }
+  const uint32_t fans = 2 * n;
+  if (std::holds_alternative<PolygonSite>(g)) {  // joint i: the end of edge i, start of i + 1
+    for (uint32_t i = 0; i < n; ++i) {
+      out[edges[i]][3] = fans + i;
+      out[edges[(i + 1) % n]][2] = fans + i;
+    }
+  } else {  // the chain's two ends, then its joints
+    out[edges[0]][2] = fans;
+    out[edges[n - 1]][3] = fans + 1;
+    for (uint32_t i = 0; i + 1 < n; ++i) {
+      out[edges[i]][3] = fans + 2 + i;
+      out[edges[i + 1]][2] = fans + 2 + i;
+    }
+  }
+  return out;
+}
+
 // The pieces of a site's mesh that a tile keeping it needs (Coverage::pieces). With c the
 // middle of the tile's centres and h their half-diagonal, a feature at d_k from c is
 // between d_k - h and d_k + h from each centre p, and the site at most min_k d_k + h. The
@@ -91,8 +131,11 @@ class PieceCover {
     if (!std::isnan(sites.point(slot).x)) return;  // a plain point is its one piece
     const Site& site = *sites.get(slot);
     auto [it, fresh] = regions_.try_emplace(slot);
-    if (fresh) it->second = Regions(site);
-    const std::vector<PieceRegion>& regions = it->second;
+    if (fresh) {
+      it->second.regions = Regions(site);
+      if (site.segment_tree) it->second.of_segment = PiecesOfSegments(site.geometry);
+    }
+    const std::vector<PieceRegion>& regions = it->second.regions;
     const Window box = grid_.CentreBox(rect);
     const Vec2 c{(box.min_x + box.max_x) / 2, (box.min_y + box.max_y) / 2};
     const double h = Distance({box.min_x, box.min_y}, {box.max_x, box.max_y}) / 2 + Rounding(c);
@@ -110,20 +153,45 @@ class PieceCover {
       }
       return false;
     };
+    // The pieces to test, their features' distances from c, and the site's (least of them).
     dist_.resize(regions.size());
+    candidates_.clear();
     double nearest = INFINITY;
-    for (size_t k = 0; k < regions.size(); ++k) {
+    auto measure = [&](uint32_t k) {
       const PieceRegion& r = regions[k];
       dist_[k] = r.a == r.b ? Distance(c, r.a) : SegmentDistance(c, r.a, r.b);
-      nearest = std::min(nearest, dist_[k] + h);
+      candidates_.push_back(k);
+    };
+    const double m = site.multiplicative, a = site.additive;
+    if (site.segment_tree) {
+      // Only pieces of segments near c can pass the tests below: a fan's vertex is no
+      // nearer than the segments that end there, and the site is as near as its nearest
+      // segment.
+      nearest = site.segment_tree->Nearest(c).distance + h;
+      double reach = nearest * (1 + 1e-12) + h;
+      if (std::isfinite(upper)) reach = std::min(reach, std::max(0.0, (upper * (1 + 1e-12) - a) / m) + h);
+      seen_.resize(regions.size(), false);
+      site.segment_tree->Within(c, reach * (1 + 1e-9), [&](uint32_t j, Vec2, Vec2) {
+        for (uint32_t k : it->second.of_segment[j]) {
+          if (k == kNone || seen_[k]) continue;
+          seen_[k] = true;
+          measure(k);
+        }
+      });
+      for (uint32_t k : candidates_) seen_[k] = false;
+    } else {
+      for (uint32_t k = 0; k < regions.size(); ++k) {
+        measure(k);
+        nearest = std::min(nearest, dist_[k] + h);
+      }
     }
     if (pieces->size() < regions.size()) pieces->resize(regions.size());
     const double presence = site.max_distance + margin_;
-    for (size_t k = 0; k < regions.size(); ++k) {
+    for (uint32_t k : candidates_) {
       const PieceRegion& r = regions[k];
       const double lower = std::max(0.0, dist_[k] - h);
       if (lower > nearest * (1 + 1e-12)) continue;
-      if (site.multiplicative * lower + site.additive > upper * (1 + 1e-12)) continue;
+      if (m * lower + a > upper * (1 + 1e-12)) continue;
       if (r.bounded && !(meets(r.a, r.n1) && meets(r.b, r.n2) && meets(r.a, r.n3))) continue;
       PieceDraw& p = (*pieces)[k];
       p.radius = std::max(p.radius, std::min((dist_[k] + h) * (1 + 0x1p-40), presence));
@@ -134,8 +202,14 @@ class PieceCover {
  private:
   const Grid& grid_;
   const double margin_;
-  std::unordered_map<uint32_t, std::vector<PieceRegion>> regions_;  // by slot, made on use
+  struct Pieces {
+    std::vector<PieceRegion> regions;
+    std::vector<std::array<uint32_t, 4>> of_segment;  // for a site with a segment tree
+  };
+  std::unordered_map<uint32_t, Pieces> regions_;  // by slot, made on use
   std::vector<double> dist_;
+  std::vector<uint32_t> candidates_;
+  std::vector<bool> seen_;
 };
 
 }  // namespace
@@ -356,6 +430,46 @@ double TileCover::KeepFarthest(PixelRect tile, std::span<const uint32_t> candida
     }
   }
   return lower;
+}
+
+void TileCover::NeededSegments(const Grid& grid, PixelRect tile, const Site& site,
+                               double upper, std::vector<uint32_t>* out) {
+  const Window box = grid.CentreBox(tile);
+  const Vec2 c{(box.min_x + box.max_x) / 2, (box.min_y + box.max_y) / 2};
+  const double h = Distance({box.min_x, box.min_y}, {box.max_x, box.max_y}) / 2 + Rounding(c);
+  const double m = site.multiplicative, a = site.additive;
+  // Rounding slack: the tests may keep a segment too many, never one too few.
+  auto needed = [&](double d, double nearest) {
+    const double lower = std::max(0.0, d - h);
+    return lower <= nearest * (1 + 1e-12) && m * lower + a <= upper * (1 + 1e-12);
+  };
+  if (site.segment_tree) {
+    const double nearest = site.segment_tree->Nearest(c).distance + h;
+    // Segments farther from c than N + h, or than (U - a) / m + h, fail a test (both with
+    // the tests' slack).
+    double reach = nearest * (1 + 1e-12) + h;
+    if (std::isfinite(upper)) {
+      reach = std::min(reach, std::max(0.0, (upper * (1 + 1e-12) - a) / m) + h);
+    }
+    const size_t from = out->size();
+    site.segment_tree->Within(c, reach * (1 + 1e-9), [&](uint32_t j, Vec2 p, Vec2 q) {
+      if (needed(SegmentDistance(c, p, q), nearest)) out->push_back(j);
+    });
+    // A long segment comes once for each of its pieces near c.
+    std::sort(out->begin() + static_cast<ptrdiff_t>(from), out->end());
+    out->erase(std::unique(out->begin() + static_cast<ptrdiff_t>(from), out->end()), out->end());
+    return;
+  }
+  thread_local std::vector<double> dist;
+  dist.clear();
+  double nearest = INFINITY;
+  ForEachSegment(site.geometry, [&](Vec2 p, Vec2 q) {
+    dist.push_back(SegmentDistance(c, p, q));
+    nearest = std::min(nearest, dist.back() + h);
+  });
+  for (uint32_t j = 0; j < dist.size(); ++j) {
+    if (needed(dist[j], nearest)) out->push_back(j);
+  }
 }
 
 void TileCover::CoverDown(PixelRect tile, uint32_t leaf_px, const Leaf& leaf) const {

@@ -139,6 +139,23 @@ class TileCover {
   // The radius a site needs over `box` (a rectangle of pixel centres).
   double RadiusFor(const SiteView& s, const Window& box) const;
 
+  // Of a site that Keep kept for `tile`, where it returned `upper` (U), the segments (their
+  // indices in ForEachSegment order, each once, appended to `out`) that can hold
+  // the site's nearest point at a pixel centre of the tile where the site can be best.
+  //
+  // Why that is enough. With c the middle of the tile's centres and h their half-diagonal,
+  // segment j at d_j from c is between d_j - h and d_j + h from every centre p, so the site
+  // is within N = min_j d_j + h of each p. The segment holding the site's nearest point to p
+  // is within N of p, so d_j - h <= N; and where the site is best, its value there is at most
+  // U, so m max(0, d_j - h) + a <= U. A segment failing either test holds the site's nearest
+  // point at no centre where the site can be best. So the least distance over the segments
+  // kept is the site's distance at every centre where it can be best, and no less than it
+  // anywhere: a scan over them finds the same best site and value at every centre as a scan
+  // over all of them. (A polygon restricted to a side needs all of its edges for the
+  // even-odd test; this gives the others' segments.) O(log n) with a segment tree.
+  static void NeededSegments(const Grid& grid, PixelRect tile, const Site& site, double upper,
+                             std::vector<uint32_t>* out);
+
  private:
   const Grid& grid_;
   const SlotTable& sites_;

@@ -128,6 +128,7 @@ absl::StatusOr<Rasterizer::Program> Rasterizer::Link(const char* vertex, const c
 absl::StatusOr<std::unique_ptr<Rasterizer>> Rasterizer::Create(const DeviceInfo& device) {
   std::unique_ptr<Rasterizer> r(new Rasterizer());
   r->software_ = device.software;
+  r->native_scan_ = device.software;
   for (auto [program, vertex, fragment] :
        {std::tuple{&r->cone_, shaders::kConeVert, shaders::kIdFrag},
         std::tuple{&r->tent_, shaders::kTentVert, shaders::kIdFrag},
@@ -154,7 +155,7 @@ absl::StatusOr<std::unique_ptr<Rasterizer>> Rasterizer::Create(const DeviceInfo&
       glGetProgramInfoLog(r->nearest_, sizeof log, nullptr, log);
       return absl::InternalError(absl::StrCat("compute shader link failed: ", log));
     }
-    glGenBuffers(6, r->compute_buffers_);
+    glGenBuffers(7, r->compute_buffers_);
     GLint64 max_block = 0;
     glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &max_block);
     r->max_storage_block_ = max_block;
@@ -187,7 +188,7 @@ Rasterizer::~Rasterizer() {
     glDeleteProgram(p->id);
   }
   glDeleteProgram(nearest_);
-  glDeleteBuffers(6, compute_buffers_);
+  glDeleteBuffers(7, compute_buffers_);
 }
 
 unsigned Rasterizer::ConeBuffer(uint32_t segments) {
@@ -343,13 +344,24 @@ void ForEachPieceDrawn(const SiteShape& shape, const SiteDraw& draw, const Geome
       });
 }
 
-// nearest.comp's loop over a tile's plain points, as native code on the CPU pool: each pixel
-// centre gets the nearest of its tile's points in float (squared distances compared, ties to
-// the lower id), or id 0 and `none` where the tile has none. Point by point over the whole
-// tile, so that the pixels' loop vectorizes.
-void ScanPoints(const Grid& grid, const Rasterizer::TileLists& lists, float none,
-                std::vector<uint32_t>* ids, std::vector<float>* values) {
+// nearest.comp's Site, std430: a site scanned per fragment.
+struct ComputeSite {
+  glm::vec4 first;   // its first segment
+  glm::vec4 weight;  // (m, a, reach, unused)
+  glm::uvec4 info;   // (slot + 1, first segment, segment count, side: 0 both, 1 outside, 2 inside)
+};
+static_assert(sizeof(ComputeSite) == 12 * 4);
+
+// nearest.comp as native code on the CPU pool, tile by tile: each pixel centre gets the least
+// value among its tile's candidates present there, ties to the lower id (plain points
+// compared by squared distance), in float from the same inputs; id 0 and `none` where no
+// candidate is present. Each candidate is taken over the whole 8x8 tile at once, so that the
+// pixels' loops vectorize.
+void ScanTiles(const Grid& grid, const Rasterizer::TileLists& lists,
+               const std::vector<ComputeSite>& sites, const std::vector<glm::vec4>& segments,
+               float none, float margin, std::vector<uint32_t>* ids, std::vector<float>* values) {
   constexpr uint32_t kTile = Rasterizer::kComputeTile;
+  constexpr uint32_t kPixels = kTile * kTile;
   const uint32_t tiles_x = (grid.width + kTile - 1) / kTile;
   const uint32_t tiles_y = (grid.height + kTile - 1) / kTile;
   const float pw = static_cast<float>(grid.pixel_width());
@@ -357,35 +369,96 @@ void ScanPoints(const Grid& grid, const Rasterizer::TileLists& lists, float none
   ids->resize(grid.pixel_count());
   values->resize(grid.pixel_count());
   ParallelFor(tiles_y, 1, [&](size_t begin, size_t end) {
-    float best[kTile][kTile], xs[kTile];
-    uint32_t id[kTile][kTile];
+    alignas(32) float px[kPixels], py[kPixels], best[kPixels], d2[kPixels];
+    alignas(32) uint32_t id[kPixels];
+    alignas(32) bool inside[kPixels];
+    // The least distance from each pixel to the segment (a, b) into d2, squared, and the
+    // even-odd crossings of a ray towards +x into `inside` (when `side`).
+    auto visit = [&](const glm::vec4& s, bool side) {
+      const float ax = s.x, ay = s.y, abx = s.z - s.x, aby = s.w - s.y;
+      const float len2 = abx * abx + aby * aby;
+      const float inv = len2 > 0 ? 1 / len2 : 0;
+      for (uint32_t i = 0; i < kPixels; ++i) {
+        const float apx = px[i] - ax, apy = py[i] - ay;
+        const float t = std::clamp((apx * abx + apy * aby) * inv, 0.0f, 1.0f);
+        const float dx = apx - t * abx, dy = apy - t * aby;
+        d2[i] = std::min(d2[i], dx * dx + dy * dy);
+      }
+      if (!side) return;
+      for (uint32_t i = 0; i < kPixels; ++i) {
+        if ((s.y > py[i]) != (s.w > py[i]) &&
+            px[i] < s.x + (py[i] - s.y) / (s.w - s.y) * (s.z - s.x)) {
+          inside[i] = !inside[i];
+        }
+      }
+    };
+    // A site's value from the least distance in d2, as nearest.comp takes it.
+    auto take = [&](const ComputeSite& s, bool side) {
+      const float m = s.weight.x, a = s.weight.y, reach = s.weight.z;
+      const uint32_t site = s.info.x;
+      const bool want_inside = s.info.w == 2;
+      for (uint32_t i = 0; i < kPixels; ++i) {
+        const float d = std::sqrt(d2[i]);
+        const float value = m * d + a;
+        bool present = d <= reach;
+        if (side) present = present && (d <= margin || inside[i] == want_inside);
+        const bool better = value < best[i] || (value == best[i] && site < id[i]);
+        best[i] = present && better ? value : best[i];
+        id[i] = present && better ? site : id[i];
+      }
+    };
     for (size_t ty = begin; ty < end; ++ty) {
       const uint32_t y0 = static_cast<uint32_t>(ty) * kTile;
       for (uint32_t tx = 0; tx < tiles_x; ++tx) {
         const uint32_t x0 = tx * kTile;
-        for (uint32_t i = 0; i < kTile; ++i) xs[i] = (static_cast<float>(x0 + i) + 0.5f) * pw;
-        std::fill(&best[0][0], &best[0][0] + kTile * kTile, INFINITY);
-        std::fill(&id[0][0], &id[0][0] + kTile * kTile, 0u);
-        const size_t t = ty * tiles_x + tx;
-        for (uint32_t k = lists.offsets[2 * t]; k < lists.offsets[2 * t + 2]; ++k) {
-          const Rasterizer::Point q = lists.points[k];
-          for (uint32_t j = 0; j < kTile; ++j) {
-            const float dy = (static_cast<float>(y0 + j) + 0.5f) * ph - q.y;
-            for (uint32_t i = 0; i < kTile; ++i) {
-              const float dx = xs[i] - q.x;
-              const float d2 = dx * dx + dy * dy;
-              const bool take = d2 < best[j][i] || (d2 == best[j][i] && q.id < id[j][i]);
-              best[j][i] = take ? d2 : best[j][i];
-              id[j][i] = take ? q.id : id[j][i];
-            }
+        for (uint32_t j = 0; j < kTile; ++j) {
+          for (uint32_t i = 0; i < kTile; ++i) {
+            px[j * kTile + i] = (static_cast<float>(x0 + i) + 0.5f) * pw;
+            py[j * kTile + i] = (static_cast<float>(y0 + j) + 0.5f) * ph;
           }
+        }
+        std::fill(best, best + kPixels, INFINITY);
+        std::fill(id, id + kPixels, 0u);
+        const size_t t = ty * tiles_x + tx;
+        const uint32_t* at = &lists.offsets[3 * t];  // where each list of the tile starts
+        const uint32_t* next = at + 3;               // and ends
+        // Plain points, by squared distance.
+        for (uint32_t k = at[0]; k < next[0]; ++k) {
+          const Rasterizer::Point q = lists.points[k];
+          for (uint32_t i = 0; i < kPixels; ++i) {
+            const float dx = px[i] - q.x, dy = py[i] - q.y;
+            const float dd = dx * dx + dy * dy;
+            const bool better = dd < best[i] || (dd == best[i] && q.id < id[i]);
+            best[i] = better ? dd : best[i];
+            id[i] = better ? q.id : id[i];
+          }
+        }
+        for (uint32_t i = 0; i < kPixels; ++i) best[i] = std::sqrt(best[i]);
+        // Sites scanned whole.
+        for (uint32_t k = at[1]; k < next[1]; ++k) {
+          const ComputeSite& s = sites[lists.sites[k]];
+          const bool side = s.info.w != 0;
+          std::fill(d2, d2 + kPixels, INFINITY);
+          std::fill(inside, inside + kPixels, false);
+          for (uint32_t g = s.info.y; g < s.info.y + s.info.z; ++g) visit(segments[g], side);
+          take(s, side);
+        }
+        // Single segments, a site's next to each other: the least over them, then its value.
+        for (uint32_t k = at[2]; k < next[2];) {
+          const uint32_t site = lists.segments[k].site;
+          const ComputeSite& s = sites[site];
+          std::fill(d2, d2 + kPixels, INFINITY);
+          for (; k < next[2] && lists.segments[k].site == site; ++k) {
+            visit(segments[s.info.y + lists.segments[k].index], false);
+          }
+          take(s, false);
         }
         for (uint32_t y = y0; y < std::min(y0 + kTile, grid.height); ++y) {
           for (uint32_t x = x0; x < std::min(x0 + kTile, grid.width); ++x) {
             const size_t i = size_t{y} * grid.width + x;
-            const uint32_t site = id[y - y0][x - x0];
-            (*ids)[i] = site;
-            (*values)[i] = site == 0 ? none : std::sqrt(best[y - y0][x - x0]);
+            const uint32_t k = (y - y0) * kTile + (x - x0);
+            (*ids)[i] = id[k];
+            (*values)[i] = id[k] == 0 ? none : best[k];
           }
         }
       }
@@ -677,7 +750,7 @@ absl::Status Rasterizer::Compute(const Grid& grid, const DrawParams& params,
   const uint32_t tiles_x = (grid.width + kComputeTile - 1) / kComputeTile;
   const uint32_t tiles_y = (grid.height + kComputeTile - 1) / kComputeTile;
   if (grid.width > target.width() || grid.height > target.height() ||
-      lists.offsets.size() != 2 * (size_t{tiles_x} * tiles_y + 1)) {
+      lists.offsets.size() != 3 * (size_t{tiles_x} * tiles_y + 1)) {
     return absl::InternalError("the grid or its tiles do not match the render target");
   }
   auto upload = [](GLuint buffer, GLuint binding, const void* data, size_t bytes) {
@@ -686,23 +759,7 @@ absl::Status Rasterizer::Compute(const Grid& grid, const DrawParams& params,
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, binding, buffer);
   };
   const size_t pixels = grid.pixel_count();
-  if (software_ && lists.sites.empty() &&
-      pixels * sizeof(uint32_t) <= static_cast<uint64_t>(max_storage_block_)) {
-    // Plain points only, on a software device: the shader's loop runs as native code on
-    // every core (llvmpipe would run it on the render thread's alone by default), and the
-    // result goes where the shader would have written it.
-    ScanPoints(grid, lists, static_cast<float>(params.depth_scale), ids, distances);
-    upload(compute_buffers_[3], 4, ids->data(), pixels * sizeof(uint32_t));
-    upload(compute_buffers_[4], 5, distances->data(), pixels * sizeof(float));
-    return Resolve(grid, params, target);
-  }
-  struct Record {  // nearest.comp's Site, std430
-    glm::vec4 first;
-    glm::vec4 weight;
-    glm::uvec4 info;
-  };
-  static_assert(sizeof(Record) == 12 * 4);
-  std::vector<Record> records;
+  std::vector<ComputeSite> records;
   records.reserve(draws.size());
   std::vector<glm::vec4> segments;
   const Vec2 origin{grid.window.min_x, grid.window.min_y};
@@ -712,29 +769,49 @@ absl::Status Rasterizer::Compute(const Grid& grid, const DrawParams& params,
     PerFragmentSite f = PerFragmentOf(site, d.slot + 1, shape.extent, origin, &segments);
     records.push_back({f.first, glm::vec4(f.weight, 0), f.info});
   }
-  if (segments.empty()) segments.emplace_back();  // no buffer may be empty
-  if (records.empty()) records.emplace_back();
-  for (auto [bytes, what] : {std::pair{pixels * sizeof(uint32_t), "the pixels' ids"},
-                             {segments.size() * sizeof(glm::vec4), "the segments"},
-                             {records.size() * sizeof(Record), "the sites"},
-                             {lists.points.size() * sizeof(Point), "the tiles' points"},
-                             {lists.sites.size() * sizeof(uint32_t), "the tiles' sites"}}) {
+  // What the GL's storage buffers must hold: the resolve's pixels always, the lists too for
+  // the shader.
+  std::vector<std::pair<size_t, const char*>> buffers = {
+      {pixels * sizeof(uint32_t), "the pixels' ids"}};
+  if (!native_scan_) {
+    buffers.insert(buffers.end(),
+                   {{segments.size() * sizeof(glm::vec4), "the segments"},
+                    {records.size() * sizeof(ComputeSite), "the sites"},
+                    {lists.points.size() * sizeof(Point), "the tiles' points"},
+                    {lists.sites.size() * sizeof(uint32_t), "the tiles' sites"},
+                    {lists.segments.size() * sizeof(Segment), "the tiles' segments"}});
+  }
+  for (auto [bytes, what] : buffers) {
     if (bytes > static_cast<uint64_t>(max_storage_block_)) {
       return absl::ResourceExhaustedError(
           absl::StrCat(what, " take ", bytes, " bytes; GL_MAX_SHADER_STORAGE_BLOCK_SIZE is ",
                        max_storage_block_));
     }
   }
-  static_assert(sizeof(Point) == 4 * 4);
+  if (native_scan_) {
+    // The shader's loop as native code on every core; the result goes where the shader
+    // would have written it.
+    ScanTiles(grid, lists, records, segments, static_cast<float>(params.depth_scale),
+              static_cast<float>(DrawMargin(grid)), ids, distances);
+    upload(compute_buffers_[3], 4, ids->data(), pixels * sizeof(uint32_t));
+    upload(compute_buffers_[4], 5, distances->data(), pixels * sizeof(float));
+    return Resolve(grid, params, target);
+  }
+  if (segments.empty()) segments.emplace_back();  // no buffer may be empty
+  if (records.empty()) records.emplace_back();
+  static_assert(sizeof(Point) == 4 * 4 && sizeof(Segment) == 2 * 4);
   const uint32_t no_site = 0;
   const Point no_point{};
+  const Segment no_segment{};
   upload(segments_, 0, segments.data(), segments.size() * sizeof(glm::vec4));
-  upload(compute_buffers_[0], 1, records.data(), records.size() * sizeof(Record));
+  upload(compute_buffers_[0], 1, records.data(), records.size() * sizeof(ComputeSite));
   upload(compute_buffers_[1], 2, lists.offsets.data(), lists.offsets.size() * sizeof(uint32_t));
   upload(compute_buffers_[2], 3, lists.sites.empty() ? &no_site : lists.sites.data(),
          std::max<size_t>(lists.sites.size(), 1) * sizeof(uint32_t));
   upload(compute_buffers_[5], 6, lists.points.empty() ? &no_point : lists.points.data(),
          std::max<size_t>(lists.points.size(), 1) * sizeof(Point));
+  upload(compute_buffers_[6], 7, lists.segments.empty() ? &no_segment : lists.segments.data(),
+         std::max<size_t>(lists.segments.size(), 1) * sizeof(Segment));
   upload(compute_buffers_[3], 4, nullptr, pixels * sizeof(uint32_t));
   upload(compute_buffers_[4], 5, nullptr, pixels * sizeof(float));
   glUseProgram(nearest_);
@@ -774,7 +851,7 @@ absl::Status Rasterizer::Resolve(const Grid& grid, const DrawParams& params,
   glUniform1ui(glGetUniformLocation(resolve_.id, "u_width"), grid.width);
   glUniform1f(resolve_.u_inv_depth, static_cast<float>(1 / params.depth_scale));
   glBindVertexArray(vao_);
-  for (GLuint location = 0; location < 5; ++location) glDisableVertexAttribArray(location);
+  for (GLuint location = 0; location < 6; ++location) glDisableVertexAttribArray(location);
   glDrawArrays(GL_TRIANGLES, 0, 3);
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   return GlError("computing a render");

@@ -110,6 +110,13 @@ class Rasterizer {
   // pass over candidate lists beats drawing meshes for every site kind (tests/bench/README.md).
   bool software() const { return software_; }
 
+  // Whether Compute scans the lists in native code on the CPU pool rather than in the compute
+  // shader: by default on a software device, where llvmpipe would run the shader on the
+  // render thread alone (and with an SIMD width the native loop matches). Tests set it to
+  // check the shader there.
+  bool native_scan() const { return native_scan_; }
+  void set_native_scan(bool native) { native_scan_ = native; }
+
   // How a site that must cover `draw.radius` within `draw.clip` is drawn.
   SiteShape Shape(const Grid& grid, const DrawParams& params, const Site& site,
                   const SiteDraw& draw) const;
@@ -125,23 +132,32 @@ class Rasterizer {
   // The side of the tiles whose candidate lists Compute takes.
   static constexpr uint32_t kComputeTile = 8;
 
-  // Candidate lists for Compute, by tile of kComputeTile pixels, row-major: tile t's plain
-  // points (Site::plain) are points[offsets[2t] .. offsets[2t + 2]), its other sites
-  // draws[sites[k]] for k in [offsets[2t + 1], offsets[2t + 3]).
+  // Candidate lists for Compute, by tile of kComputeTile pixels, row-major. Tile t's plain
+  // points (Site::plain) are points[offsets[3t] .. offsets[3t + 3]); the sites it scans
+  // whole (polygons restricted to a side, whose even-odd test needs every edge) are
+  // draws[sites[k]] for k in [offsets[3t + 1], offsets[3t + 4]); of the other sites it
+  // scans single segments, segments[k] for k in [offsets[3t + 2], offsets[3t + 5]), those
+  // that can hold their site's nearest point where it can be best there
+  // (TileCover::NeededSegments), a site's next to each other.
   struct Point {  // nearest.comp's Point, std430
     float x, y;   // relative to the window's min corner
     uint32_t id;  // slot + 1
     uint32_t unused = 0;
   };
+  struct Segment {   // nearest.comp's uvec2
+    uint32_t site;   // draws[site]
+    uint32_t index;  // its segment in ForEachSegment order
+  };
   struct TileLists {
-    std::vector<uint32_t> offsets;  // 2 (tiles + 1) entries
+    std::vector<uint32_t> offsets;  // 3 (tiles + 1) entries
     std::vector<Point> points;
     std::vector<uint32_t> sites;
+    std::vector<Segment> segments;
   };
 
   // A full render of a kNearest diagram into `target` (the grid at its pixel (0, 0)) by a
-  // compute shader over per-tile candidate lists, no mesh drawn (on a software device, lists
-  // of plain points alone are scanned by the same loop in native code on the CPU pool). Each pixel centre gets the
+  // compute shader over per-tile candidate lists, no mesh drawn (on a software device, the
+  // same loop in native code on the CPU pool: see native_scan). Each pixel centre gets the
   // least value among its tile's candidates present there (ties to the lower slot), computed
   // as a per-fragment site's, so the lists must hold every site that can be best at some
   // pixel centre of the tile (TileCover), and each draw's radius must reach all of them.
@@ -177,10 +193,12 @@ class Rasterizer {
   Program cone_, tent_, exact_, exact_point_, resolve_;
   unsigned nearest_ = 0;  // the compute program (nearest.comp)
   unsigned vao_ = 0, instances_ = 0, quad_ = 0, tent_mesh_ = 0, segments_ = 0, indirect_ = 0;
-  // Compute's inputs and outputs: sites, tile offsets, candidate sites, ids, values, points.
-  unsigned compute_buffers_[6] = {};
+  // Compute's inputs and outputs: sites, tile offsets, candidate sites, ids, values, points,
+  // candidate segments.
+  unsigned compute_buffers_[7] = {};
   int64_t max_storage_block_ = 0;  // GL_MAX_SHADER_STORAGE_BLOCK_SIZE, bytes
   bool software_ = false;
+  bool native_scan_ = false;
   std::map<uint32_t, unsigned> cones_;  // segments -> vertex buffer
 };
 

@@ -214,6 +214,120 @@ TEST(Coverage, SitesOfEveryKind) {
   }
 }
 
+// Sites long enough for their segment trees (geometry/segment_tree.h), which coverage then
+// searches for the pieces and segments near each tile: random walks, scribbles crossing the
+// window and one another, many-sided polygons (each side), with small sites and points
+// among them.
+SiteTable LongSites(uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-0.1, 1.1), step(-0.04, 0.04);
+  SiteTable sites;
+  for (int k = 0; k < 12; ++k) {
+    Site s{"long" + std::to_string(k), PointSite{}};
+    const int n = 40 + 40 * (k % 3);
+    if (k % 4 == 0) {  // a random walk
+      PolylineSite walk{{{u(rng), u(rng)}}};
+      for (int i = 0; i < n; ++i) {
+        walk.points.push_back(walk.points.back() + Vec2{step(rng), step(rng)});
+      }
+      s.geometry = walk;
+    } else if (k % 4 == 1) {  // a scribble across the window
+      PolylineSite scribble;
+      for (int i = 0; i < n; ++i) scribble.points.push_back({u(rng), u(rng)});
+      s.geometry = scribble;
+    } else {  // a wobbly many-sided polygon
+      const Vec2 c{u(rng), u(rng)};
+      PolygonSite poly;
+      for (int i = 0; i < n; ++i) {
+        const double t = 2 * M_PI * i / n, r = 0.15 + step(rng);
+        poly.vertices.push_back({c.x + r * std::cos(t), c.y + r * std::sin(t)});
+      }
+      poly.side = static_cast<Side>(k / 4 % 3);
+      s.geometry = poly;
+    }
+    if (k == 5) s.multiplicative = 1.7;
+    if (k == 6) s.additive = 0.02;
+    sites.push_back(s);
+  }
+  for (const Site& p : RandomPoints(30, {0, 0, 1, 1}, seed)) sites.push_back(p);
+  sites.push_back({"seg", SegmentSite{{0.2, 0.2}, {0.3, 0.25}}});
+  return sites;
+}
+
+TEST(Coverage, LongSitesThroughTheirSegmentTrees) {
+  Grid grid{{0, 0, 1, 1}, 96, 96};
+  for (uint64_t seed : {1, 2}) {
+    const SiteTable sites = LongSites(seed);
+    SlotTable slots(sites);
+    ASSERT_NE(slots.get(0)->segment_tree, nullptr);
+    for (uint32_t tile : {0u, 1u, 4u}) ExpectCovered(grid, sites, tile);
+  }
+}
+
+// TileCover::NeededSegments: at every pixel centre of a tile where a site kept for the tile
+// is best, some segment it names holds the site's nearest point; on long sites (through
+// their trees) and short ones.
+TEST(Coverage, NeededSegmentsHoldTheNearestPointWhereTheSiteIsBest) {
+  Grid grid{{0, 0, 1, 1}, 96, 96};
+  SiteTable sites = LongSites(3);
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<double> d(-0.05, 0.05);
+  for (int k = 0; k < 20; ++k) {  // short polylines among them
+    const Vec2 c{0.05 * k, 1 - 0.05 * k};
+    sites.push_back({"short" + std::to_string(k),
+                     PolylineSite{{c, c + Vec2{d(rng), d(rng)}, c + Vec2{d(rng), d(rng)}}}});
+  }
+  SlotTable slots(sites);
+  SiteIndex index = SiteIndex::Build(slots);
+  const TileCover cover(grid, slots, index);
+  const double margin = DrawMargin(grid);
+  size_t checked = 0, needed_total = 0, segments_total = 0;
+  for (uint32_t size : {8u, 3u}) {
+    for (uint32_t y0 = 0; y0 < grid.height; y0 += size) {
+      for (uint32_t x0 = 0; x0 < grid.width; x0 += size) {
+        const PixelRect tile{x0, y0, std::min(x0 + size, grid.width), std::min(y0 + size, grid.height)};
+        std::vector<uint32_t> kept;
+        std::vector<double> radii;
+        std::vector<uint32_t> all(sites.size());
+        for (uint32_t s = 0; s < all.size(); ++s) all[s] = s;
+        const double upper = cover.Keep(tile, all, &kept, &radii);
+        for (uint32_t slot : kept) {
+          const Site& site = sites[slot];
+          if (std::holds_alternative<PointSite>(site.geometry)) continue;
+          std::vector<uint32_t> needed;
+          TileCover::NeededSegments(grid, tile, site, upper, &needed);
+          const auto segments = oracle::Segments(site.geometry);
+          needed_total += needed.size();
+          segments_total += segments.size();
+          ASSERT_TRUE(std::is_sorted(needed.begin(), needed.end()));
+          ASSERT_EQ(std::adjacent_find(needed.begin(), needed.end()), needed.end());
+          for (uint32_t j = tile.y0; j < tile.y1; ++j) {
+            for (uint32_t i = tile.x0; i < tile.x1; ++i) {
+              const Vec2 p = grid.Center(i, j);
+              double best = INFINITY;
+              for (const Site& other : sites) best = std::min(best, DrawnValue(p, other, margin));
+              if (DrawnValue(p, site, margin) != best) continue;
+              const double dist = oracle::Distance(p, site.geometry);
+              bool held = false;
+              for (uint32_t n : needed) {
+                ASSERT_LT(n, segments.size());
+                held = held || std::abs(static_cast<double>(oracle::ToSegment(
+                                   p, segments[n].first, segments[n].second)) -
+                               dist) <= oracle::Tolerance(p, dist);
+              }
+              ASSERT_TRUE(held) << "pixel " << i << "," << j << ", site " << slot;
+              ++checked;
+            }
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(checked, 5000u);
+  // The point of it: most segments are left out of most tiles.
+  EXPECT_LT(needed_total * 5, segments_total);
+}
+
 // Farthest-site diagrams of points, with ties on a lattice and twins; and points inside a
 // ring of others, which are farther than them from every point of the plane, are drawn
 // nowhere.

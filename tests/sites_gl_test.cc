@@ -19,16 +19,26 @@ namespace {
 
 class SitesGLTest : public GlTest {
  protected:
-  // Renders in both modes and checks every pixel.
+  // Renders in both modes and both paths, the computed one both in native code and in the
+  // compute shader (Rasterizer::native_scan), and checks every pixel.
   void RenderAndCheck(const Grid& grid, const SiteTable& sites, const std::string& what,
                       Diagram diagram = Diagram::kNearest, PixelReport* report = nullptr) {
     for (RenderMode mode : kModes) {
       for (FullRender path : kPaths) {
-        auto f = Render(grid, sites, mode, diagram, path);
-        ASSERT_NE(f, nullptr);
-        PixelReport r =
-            CheckEveryPixel(*f, sites, what + " (" + Name(mode) + ", " + Name(path) + ")");
-        if (report) *report = r;
+        for (bool other_scan : {false, true}) {
+          if (other_scan && path != FullRender::kCompute) continue;
+          const bool native = rasterizer_->native_scan();
+          if (other_scan) rasterizer_->set_native_scan(!native);
+          auto f = Render(grid, sites, mode, diagram, path);
+          rasterizer_->set_native_scan(native);
+          ASSERT_NE(f, nullptr);
+          const std::string scan = path != FullRender::kCompute ? ""
+                                   : native != other_scan     ? ", native"
+                                                              : ", shader";
+          PixelReport r = CheckEveryPixel(
+              *f, sites, what + " (" + Name(mode) + ", " + Name(path) + scan + ")");
+          if (report) *report = r;
+        }
       }
     }
   }
@@ -48,6 +58,60 @@ TEST_F(SitesGLTest, EachKindAgainstTheOracle) {
       for (int s = 0; s < 3; ++s) sites.push_back({"p" + std::to_string(s), gen.Kind(0)});
       RenderAndCheck(kGrid, sites, std::string(kinds[kind]) + " seed " + std::to_string(seed));
     }
+  }
+}
+
+// Sites long enough for their segment trees (geometry/segment_tree.h), through which the
+// coverage finds the pieces and segments near each tile: random walks, scribbles crossing
+// the window and one another, many-sided polygons of each side, a finely flattened curve,
+// weights and max_distance, among points and short sites.
+TEST_F(SitesGLTest, LongSitesAgainstTheOracle) {
+  for (uint64_t seed = 1; seed <= 2; ++seed) {
+    Generator gen(seed + 900);
+    SiteTable sites;
+    for (int s = 0; s < 8; ++s) {
+      Site site{"long" + std::to_string(s), PointSite{}};
+      const int n = 40 + 30 * (s % 3);
+      switch (s % 4) {
+        case 0: {
+          PolylineSite walk{{gen.P()}};
+          for (int k = 0; k < n; ++k) walk.points.push_back(gen.Near(walk.points.back(), 0.05));
+          site.geometry = walk;
+          break;
+        }
+        case 1: {
+          PolylineSite scribble;
+          for (int k = 0; k < n; ++k) scribble.points.push_back(gen.P());
+          site.geometry = scribble;
+          break;
+        }
+        case 2: {
+          const Vec2 c = gen.P();
+          PolygonSite poly;
+          for (int k = 0; k < n; ++k) {
+            const double t = 2 * M_PI * k / n, r = gen.U(0.1, 0.2);
+            poly.vertices.push_back({c.x + r * std::cos(t), c.y + r * std::sin(t)});
+          }
+          poly.side = static_cast<Side>(s / 4 % 3 + seed - 1);
+          site.geometry = poly;
+          break;
+        }
+        default: {
+          const Vec2 a = gen.P();
+          site.geometry = MakeBezier({a, gen.Near(a, 0.4), gen.Near(a, 0.4), gen.Near(a, 0.4)},
+                                     1e-5);
+          break;
+        }
+      }
+      if (s == 5) site.multiplicative = 1.6;
+      if (s == 6) site.additive = 0.01;
+      if (s == 7) site.max_distance = 0.1;
+      sites.push_back(site);
+    }
+    for (int s = 0; s < 6; ++s) sites.push_back({"p" + std::to_string(s), gen.Kind(s % 3)});
+    SlotTable slots(sites);
+    for (uint32_t s = 0; s < 8; ++s) ASSERT_NE(slots.get(s)->segment_tree, nullptr) << s;
+    RenderAndCheck(kGrid, sites, "long sites seed " + std::to_string(seed));
   }
 }
 

@@ -19,10 +19,13 @@ struct Point {
   uint site;
   uint unused;
 };
-// Tile t's points are points[offsets[t].x .. offsets[t + 1].x), its other sites
-// sites[candidates[k]] for k in [offsets[t].y, offsets[t + 1].y).
-layout(std430, binding = 2) readonly buffer Offsets { uvec2 offsets[]; };
+// Tile t's points are points[offsets[3t] .. offsets[3t + 3]), the sites it scans whole
+// sites[candidates[k]] for k in [offsets[3t + 1], offsets[3t + 4]), and single segments of
+// the other sites pieces[k] = (site, segment) for k in [offsets[3t + 2], offsets[3t + 5]):
+// each is taken as a site of its own, which gives the site's least value over them.
+layout(std430, binding = 2) readonly buffer Offsets { uint offsets[]; };
 layout(std430, binding = 3) readonly buffer Candidates { uint candidates[]; };
+layout(std430, binding = 7) readonly buffer Pieces { uvec2 pieces[]; };
 layout(std430, binding = 4) writeonly buffer Ids { uint ids[]; };
 layout(std430, binding = 5) writeonly buffer Values { float values[]; };
 layout(std430, binding = 6) readonly buffer Points { Point points[]; };
@@ -38,7 +41,8 @@ void main() {
   uint tile = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
   float best = 3.0e38;
   uint id = 0u;
-  for (uint k = offsets[tile].x; k < offsets[tile + 1u].x; ++k) {
+  uint at = 3u * tile;
+  for (uint k = offsets[at]; k < offsets[at + 3u]; ++k) {
     Point q = points[k];
     float value = length(p - q.p);
     if (value < best || (value == best && q.site < id)) {
@@ -46,7 +50,7 @@ void main() {
       id = q.site;
     }
   }
-  for (uint k = offsets[tile].y; k < offsets[tile + 1u].y; ++k) {
+  for (uint k = offsets[at + 1u]; k < offsets[at + 4u]; ++k) {
     Site s = sites[candidates[k]];
     d = 3.0e38;
     inside = false;
@@ -54,6 +58,18 @@ void main() {
     for (uint i = s.info.y + 1u; i < s.info.y + s.info.z; ++i) visit(segments[i]);
     if (d > s.weight.z) continue;
     if (s.info.w != 0u && d > u_margin && inside != (s.info.w == 2u)) continue;
+    float value = s.weight.x * d + s.weight.y;
+    if (value < best || (value == best && s.info.x < id)) {
+      best = value;
+      id = s.info.x;
+    }
+  }
+  for (uint k = offsets[at + 2u]; k < offsets[at + 5u]; ++k) {
+    uvec2 piece = pieces[k];
+    Site s = sites[piece.x];
+    d = 3.0e38;
+    visit(segments[s.info.y + piece.y]);
+    if (d > s.weight.z) continue;
     float value = s.weight.x * d + s.weight.y;
     if (value < best || (value == best && s.info.x < id)) {
       best = value;

@@ -69,7 +69,9 @@ BENCHMARK(BM_Render)
 // 1''. Full render at 1024x1024 of 1,000 sites of one kind; range(0): 0 segment, 1 polyline
 // (8 points), 2 polygon (6 vertices), 3 polygon inside only, 4 cubic Bezier (tolerance
 // 1/4 pixel), 5 points with weights and max_distance, 6 points in a FARTHEST diagram (100
-// sites); range(1): 0 mesh, 1 exact. Each site spans about 5% of the window.
+// sites), 7 polylines of 5,000 random points each across the whole window (20 sites: 100,000
+// long segments crossing one another); range(1): 0 mesh, 1 exact. Each site of kinds 0 to 6
+// spans about 5% of the window.
 void BM_RenderKind(benchmark::State& state) {
   Gl& gl = Gl::Get();
   if (!gl.context) return state.SkipWithError("no EGL context");
@@ -80,7 +82,7 @@ void BM_RenderKind(benchmark::State& state) {
   std::uniform_real_distribution<double> u(0, 1), d(-0.025, 0.025);
   auto near = [&](Vec2 c) { return Vec2{c.x + d(rng), c.y + d(rng)}; };
   SiteTable sites;
-  const int n = kind == 6 ? 100 : 1000;
+  const int n = kind == 6 ? 100 : kind == 7 ? 20 : 1000;
   for (int i = 0; i < n; ++i) {
     Vec2 c{u(rng), u(rng)};
     Site s{std::to_string(i), PointSite{c}};
@@ -104,6 +106,12 @@ void BM_RenderKind(benchmark::State& state) {
         break;
       }
       case 4: s.geometry = MakeBezier({near(c), near(c), near(c), near(c)}, grid.pixel_size() / 4); break;
+      case 7: {
+        PolylineSite l;
+        for (int k = 0; k < 5000; ++k) l.points.push_back({u(rng), u(rng)});
+        s.geometry = l;
+        break;
+      }
       case 5:
         s.multiplicative = 0.5 + u(rng);
         s.additive = 0.01 * u(rng);
@@ -121,14 +129,15 @@ void BM_RenderKind(benchmark::State& state) {
     benchmark::DoNotOptimize(frame);
   }
   static const char* kNames[] = {"segment",      "polyline8", "polygon6", "polygon6-inside",
-                                 "cubic-bezier", "weighted-bounded-point", "farthest-point"};
+                                 "cubic-bezier", "weighted-bounded-point", "farthest-point",
+                                 "polyline5000-across"};
   state.counters["coverage_ms"] = stats.coverage_seconds * 1e3;
   state.counters["fill"] = stats.fill_ratio;
   state.counters["candidates_px"] = stats.candidates_per_pixel;
   state.SetLabel(std::string(kNames[kind]) + " " + gl.context->info().gl_renderer);
 }
 BENCHMARK(BM_RenderKind)
-    ->ArgsProduct({{0, 1, 2, 3, 4, 5, 6}, {0, 1}})
+    ->ArgsProduct({{0, 1, 2, 3, 4, 5, 6, 7}, {0, 1}})
     ->Unit(benchmark::kMillisecond)
     ->MinTime(0.5)
     ->UseRealTime();
