@@ -94,13 +94,15 @@ SnapshotBuilder::SnapshotBuilder(std::shared_ptr<const SiteSnapshot> base,
       table_(base_->sites()),
       next_slot_(base_->sites().size()),
       size_(base_->size()),
-      non_plain_(base_->non_plain_) {}
+      non_plain_(base_->non_plain_),
+      ink_(base_->ink_) {}
 
 void SnapshotBuilder::Put(Site site) {
   uint32_t slot;
   if (auto found = base_->Find(site.id)) {
     slot = *found;
     non_plain_ -= !base_->sites().get(slot)->plain();
+    ink_ -= TotalLength(base_->sites().get(slot)->geometry);
   } else {
     if (!free_slots_->empty()) {
       slot = free_slots_->back();
@@ -113,6 +115,7 @@ void SnapshotBuilder::Put(Site site) {
     ++size_;
   }
   non_plain_ += !site.plain();
+  ink_ += TotalLength(site.geometry);
   changed_.push_back(slot);
   table_.Set(slot, std::optional<Site>(std::move(site)));
   put_.push_back(table_.ptr(slot));
@@ -122,6 +125,7 @@ bool SnapshotBuilder::Remove(std::string_view id) {
   auto found = base_->Find(id);
   if (!found || table_.get(*found) == nullptr) return false;
   non_plain_ -= !table_.get(*found)->plain();
+  ink_ -= TotalLength(table_.get(*found)->geometry);
   table_.Set(*found, std::shared_ptr<const Site>());
   changed_.push_back(*found);
   freed_.push_back(*found);
@@ -144,6 +148,8 @@ std::shared_ptr<const SiteSnapshot> SnapshotBuilder::Build(uint64_t version) {
   std::shared_ptr<SiteSnapshot> s(new SiteSnapshot);
   s->version_ = version;
   s->non_plain_ = non_plain_;
+  // Rounding of the sums must not leave a little ink in an emptied scene.
+  s->ink_ = size_ == 0 ? 0 : std::max(0.0, ink_);
   auto index = [&] {
     s->index_ = base_->index_.Update(table_, changed_);
     s->least_ = table_.least();

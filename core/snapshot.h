@@ -72,6 +72,9 @@ class SiteSnapshot {
   // The least weights over the sites (SlotTable::least), found once when the version is
   // built, for the queries that bound their search with them.
   const LeastWeights& least() const { return least_; }
+  // The summed length of the sites' segments (TotalLength): how much line the coverage's
+  // tiles must resolve (DefaultTilePx).
+  double ink() const { return ink_; }
 
  private:
   friend class SnapshotBuilder;
@@ -81,6 +84,7 @@ class SiteSnapshot {
   SiteIndex index_;
   IdMap ids_;
   size_t non_plain_ = 0;
+  double ink_ = 0;
   LeastWeights least_;
 };
 
@@ -132,6 +136,7 @@ class SnapshotBuilder {
   uint32_t next_slot_;
   size_t size_;
   size_t non_plain_;
+  double ink_;
   std::vector<uint32_t> changed_, taken_, freed_;
   std::vector<IdMap::Change> id_changes_;
   std::vector<std::shared_ptr<const Site>> put_;

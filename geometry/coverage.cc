@@ -121,7 +121,10 @@ std::vector<std::array<uint32_t, 4>> PiecesOfSegments(const Geometry& g) {
 // site is best at p, its value there is at most the tile's upper bound U (Keep). Pieces that
 // fail either bound are not needed there, nor those whose region the tile misses (they hold
 // no nearest point there); the others get the tile's pixels and a radius of d_k + h, capped
-// at the site's presence.
+// at the site's presence. A half-tent's value at a centre of its slab is the distance to its
+// edge's line, at most the greatest over the tile's corners (it is linear on its side), and
+// the centres' projections on the edge lie between the corners' least and greatest: it
+// gets those instead, where they are less.
 class PieceCover {
  public:
   explicit PieceCover(const Grid& grid) : grid_(grid), margin_(DrawMargin(grid)) {}
@@ -194,7 +197,24 @@ class PieceCover {
       if (m * lower + a > upper * (1 + 1e-12)) continue;
       if (r.bounded && !(meets(r.a, r.n1) && meets(r.b, r.n2) && meets(r.a, r.n3))) continue;
       PieceDraw& p = (*pieces)[k];
-      p.radius = std::max(p.radius, std::min((dist_[k] + h) * (1 + 0x1p-40), presence));
+      double radius = dist_[k] + h;
+      if (r.a != r.b) {  // a half-tent: along ab from `from`, to its left up to `radius`
+        const double length = Distance(r.a, r.b);
+        const Vec2 along = (r.b - r.a) / length, left = r.n3 / length;
+        double lo = INFINITY, hi = -INFINITY, side = 0;
+        for (Vec2 x : corners) {
+          const double t = glm::dot(x - r.a, along);
+          lo = std::min(lo, t);
+          hi = std::max(hi, t);
+          side = std::max(side, glm::dot(x - r.a, left));
+        }
+        // Rounding slack, relative to the coordinates involved (far more than a few ulps).
+        const double slack = 0x1p-40 * (Length(r.a) + Length(c) + h + length);
+        radius = std::min(radius, side + slack);
+        p.from = std::min(p.from, std::max(0.0, lo - slack));
+        p.to = std::max(p.to, std::min(length, hi + slack));
+      }
+      p.radius = std::max(p.radius, std::min(radius * (1 + 0x1p-40), presence));
       p.clip = p.clip.Union(rect);
     }
   }
@@ -214,10 +234,13 @@ class PieceCover {
 
 }  // namespace
 
-uint32_t DefaultTilePx(const Grid& grid, size_t n) {
+uint32_t DefaultTilePx(const Grid& grid, size_t n, double ink) {
   double spacing = std::sqrt(double(grid.pixel_count()) / std::max<size_t>(n, 1));
   uint32_t leaf = 1;
   while (leaf < 4 && 2 * leaf <= spacing / 3) leaf *= 2;
+  // Lines of total length `ink` in pixels over the grid's area are about area / ink apart.
+  const double lines = double(grid.pixel_count()) / (ink / grid.pixel_size());
+  while (leaf > 1 && leaf > lines / 2) leaf /= 2;
   return leaf;
 }
 

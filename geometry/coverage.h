@@ -19,10 +19,12 @@ namespace gvd {
 
 // One piece of a site's mesh (ForEachPiece, geometry/mesh.h), drawn on its own: it must
 // cover every pixel centre within `radius` of its feature that lies in `clip` and where the
-// feature holds the site's nearest point; radius < 0: none.
+// feature holds the site's nearest point; radius < 0: none. A half-tent need only cover
+// those whose projections on its edge ab lie from `from` to `to` (distances from a).
 struct PieceDraw {
   double radius = -1;
   PixelRect clip;
+  double from = INFINITY, to = -INFINITY;
 };
 
 // A site to draw: it must cover every pixel centre within `radius` of its geometry that lies
@@ -52,8 +54,10 @@ struct Coverage {
 
 // The side of the smallest tiles that ComputeCoverage uses by default for n sites on the
 // grid: a power of two about a third of the sites' mean spacing, in pixels, within [1, 4], so
-// that a site's clip is little more than its cell's box.
-uint32_t DefaultTilePx(const Grid& grid, size_t n);
+// that a site's clip is little more than its cell's box; and no more than half the mean
+// distance between the sites' lines, `ink` being their summed length (SiteSnapshot::ink),
+// so that where lines crowd (tangles), the pieces of their meshes are told apart.
+uint32_t DefaultTilePx(const Grid& grid, size_t n, double ink = 0);
 
 // The side of the tiles whose candidates are looked up in the index before they are split
 // down to leaves of leaf_px: leaf_px times a power of two, about twice the sites' mean

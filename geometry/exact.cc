@@ -151,6 +151,12 @@ BezierSite MakeBezier(std::vector<Vec2> control, double tolerance) {
   return b;
 }
 
+double TotalLength(const Geometry& g) {
+  double length = 0;
+  ForEachSegment(g, [&](Vec2 a, Vec2 b) { length += Distance(a, b); });
+  return length;
+}
+
 Window BoundingBox(const Geometry& g) {
   Window w{INFINITY, INFINITY, -INFINITY, -INFINITY};
   auto add = [&](Vec2 p) {

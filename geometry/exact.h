@@ -21,6 +21,9 @@ double SegmentDistance(Vec2 q, Vec2 a, Vec2 b, double* t = nullptr);
 template <class F>
 void ForEachSegment(const Geometry& g, F&& f);
 
+// The summed length of the geometry's segments (0 for a point).
+double TotalLength(const Geometry& g);
+
 // Euclidean distance from q to the nearest point of the geometry (of its boundary, for a
 // polygon, whatever its side).
 double ExactDistance(Vec2 q, const Geometry& g);

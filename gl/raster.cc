@@ -317,30 +317,42 @@ FanDraw FanOf(uint32_t segments, double from, double to) {
 }
 
 // ForEachPiece of a site drawn as `shape`, with each piece's extent and clip: its own from
-// draw.pieces where the coverage gave them (pieces with none are left out), else the site's.
+// draw.pieces where the coverage gave them (pieces with none are left out), else the site's;
+// and each half-tent's part of its edge, g(extent, clip, a, b, from, to), from and to as
+// fractions of ab (0 and 1 where the coverage gave none).
 template <class F, class G>
 void ForEachPieceDrawn(const SiteShape& shape, const SiteDraw& draw, const Geometry& geometry,
                        F&& f, G&& g) {
   size_t k = 0;
+  const PieceDraw* p = nullptr;
   auto piece = [&](double* extent, PixelRect* clip) {
     *extent = shape.extent;
     *clip = draw.clip;
+    p = nullptr;
     if (k >= draw.pieces.size()) return true;
-    const PieceDraw& p = draw.pieces[k++];
-    if (p.radius < 0) return false;
-    *extent = std::min(shape.extent, (p.radius + shape.pad) * shape.overestimate * (1 + 0x1p-20));
-    *clip = p.clip;
+    p = &draw.pieces[k++];
+    if (p->radius < 0) return false;
+    *extent = std::min(shape.extent, (p->radius + shape.pad) * shape.overestimate * (1 + 0x1p-20));
+    *clip = p->clip;
     return true;
   };
   double e;
   PixelRect clip;
   ForEachPiece(
       geometry,
-      [&](Vec2 p, double from, double to) {
-        if (piece(&e, &clip)) f(e, clip, p, from, to);
+      [&](Vec2 q, double from, double to) {
+        if (piece(&e, &clip)) f(e, clip, q, from, to);
       },
       [&](Vec2 a, Vec2 b) {
-        if (piece(&e, &clip)) g(e, clip, a, b);
+        if (!piece(&e, &clip)) return;
+        // The part of the edge it needs, as fractions of ab, a pad beyond it (as its extent).
+        double from = 0, to = 1;
+        if (p != nullptr && p->from <= p->to) {
+          const double length = Distance(a, b);
+          from = std::max(0.0, (p->from - shape.pad) / length);
+          to = std::min(1.0, (p->to + shape.pad) / length);
+        }
+        g(e, clip, a, b, from, to);
       });
 }
 
@@ -519,9 +531,10 @@ SiteShape Rasterizer::Shape(const Grid& grid, const DrawParams& params, const Si
         wedge.push_back(p + e * Vec2{std::cos(t), std::sin(t)});
       }
       shape.area += AreaWithin(c, std::move(wedge));
-    }, [&](double e, PixelRect piece_clip, Vec2 p, Vec2 q) {
+    }, [&](double e, PixelRect piece_clip, Vec2 p, Vec2 q, double from, double to) {
       const Vec2 n = Vec2{p.y - q.y, q.x - p.x} * (e / Distance(p, q));  // to the left
-      shape.area += AreaWithin(grid.Area(piece_clip), {p, q, q + n, p + n});
+      const Vec2 a = p + from * (q - p), b = p + to * (q - p);
+      shape.area += AreaWithin(grid.Area(piece_clip), {a, b, b + n, a + n});
     });
   }
   shape.max_value = (m * shape.extent + a) * (1 + 0x1p-20);
@@ -548,6 +561,7 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
     glm::vec4 ends;
     glm::vec3 tent;  // (half-width, m, a)
     glm::vec4 clip;
+    glm::vec2 range;  // the part of ab drawn, as fractions of it
     uint32_t site;
   };
   struct Quad {  // exact.vert
@@ -562,7 +576,7 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
     glm::vec2 weight;
     uint32_t site;
   };
-  static_assert(sizeof(Cone) == 10 * 4 && sizeof(Tent) == 12 * 4 && sizeof(Quad) == 15 * 4 &&
+  static_assert(sizeof(Cone) == 10 * 4 && sizeof(Tent) == 14 * 4 && sizeof(Quad) == 15 * 4 &&
                 sizeof(Square) == 9 * 4);
   struct Fans {
     std::vector<Cone> whole;        // drawn instanced
@@ -624,9 +638,9 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
             fans.ranges.push_back(fan.range);
           }
         },
-        [&](double e, PixelRect piece_clip, Vec2 p, Vec2 q) {
+        [&](double e, PixelRect piece_clip, Vec2 p, Vec2 q, double from, double to) {
           tents.push_back({glm::vec4(rel(p), rel(q)), glm::vec3(e, weight), clip_of(piece_clip),
-                           id});
+                           glm::vec2(from, to), id});
         });
   }
   glBindFramebuffer(GL_FRAMEBUFFER, target.framebuffer());
@@ -679,7 +693,7 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
     glVertexAttribDivisor(location, 1);
   };
   glBindVertexArray(vao_);
-  for (GLuint location = 0; location < 5; ++location) glDisableVertexAttribArray(location);
+  for (GLuint location = 0; location < 6; ++location) glDisableVertexAttribArray(location);
   // The cones and tents are cut to their sites' clips (cone.vert and tent.vert write the
   // distances); the other programs write none, and their rectangles are cut above.
   for (GLenum plane = 0; plane < 4; ++plane) glEnable(GL_CLIP_DISTANCE0 + plane);
@@ -715,7 +729,7 @@ absl::Status Rasterizer::Draw(const Grid& grid, const DrawParams& params, PixelR
     use(tent_);
     glUniform1f(glGetUniformLocation(tent_.id, "u_overhang"),
                 static_cast<float>(grid.pixel_size() / 64));
-    bind(tent_mesh_, tents.data(), tents.size(), sizeof(Tent), {4, 3, 4}, 1);
+    bind(tent_mesh_, tents.data(), tents.size(), sizeof(Tent), {4, 3, 4, 2}, 1);
     glDrawArraysInstanced(GL_TRIANGLES, 0, 12, static_cast<GLsizei>(tents.size()));
   }
   for (GLenum plane = 0; plane < 4; ++plane) glDisable(GL_CLIP_DISTANCE0 + plane);

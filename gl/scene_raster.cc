@@ -34,9 +34,11 @@ double ClippedExtent(const Grid& grid, const Geometry& g, double extent, PixelRe
 
 // ComputeCoverage of `region` in bands of TopTilePx rows covered in parallel (the tiles and
 // so the radii and clips are the same as in one pass), then merged.
-Coverage ParallelCoverage(const Grid& grid, const SlotTable& slots, const SiteIndex& index,
-                          PixelRect region, Diagram diagram, bool pieces) {
-  const uint32_t leaf = DefaultTilePx(grid, index.size());
+Coverage ParallelCoverage(const Grid& grid, const SiteSnapshot& snapshot, PixelRect region,
+                          Diagram diagram, bool pieces) {
+  const SlotTable& slots = snapshot.sites();
+  const SiteIndex& index = snapshot.index();
+  const uint32_t leaf = DefaultTilePx(grid, snapshot.size(), snapshot.ink());
   const uint32_t top = TopTilePx(grid, index.size(), leaf);
   const size_t bands = (size_t{region.height()} + top - 1) / top;
   if (bands < 2) {
@@ -65,6 +67,8 @@ Coverage ParallelCoverage(const Grid& grid, const SlotTable& slots, const SiteIn
       for (size_t k = 0; k < part.pieces[s].size(); ++k) {
         into[k].radius = std::max(into[k].radius, part.pieces[s][k].radius);
         into[k].clip = into[k].clip.Union(part.pieces[s][k].clip);
+        into[k].from = std::min(into[k].from, part.pieces[s][k].from);
+        into[k].to = std::max(into[k].to, part.pieces[s][k].to);
       }
     }
   }
@@ -229,7 +233,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
   if (compute) {
     cov = TileCandidates(grid_, slots, drawn_->index(), &lists);
   } else {
-    cov = ParallelCoverage(grid_, slots, drawn_->index(), grid_.all(), params_.diagram,
+    cov = ParallelCoverage(grid_, *drawn_, grid_.all(), params_.diagram,
                            params_.mode == RenderMode::kMesh);
   }
   double coverage_seconds = Seconds(start);
@@ -415,7 +419,8 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
       draws[w] = std::move(windows[w].added);
       continue;
     }
-    Coverage cov = ComputeCoverage(grid_, slots, drawn_->index(), windows[w].rect, 0,
+    Coverage cov = ComputeCoverage(grid_, slots, drawn_->index(), windows[w].rect,
+                                   DefaultTilePx(grid_, drawn_->size(), drawn_->ink()),
                                    params_.diagram, params_.mode == RenderMode::kMesh);
     tile_px = cov.tile_px;
     for (uint32_t s = 0; s < slots.size(); ++s) {

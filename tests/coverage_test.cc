@@ -52,6 +52,18 @@ oracle::Real PieceDistance(Vec2 q, std::pair<Vec2, Vec2> f) {
   return oracle::ToSegment(q, a, b);
 }
 
+// Whether q projects on a half-tent's edge ab within the part of it the piece is drawn
+// over (a fan is drawn whole).
+bool WithinRange(Vec2 q, std::pair<Vec2, Vec2> f, const PieceDraw& piece) {
+  const auto [a, b] = f;
+  if (a == b) return true;
+  const oracle::Real dx = oracle::Real(b.x) - a.x, dy = oracle::Real(b.y) - a.y;
+  const oracle::Real t =
+      ((oracle::Real(q.x) - a.x) * dx + (oracle::Real(q.y) - a.y) * dy) / std::sqrt(dx * dx + dy * dy);
+  const oracle::Real slack = 1e-12 * (1 + std::abs(t));
+  return piece.from - slack <= t && t <= piece.to + slack;
+}
+
 bool Holds(const PixelRect& c, uint32_t i, uint32_t j) {
   return i >= c.x0 && i < c.x1 && j >= c.y0 && j < c.y1;
 }
@@ -109,7 +121,8 @@ void ExpectCovered(const Grid& grid, const SiteTable& sites, uint32_t tile_px = 
           if (!(d <= grid.pixel_size() / 128)) continue;
           const size_t other = k ^ 1;  // the other half: g(a, b) and g(b, a) come in pairs
           if (other >= pieces.size() || !(pieces[other].radius >= 0) ||
-              !Holds(pieces[other].clip, i, j)) {
+              !Holds(pieces[other].clip, i, j) ||
+              !WithinRange(p, {features[other].first, features[other].second}, pieces[other])) {
             ++failures;
             ADD_FAILURE() << "pixel " << i << "," << j << ": best site " << s << " at " << d
                           << " from an edge, but the far half of its tent does not reach it";
@@ -119,7 +132,8 @@ void ExpectCovered(const Grid& grid, const SiteTable& sites, uint32_t tile_px = 
         for (size_t k = 0; k < features.size() && !reached; ++k) {
           const oracle::Real dk = PieceDistance(p, features[k]);
           if (!(dk <= d + 1e-9 * (1 + d))) continue;  // not where the site's nearest point is
-          reached = k < pieces.size() && dk <= pieces[k].radius && Holds(pieces[k].clip, i, j);
+          reached = k < pieces.size() && dk <= pieces[k].radius && Holds(pieces[k].clip, i, j) &&
+                    WithinRange(p, features[k], pieces[k]);
         }
         if (!reached) {
           ++failures;
