@@ -151,6 +151,52 @@ TEST(Snapshot, EveryVersionStaysWhatItWas) {
   }
 }
 
+// A snapshot's ink (the summed length of its sites' segments) across puts, replacements and
+// removals of segments and polylines, against the sum over a model, by std::hypot.
+TEST(Snapshot, InkFollowsEveryChange) {
+  std::mt19937_64 rng(21);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<uint32_t> free_slots;
+  auto snap = SiteSnapshot::Empty(1);
+  std::map<std::string, std::vector<Vec2>> model;  // each site's chain of points
+  for (int step = 0; step < 200; ++step) {
+    std::vector<SiteChange> changes;
+    std::set<std::string> touched;
+    for (int c = 0; c < 1 + static_cast<int>(rng() % 6); ++c) {
+      const std::string id = "s" + std::to_string(rng() % 40);
+      if (!touched.insert(id).second) continue;
+      if (rng() % 4 == 0) {
+        model.erase(id);
+        changes.push_back({id, std::nullopt});
+        continue;
+      }
+      std::vector<Vec2> chain(1 + rng() % 5);  // one point is a point site
+      for (Vec2& p : chain) p = {u(rng), u(rng)};
+      model[id] = chain;
+      if (chain.size() == 1) {
+        changes.push_back({id, PointSite{chain[0]}});
+      } else if (chain.size() == 2) {
+        changes.push_back({id, SegmentSite{chain[0], chain[1]}});
+      } else {
+        changes.push_back({id, PolylineSite{chain}});
+      }
+    }
+    snap = Advance(snap, std::move(changes), &free_slots);
+    double want = 0;
+    for (const auto& [id, chain] : model) {
+      for (size_t k = 0; k + 1 < chain.size(); ++k) want += Hypot(chain[k], chain[k + 1]);
+    }
+    ASSERT_NEAR(snap->ink(), want, 1e-9) << "step " << step;
+  }
+  model.clear();
+  std::vector<SiteChange> all;
+  snap->ids().ForEachAfter("", [&](const IdMap::Entry& e) {
+    all.push_back({e.id, std::nullopt});
+    return true;
+  });
+  EXPECT_EQ(Advance(snap, std::move(all), &free_slots)->ink(), 0);
+}
+
 // A table's least weights, kept per chunk as sites come and go, against the minimum over a
 // plain model of its slots: few distinct weights (so that ties at the least are common and
 // removing one of them must not lose the others), removals of the least, emptied chunks,
