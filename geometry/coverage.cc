@@ -495,6 +495,17 @@ void TileCover::NeededSegments(const Grid& grid, PixelRect tile, const Site& sit
   }
 }
 
+Side TileCover::TileSide(const Grid& grid, PixelRect tile, const Site& site) {
+  const Window box = grid.CentreBox(tile);
+  const Vec2 c{(box.min_x + box.max_x) / 2, (box.min_y + box.max_y) / 2};
+  const double h = Distance({box.min_x, box.min_y}, {box.max_x, box.max_y}) / 2 + Rounding(c);
+  // The boundary is farther than the margin from every centre: none is on it, nor near it,
+  // and all lie on the side of c.
+  if (!(ExactDistance(c, site) - h > DrawMargin(grid) * (1 + 1e-12))) return Side::kBoth;
+  return InsidePolygon(c, std::get<PolygonSite>(site.geometry).vertices) ? Side::kInside
+                                                                           : Side::kOutside;
+}
+
 void TileCover::CoverDown(PixelRect tile, uint32_t leaf_px, const Leaf& leaf) const {
   thread_local std::vector<uint32_t> candidates;
   candidates.clear();

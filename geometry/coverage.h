@@ -160,6 +160,12 @@ class TileCover {
   static void NeededSegments(const Grid& grid, PixelRect tile, const Site& site, double upper,
                              std::vector<uint32_t>* out);
 
+  // For a polygon: Side::kInside (kOutside) when every pixel centre of `tile` lies inside
+  // (outside) it and farther than DrawMargin from its boundary, so that a polygon restricted
+  // to a side is present at all of them or at none; Side::kBoth when the boundary comes
+  // nearer. CONTRACT: the site is a polygon.
+  static Side TileSide(const Grid& grid, PixelRect tile, const Site& site);
+
  private:
   const Grid& grid_;
   const SlotTable& sites_;

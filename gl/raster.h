@@ -134,7 +134,8 @@ class Rasterizer {
 
   // Candidate lists for Compute, by tile of kComputeTile pixels, row-major. Tile t's plain
   // points (Site::plain) are points[offsets[3t] .. offsets[3t + 3]); the sites it scans
-  // whole (polygons restricted to a side, whose even-odd test needs every edge) are
+  // whole (polygons restricted to a side whose boundary comes near the tile: the even-odd
+  // test needs every edge) are
   // draws[sites[k]] for k in [offsets[3t + 1], offsets[3t + 4]); of the other sites it
   // scans single segments, segments[k] for k in [offsets[3t + 2], offsets[3t + 5]), those
   // that can hold their site's nearest point where it can be best there

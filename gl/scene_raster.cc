@@ -120,8 +120,14 @@ Coverage TileCandidates(const Grid& grid, const SlotTable& slots, const SiteInde
           const Site& site = *slots.get(slot);
           const auto* poly = std::get_if<PolygonSite>(&site.geometry);
           if (poly && poly->side != Side::kBoth) {
-            row.sites.push_back(slot);
-            continue;
+            // Scanned whole where its boundary comes near the tile; elsewhere present at all
+            // of its centres (then as if it had no side) or at none.
+            const Side where = TileCover::TileSide(grid, rect, site);
+            if (where == Side::kBoth) {
+              row.sites.push_back(slot);
+              continue;
+            }
+            if (where != poly->side) continue;
           }
           needed.clear();
           TileCover::NeededSegments(grid, rect, site, upper, &needed);
