@@ -161,6 +161,27 @@ std::optional<NearestAnswer> Frame::Nearest(Vec2 q) const {
   return best;
 }
 
+std::vector<uint32_t> OrderByTile(const Grid& grid, const std::vector<Vec2>& points) {
+  constexpr size_t kSmall = 1 << 14;
+  if (points.size() < kSmall) return {};
+  const uint32_t tiles_x = (grid.width + Frame::kTile - 1) / Frame::kTile;
+  const uint32_t tiles = tiles_x * ((grid.height + Frame::kTile - 1) / Frame::kTile);
+  std::vector<uint32_t> tile(points.size());
+  std::vector<uint32_t> start(size_t{tiles} + 2, 0);
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Vec2 c = grid.ToPixel(points[i]);
+    const bool inside = c.x >= 0 && c.y >= 0 && c.x < grid.width && c.y < grid.height;
+    tile[i] = inside ? static_cast<uint32_t>(c.y) / Frame::kTile * tiles_x +
+                           static_cast<uint32_t>(c.x) / Frame::kTile
+                     : tiles;
+    ++start[tile[i] + 1];
+  }
+  for (uint32_t t = 0; t <= tiles; ++t) start[t + 1] += start[t];
+  std::vector<uint32_t> order(points.size());
+  for (size_t i = 0; i < points.size(); ++i) order[start[tile[i]]++] = static_cast<uint32_t>(i);
+  return order;
+}
+
 NearestAnswer Frame::Refine(Vec2 q, const NearestAnswer& answer) const {
   NearestAnswer best = answer;
   best.runner_up = error_.diagram == Diagram::kNearest ? INFINITY : -INFINITY;
@@ -181,7 +202,8 @@ NearestAnswer Frame::Refine(Vec2 q, const NearestAnswer& answer) const {
   if (error_.diagram == Diagram::kNearest) {
     // A site beats value V only where m d + a < V, so d < (V - least a) / least m.
     const LeastWeights& least = snapshot_->least();
-    std::vector<uint32_t> near;
+    thread_local std::vector<uint32_t> near;  // no allocation per query in large batches
+    near.clear();
     snapshot_->index().Within(q, (answer.distance - least.additive) / least.multiplicative * (1 + 1e-12),
                               &near);
     for (uint32_t s : near) consider(s);

@@ -76,6 +76,12 @@ struct NearestAnswer {
   }
 };
 
+// For a large batch of query points (16,384 or more), their indices in the order of the
+// frame tiles (Frame::kTile pixels a side) of `grid` they fall in, those outside the window
+// last, so that a batch answered in that order keeps each tile's pixels and sites in cache;
+// empty for a smaller batch, answered in its own order. A counting sort: O(points + tiles).
+std::vector<uint32_t> OrderByTile(const Grid& grid, const std::vector<Vec2>& points);
+
 // Immutable once made; shared between threads by shared_ptr. Pixels live in square tiles
 // that later frames share, so a frame that changes a small window copies only its tiles.
 class Frame {

@@ -165,11 +165,14 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
   // the index answers, more often when each point scores every site.
   const size_t check_every =
       plain ? 4096 : std::max<size_t>(1, (size_t{1} << 20) / std::max<uint32_t>(1, slots.size()));
-  // Large batches are split across cores, all on this one snapshot.
+  // Large batches are split across cores, all on this one snapshot, and answered tile by
+  // tile of the grid.
+  const std::vector<uint32_t> order = OrderByTile(settings_.grid, points);
   ParallelFor(points.size(), 8192, [&](size_t begin, size_t end) {
     std::vector<uint32_t> nearer;
-    for (size_t i = begin; i < end; ++i) {
-      if (i % check_every == 0 && cancelled && (stop || cancelled())) {
+    for (size_t k = begin; k < end; ++k) {
+      const size_t i = order.empty() ? k : order[k];
+      if (k % check_every == 0 && cancelled && (stop || cancelled())) {
         stop = true;
         return;
       }

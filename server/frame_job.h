@@ -129,9 +129,13 @@ class NearestJob : public std::enable_shared_from_this<NearestJob> {
     rows_.resize(query_.points.size());
     const bool features = query_.wants(v1::FindNearestRequest::FEATURE);
     std::atomic<bool> missing{false}, cancelled{false};
+    // Large batches are answered tile by tile of the frame, so that each tile's pixels and
+    // sites stay in cache while its points are looked up.
+    const std::vector<uint32_t> order = OrderByTile(frame_->grid(), query_.points);
     ParallelFor(rows_.size(), 8192, [&](size_t begin, size_t end) {
-      for (size_t i = begin; i < end; ++i) {
-        if (i % 4096 == 0 && (cancelled || query_.ctx->IsCancelled())) {
+      for (size_t k = begin; k < end; ++k) {
+        const size_t i = order.empty() ? k : order[k];
+        if (k % 4096 == 0 && (cancelled || query_.ctx->IsCancelled())) {
           cancelled = true;
           return;
         }

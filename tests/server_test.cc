@@ -569,6 +569,67 @@ TEST_F(ServerTest, ExactAnswersMatchTheOracle) {
   EXPECT_EQ(response.results(0).distance(), 0);
 }
 
+// A batch large enough to be answered tile by tile (OrderByTile): every answer, raster and
+// exact, belongs to its own point, against the oracle; points on the window's border and
+// repeated among them, and (answered exactly, as any batch holding one) outside it.
+TEST_F(ServerTest, LargeBatchesAnswerEveryPointInItsPlace) {
+  Window w{0, 0, 1, 1};
+  Create("large", w, 128, 128);
+  const auto sites = RandomSites(300, w, 31);
+  const uint64_t v = Upsert("large", sites);
+  std::mt19937_64 rng(32);
+  for (bool outside : {false, true}) {
+    std::uniform_real_distribution<double> u(outside ? -0.2 : 0, outside ? 1.2 : 1);
+    std::vector<Vec2> points;
+    for (int i = 0; i < 40000; ++i) {
+      if (i % 97 == 0) {
+        points.push_back({0, double(i % 5) / 4});  // on the border
+      } else if (i % 89 == 0 && !points.empty()) {
+        points.push_back(points[points.size() / 2]);  // again
+      } else {
+        points.push_back({u(rng), u(rng)});
+      }
+    }
+    v1::FindNearestRequest r;
+    r.set_scene_id("large");
+    r.set_min_version(v);
+    for (Vec2 p : points) {
+      r.add_xy(p.x);
+      r.add_xy(p.y);
+    }
+    for (bool exact : {false, true}) {
+      r.set_exact(exact);
+      v1::FindNearestResponse b;
+      ASSERT_TRUE(client_->FindNearest(r, &b).ok());
+      ASSERT_EQ(b.packed().site_size(), int(points.size()));
+      std::map<std::string, const Site*> by_id;
+      for (const Site& s : sites) by_id[s.id] = &s;
+      int failures = 0;
+      for (size_t i = 0; i < points.size() && failures < 5; ++i) {
+        const Vec2 q = points[i];
+        const uint32_t named = b.packed().site(i);
+        ASSERT_LT(named, uint32_t(b.packed().site_ids_size())) << "point " << i;
+        const std::string& id = b.packed().site_ids(named);
+        const double d = b.packed().distance(i), bound = b.packed().error_bound(i);
+        const double truth = oracle::BestSite(q, sites).value, tol = oracle::Tolerance(q, d);
+        const bool ok = by_id.count(id) &&
+                        std::abs(d - oracle::Distance(q, by_id[id]->geometry)) <= tol &&
+                        truth + tol >= d - bound && (!exact || (bound == 0 && d <= truth + tol));
+        if (!ok) {
+          ++failures;
+          ADD_FAILURE() << (exact ? "exact" : "raster") << " point " << i << " (" << q.x << ", "
+                        << q.y << "): " << id << " at " << d << " +- " << bound << ", truth " << truth;
+        }
+      }
+      // Without `exact`, a batch inside the window gets raster answers, not all exact.
+      if (!exact && !outside) {
+        EXPECT_LT(std::count(b.packed().error_bound().begin(), b.packed().error_bound().end(), 0.0),
+                  int(points.size()) / 2);
+      }
+    }
+  }
+}
+
 // The packed form and the stream give the same answers as the per-point form.
 TEST_F(ServerTest, PackedAndStreamedAnswersAgree) {
   Window w{0, 0, 1, 1};
