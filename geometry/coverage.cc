@@ -357,12 +357,13 @@ double TileCover::Keep(PixelRect tile, std::span<const uint32_t> candidates,
       if (nearest[i] == SIZE_MAX || at[k][i] < at[nearest[i]][i]) nearest[i] = k;
     }
   }
+  const double slack = 2 * Rounding(c);
   auto clipped = [&](size_t k) {
     for (size_t w : nearest) {
       if (w == SIZE_MAX || w == k) continue;
       bool beaten = true;
       for (int i = 0; i < 4 && beaten; ++i) {
-        beaten = at[k][i] > at[w][i] * (1 + 1e-12) + 2 * Rounding(c);
+        beaten = at[k][i] > at[w][i] * (1 + 1e-12) + slack;
       }
       if (beaten) return true;
     }
@@ -427,12 +428,13 @@ double TileCover::KeepFarthest(PixelRect tile, std::span<const uint32_t> candida
       if (farthest[i] == SIZE_MAX || at[k][i] > at[farthest[i]][i]) farthest[i] = k;
     }
   }
+  const double slack = 2 * Rounding(c);
   auto clipped = [&](size_t k) {
     for (size_t w : farthest) {
       if (w == SIZE_MAX || w == k) continue;
       bool beaten = true;
       for (int i = 0; i < 4 && beaten; ++i) {
-        beaten = at[k][i] * (1 + 1e-12) + 2 * Rounding(c) < at[w][i];
+        beaten = at[k][i] * (1 + 1e-12) + slack < at[w][i];
       }
       if (beaten) return true;
     }

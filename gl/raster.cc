@@ -381,7 +381,7 @@ void ScanTiles(const Grid& grid, const Rasterizer::TileLists& lists,
   ids->resize(grid.pixel_count());
   values->resize(grid.pixel_count());
   ParallelFor(tiles_y, 1, [&](size_t begin, size_t end) {
-    alignas(32) float px[kPixels], py[kPixels], best[kPixels], d2[kPixels];
+    alignas(32) float px[kPixels], py[kPixels], xs[kTile], ys[kTile], best[kPixels], d2[kPixels];
     alignas(32) uint32_t id[kPixels];
     alignas(32) bool inside[kPixels];
     // The least distance from each pixel to the segment (a, b) into d2, squared, and the
@@ -423,29 +423,42 @@ void ScanTiles(const Grid& grid, const Rasterizer::TileLists& lists,
       const uint32_t y0 = static_cast<uint32_t>(ty) * kTile;
       for (uint32_t tx = 0; tx < tiles_x; ++tx) {
         const uint32_t x0 = tx * kTile;
-        for (uint32_t j = 0; j < kTile; ++j) {
-          for (uint32_t i = 0; i < kTile; ++i) {
-            px[j * kTile + i] = (static_cast<float>(x0 + i) + 0.5f) * pw;
-            py[j * kTile + i] = (static_cast<float>(y0 + j) + 0.5f) * ph;
-          }
+        for (uint32_t i = 0; i < kTile; ++i) {
+          xs[i] = (static_cast<float>(x0 + i) + 0.5f) * pw;
+          ys[i] = (static_cast<float>(y0 + i) + 0.5f) * ph;
         }
         std::fill(best, best + kPixels, INFINITY);
         std::fill(id, id + kPixels, 0u);
         const size_t t = ty * tiles_x + tx;
         const uint32_t* at = &lists.offsets[3 * t];  // where each list of the tile starts
         const uint32_t* next = at + 3;               // and ends
-        // Plain points, by squared distance.
+        // Plain points, by squared distance, row by row.
         for (uint32_t k = at[0]; k < next[0]; ++k) {
           const Rasterizer::Point q = lists.points[k];
-          for (uint32_t i = 0; i < kPixels; ++i) {
-            const float dx = px[i] - q.x, dy = py[i] - q.y;
-            const float dd = dx * dx + dy * dy;
-            const bool better = dd < best[i] || (dd == best[i] && q.id < id[i]);
-            best[i] = better ? dd : best[i];
-            id[i] = better ? q.id : id[i];
+          for (uint32_t j = 0; j < kTile; ++j) {
+            const float dy = ys[j] - q.y, dy2 = dy * dy;
+            float* row = best + j * kTile;
+            uint32_t* row_id = id + j * kTile;
+            for (uint32_t i = 0; i < kTile; ++i) {
+              const float dx = xs[i] - q.x;
+              const float dd = dx * dx + dy2;
+              const bool better = dd < row[i] || (dd == row[i] && q.id < row_id[i]);
+              row[i] = better ? dd : row[i];
+              row_id[i] = better ? q.id : row_id[i];
+            }
           }
         }
-        for (uint32_t i = 0; i < kPixels; ++i) best[i] = std::sqrt(best[i]);
+        // The other sites compare values, not squares.
+        const bool others = at[1] < next[1] || at[2] < next[2];
+        if (others) {
+          for (uint32_t i = 0; i < kPixels; ++i) best[i] = std::sqrt(best[i]);
+          for (uint32_t j = 0; j < kTile; ++j) {
+            for (uint32_t i = 0; i < kTile; ++i) {
+              px[j * kTile + i] = xs[i];
+              py[j * kTile + i] = ys[j];
+            }
+          }
+        }
         // Sites scanned whole.
         for (uint32_t k = at[1]; k < next[1]; ++k) {
           const ComputeSite& s = sites[lists.sites[k]];
@@ -470,7 +483,7 @@ void ScanTiles(const Grid& grid, const Rasterizer::TileLists& lists,
             const size_t i = size_t{y} * grid.width + x;
             const uint32_t k = (y - y0) * kTile + (x - x0);
             (*ids)[i] = id[k];
-            (*values)[i] = id[k] == 0 ? none : best[k];
+            (*values)[i] = id[k] == 0 ? none : others ? best[k] : std::sqrt(best[k]);
           }
         }
       }
@@ -778,6 +791,11 @@ absl::Status Rasterizer::Compute(const Grid& grid, const DrawParams& params,
   std::vector<glm::vec4> segments;
   const Vec2 origin{grid.window.min_x, grid.window.min_y};
   for (const SiteDraw& d : draws) {
+    // Plain points are scanned from the lists' own points: their records are never read.
+    if (!std::isnan(sites.point(d.slot).x)) {
+      records.emplace_back();
+      continue;
+    }
     const Site& site = *sites.get(d.slot);
     const SiteShape shape = Shape(grid, params, site, d);
     PerFragmentSite f = PerFragmentOf(site, d.slot + 1, shape.extent, origin, &segments);
