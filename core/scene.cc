@@ -152,9 +152,11 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
   const SiteIndex& index = snapshot->index();
   const Window& window = settings_.grid.window;
   // With only plain sites, the nearest site is the nearest by distance: the frame and the
-  // spatial index find it. Otherwise (weights, max_distance, sides, FARTHEST) every site is
-  // scored.
-  const bool plain = snapshot->plain() && settings_.diagram == Diagram::kNearest;
+  // spatial index find it. With weights, max_distance or sides, the index finds the sites
+  // that can beat a value found at the point. A FARTHEST diagram scores every site.
+  const bool nearest = settings_.diagram == Diagram::kNearest;
+  const bool plain = snapshot->plain() && nearest;
+  const LeastWeights& least = snapshot->least();
   answers->resize(points.size());
   auto answer = [&](Vec2 q, uint32_t slot, double value) {
     const Site* site = slots.get(slot);
@@ -164,7 +166,7 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
   // Cancellation is checked about every million site evaluations: every 4,096 points when
   // the index answers, more often when each point scores every site.
   const size_t check_every =
-      plain ? 4096 : std::max<size_t>(1, (size_t{1} << 20) / std::max<uint32_t>(1, slots.size()));
+      nearest ? 4096 : std::max<size_t>(1, (size_t{1} << 20) / std::max<uint32_t>(1, slots.size()));
   // Large batches are split across cores, all on this one snapshot, and answered tile by
   // tile of the grid.
   const std::vector<uint32_t> order = OrderByTile(settings_.grid, points);
@@ -177,6 +179,41 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
         return;
       }
       const Vec2 q = points[i];
+      if (!plain && nearest) {
+        // Weights, max_distance or sides: a value V found at q bounds the search, as a site
+        // s beats it only where m_s d + a_s < V, so d < (V - least a) / least m. V comes from
+        // the frame when it shows this snapshot (its answer's value is exact; "no candidate"
+        // is certain), else from the site nearest by distance; where neither gives one,
+        // every site is scored below.
+        uint32_t best = 0;
+        double value = INFINITY;
+        std::optional<NearestAnswer> raster;
+        if (fresh && window.Contains(q)) raster = frame->Nearest(q);
+        if (raster && !raster->found) {
+          (*answers)[i] = ExactAnswer{};
+          continue;
+        }
+        if (raster) {
+          best = raster->site_index;
+          value = raster->distance;
+        } else if (ExactNearest n = index.Nearest(q); n.found()) {
+          best = static_cast<uint32_t>(n.index);
+          value = SiteValue(q, *slots.get(best));
+        }
+        if (std::isfinite(value)) {
+          nearer.clear();
+          index.Within(q, (value - least.additive) / least.multiplicative * (1 + 1e-12), &nearer);
+          for (uint32_t s : nearer) {
+            const double v = SiteValue(q, *slots.get(s));
+            if (v < value || (v == value && s < best)) {
+              best = s;
+              value = v;
+            }
+          }
+          (*answers)[i] = answer(q, best, value);
+          continue;
+        }
+      }
       if (!plain) {
         uint32_t best = 0;
         double value = 0;

@@ -78,8 +78,10 @@ class Scene {
   // and q lies in the window, the frame's answer bounds the search (paper sec. 6.3: the
   // raster's site is an upper bound) and the snapshot's index supplies every site within it;
   // otherwise the index alone finds the nearest.
-  // Scenes with weighted, bounded or one-sided sites, and FARTHEST scenes, score every site
-  // (O(sites) per point). Concurrent calls do not block each other.
+  // With weighted, bounded or one-sided sites, the value found there (the frame's, or the
+  // site nearest by distance's) bounds the search through the least weights; where neither
+  // gives a finite value, and in FARTHEST scenes, every site is scored (O(sites) per point).
+  // Concurrent calls do not block each other.
   // CONTRACT: the scene has sites.
   // found = false: no site is a candidate at the point (site_id empty).
   struct ExactAnswer {

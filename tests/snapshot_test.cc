@@ -15,6 +15,7 @@
 
 #include "core/snapshot.h"
 #include "core/scene.h"
+#include "tests/oracle.h"
 
 namespace gvd {
 namespace {
@@ -413,6 +414,53 @@ TEST(SceneCore, ReadersDoNotWaitForACommit) {
   std::vector<Scene::ExactAnswer> answers;
   EXPECT_EQ(scene.NearestExact({{0.8, 0.5}}, &answers), 3u);
   EXPECT_EQ(answers[0].site_id, "b");
+}
+
+// Exact answers in scenes with weights, max_distance and sides come from the index, bounded
+// through the least weights by the value found at the point (here, with no frame, the value
+// of the site nearest by distance, which weights often beat), and in FARTHEST scenes from
+// every site: against the oracle, at points in and around the window.
+TEST(SceneCore, ExactAnswersWithWeightsBoundsAndSides) {
+  std::mt19937_64 rng(41);
+  std::uniform_real_distribution<double> u(-0.3, 1.3), w(0, 1);
+  for (Diagram diagram : {Diagram::kNearest, Diagram::kFarthest}) {
+    SceneSettings settings = Settings();
+    settings.diagram = diagram;
+    Scene scene(settings);
+    std::vector<Site> sites;
+    for (int i = 0; i < 400; ++i) {
+      Site s{"s" + std::to_string(i), PointSite{{u(rng), u(rng)}}};
+      if (i % 7 == 0) {
+        const Vec2 c{u(rng), u(rng)};
+        s.geometry = PolygonSite{{c, c + Vec2{0.1, 0.02}, c + Vec2{0.05, 0.12}},
+                                 static_cast<Side>(i % 3)};
+      }
+      s.multiplicative = 0.3 + 3 * w(rng);
+      s.additive = i % 3 == 0 ? 0.2 * w(rng) : 0;
+      if (i % 5 == 0) s.max_distance = 0.05 + 0.3 * w(rng);
+      sites.push_back(s);
+    }
+    ASSERT_TRUE(scene.Upsert(sites, 1000).ok());
+    std::vector<Vec2> points;
+    for (int k = 0; k < 3000; ++k) points.push_back({u(rng), u(rng)});
+    std::vector<Scene::ExactAnswer> answers;
+    ASSERT_NE(scene.NearestExact(points, &answers), 0u);
+    int failures = 0;
+    for (size_t k = 0; k < points.size() && failures < 5; ++k) {
+      const oracle::Best truth = oracle::BestSite(points[k], sites, diagram);
+      const Scene::ExactAnswer& a = answers[k];
+      const bool ok =
+          a.found == truth.found &&
+          (!truth.found ||
+           std::abs(a.distance - truth.value) <= oracle::Tolerance(points[k], truth.value, 4));
+      if (!ok) {
+        ++failures;
+        ADD_FAILURE() << (diagram == Diagram::kNearest ? "nearest" : "farthest") << " point "
+                      << k << ": " << a.site_id << " at " << a.distance << ", truth "
+                      << (truth.found ? sites[truth.index].id : "none") << " at " << truth.value;
+      }
+    }
+  }
 }
 
 // Pages of ListSites cover every id once, in order, across the leaves of the id map.
