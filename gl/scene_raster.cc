@@ -229,11 +229,16 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
                                                                     RenderStats* stats) {
   auto start = std::chrono::steady_clock::now();
   const SlotTable& slots = drawn_->sites();
+  // Where the sites' lines lie less than two pixels apart on average, the meshes' coverage
+  // needs leaves of one pixel and its pieces overlap many times: 100,000 crossing segments
+  // at 1024x1024 took 38 s drawn (35 s of it the coverage, on the CPU whatever the device)
+  // against 4.4 s computed (tests/bench/README.md). Such scenes are computed on every device.
+  const bool crowded = drawn_->ink() / grid_.pixel_size() > grid_.pixel_count() / 2.0;
   bool compute =
       params_.diagram == Diagram::kNearest &&
       (path_ == FullRender::kCompute ||
        (path_ == FullRender::kAuto &&
-        (params_.mode == RenderMode::kExact || rasterizer.software())));
+        (params_.mode == RenderMode::kExact || rasterizer.software() || crowded)));
   Coverage cov;
   Rasterizer::TileLists lists;
   if (compute) {

@@ -19,7 +19,8 @@ namespace gvd {
 // How a render from scratch is made.
 enum class FullRender {
   kAuto,     // kCompute for a kNearest diagram in RenderMode::kExact, or in any mode on a
-             // software rasterizer (where it is several times faster for every kind); else
+             // software rasterizer (where it is several times faster for every kind) or
+             // where the sites' lines crowd (less than two pixels apart on average); else
              // kRaster. In kMesh the computed values are exact, within the mode's bound.
   kRaster,   // every site's mesh (or per-fragment quad) drawn over its coverage radius
   kCompute,  // for kNearest: a compute shader over per-tile candidate lists (exact values)
