@@ -45,16 +45,17 @@ def main(paths):
             ratio = f"{ms(o) / ms(g):.2f}x" if o else ""
             print(f"| full render, 1,000,000 points, 4096x4096, {label} | {ms(g):.1f} ms ({how}) "
                   f"| {ref} | {ratio} |")
-    kinds = ("segment", "polyline, 8 points", "polygon, 6 vertices",
-             "polygon, 6 vertices, inside only", "cubic Bezier", "weighted point, max_distance",
-             "point, FARTHEST (100 sites)")
+    kinds = ("1,000 segments", "1,000 polylines of 8 points", "1,000 hexagons",
+             "1,000 hexagons, inside only", "1,000 cubic Beziers",
+             "1,000 weighted points with max_distance", "100 points, FARTHEST",
+             "20 polylines of 5,000 random points across the window")
     for kind, name in enumerate(kinds):
         for mode, label in ((0, "mesh"), (1, "exact")):
             g = rows.get(f"BM_RenderKind/{kind}/{mode}")
             if g:
                 how = (f"computed, {g['candidates_px']:.1f} candidates/px"
-                       if g.get("candidates_px") else f"fill {g['fill']:.0f}x grid")
-                print(f"| full render, 1,000 sites: {name}, 1024x1024, {label} mode | "
+                       if g.get("candidates_px") else f"fill {g['fill']:.1f}x grid")
+                print(f"| full render, {name}, 1024x1024, {label} mode | "
                       f"{ms(g):.1f} ms ({how}) | | |")
     full = rows.get("BM_Render/100000/1024/0")
     ocv = rows.get("BM_OpenCVDistanceTransform/100000/1024")
