@@ -32,7 +32,7 @@ def main(paths):
                 ref = f"{ms(o):.1f} ms (OpenCV distanceTransform, labels)" if o else "n/a"
                 ratio = f"{ms(o) / ms(g):.2f}x" if o else ""
                 how = (f"computed, {g['candidates_px']:.1f} candidates/px"
-                       if g.get("candidates_px") else f"fill {g['fill']:.0f}x grid")
+                       if g.get("candidates_px") else f"fill {g['fill']:.1f}x grid")
                 print(f"| full render, {n:,} points, {size}x{size}, {label} mode | {ms(g):.1f} ms "
                       f"({how}) | {ref} | {ratio} |")
     o = rows.get("BM_OpenCVDistanceTransform/1000000/4096")
@@ -40,7 +40,7 @@ def main(paths):
         g = rows.get(f"BM_Large4096/{path}")
         if g:
             how = (f"{g['candidates_px']:.1f} candidates/px" if g.get("candidates_px")
-                   else f"fill {g['fill']:.0f}x grid")
+                   else f"fill {g['fill']:.1f}x grid")
             ref = f"{ms(o):.1f} ms (OpenCV distanceTransform, labels)" if o else ""
             ratio = f"{ms(o) / ms(g):.2f}x" if o else ""
             print(f"| full render, 1,000,000 points, 4096x4096, {label} | {ms(g):.1f} ms ({how}) "
