@@ -23,6 +23,7 @@ Frame::Frame(Grid grid, double eps, ErrorModel error, const uint32_t* ids, const
              std::shared_ptr<const SiteSnapshot> sites)
     : Frame(grid, eps, std::move(sites)) {
   error_ = error;
+  changed_ = grid.all();
   tiles_.resize(size_t{tiles_x()} * tiles_y());
   for (uint32_t ty = 0; ty < tiles_y(); ++ty) {
     for (uint32_t tx = 0; tx < tiles_x(); ++tx) {
@@ -37,6 +38,7 @@ Frame::Frame(const Frame& base, ErrorModel error, PixelRect rect, const uint32_t
              const float* distances, std::shared_ptr<const SiteSnapshot> sites)
     : Frame(base.grid_, base.eps_, std::move(sites)) {
   error_ = error;
+  changed_ = base.version() == version() ? base.changed_.Union(rect) : rect;
   tiles_ = base.tiles_;
   if (rect.empty()) return;
   if (tiles_.empty()) tiles_.resize(size_t{tiles_x()} * tiles_y());
@@ -73,7 +75,9 @@ void Frame::Fill(Tile& t, uint32_t tx, uint32_t ty, PixelRect rect, const uint32
 
 std::shared_ptr<const Frame> Frame::Empty(Grid grid, double eps,
                                           std::shared_ptr<const SiteSnapshot> sites) {
-  return std::shared_ptr<const Frame>(new Frame(grid, eps, std::move(sites)));
+  auto frame = std::shared_ptr<Frame>(new Frame(grid, eps, std::move(sites)));
+  frame->changed_ = grid.all();  // every pixel is empty now
+  return frame;
 }
 
 void Frame::PixelOf(Vec2 p, uint32_t* i, uint32_t* j) const {

@@ -118,6 +118,11 @@ class Frame {
   const SlotTable& sites() const { return snapshot_->sites(); }
   size_t site_count() const { return snapshot_->size(); }
   bool empty() const { return snapshot_->empty(); }
+  // The pixels that may differ from the last frame of an earlier version this frame was made
+  // from: all of them for a frame made from whole buffers or an empty one; for one made from
+  // `base`, `rect` joined with base's own when base is of the same version (a render that
+  // writes several windows makes a frame per window), else `rect` alone. Empty: none.
+  const PixelRect& changed() const { return changed_; }
 
   // Pixel access. CONTRACT: i < width, j < height, and the frame is not empty.
   uint32_t id_at(uint32_t i, uint32_t j) const {
@@ -168,6 +173,7 @@ class Frame {
   double eps_;
   std::shared_ptr<const SiteSnapshot> snapshot_;
   ErrorModel error_;
+  PixelRect changed_;
   std::vector<std::shared_ptr<const Tile>> tiles_;
 };
 

@@ -89,7 +89,33 @@ absl::Status Scene::Retire(const std::function<absl::Status()>& persist) {
     if (auto s = persist(); !s.ok()) return s;
   }
   deleted_ = true;
+  Notify(nullptr, /*last=*/true);
   return absl::OkStatus();
+}
+
+uint64_t Scene::Watch(FrameListener listener) {
+  std::lock_guard<std::mutex> lock(listeners_mu_);
+  const uint64_t token = next_listener_++;
+  listeners_.emplace(token, std::make_shared<const FrameListener>(std::move(listener)));
+  return token;
+}
+
+void Scene::Unwatch(uint64_t token) {
+  std::lock_guard<std::mutex> calling(listeners_call_mu_);
+  std::lock_guard<std::mutex> lock(listeners_mu_);
+  listeners_.erase(token);
+}
+
+void Scene::Notify(const std::shared_ptr<const Frame>& frame, bool last) {
+  std::lock_guard<std::mutex> calling(listeners_call_mu_);
+  std::vector<std::shared_ptr<const FrameListener>> listeners;
+  {
+    std::lock_guard<std::mutex> lock(listeners_mu_);
+    listeners.reserve(listeners_.size());
+    for (const auto& [token, l] : listeners_) listeners.push_back(l);
+    if (last) listeners_.clear();
+  }
+  for (const auto& l : listeners) (*l)(frame);
 }
 
 absl::StatusOr<uint64_t> Scene::Upsert(std::vector<Site> sites, size_t max_sites,
@@ -297,6 +323,7 @@ void Scene::Publish(std::shared_ptr<const Frame> frame) {
       done(frame);
     }
   }
+  if (!deleted_) Notify(frame, /*last=*/false);
 }
 
 void Scene::FailWaiters(const absl::Status& status) {

@@ -157,9 +157,20 @@ class Scene {
   // If the waiter is still pending, removes it and calls it with `why`.
   void Cancel(uint64_t token, const absl::Status& why);
 
+  // Live events (WatchScene): `listener` is called with every frame published from now on,
+  // on the publishing thread, holding no lock of the scene, and with null once when the
+  // scene is deleted (then never again). It must be quick: note the frame, schedule work.
+  // The watch ends with Unwatch(token) or the deletion. Many listeners cost O(listeners) per
+  // publication.
+  using FrameListener = std::function<void(const std::shared_ptr<const Frame>&)>;
+  uint64_t Watch(FrameListener listener);
+  // After it returns, the listener is not called again (unless a call was already under
+  // way on another thread, which it then waits for). CONTRACT: not from the listener.
+  void Unwatch(uint64_t token);
+
   // Deletes the scene: under the writer lock, runs `persist` (the store's delete) and, if it
-  // succeeds, marks the scene deleted, after which every write is refused (NOT_FOUND).
-  // NOT_FOUND when it was deleted already.
+  // succeeds, marks the scene deleted, after which every write is refused (NOT_FOUND), and
+  // tells the listeners. NOT_FOUND when it was deleted already.
   absl::Status Retire(const std::function<absl::Status()>& persist = nullptr);
   bool deleted() const { return deleted_; }
 
@@ -188,6 +199,15 @@ class Scene {
   std::mutex waiters_mu_;  // guards the two below
   uint64_t next_token_ = 1;
   std::map<uint64_t, Waiter> waiters_;
+
+  // Listeners are called under listeners_call_mu_ (so that Unwatch can wait for a call under
+  // way), never under listeners_mu_, which guards the map.
+  std::mutex listeners_call_mu_;
+  std::mutex listeners_mu_;
+  uint64_t next_listener_ = 1;
+  std::map<uint64_t, std::shared_ptr<const FrameListener>> listeners_;
+  // Calls every listener with `frame` (null: the scene is gone, and the listeners with it).
+  void Notify(const std::shared_ptr<const Frame>& frame, bool last);
 
   struct DerivedValue {
     std::shared_ptr<const Frame> frame;  // keeps the frame's address from being reused

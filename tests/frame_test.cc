@@ -119,3 +119,35 @@ TEST(Frame, QueryOutsideTheWindowStillHonoursTheContract) {
 
 }  // namespace
 }  // namespace gvd
+
+namespace gvd {
+namespace {
+
+// What a frame says changed: all of it for a frame from whole buffers or an empty one; a
+// frame made from a base of an earlier version, its own window; from a base of the same
+// version (a render that writes several windows), both windows joined.
+TEST(FrameChanged, WholeWindowsAndJoinedWindowsOfOneRender) {
+  const Grid grid{{0, 0, 1, 1}, 40, 30};
+  const std::vector<uint32_t> ids(grid.pixel_count(), 1);
+  const std::vector<float> dist(grid.pixel_count(), 0.5f);
+  const SiteTable sites = {{"a", PointSite{{0.5, 0.5}}}};
+  auto v1 = std::make_shared<const Frame>(grid, 1, ErrorModel{}, ids.data(), dist.data(),
+                                          SiteSnapshot::Of(1, sites));
+  EXPECT_EQ(v1->changed(), grid.all());
+  EXPECT_EQ(Frame::Empty(grid, 1, SiteSnapshot::Empty(3))->changed(), grid.all());
+  const PixelRect a{2, 3, 10, 7}, b{20, 15, 25, 30};
+  auto v2 = SiteSnapshot::Of(2, sites);
+  auto first = std::make_shared<const Frame>(*v1, ErrorModel{}, a, ids.data(), dist.data(), v2);
+  EXPECT_EQ(first->changed(), a);
+  auto second = std::make_shared<const Frame>(*first, ErrorModel{}, b, ids.data(), dist.data(), v2);
+  EXPECT_EQ(second->changed(), a.Union(b));
+  auto next = std::make_shared<const Frame>(*second, ErrorModel{}, b, ids.data(), dist.data(),
+                                            SiteSnapshot::Of(4, sites));
+  EXPECT_EQ(next->changed(), b);
+  auto nothing = std::make_shared<const Frame>(*next, ErrorModel{}, PixelRect{}, ids.data(),
+                                               dist.data(), SiteSnapshot::Of(5, sites));
+  EXPECT_TRUE(nothing->changed().empty());
+}
+
+}  // namespace
+}  // namespace gvd
