@@ -20,6 +20,10 @@ Scenes:
   gvd scene get ID
   gvd scene ls
   gvd scene rm ID
+  gvd watch SCENE [--after VERSION]
+      one line per frame the scene publishes from now on (after VERSION): its version,
+      the window that changed and its site count; "deleted" and the end when the scene
+      is deleted. --json prints each event as a line of JSON
 Sites (of the scene named by --scene, default "default"):
   gvd sites add ID X Y [ID X Y ...]              points
   gvd sites add segment ID X,Y X,Y

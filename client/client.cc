@@ -55,6 +55,24 @@ grpc::Status Client::DeleteScene(const std::string& scene_id) {
   return stub_->DeleteScene(Context().get(), request, &response);
 }
 
+grpc::Status Client::WatchScene(const v1::WatchSceneRequest& request,
+                                const std::function<bool(const v1::SceneEvent&)>& on_event) {
+  grpc::ClientContext ctx;
+  if (!options_.token.empty()) ctx.AddMetadata("authorization", "Bearer " + options_.token);
+  auto reader = stub_->WatchScene(&ctx, request);
+  v1::SceneEvent event;
+  while (reader->Read(&event)) {
+    if (!on_event(event)) {
+      ctx.TryCancel();
+      while (reader->Read(&event)) {
+      }
+      reader->Finish();
+      return grpc::Status::OK;
+    }
+  }
+  return reader->Finish();
+}
+
 grpc::Status Client::UpsertSites(const v1::UpsertSitesRequest& request, uint64_t* version) {
   v1::UpsertSitesResponse response;
   grpc::Status s = stub_->UpsertSites(Context().get(), request, &response);

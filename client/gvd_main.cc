@@ -309,6 +309,39 @@ int Run(const Args& a) {
     }
   }
 
+  if (w[0] == "watch") {
+    need(2, "watch SCENE [--after VERSION]");
+    gvd::v1::WatchSceneRequest r;
+    r.set_scene_id(w[1]);
+    if (const std::string* after = option("--after")) {
+      uint64_t v;
+      if (!absl::SimpleAtoi(*after, &v)) Usage(absl::StrCat("--after needs a version, not \"", *after, "\""));
+      r.set_after_version(v);
+    }
+    auto s = client->WatchScene(r, [&](const gvd::v1::SceneEvent& e) {
+      if (a.json) {
+        std::string line;
+        google::protobuf::util::JsonPrintOptions o;
+        (void)google::protobuf::util::MessageToJsonString(e, &line, o);
+        std::cout << line << std::endl;
+      } else if (e.deleted()) {
+        std::cout << "scene " << e.scene_id() << " deleted" << std::endl;
+      } else {
+        std::cout << "version " << e.version() << ": ";
+        if (e.has_changed()) {
+          const auto& c = e.changed();
+          std::cout << "changed [" << c.min_x() << ", " << c.max_x() << "] x [" << c.min_y()
+                    << ", " << c.max_y() << "]";
+        } else {
+          std::cout << "nothing changed";
+        }
+        std::cout << ", " << e.site_count() << " sites" << std::endl;
+      }
+      return true;
+    });
+    return s.ok() ? 0 : Fail(s);
+  }
+
   if (w[0] == "sites" && w.size() >= 2) {
     const std::string& verb = w[1];
     if (verb == "add") {

@@ -245,6 +245,7 @@ Status VoronoiService::Ready() const {
 
 int VoronoiService::Drain(std::chrono::milliseconds grace) {
   draining_ = true;
+  watches_.EndAll(Status(StatusCode::UNAVAILABLE, "the server is shutting down"));
   auto deadline = std::chrono::steady_clock::now() + grace;
   while (calls_.in_flight > 0 && std::chrono::steady_clock::now() < deadline) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
@@ -367,6 +368,13 @@ grpc::ServerUnaryReactor* VoronoiService::DeleteScene(grpc::CallbackServerContex
   renderer_->MarkDirty(scene);  // lets the render thread release the scene's target
   Log(LogLevel::kInfo, "scene_deleted", {{"scene", scene->id()}});
   return call.Finish(ctx, Status::OK);
+}
+
+grpc::ServerWriteReactor<v1::SceneEvent>* VoronoiService::WatchScene(
+    grpc::CallbackServerContext* ctx, const v1::WatchSceneRequest* request) {
+  Call call = Begin(ctx, "WatchScene", Access::kRead, &request->scene_id());
+  if (!call.ok()) return Watches::Refuse(call.scope, call.status);
+  return watches_.Start(call.scope, call.scene, request->after_version());
 }
 
 grpc::ServerUnaryReactor* VoronoiService::UpsertSites(grpc::CallbackServerContext* ctx,

@@ -18,6 +18,7 @@
 #include "server/limits.h"
 #include "server/metrics.h"
 #include "server/render_loop.h"
+#include "server/watch.h"
 #include "core/cpu_pool.h"
 #include "core/scene.h"
 #include "core/store.h"
@@ -46,8 +47,9 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   // Rebuilds every stored scene (and queues its render); then the service answers calls.
   absl::Status Load();
 
-  // Refuses new calls (UNAVAILABLE) from now on, and waits up to `grace` for the calls in
-  // flight to finish. Returns how many were still in flight.
+  // Refuses new calls (UNAVAILABLE) from now on, ends the WatchScene streams (UNAVAILABLE),
+  // and waits up to `grace` for the calls in flight to finish. Returns how many were still
+  // in flight.
   int Drain(std::chrono::milliseconds grace);
   // Calls in flight: handlers running, queries waiting for a render, streams writing.
   int in_flight() const { return calls_.in_flight; }
@@ -64,6 +66,8 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   grpc::ServerUnaryReactor* DeleteScene(grpc::CallbackServerContext* ctx,
                                         const v1::DeleteSceneRequest* request,
                                         v1::DeleteSceneResponse* response) override;
+  grpc::ServerWriteReactor<v1::SceneEvent>* WatchScene(
+      grpc::CallbackServerContext* ctx, const v1::WatchSceneRequest* request) override;
   grpc::ServerUnaryReactor* UpsertSites(grpc::CallbackServerContext* ctx,
                                         const v1::UpsertSitesRequest* request,
                                         v1::UpsertSitesResponse* response) override;
@@ -168,6 +172,8 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   // Ids of scenes being created (reserved, not yet committed): they count against
   // --max-scenes and refuse a second create, but are not found until committed.
   std::set<std::string> creating_;
+  // The WatchScene streams open now.
+  Watches watches_;
   // The process's CPU pool does the work that must not run on gRPC's threads nor on the
   // render thread, on two lanes: answers to queries that waited for a frame (and image
   // encoding) first, then analyses, of which at most --analysis-threads run at once and

@@ -6,6 +6,7 @@
 #include <map>
 #include <random>
 #include <set>
+#include <thread>
 #include <vector>
 #include <fstream>
 #include <sstream>
@@ -337,6 +338,36 @@ TEST_F(CliTest, MosaicsFromTheServerAndEmbedded) {
   r = Gvd("mosaic " + src + " " + server_->dir() + "/y.png --embedded");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.out.find("gvd-mosaic"), std::string::npos) << r.out;
+}
+
+// gvd watch prints a line per event until the scene is deleted, then exits 0.
+TEST_F(CliTest, WatchPrintsEventsUntilTheSceneIsDeleted) {
+  ASSERT_EQ(Gvd("scene create watched --window 0,0,10,10 --size 64x64").exit_code, 0);
+  const std::string out = server_->dir() + "/watch.txt";
+  Result watch;
+  std::thread t([&] { watch = Gvd("watch watched > " + out); });
+  auto printed = [&] {
+    std::ifstream in(out);
+    std::stringstream text;
+    text << in.rdbuf();
+    return text.str();
+  };
+  // Its first line: the latest frame, the whole window changed, no sites yet.
+  for (int i = 0; i < 600 && printed().empty(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_EQ(printed(), "version 1: changed [0, 10] x [0, 10], 0 sites\n");
+  ASSERT_EQ(Gvd("--scene watched sites add a 5 5").exit_code, 0);
+  for (int i = 0; i < 600 && printed().find("1 sites") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  ASSERT_EQ(Gvd("scene rm watched").exit_code, 0);
+  t.join();
+  EXPECT_EQ(watch.exit_code, 0) << watch.out;
+  const std::string text = printed();
+  EXPECT_NE(text.find("\nversion 2: changed ["), std::string::npos) << text;
+  EXPECT_NE(text.find("], 1 sites\nscene watched deleted\n"), std::string::npos) << text;
+  EXPECT_EQ(Gvd("watch nowhere").exit_code, 1);
 }
 
 TEST_F(CliTest, HealthSaysServing) {

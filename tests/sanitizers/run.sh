@@ -2,7 +2,7 @@
 # The sanitizer builds, as CI runs them after the test suite:
 #  - ASan + UBSan: the whole test suite. LeakSanitizer checks the unit tests; it is off where
 #    Mesa is loaded (GL tests, the server), as Mesa keeps driver allocations until exit.
-#  - TSan: the server's concurrency tests (scene writers and readers, render thread, frame publication, concurrent
+#  - TSan: the server's concurrency tests (scene writers and readers, render thread, frame publication, watch streams, concurrent
 #    queries and updates, crash and load tests), with gRPC/protobuf/abseil suppressed: Debian
 #    builds them without TSan, so it cannot see their synchronization (tsan.supp).
 # Usage: bash tests/sanitizers/run.sh   (after bash tests/run-tests.sh installed the packages)
@@ -26,7 +26,7 @@ cmake -S . -B build/tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGVD_WERROR
 cmake --build build/tsan --target gvd_core_tests gvd_integration_tests gvd-server gvd
 export TSAN_OPTIONS="halt_on_error=1 suppressions=$root/tests/sanitizers/tsan.supp"
 (cd build/tsan && ctest --output-on-failure -j "$jobs" --timeout 900 \
-  -R '^(SceneCore|Store|CpuPool|ServerTest|LoadTest|CrashTest|CliTest|MetricsTest|AnalysisServerTest|AnalysisLimitsTest)\.' \
+  -R '^(SceneCore|Store|CpuPool|ServerTest|LoadTest|CrashTest|CliTest|MetricsTest|AnalysisServerTest|AnalysisLimitsTest|WatchTest|WatchDrain)\.' \
   -E '^CliTest\.EveryKindAndAnImage$')
 # EveryKindAndAnImage is left out of TSan only: the single-threaded CLI's GeoJSON parsing
 # (protobuf Struct maps, inlined from Debian's uninstrumented protobuf) crashes under TSan

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <chrono>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -35,6 +36,11 @@ class Client {
   grpc::Status GetScene(const std::string& scene_id, v1::Scene* scene);
   grpc::Status ListScenes(std::vector<v1::Scene>* scenes);
   grpc::Status DeleteScene(const std::string& scene_id);
+  // WatchScene: calls on_event with each event as it comes, until the stream ends, or
+  // on_event returns false (then the call is cancelled and the result is OK). No deadline:
+  // a watch lasts as long as the scene, the server or the caller.
+  grpc::Status WatchScene(const v1::WatchSceneRequest& request,
+                          const std::function<bool(const v1::SceneEvent&)>& on_event);
 
   grpc::Status UpsertSites(const v1::UpsertSitesRequest& request, uint64_t* version);
   grpc::Status DeleteSites(const std::string& scene_id, const std::vector<std::string>& ids,
