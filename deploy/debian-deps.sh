@@ -7,11 +7,11 @@ gvd_packages() {
     build)
       echo cmake ninja-build g++ pkgconf ccache \
         libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler libabsl-dev \
-        libboost-dev libglm-dev libsqlite3-dev prometheus-cpp-dev libopenimageio-dev \
+        libboost-dev libssl-dev libglm-dev libsqlite3-dev prometheus-cpp-dev libopenimageio-dev \
         libegl-dev libopengl-dev libegl1 libopengl0 libegl-mesa0 libgl1-mesa-dri
       ;;
     test)
-      echo libgtest-dev libgmock-dev libbenchmark-dev libnanoflann-dev libqhull-dev openssl \
+      echo libgtest-dev libgmock-dev libbenchmark-dev libnanoflann-dev libqhull-dev openssl curl \
         shellcheck yamllint python3-yaml
       ;;
     bench)  # the reference libraries of tests/bench/run.sh beyond the test group's, and the

@@ -17,11 +17,15 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "absl/strings/str_split.h"
 #include "server/auth.h"
+#include "server/http.h"
 #include "server/log.h"
 #include "server/metrics.h"
 #include "server/render_loop.h"
 #include "server/service.h"
+#include "server/web_app.h"
 #include "server/convert.h"
 #include "store/sqlite_store.h"
 
@@ -30,7 +34,8 @@ namespace {
 constexpr const char* kUsage = R"(usage: gvd-server [flags]
 
   --listen HOST:PORT          address to serve on (default 127.0.0.1:50051; port 0 picks one)
-  --port-file PATH            write the bound port to PATH once serving (for scripts and tests)
+  --port-file PATH            write the bound port to PATH once serving (for scripts and
+                              tests), and the HTTP port on a second line when it serves one
   --data DIR                  where scenes and sites are stored (SQLite, WAL, synchronous=FULL);
                               default $XDG_STATE_HOME/gvd or ~/.local/state/gvd; ":memory:"
                               keeps nothing across restarts
@@ -56,6 +61,11 @@ constexpr const char* kUsage = R"(usage: gvd-server [flags]
   --max-queued-analyses N     such calls waiting for their turn before RESOURCE_EXHAUSTED
                               (default 64)
   --metrics-listen HOST:PORT  serve Prometheus metrics at http://HOST:PORT/metrics (default off)
+  --http-listen HOST:PORT     also serve every call over HTTP/1.1 in the Connect protocol
+                              (JSON: POST /gvd.v1.Voronoi/METHOD), and the web app at /
+                              (default off; the same tokens, TLS, limits and metrics)
+  --http-cors-origins LIST    origins whose pages may call the HTTP port, comma-separated
+                              ("https://app.example.com"; "*" for any); default none
   --tokens FILE               require bearer tokens: one "TOKEN read" or "TOKEN write" per line
   --tls-cert FILE, --tls-key FILE
                               serve TLS with this certificate chain and private key (PEM)
@@ -75,7 +85,8 @@ struct Flags {
   std::string log_level = "info";
   uint32_t software_render_threads = 0;
   uint32_t grace_ms = 5000;
-  std::string tokens, tls_cert, tls_key, tls_client_ca, metrics_listen;
+  std::string tokens, tls_cert, tls_key, tls_client_ca, metrics_listen, http_listen;
+  std::vector<std::string> cors_origins;
   gvd::ServerLimits limits;
 };
 
@@ -151,6 +162,10 @@ Flags ParseFlags(int argc, char** argv) {
     if (arg == "--listen") f.listen = value;
     else if (arg == "--tokens") f.tokens = value;
     else if (arg == "--metrics-listen") f.metrics_listen = value;
+    else if (arg == "--http-listen") f.http_listen = value;
+    else if (arg == "--http-cors-origins") {
+      f.cors_origins = absl::StrSplit(value, ',', absl::SkipWhitespace());
+    }
     else if (arg == "--tls-cert") f.tls_cert = value;
     else if (arg == "--tls-key") f.tls_key = value;
     else if (arg == "--tls-client-ca") f.tls_client_ca = value;
@@ -292,6 +307,43 @@ int main(int argc, char** argv) {
   server->GetHealthCheckService()->SetServingStatus(false);
   gvd::Log(gvd::LogLevel::kInfo, "listening",
            {{"address", flags.listen}, {"port", absl::StrCat(port)}});
+  // HTTP: the same service, reached over an in-process channel.
+  std::unique_ptr<gvd::HttpServer> http;
+  if (!flags.http_listen.empty()) {
+    gvd::HttpOptions options;
+    options.listen = flags.http_listen;
+    options.cors_origins = flags.cors_origins;
+    options.max_body_bytes = flags.limits.max_message_bytes;
+    options.files = gvd::WebApp();
+    if (!flags.tls_cert.empty()) {
+      options.tls_cert = ReadFile("--tls-cert", flags.tls_cert);
+      options.tls_key = ReadFile("--tls-key", flags.tls_key);
+      if (!flags.tls_client_ca.empty()) {
+        options.tls_client_ca = ReadFile("--tls-client-ca", flags.tls_client_ca);
+      }
+    }
+    grpc::ChannelArguments args;
+    args.SetMaxReceiveMessageSize(-1);
+    args.SetMaxSendMessageSize(-1);
+    auto started = gvd::HttpServer::Start(std::move(options), server->InProcessChannel(args));
+    if (!started.ok()) {
+      gvd::Log(gvd::LogLevel::kError, "http_failed", {{"error", started.status().ToString()}});
+      server->Shutdown();
+      renderer.Stop();
+      return 1;
+    }
+    http = std::move(*started);
+    const auto colon = flags.http_listen.rfind(':');
+    std::string host = flags.http_listen.substr(0, colon);
+    if (host == "0.0.0.0" || host == "[::]" || host.empty()) host = "127.0.0.1";
+    gvd::Log(gvd::LogLevel::kInfo, "http_listening",
+             {{"address", flags.http_listen},
+              {"port", absl::StrCat(http->port())},
+              {"url", absl::StrCat(flags.tls_cert.empty() ? "http" : "https", "://", host, ":",
+                                   http->port(), "/")},
+              {"tls", flags.tls_cert.empty() ? "off" : "on"},
+              {"cors_origins", absl::StrJoin(flags.cors_origins, ",")}});
+  }
   if (auto s = service.Load(); !s.ok()) {
     gvd::Log(gvd::LogLevel::kError, "store_load_failed", {{"error", s.ToString()}});
     server->Shutdown();
@@ -301,7 +353,10 @@ int main(int argc, char** argv) {
   server->GetHealthCheckService()->SetServingStatus(true);
   if (!flags.port_file.empty()) {
     std::string tmp = flags.port_file + ".tmp";
-    std::ofstream(tmp) << port << "\n";
+    std::ofstream out(tmp);
+    out << port << "\n";
+    if (http) out << http->port() << "\n";
+    out.close();
     std::rename(tmp.c_str(), flags.port_file.c_str());
   }
 
@@ -313,6 +368,8 @@ int main(int argc, char** argv) {
   // period to finish; whatever is left then is cancelled.
   server->GetHealthCheckService()->SetServingStatus(false);
   int left = service.Drain(std::chrono::milliseconds(flags.grace_ms));
+  // HTTP connections finish the response under way, idle ones close.
+  if (http) http->Shutdown(std::chrono::milliseconds(std::min<uint32_t>(flags.grace_ms, 1000)));
   server->Shutdown(std::chrono::system_clock::now());
   renderer.Stop();
   store->reset();  // closes the database cleanly

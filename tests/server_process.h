@@ -51,7 +51,10 @@ class ServerProcess {
     auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
     while (std::chrono::steady_clock::now() < deadline) {
       std::ifstream in(port_file);
-      if (in >> port_) return;
+      if (in >> port_) {
+        in >> http_port_;  // the second line, when the server serves HTTP
+        return;
+      }
       int status;
       if (waitpid(pid_, &status, WNOHANG) == pid_) {
         pid_ = -1;
@@ -108,6 +111,8 @@ class ServerProcess {
 
   const std::string& error() const { return error_; }
   std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
+  // The HTTP port (--http-listen), 0 when none.
+  int http_port() const { return http_port_; }
   const std::string& dir() const { return dir_; }
   std::string log() const {
     std::ifstream in(log_);
@@ -119,7 +124,7 @@ class ServerProcess {
  private:
   std::string dir_, log_, error_;
   pid_t pid_ = -1;
-  int port_ = 0;
+  int port_ = 0, http_port_ = 0;
 };
 
 // Holds a server's renders from construction to destruction, so that a version stays

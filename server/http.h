@@ -1,0 +1,63 @@
+// The gvd.v1.Voronoi service over HTTP/1.1 in the Connect protocol (https://connectrpc.com),
+// for browsers, curl and Connect clients: every RPC at POST /gvd.v1.Voronoi/METHOD, unary
+// ones with application/json (the canonical protobuf JSON mapping) or application/proto
+// bodies, server-streaming ones (FindNearestStream, WatchScene) as enveloped
+// application/connect+json or +proto streams; errors as {"code": "invalid_argument",
+// "message": ...} with the matching HTTP status.
+//
+// It is a second transport, not a second implementation: each request is forwarded, as the
+// same protobuf message, to the gRPC service over an in-process channel, with its
+// Authorization header as the call's metadata and its Connect-Timeout-Ms as the deadline,
+// so every call has the same handlers, limits, tokens, metrics and drain as over gRPC. It
+// adds only what HTTP needs: TLS on its own port, CORS for the origins allowed, and a limit
+// on request bodies (--max-message-bytes). Boost.Beast, asynchronous: a connection waiting
+// on a long stream holds no thread.
+#pragma once
+
+#include <chrono>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+
+#include "absl/status/statusor.h"
+
+namespace gvd {
+
+struct HttpOptions {
+  std::string listen;  // HOST:PORT (port 0 picks one)
+  // Origins whose pages may call (CORS), exactly as browsers send them
+  // ("https://app.example.com"); "*" allows any. None by default.
+  std::vector<std::string> cors_origins;
+  // TLS, as PEM text: the certificate chain and key, and the CA that client certificates
+  // must chain to (required when set). No TLS when cert is empty.
+  std::string tls_cert, tls_key, tls_client_ca;
+  size_t max_body_bytes = 64 << 20;
+  int threads = 2;
+  // Static files served by GET: path ("/", "/app.js") to (content type, body).
+  std::map<std::string, std::pair<std::string, std::string>> files;
+};
+
+class HttpServer {
+ public:
+  // Listens and serves, forwarding calls over `channel` (to the gRPC service). Fails when
+  // the address cannot be bound or the TLS files do not load.
+  static absl::StatusOr<std::unique_ptr<HttpServer>> Start(
+      HttpOptions options, std::shared_ptr<grpc::Channel> channel);
+  ~HttpServer();
+
+  int port() const;
+  // Stops accepting connections (those open finish the request under way; the service's
+  // drain ends the streams); closes everything left after `grace`.
+  void Shutdown(std::chrono::milliseconds grace);
+
+  class Impl;
+
+ private:
+  explicit HttpServer(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace gvd

@@ -1,0 +1,1 @@
+// gvd web app
