@@ -4,6 +4,8 @@
 #   cmake -DOUTPUT=out.h -DNAMESPACE=gvd::shaders "-DINPUTS=a.vert.glsl|b.frag.glsl" \
 #         -P EmbedText.cmake
 #
+# or, from a CMakeLists.txt, gvd_embed_text(OUTPUT NAMESPACE FILE...) (cmake/Embed.cmake).
+#
 # Each file becomes `inline constexpr char k<Name>[]`, its name without the last extension in
 # CamelCase: cone.vert.glsl -> kConeVert, exact_point.frag.glsl -> kExactPointFrag.
 cmake_minimum_required(VERSION 3.25)

@@ -62,31 +62,6 @@ class Watches {
 
  private:
   friend class WatchStream;
-
-// What a stream has yet to tell: the newest frame noted since its last event, with the
-// changed parts of every frame noted since joined. Not thread-safe.
-class PendingEvent {
- public:
-  // For a stream of events after version `after`.
-  explicit PendingEvent(uint64_t after) : sent_(after) {}
-
-  // Notes a frame: ignored unless newer than the last event and the frames noted since.
-  // `whole`: count the whole window as changed (the first frame a stream takes, as it cannot
-  // tell what changed since `after`).
-  void Note(const Frame& frame, bool whole = false);
-  bool ready() const { return version_ > sent_; }
-  // Writes what is pending into `event` (version, site count, changed window in the scene
-  // units of `grid`) and starts afresh. CONTRACT: ready().
-  void Take(const Grid& grid, v1::SceneEvent* event);
-  // The version of the last event taken (or `after`).
-  uint64_t sent() const { return sent_; }
-
- private:
-  uint64_t sent_;
-  uint64_t version_ = 0;
-  uint64_t sites_ = 0;
-  PixelRect changed_;
-};
   void Remove(WatchStream* stream);
 
   std::mutex mu_;
