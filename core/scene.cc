@@ -156,10 +156,10 @@ Scene::Picked Scene::Pick(Vec2 q, double max_distance) const {
   if (snapshot->empty()) return p;
   ExactNearest n = snapshot->index().Nearest(q);
   if (!n.found() || n.distance > max_distance) return p;
-  const Site& site = *snapshot->sites().get(static_cast<uint32_t>(n.index));
+  p.site = snapshot->sites().ptr(static_cast<uint32_t>(n.index));
+  const Site& site = *p.site;
   FeatureHit f = NearestFeature(q, site);
   p.found = true;
-  p.site_id = site.id;
   p.distance = n.distance;
   p.feature_kind = f.kind;
   p.feature_index = f.index;
@@ -182,7 +182,6 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
   // that can beat a value found at the point. A FARTHEST diagram scores every site.
   const bool nearest = settings_.diagram == Diagram::kNearest;
   const bool plain = snapshot->plain() && nearest;
-  const LeastWeights& least = snapshot->least();
   answers->resize(points.size());
   auto answer = [&](Vec2 q, uint32_t slot, double value) {
     const Site* site = slots.get(slot);
@@ -227,15 +226,7 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
           value = SiteValue(q, *slots.get(best));
         }
         if (std::isfinite(value)) {
-          nearer.clear();
-          index.Within(q, (value - least.additive) / least.multiplicative * (1 + 1e-12), &nearer);
-          for (uint32_t s : nearer) {
-            const double v = SiteValue(q, *slots.get(s));
-            if (v < value || (v == value && s < best)) {
-              best = s;
-              value = v;
-            }
-          }
+          snapshot->Improve(q, &best, &value, &nearer);
           (*answers)[i] = answer(q, best, value);
           continue;
         }

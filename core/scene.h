@@ -105,7 +105,7 @@ class Scene {
   // max_distance. O(log n).
   struct Picked {
     bool found = false;
-    std::string site_id;
+    std::shared_ptr<const Site> site;  // the site picked, as stored (null when not found)
     double distance = 0;
     FeatureKind feature_kind = FeatureKind::kVertex;
     uint32_t feature_index = 0;

@@ -78,6 +78,19 @@ std::shared_ptr<const SiteSnapshot> SiteSnapshot::Empty(uint64_t version) {
   return s;
 }
 
+void SiteSnapshot::Improve(Vec2 q, uint32_t* best, double* value,
+                           std::vector<uint32_t>* scratch) const {
+  scratch->clear();
+  index_.Within(q, (*value - least_.additive) / least_.multiplicative * (1 + 1e-12), scratch);
+  for (uint32_t s : *scratch) {
+    const double v = SiteValue(q, *sites().get(s));
+    if (v < *value || (v == *value && s < *best)) {
+      *best = s;
+      *value = v;
+    }
+  }
+}
+
 std::shared_ptr<const SiteSnapshot> SiteSnapshot::Of(uint64_t version, std::vector<Site> sites) {
   std::vector<uint32_t> free_slots;
   SnapshotBuilder b(Empty(0), &free_slots);

@@ -75,6 +75,11 @@ class SiteSnapshot {
   // The summed length of the sites' segments (TotalLength): how much line the coverage's
   // tiles must resolve (DefaultTilePx).
   double ink() const { return ink_; }
+  // In a NEAREST diagram: given a site `best` whose value at q is `value` (finite), makes
+  // them the best site at q and its value, exactly (least slot on ties). Only a site within
+  // (value - least additive) / least multiplicative of q can beat the value (m d + a < V
+  // needs d < (V - a) / m), and the index finds those. `scratch` is reused between calls.
+  void Improve(Vec2 q, uint32_t* best, double* value, std::vector<uint32_t>* scratch) const;
 
  private:
   friend class SnapshotBuilder;

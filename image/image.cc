@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <unordered_map>
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
@@ -18,12 +19,26 @@ uint64_t Fnv1a(const std::string& s, uint64_t h = 1469598103934665603ull) {
   return h;
 }
 
-// The site (slot + 1) shown at pixel (i, j), or 0: a site present but no candidate at the
-// centre shows as empty.
-uint32_t Shown(const Frame& f, uint32_t i, uint32_t j) {
-  uint32_t id = f.id_at(i, j);
-  if (id == 0 || !f.error().limited_presence) return id;
-  return std::isfinite(SiteValue(f.grid().Center(i, j), *f.sites().get(id - 1))) ? id : 0;
+// The site (slot + 1) shown at pixel (i, j) and its value there, or id 0. A site is
+// present a little beyond its max_distance or side (DrawMargin), where it is no candidate:
+// there the frame's answer at the centre (Frame::Nearest) says who is, if anyone, made
+// exact from the frame's snapshot in a NEAREST diagram (SiteSnapshot::Improve).
+struct ShownSite {
+  uint32_t id = 0;
+  double value = 0;
+};
+ShownSite Shown(const Frame& f, uint32_t i, uint32_t j, std::vector<uint32_t>* scratch) {
+  const uint32_t id = f.id_at(i, j);
+  if (id == 0) return {};
+  if (!f.error().limited_presence) return {id, f.distance_at(i, j)};
+  const Vec2 centre = f.grid().Center(i, j);
+  if (std::isfinite(SiteValue(centre, *f.sites().get(id - 1)))) return {id, f.distance_at(i, j)};
+  const std::optional<NearestAnswer> n = f.Nearest(centre);
+  if (!n || !n->found) return {};
+  uint32_t best = n->site_index;
+  double value = n->distance;
+  if (f.error().diagram == Diagram::kNearest) f.snapshot().Improve(centre, &best, &value, scratch);
+  return {best + 1, value};
 }
 
 // Plots segment ab (scene units) over an RGB image of the rect, row 0 at the top, in `colour`,
@@ -103,11 +118,12 @@ absl::StatusOr<EncodedImage> EncodeImage(const Frame& f, const ImageOptions& o) 
   std::vector<uint8_t> rgb;
   std::vector<uint16_t> grey;
   std::vector<float> depth;
+  std::vector<uint32_t> scratch;  // Shown's
   if (o.layer == ImageLayer::kDistance) {
     double max_value = 0;
     for (uint32_t j = rect.y0; j < rect.y1; ++j) {
       for (uint32_t i = rect.x0; i < rect.x1; ++i) {
-        if (Shown(f, i, j)) max_value = std::max<double>(max_value, f.distance_at(i, j));
+        if (ShownSite s = Shown(f, i, j, &scratch); s.id) max_value = std::max(max_value, s.value);
       }
     }
     if (png) {
@@ -121,8 +137,9 @@ absl::StatusOr<EncodedImage> EncodeImage(const Frame& f, const ImageOptions& o) 
     for (uint32_t j = rect.y0; j < rect.y1; ++j) {
       for (uint32_t i = rect.x0; i < rect.x1; ++i) {
         size_t at = size_t(rect.y1 - 1 - j) * w + (i - rect.x0);
-        bool shown = Shown(f, i, j) != 0;
-        double v = f.distance_at(i, j);
+        const ShownSite s = Shown(f, i, j, &scratch);
+        const bool shown = s.id != 0;
+        const double v = s.value;
         if (png) {
           grey[at] = shown && max_value > 0
                          ? static_cast<uint16_t>(std::lround(std::min(v / max_value, 1.0) * 65535))
@@ -137,10 +154,26 @@ absl::StatusOr<EncodedImage> EncodeImage(const Frame& f, const ImageOptions& o) 
     if (!png) return absl::InvalidArgumentError("format EXR holds the DISTANCE layer only");
     rgb.assign(size_t{w} * h * 3, 0);
     spec = OIIO::ImageSpec(int(w), int(h), 3, OIIO::TypeDesc::UINT8);
+    std::unordered_map<uint32_t, uint32_t> index;  // kSiteIndex: slot + 1 -> number written
     for (uint32_t j = rect.y0; j < rect.y1; ++j) {
       for (uint32_t i = rect.x0; i < rect.x1; ++i) {
-        uint32_t id = Shown(f, i, j);
+        const uint32_t id = Shown(f, i, j, &scratch).id;
         if (id == 0) continue;
+        if (o.layer == ImageLayer::kSiteIndex) {
+          auto [it, fresh] = index.try_emplace(id, static_cast<uint32_t>(out.site_ids.size() + 1));
+          if (fresh) {
+            if (it->second >= (1u << 24)) {
+              return absl::ResourceExhaustedError(
+                  "the window shows more than 16,777,215 sites: SITE_INDEX holds 24 bits");
+            }
+            out.site_ids.push_back(f.sites().get(id - 1)->id);
+          }
+          uint8_t* px = &rgb[(size_t(rect.y1 - 1 - j) * w + (i - rect.x0)) * 3];
+          px[0] = static_cast<uint8_t>(it->second >> 16);
+          px[1] = static_cast<uint8_t>(it->second >> 8);
+          px[2] = static_cast<uint8_t>(it->second);
+          continue;
+        }
         const Site& site = *f.sites().get(id - 1);
         uint32_t feature = 0;
         if (o.layer == ImageLayer::kFeatures) {

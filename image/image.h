@@ -10,7 +10,8 @@
 
 namespace gvd {
 
-enum class ImageLayer { kIds, kFeatures, kDistance };
+// kSiteIndex: 1 + an index into EncodedImage::site_ids per pixel, in 24-bit RGB (0: none).
+enum class ImageLayer { kIds, kFeatures, kDistance, kSiteIndex };
 enum class ImageFormat { kPng, kExr };
 
 struct ImageOptions {
@@ -25,6 +26,7 @@ struct EncodedImage {
   std::vector<unsigned char> bytes;
   std::string mime_type;
   uint32_t width = 0, height = 0;
+  std::vector<std::string> site_ids;  // kSiteIndex: the sites the pixels name, in order
 };
 
 // The colour of a site (or of one of its features): stable, from a hash of its id, bright
@@ -33,7 +35,8 @@ void SiteColour(const std::string& id, uint32_t feature, uint8_t rgb[3]);
 
 // Encodes a layer of the frame: row 0 of the image is the top of the window (max y).
 // Pixels held by a site that is no candidate there (within DrawMargin of its max_distance
-// or side) show as empty. CONTRACT: the frame is not empty.
+// or side) show the site that is best at their centre (exactly in a NEAREST diagram, within
+// the frame's bound in a FARTHEST one), or empty. CONTRACT: the frame is not empty.
 absl::StatusOr<EncodedImage> EncodeImage(const Frame& frame, const ImageOptions& options);
 
 }  // namespace gvd

@@ -408,10 +408,11 @@ grpc::ServerUnaryReactor* VoronoiService::Pick(grpc::CallbackServerContext* ctx,
   response->set_found(picked.found);
   response->set_version(picked.version);
   if (picked.found) {
-    response->set_site_id(picked.site_id);
+    response->set_site_id(picked.site->id);
     response->set_distance(picked.distance);
     response->set_feature_kind(ToProto(picked.feature_kind));
     response->set_feature_index(picked.feature_index);
+    ToProto(*picked.site, response->mutable_site());
   }
   return call.Finish(ctx, Status::OK);
 }

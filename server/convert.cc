@@ -461,9 +461,10 @@ grpc::Status ToImageOptions(const v1::RenderImageRequest& request, const Grid& g
     case v1::RenderImageRequest::IDS: options->layer = ImageLayer::kIds; break;
     case v1::RenderImageRequest::FEATURES: options->layer = ImageLayer::kFeatures; break;
     case v1::RenderImageRequest::DISTANCE: options->layer = ImageLayer::kDistance; break;
+    case v1::RenderImageRequest::SITE_INDEX: options->layer = ImageLayer::kSiteIndex; break;
     default:
       return Invalid(absl::StrCat("layer is ", request.layer(),
-                                  "; it must be IDS, FEATURES or DISTANCE"));
+                                  "; it must be IDS, FEATURES, DISTANCE or SITE_INDEX"));
   }
   switch (request.format()) {
     case v1::RenderImageRequest::FORMAT_UNSPECIFIED:
@@ -477,6 +478,10 @@ grpc::Status ToImageOptions(const v1::RenderImageRequest& request, const Grid& g
     return Invalid("format EXR holds the DISTANCE layer only");
   }
   if (exr && request.draw_sites()) return Invalid("draw_sites needs format PNG");
+  if (options->layer == ImageLayer::kSiteIndex &&
+      (request.draw_sites() || request.polyline_size() > 0)) {
+    return Invalid("layer SITE_INDEX takes neither draw_sites nor polyline: its pixels are numbers");
+  }
   options->draw_sites = request.draw_sites();
   options->rect = grid.all();
   if (request.has_window()) {

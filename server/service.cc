@@ -534,6 +534,8 @@ grpc::ServerUnaryReactor* VoronoiService::RenderImage(grpc::CallbackServerContex
     response->set_width_px(image->width);
     response->set_height_px(image->height);
     response->set_version(frame.version());
+    for (std::string& id : image->site_ids) response->add_site_ids(std::move(id));
+    ToProto(frame.grid().Area(options.rect), response->mutable_window());
     return Status::OK;
   };
   auto* reactor = new FrameReactor(std::move(query));

@@ -4,11 +4,15 @@
 
 #include <cmath>
 #include <random>
+#include <set>
 
 #include "gvd/client.h"
 #include "geometry/exact.h"
 #include "server_process.h"
 #include "test_scenes.h"
+// After protobuf's headers: OpenImageIO's would hide its byte-swap functions.
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imageio.h>
 
 namespace gvd {
 namespace {
@@ -244,6 +248,112 @@ TEST_F(SitesServerTest, RenderImageEncodesLayers) {
   EXPECT_NE(st.error_message().find("holds no pixel centre"), std::string::npos);
   r.set_scene_id("nope");
   EXPECT_EQ(client_->RenderImage(r, &bad).error_code(), StatusCode::NOT_FOUND);
+}
+
+// SITE_INDEX: each pixel of a window names its site through the response's site_ids, and
+// that site is the exact nearest at the pixel's centre (within float arithmetic), also
+// beside one-sided polygons, where the frame holds a site that is no candidate.
+TEST_F(SitesServerTest, SiteIndexImagesNameEachPixelsNearestSite) {
+  std::vector<Site> sites = MixedSites(11);
+  for (Site& s : sites) s.max_distance = INFINITY;  // every pixel has a site
+  Create("index", v1::NEAREST, v1::EXACT);
+  const uint64_t version = Upsert("index", sites);
+  v1::RenderImageRequest r;
+  r.set_scene_id("index");
+  r.set_layer(v1::RenderImageRequest::SITE_INDEX);
+  r.set_min_version(version);
+  r.mutable_window()->set_min_x(2.01);
+  r.mutable_window()->set_min_y(3);
+  r.mutable_window()->set_max_x(8.3);
+  r.mutable_window()->set_max_y(7.1);
+  v1::RenderImageResponse image;
+  auto st = client_->RenderImage(r, &image);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  // Pixels of 10/512 whose centres lie in the window: columns 103 to 424, rows 154 to 363.
+  const double px = 10.0 / 512;
+  EXPECT_EQ(image.width_px(), 322u);
+  EXPECT_EQ(image.height_px(), 210u);
+  EXPECT_DOUBLE_EQ(image.window().min_x(), 103 * px);
+  EXPECT_DOUBLE_EQ(image.window().max_x(), 425 * px);
+  EXPECT_DOUBLE_EQ(image.window().min_y(), 154 * px);
+  EXPECT_DOUBLE_EQ(image.window().max_y(), 364 * px);
+
+  OIIO::Filesystem::IOMemReader memory(image.image().data(), image.image().size());
+  auto in = OIIO::ImageInput::open("index.png", nullptr, &memory);
+  ASSERT_TRUE(in) << OIIO::geterror();
+  ASSERT_EQ(in->spec().nchannels, 3);
+  ASSERT_EQ(in->spec().width, int(image.width_px()));
+  std::vector<uint8_t> rgb(size_t{image.width_px()} * image.height_px() * 3);
+  ASSERT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, rgb.data()));
+  std::set<std::string> named;
+  int failures = 0;
+  for (uint32_t row = 0; row < image.height_px(); ++row) {
+    for (uint32_t col = 0; col < image.width_px(); ++col) {
+      const uint8_t* p = &rgb[(size_t{row} * image.width_px() + col) * 3];
+      const uint32_t index = uint32_t{p[0]} << 16 | uint32_t{p[1]} << 8 | p[2];
+      ASSERT_GE(index, 1u) << col << "," << row;
+      ASSERT_LE(index, uint32_t(image.site_ids_size())) << col << "," << row;
+      const std::string& id = image.site_ids(int(index - 1));
+      named.insert(id);
+      // Row 0 is the top of the image.
+      const Vec2 q{image.window().min_x() + (col + 0.5) * px,
+                   image.window().max_y() - (row + 0.5) * px};
+      const oracle::Best truth = oracle::BestSite(q, sites);
+      const Site& s = sites[std::stoi(id.substr(1))];
+      const double value = oracle::Value(q, s);
+      if (!(value <= truth.value + 1e-5) && ++failures < 10) {
+        ADD_FAILURE() << "pixel " << col << "," << row << " at (" << q.x << "," << q.y << ") names "
+                      << id << " at " << value << "; nearest is s" << truth.index << " at "
+                      << truth.value;
+      }
+    }
+  }
+  EXPECT_EQ(failures, 0);
+  // Each site listed is named by some pixel, once.
+  EXPECT_EQ(named.size(), size_t(image.site_ids_size()));
+
+  // Numbers are not pictures: no sites drawn, no EXR.
+  r.set_draw_sites(true);
+  st = client_->RenderImage(r, &image);
+  EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("SITE_INDEX takes neither draw_sites nor polyline"), std::string::npos)
+      << st.error_message();
+  r.set_draw_sites(false);
+  r.set_format(v1::RenderImageRequest::EXR);
+  st = client_->RenderImage(r, &image);
+  EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("EXR holds the DISTANCE layer only"), std::string::npos);
+}
+
+// Pick returns the site it picked, as stored: a UI outlines it without another call.
+TEST_F(SitesServerTest, PickReturnsTheSiteAsStored) {
+  const std::vector<Site> sites = MixedSites(5);
+  Create("picked", v1::NEAREST, v1::MESH);
+  Upsert("picked", sites);
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(0, 10);
+  for (int k = 0; k < 200; ++k) {
+    const Vec2 q{u(rng), u(rng)};
+    v1::PickRequest r;
+    r.set_scene_id("picked");
+    SetPoint(q, r.mutable_point());
+    v1::PickResponse p;
+    ASSERT_TRUE(client_->Pick(r, &p).ok());
+    ASSERT_TRUE(p.found());
+    const Site& s = sites[std::stoi(p.site_id().substr(1))];
+    v1::Site expected = ToProtoSite(s);
+    if (expected.multiplicative_weight() == 1) expected.clear_multiplicative_weight();
+    EXPECT_EQ(p.site().SerializeAsString(), expected.SerializeAsString())
+        << p.site().DebugString() << " vs " << expected.DebugString();
+  }
+  v1::PickRequest far;
+  far.set_scene_id("picked");
+  SetPoint({5, 5}, far.mutable_point());
+  far.set_max_distance(1e-9);
+  v1::PickResponse none;
+  ASSERT_TRUE(client_->Pick(far, &none).ok());
+  EXPECT_FALSE(none.found());
+  EXPECT_FALSE(none.has_site());
 }
 
 }  // namespace

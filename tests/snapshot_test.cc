@@ -366,7 +366,8 @@ TEST(SceneCore, RefusedWritesChangeNothing) {
   EXPECT_EQ(scene.snapshot(), before);
   EXPECT_EQ(scene.version(), 2u);
   Scene::Picked p = scene.Pick({0.12, 0.1}, INFINITY);
-  EXPECT_EQ(p.site_id, "a");
+  ASSERT_TRUE(p.found);
+  EXPECT_EQ(p.site->id, "a");
   // A bulk write, whose snapshot is built while the store works, refused by the store (after
   // a deletion left a slot free for it to take).
   ASSERT_TRUE(scene.Delete({"b"}).ok());
