@@ -4,6 +4,7 @@
 #include <map>
 
 #include "core/cpu_pool.h"
+#include "geometry/segment_tree.h"
 
 namespace gvd {
 
@@ -108,7 +109,8 @@ SnapshotBuilder::SnapshotBuilder(std::shared_ptr<const SiteSnapshot> base,
       next_slot_(base_->sites().size()),
       size_(base_->size()),
       non_plain_(base_->non_plain_),
-      ink_(base_->ink_) {}
+      ink_(base_->ink_),
+      bytes_(base_->bytes_) {}
 
 void SnapshotBuilder::Put(Site site) {
   uint32_t slot;
@@ -116,6 +118,7 @@ void SnapshotBuilder::Put(Site site) {
     slot = *found;
     non_plain_ -= !base_->sites().get(slot)->plain();
     ink_ -= TotalLength(base_->sites().get(slot)->geometry);
+    bytes_ -= SiteBytes(*base_->sites().get(slot));
   } else {
     if (!free_slots_->empty()) {
       slot = free_slots_->back();
@@ -129,6 +132,7 @@ void SnapshotBuilder::Put(Site site) {
   }
   non_plain_ += !site.plain();
   ink_ += TotalLength(site.geometry);
+  bytes_ += SiteBytes(site);
   changed_.push_back(slot);
   table_.Set(slot, std::optional<Site>(std::move(site)));
   put_.push_back(table_.ptr(slot));
@@ -139,6 +143,7 @@ bool SnapshotBuilder::Remove(std::string_view id) {
   if (!found || table_.get(*found) == nullptr) return false;
   non_plain_ -= !table_.get(*found)->plain();
   ink_ -= TotalLength(table_.get(*found)->geometry);
+  bytes_ -= SiteBytes(*table_.get(*found));
   table_.Set(*found, std::shared_ptr<const Site>());
   changed_.push_back(*found);
   freed_.push_back(*found);
@@ -163,6 +168,7 @@ std::shared_ptr<const SiteSnapshot> SnapshotBuilder::Build(uint64_t version) {
   s->non_plain_ = non_plain_;
   // Rounding of the sums must not leave a little ink in an emptied scene.
   s->ink_ = size_ == 0 ? 0 : std::max(0.0, ink_);
+  s->bytes_ = bytes_;
   auto index = [&] {
     s->index_ = base_->index_.Update(table_, changed_);
     s->least_ = table_.least();

@@ -75,6 +75,8 @@ class SiteSnapshot {
   // The summed length of the sites' segments (TotalLength): how much line the coverage's
   // tiles must resolve (DefaultTilePx).
   double ink() const { return ink_; }
+  // The bytes its sites hold (SiteBytes summed), for the memory budget.
+  size_t bytes() const { return bytes_; }
   // In a NEAREST diagram: given a site `best` whose value at q is `value` (finite), makes
   // them the best site at q and its value, exactly (least slot on ties). Only a site within
   // (value - least additive) / least multiplicative of q can beat the value (m d + a < V
@@ -90,6 +92,7 @@ class SiteSnapshot {
   IdMap ids_;
   size_t non_plain_ = 0;
   double ink_ = 0;
+  size_t bytes_ = 0;
   LeastWeights least_;
 };
 
@@ -142,6 +145,7 @@ class SnapshotBuilder {
   size_t size_;
   size_t non_plain_;
   double ink_;
+  size_t bytes_;
   std::vector<uint32_t> changed_, taken_, freed_;
   std::vector<IdMap::Change> id_changes_;
   std::vector<std::shared_ptr<const Site>> put_;

@@ -75,6 +75,12 @@ class SegmentTree {
 // enters them. CONTRACT: the site's geometry does not change afterwards.
 void IndexSegments(Site& site);
 
+// About how many bytes a site holds in a scene: the Site, its id and geometry, the segment
+// tree it has or will have (IndexSegments), and its entries in the slot table, spatial
+// index and id map. What the memory budget (--max-memory) charges for a site, the same
+// before and after the site enters a table.
+size_t SiteBytes(const Site& site);
+
 // ---- implementation ----
 
 template <class F>

@@ -344,19 +344,23 @@ void ToProto(const Site& site, v1::Site* out) {
   if (std::isfinite(site.max_distance)) out->set_max_distance(site.max_distance);
 }
 
-void ToProto(const Scene& scene, v1::Scene* out) {
-  const SceneSettings& s = scene.settings();
+void ToProto(const SceneSettings& s, v1::Scene* out) {
   out->set_scene_id(s.id);
   ToProto(s.grid.window, out->mutable_window());
   out->set_width_px(s.grid.width);
   out->set_height_px(s.grid.height);
   out->set_max_error(s.eps);
-  out->set_version(scene.version());
-  out->set_site_count(scene.site_count());
-  out->set_rendered_version(scene.frame()->version());
   out->set_cone_triangles(s.cone_triangles);
   out->set_render_mode(s.mode == RenderMode::kExact ? v1::EXACT : v1::MESH);
   out->set_diagram(s.diagram == Diagram::kFarthest ? v1::FARTHEST : v1::NEAREST);
+}
+
+void ToProto(const Scene& scene, v1::Scene* out) {
+  ToProto(scene.settings(), out);
+  out->set_version(scene.version());
+  out->set_site_count(scene.site_count());
+  out->set_rendered_version(scene.frame()->version());
+  out->set_memory_bytes(scene.memory_bytes());
 }
 
 grpc::Status ToGrpc(const absl::Status& status) {

@@ -99,6 +99,7 @@ grpc::Status ToPathPreference(const v1::PlanPathRequest& request, PathPreference
 v1::FeatureKind ToProto(FeatureKind k);
 void ToProto(const Site& site, v1::Site* out);
 void ToProto(const Window& w, v1::Window* out);
+void ToProto(const SceneSettings& settings, v1::Scene* out);  // the settings' fields only
 void ToProto(const Scene& scene, v1::Scene* out);
 
 // absl::Status from the render and scene layers to a gRPC status with the same code.

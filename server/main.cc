@@ -22,6 +22,7 @@
 #include "server/auth.h"
 #include "server/http.h"
 #include "server/log.h"
+#include "server/memory.h"
 #include "server/metrics.h"
 #include "server/render_loop.h"
 #include "server/service.h"
@@ -50,6 +51,10 @@ constexpr const char* kUsage = R"(usage: gvd-server [flags]
                               (default 5000)
   --log-level debug|info|warn|error   (default info)
   --max-scenes N              (default 1000)
+  --max-memory BYTES          what the scenes may hold together ("4G", "512M", bytes):
+                              their rasters, 24 bytes a pixel, and their sites; a change past
+                              it is refused with RESOURCE_EXHAUSTED (default: 3/4 of the
+                              cgroup's memory limit, else of the physical memory)
   --max-sites-per-scene N     (default 1000000)
   --max-side-px N             largest width_px or height_px (default 8192)
   --max-points-per-query N    (default 1000000)
@@ -80,6 +85,7 @@ By default the server listens on loopback only, without TLS and without authenti
 struct Flags {
   std::string listen = "127.0.0.1:50051";
   std::string port_file;
+  std::string memory_source;  // where limits.max_memory came from
   std::string data;
   std::string egl_device = "auto";
   std::string log_level = "info";
@@ -180,6 +186,12 @@ Flags ParseFlags(int argc, char** argv) {
       }
     }
     else if (arg == "--max-scenes") ParseCount(arg, value, &f.limits.max_scenes);
+    else if (arg == "--max-memory") {
+      auto bytes = gvd::ParseBytes(value);
+      if (!bytes) Die(absl::StrCat("--max-memory needs a size such as 4G, 512M or 1073741824, not \"", value, "\""));
+      f.limits.max_memory = *bytes;
+      f.memory_source = "--max-memory";
+    }
     else if (arg == "--max-sites-per-scene") ParseCount(arg, value, &f.limits.max_sites_per_scene);
     else if (arg == "--max-side-px") ParseCount(arg, value, &f.limits.max_side_px);
     else if (arg == "--max-points-per-query") ParseCount(arg, value, &f.limits.max_points_per_query);
@@ -191,6 +203,7 @@ Flags ParseFlags(int argc, char** argv) {
     else Die(absl::StrCat("unknown flag ", arg));
   }
   f.limits.max_scene_pixels = uint64_t{f.limits.max_side_px} * f.limits.max_side_px;
+  if (f.memory_source.empty()) f.limits.max_memory = gvd::DefaultMaxMemory("/sys/fs/cgroup", &f.memory_source);
   if (f.data.empty()) {
     const char* state = std::getenv("XDG_STATE_HOME");
     const char* home = std::getenv("HOME");
@@ -281,6 +294,10 @@ int main(int argc, char** argv) {
             {"tokens", auth ? absl::StrCat(auth->size()) : "off"}});
   gvd::VoronoiService service(&renderer, store->get(), flags.limits, auth ? &*auth : nullptr,
                               &metrics);
+  metrics.SetMemoryLimit(flags.limits.max_memory);
+  gvd::Log(gvd::LogLevel::kInfo, "memory_budget",
+           {{"max_memory", absl::StrCat(flags.limits.max_memory)},
+            {"human", gvd::FormatBytes(flags.limits.max_memory)}, {"from", flags.memory_source}});
   if (!flags.metrics_listen.empty()) {
     auto port = metrics.Serve(flags.metrics_listen, [&service] { return service.SampleScenes(); });
     if (!port.ok()) {

@@ -57,6 +57,10 @@ class Metrics::SceneCollector : public prometheus::Collectable {
     std::lock_guard<std::mutex> lock(mu_);
     sampler_ = std::move(sampler);
   }
+  void SetMemoryLimit(double bytes) {
+    std::lock_guard<std::mutex> lock(mu_);
+    memory_limit_ = bytes;
+  }
   std::vector<prometheus::MetricFamily> Collect() const override {
     std::lock_guard<std::mutex> lock(mu_);
     if (!sampler_) return {};
@@ -64,21 +68,30 @@ class Metrics::SceneCollector : public prometheus::Collectable {
     auto lag = Gauge("gvd_scene_version_lag",
                      "Accepted versions of the scene not yet in its rendered frame.");
     auto age = Gauge("gvd_scene_frame_age_seconds", "Age of the scene's rendered frame.");
+    auto memory = Gauge("gvd_scene_memory_bytes",
+                        "Bytes the memory budget charges the scene: its raster and its sites.");
+    auto total = Gauge("gvd_memory_bytes", "Bytes the scenes hold together (of --max-memory).");
+    auto limit = Gauge("gvd_memory_limit_bytes", "The memory budget, --max-memory.");
+    double sum = 0;
     for (const SceneSample& s : sampler_()) {
       for (auto [family, value] : {std::pair{&sites, s.sites}, {&lag, s.version_lag},
-                                   {&age, s.frame_age_seconds}}) {
+                                   {&age, s.frame_age_seconds}, {&memory, s.memory_bytes}}) {
         prometheus::ClientMetric m;
         m.label.push_back({"scene", s.scene});
         m.gauge.value = value;
         family->metric.push_back(std::move(m));
       }
+      sum += s.memory_bytes;
     }
-    return {sites, lag, age};
+    total.metric.emplace_back().gauge.value = sum;
+    limit.metric.emplace_back().gauge.value = memory_limit_;
+    return {sites, lag, age, memory, total, limit};
   }
 
  private:
   mutable std::mutex mu_;
   SceneSampler sampler_;
+  double memory_limit_ = 0;
 };
 
 Metrics::Metrics()
@@ -128,6 +141,8 @@ Metrics::Metrics()
 }
 
 Metrics::~Metrics() = default;
+
+void Metrics::SetMemoryLimit(uint64_t bytes) { scenes_->SetMemoryLimit(static_cast<double>(bytes)); }
 
 absl::StatusOr<int> Metrics::Serve(const std::string& address, SceneSampler sampler) {
   scenes_->Set(std::move(sampler));

@@ -31,11 +31,15 @@ class Metrics {
     double sites;
     double version_lag;        // accepted version - rendered version
     double frame_age_seconds;  // since the rendered frame was published
+    double memory_bytes;       // Scene::memory_bytes, what the memory budget charges it
   };
   using SceneSampler = std::function<std::vector<SceneSample>()>;
 
   Metrics();
   ~Metrics();
+
+  // The memory budget (--max-memory), reported beside the scenes' total.
+  void SetMemoryLimit(uint64_t bytes);
 
   // Serves /metrics on `address` (HOST:PORT; port 0 picks one). Returns the bound port.
   absl::StatusOr<int> Serve(const std::string& address, SceneSampler sampler);

@@ -8,8 +8,10 @@
 #include "image/image.h"
 #include "server/convert.h"
 #include "core/cpu_pool.h"
+#include "geometry/segment_tree.h"
 #include "server/log.h"
 
+#include <algorithm>
 #include <atomic>
 #include <thread>
 #include <unordered_map>
@@ -176,6 +178,7 @@ VoronoiService::VoronoiService(RenderLoop* renderer, SceneStore* store, ServerLi
                                const TokenAuth* auth, Metrics* metrics)
     : renderer_(renderer), store_(store), limits_(limits), auth_(auth), metrics_(metrics),
       calls_(metrics),
+      memory_(limits.max_memory, [this] { return ScenesMemory(); }),
       analyses_(CpuPool::Process(), /*priority=*/0, limits.analysis_threads,
                 limits.max_queued_analyses),
       answers_(CpuPool::Process(), /*priority=*/1, SIZE_MAX, SIZE_MAX) {}
@@ -195,6 +198,13 @@ absl::Status VoronoiService::Durably(StoreCall store_call) const {
   return s;
 }
 
+uint64_t VoronoiService::ScenesMemory() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  uint64_t sum = 0;
+  for (const auto& [id, scene] : scenes_) sum += scene->memory_bytes();
+  return sum;
+}
+
 std::vector<Metrics::SceneSample> VoronoiService::SampleScenes() const {
   std::vector<std::shared_ptr<Scene>> scenes;
   {
@@ -204,7 +214,8 @@ std::vector<Metrics::SceneSample> VoronoiService::SampleScenes() const {
   std::vector<Metrics::SceneSample> out;
   for (const auto& s : scenes) {
     double lag = static_cast<double>(s->version() - s->frame()->version());
-    out.push_back({s->id(), static_cast<double>(s->site_count()), lag, s->frame_age_seconds()});
+    out.push_back({s->id(), static_cast<double>(s->site_count()), lag, s->frame_age_seconds(),
+                   static_cast<double>(s->memory_bytes())});
   }
   return out;
 }
@@ -218,8 +229,29 @@ Status VoronoiService::Admit(grpc::CallbackServerContext* ctx, bool write) const
 absl::Status VoronoiService::Load() {
   auto stored = store_->Load();
   if (!stored.ok()) return stored.status();
-  size_t sites = 0;
+  size_t sites = 0, unloaded = 0;
+  // Scenes load in id order while they fit --max-memory. The rest stay in the store,
+  // reported unavailable: a store that outgrew the budget (or a smaller container) still
+  // starts, and serves what fits, instead of dying at every start.
+  std::sort(stored->begin(), stored->end(),
+            [](const StoredScene& a, const StoredScene& b) { return a.settings.id < b.settings.id; });
   for (StoredScene& s : *stored) {
+    uint64_t bytes = Scene::RasterBytes(s.settings);
+    for (const Site& site : s.sites) bytes += SiteBytes(site);
+    absl::Status fits = memory_.Reserve(
+        bytes, absl::StrCat("scene \"", s.settings.id, "\" (", s.settings.grid.width, "x",
+                            s.settings.grid.height, " pixels, ", s.sites.size(), " sites)"));
+    if (!fits.ok()) {
+      Log(LogLevel::kWarn, "scene_unavailable",
+          {{"scene", s.settings.id}, {"reason", std::string(fits.message())}});
+      std::string id = s.settings.id;
+      std::lock_guard<std::mutex> lock(mu_);
+      unloaded_[id] = {std::move(s.settings), s.version, s.sites.size(), bytes,
+                       std::string(fits.message())};
+      ++unloaded;
+      continue;
+    }
+    MemoryBudget::Reservation reserved(&memory_, bytes);
     sites += s.sites.size();
     // Stored sites were validated when they were accepted: they go straight to a snapshot.
     auto scene = std::make_shared<Scene>(std::move(s.settings), s.version, std::move(s.sites),
@@ -231,8 +263,9 @@ absl::Status VoronoiService::Load() {
     renderer_->MarkDirty(scene);
   }
   Log(LogLevel::kInfo, "store_loaded",
-      {{"path", store_->Describe()}, {"scenes", absl::StrCat(stored->size())},
-       {"sites", absl::StrCat(sites)}});
+      {{"path", store_->Describe()}, {"scenes", absl::StrCat(stored->size() - unloaded)},
+       {"unavailable_scenes", absl::StrCat(unloaded)}, {"sites", absl::StrCat(sites)},
+       {"memory", FormatBytes(memory_.used())}});
   ready_ = true;
   return absl::OkStatus();
 }
@@ -259,6 +292,11 @@ Status VoronoiService::Lookup(const std::string& scene_id, std::shared_ptr<Scene
   std::lock_guard<std::mutex> lock(mu_);
   auto it = scenes_.find(scene_id);
   if (it == scenes_.end()) {
+    if (auto u = unloaded_.find(scene_id); u != unloaded_.end()) {
+      return Status(StatusCode::FAILED_PRECONDITION,
+                    absl::StrCat("scene \"", scene_id, "\" is stored but not loaded: ",
+                                 u->second.reason));
+    }
     return Status(StatusCode::NOT_FOUND, absl::StrCat("scene \"", scene_id, "\" does not exist"));
   }
   *scene = it->second;
@@ -281,10 +319,20 @@ grpc::ServerUnaryReactor* VoronoiService::CreateScene(grpc::CallbackServerContex
   if (!call.ok()) return call.Finish(ctx);
   SceneSettings settings;
   if (auto s = ToSceneSettings(*request, limits_, &settings); !s.ok()) return call.Finish(ctx, s);
+  // The raster's bytes, reserved until the scene is in scenes_ (then it counts them).
+  const uint64_t raster = Scene::RasterBytes(settings);
+  if (auto s = memory_.Reserve(raster, absl::StrCat("scene \"", settings.id, "\" of ",
+                                                    settings.grid.width, "x", settings.grid.height,
+                                                    " pixels"));
+      !s.ok()) {
+    return call.Finish(ctx, ToGrpc(s));
+  }
+  MemoryBudget::Reservation reserved(&memory_, raster);
   auto scene = std::make_shared<Scene>(std::move(settings), executor());
   {
     std::lock_guard<std::mutex> lock(mu_);
-    if (scenes_.count(scene->id()) || creating_.count(scene->id())) {
+    if (scenes_.count(scene->id()) || creating_.count(scene->id()) ||
+        unloaded_.count(scene->id())) {
       return call.Finish(ctx, Status(StatusCode::ALREADY_EXISTS,
                               absl::StrCat("scene \"", scene->id(), "\" already exists")));
     }
@@ -315,7 +363,16 @@ grpc::ServerUnaryReactor* VoronoiService::CreateScene(grpc::CallbackServerContex
 grpc::ServerUnaryReactor* VoronoiService::GetScene(grpc::CallbackServerContext* ctx,
                                                    const v1::GetSceneRequest* request,
                                                    v1::Scene* response) {
-  Call call = Begin(ctx, "GetScene", Access::kRead, &request->scene_id());
+  Call call = Begin(ctx, "GetScene", Access::kRead);
+  if (!call.ok()) return call.Finish(ctx);
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (auto u = unloaded_.find(request->scene_id()); u != unloaded_.end()) {
+      Describe(u->second, response);
+      return call.Finish(ctx, Status::OK);
+    }
+  }
+  call.status = Lookup(request->scene_id(), &call.scene);
   if (!call.ok()) return call.Finish(ctx);
   const std::shared_ptr<Scene>& scene = call.scene;
   ToProto(*scene, response);
@@ -343,15 +400,44 @@ grpc::ServerUnaryReactor* VoronoiService::ListScenes(grpc::CallbackServerContext
   {
     std::lock_guard<std::mutex> lock(mu_);
     for (const auto& [id, scene] : scenes_) scenes.push_back(scene);
+    for (const auto& [id, scene] : unloaded_) Describe(scene, response->add_scenes());
   }
   for (const auto& scene : scenes) ToProto(*scene, response->add_scenes());
+  std::sort(response->mutable_scenes()->begin(), response->mutable_scenes()->end(),
+            [](const v1::Scene& a, const v1::Scene& b) { return a.scene_id() < b.scene_id(); });
   return call.Finish(ctx, Status::OK);
+}
+
+void VoronoiService::Describe(const Unloaded& scene, v1::Scene* out) {
+  ToProto(scene.settings, out);
+  out->set_version(scene.version);
+  out->set_site_count(scene.sites);
+  out->set_memory_bytes(scene.bytes);
+  out->set_unavailable(scene.reason);
 }
 
 grpc::ServerUnaryReactor* VoronoiService::DeleteScene(grpc::CallbackServerContext* ctx,
                                                       const v1::DeleteSceneRequest* request,
                                                       v1::DeleteSceneResponse*) {
-  Call call = Begin(ctx, "DeleteScene", Access::kWrite, &request->scene_id());
+  Call call = Begin(ctx, "DeleteScene", Access::kWrite);
+  if (!call.ok()) return call.Finish(ctx);
+  // A scene left unloaded (it did not fit --max-memory) is deleted from the store alone.
+  bool unloaded;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    unloaded = unloaded_.count(request->scene_id()) > 0;
+  }
+  if (unloaded) {
+    absl::Status deleted = Durably([&] { return store_->DeleteScene(request->scene_id()); });
+    if (!deleted.ok()) return call.Finish(ctx, ToGrpc(deleted));
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      unloaded_.erase(request->scene_id());
+    }
+    Log(LogLevel::kInfo, "scene_deleted", {{"scene", request->scene_id()}, {"loaded", "false"}});
+    return call.Finish(ctx, Status::OK);
+  }
+  call.status = Lookup(request->scene_id(), &call.scene);
   if (!call.ok()) return call.Finish(ctx);
   const std::shared_ptr<Scene>& scene = call.scene;
   // The commit holds only the scene's writer lock: writes to the scene wait and then find it
@@ -385,6 +471,16 @@ grpc::ServerUnaryReactor* VoronoiService::UpsertSites(grpc::CallbackServerContex
   const std::shared_ptr<Scene>& scene = call.scene;
   std::vector<Site> sites;
   if (auto s = ToSites(*request, limits_, &sites); !s.ok()) return call.Finish(ctx, s);
+  // What the sites add, reserved until the scene's snapshot holds them (sites they replace
+  // are not subtracted: a reservation may only overstate).
+  uint64_t added = 0;
+  for (const Site& site : sites) added += SiteBytes(site);
+  if (auto s = memory_.Reserve(added, absl::StrCat(sites.size(), " sites for scene \"",
+                                                   scene->id(), "\""));
+      !s.ok()) {
+    return call.Finish(ctx, ToGrpc(s));
+  }
+  MemoryBudget::Reservation reserved(&memory_, added);
   auto version = scene->Upsert(std::move(sites), limits_.max_sites_per_scene,
                                [&](const ChangeSet& c) {
                                  return Durably([&] { return store_->Commit(c); });

@@ -16,6 +16,7 @@
 #include "server/auth.h"
 #include "server/call_scope.h"
 #include "server/limits.h"
+#include "server/memory.h"
 #include "server/metrics.h"
 #include "server/render_loop.h"
 #include "server/watch.h"
@@ -43,6 +44,8 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
 
   // Per-scene figures for the metrics.
   std::vector<Metrics::SceneSample> SampleScenes() const;
+  // What the scenes hold and reserve now, of limits.max_memory.
+  uint64_t memory_used() const { return memory_.used(); }
 
   // Rebuilds every stored scene (and queues its render); then the service answers calls.
   absl::Status Load();
@@ -165,13 +168,28 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   std::atomic<bool> ready_{false};
   std::atomic<bool> draining_{false};
   mutable CallCounter calls_;
-  // Guards scenes_ and creating_, and is never held across a store call: a durable commit
+  // Guards scenes_, creating_ and unloaded_, and is never held across a store call: a durable commit
   // blocks no other scene's lookup.
   mutable std::mutex mu_;
   std::map<std::string, std::shared_ptr<Scene>> scenes_;
   // Ids of scenes being created (reserved, not yet committed): they count against
   // --max-scenes and refuse a second create, but are not found until committed.
   std::set<std::string> creating_;
+  // Stored scenes that did not fit --max-memory at start (Load): kept in the store, reported
+  // by GetScene and ListScenes, removable by DeleteScene; any other call on one is
+  // FAILED_PRECONDITION with the reason.
+  struct Unloaded {
+    SceneSettings settings;
+    uint64_t version = 0;
+    size_t sites = 0;
+    uint64_t bytes = 0;
+    std::string reason;
+  };
+  std::map<std::string, Unloaded> unloaded_;
+  static void Describe(const Unloaded& scene, v1::Scene* out);
+  // --max-memory over the scenes' own figures (ScenesMemory). Its lock is taken before mu_.
+  MemoryBudget memory_;
+  uint64_t ScenesMemory() const;
   // The WatchScene streams open now.
   Watches watches_;
   // The process's CPU pool does the work that must not run on gRPC's threads nor on the

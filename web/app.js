@@ -126,7 +126,8 @@ async function loadScenes(preferred) {
   }
   clearError();
   const select = $('scene');
-  select.replaceChildren(...scenes.map((s) => new Option(`${s.sceneId} (${s.siteCount ?? 0} sites)`, s.sceneId)));
+  select.replaceChildren(...scenes.map((s) => new Option(
+    `${s.sceneId} (${s.siteCount ?? 0} sites${s.unavailable ? ', not loaded' : ''})`, s.sceneId)));
   const ids = scenes.map((s) => s.sceneId);
   const want = [preferred, state.sceneId, params.get('scene'), 'demo-mixed', ids[0]].find((id) => id && ids.includes(id));
   $('empty').hidden = ids.length > 0;
