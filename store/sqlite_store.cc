@@ -14,8 +14,32 @@
 namespace gvd {
 namespace {
 
+// The connection's last error as a status naming the store's file, by what it means for a
+// caller: a full disk is RESOURCE_EXHAUSTED and failing or busy storage UNAVAILABLE (both
+// pass: a later write succeeds once space is freed or the device recovers), a damaged file
+// DATA_LOSS.
 absl::Status SqliteError(sqlite3* db, const std::string& what) {
-  return absl::InternalError(absl::StrCat("store: ", what, ": ", sqlite3_errmsg(db)));
+  const char* file = sqlite3_db_filename(db, "main");
+  const std::string text = absl::StrCat("store ", file && *file ? file : ":memory:", ": ", what,
+                                        ": ", sqlite3_errmsg(db));
+  switch (sqlite3_extended_errcode(db) & 0xff) {
+    case SQLITE_FULL:
+      return absl::ResourceExhaustedError(
+          absl::StrCat(text, " (its disk is full: nothing was stored, and writes succeed again "
+                             "once space is freed)"));
+    case SQLITE_IOERR:
+    case SQLITE_BUSY:
+    case SQLITE_LOCKED:
+    case SQLITE_READONLY:
+    case SQLITE_CANTOPEN:
+    case SQLITE_NOMEM:
+      return absl::UnavailableError(text);
+    case SQLITE_CORRUPT:
+    case SQLITE_NOTADB:
+      return absl::DataLossError(absl::StrCat(text, " (the file is damaged, or is not a gvd store)"));
+    default:
+      return absl::InternalError(text);
+  }
 }
 
 // A statement of the connection's cache (SqliteStore::Prepared), reset with its bindings
@@ -63,6 +87,8 @@ std::string ColumnText(sqlite3_stmt* s, int i) {
 
 // The database's schema. The earlier one (tables "scenes" and "sites", holding request
 // messages) is converted by Migrate.
+// The version of kSchema, recorded in the file (PRAGMA user_version).
+constexpr int kSchemaVersion = 1;
 constexpr const char* kSchema[] = {
     "CREATE TABLE IF NOT EXISTS scene ("
     "  id TEXT PRIMARY KEY,"
@@ -107,10 +133,29 @@ absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string
                           "PRAGMA foreign_keys=OFF"}) {
     if (auto s = store->Exec(sql); !s.ok()) return s;
   }
+  // The schema's version (PRAGMA user_version; 0 in stores made before it was recorded,
+  // which hold this same schema): a store from a newer release is left as it is.
+  int version = 0;
+  {
+    Statement v(store->Prepared("PRAGMA user_version"));
+    if (!v.ok() || sqlite3_step(v.get()) != SQLITE_ROW) return SqliteError(db, "reading the schema version");
+    version = sqlite3_column_int(v.get(), 0);
+  }
+  if (version > kSchemaVersion) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "store ", path, " was written by a newer release of gvd (schema version ", version,
+        "; this release reads up to ", kSchemaVersion, "): run that release, or start on a new "
+        "--data directory"));
+  }
   for (const char* sql : kSchema) {
     if (auto s = store->Exec(sql); !s.ok()) return s;
   }
   if (auto s = store->Migrate(legacy); !s.ok()) return s;
+  if (version < kSchemaVersion) {
+    if (auto s = store->Exec(absl::StrCat("PRAGMA user_version = ", kSchemaVersion).c_str()); !s.ok()) {
+      return s;
+    }
+  }
   return store;
 }
 
@@ -136,12 +181,7 @@ absl::Status SqliteStore::Step(const char* sql) {
 }
 
 absl::Status SqliteStore::Exec(const char* sql) {
-  char* error = nullptr;
-  if (sqlite3_exec(db_, sql, nullptr, nullptr, &error) != SQLITE_OK) {
-    absl::Status s = absl::InternalError(absl::StrCat("store: ", sql, ": ", error ? error : "?"));
-    sqlite3_free(error);
-    return s;
-  }
+  if (sqlite3_exec(db_, sql, nullptr, nullptr, nullptr) != SQLITE_OK) return SqliteError(db_, sql);
   return absl::OkStatus();
 }
 

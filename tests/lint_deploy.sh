@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 shellcheck -x deploy/run-server.sh deploy/debian-deps.sh tests/run-tests.sh tests/bench/run.sh tests/bench/gpu.sh \
-  tests/lint_deploy.sh tests/sanitizers/run.sh tests/smoke-server.sh tests/gallery/make.sh .ci/run
+  tests/lint_deploy.sh tests/sanitizers/run.sh tests/smoke-server.sh tests/gallery/make.sh tests/small_disk.sh .ci/run
 yamllint -s -c deploy/.yamllint deploy/compose.yaml deploy/k8s/*.yaml
 python3 - deploy/k8s/*.yaml <<'PY'
 import sys

@@ -10,6 +10,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <memory>
@@ -410,6 +412,59 @@ TEST(Store, ConvertsTheEarlierSchemaOnce) {
 }
 
 // Deleting a scene waits for its writer, and every later write finds it gone.
+// The schema version in the file, read with SQLite itself.
+int UserVersion(const std::string& file) {
+  sqlite3* db = nullptr;
+  EXPECT_EQ(sqlite3_open_v2(file.c_str(), &db, SQLITE_OPEN_READWRITE, nullptr), SQLITE_OK);
+  sqlite3_stmt* stmt = nullptr;
+  sqlite3_prepare_v2(db, "PRAGMA user_version", -1, &stmt, nullptr);
+  int v = sqlite3_step(stmt) == SQLITE_ROW ? sqlite3_column_int(stmt, 0) : -1;
+  sqlite3_finalize(stmt);
+  sqlite3_close(db);
+  return v;
+}
+
+// A damaged file, a file of something else and a store of a newer release are refused when
+// the store opens, each naming the file, and none is changed.
+TEST(Store, DamagedForeignAndNewerFilesAreRefusedByName) {
+  TempDir dir;
+  const std::string file = dir.path() + "/data/gvd.sqlite3";
+  {
+    auto store = SqliteStore::Open(dir.path() + "/data");
+    ASSERT_TRUE(store.ok()) << store.status();
+    ASSERT_TRUE((*store)->CreateScene(Settings("a"), 1).ok());
+  }
+  EXPECT_EQ(UserVersion(file), 1);  // recorded in every store
+  std::system(("cp " + file + " " + dir.path() + "/good").c_str());
+
+  std::mt19937_64 rng(5);
+  std::string noise(64 * 1024, '\0');
+  for (char& c : noise) c = static_cast<char>(rng());
+  for (const std::string& bytes : {noise, std::string("scene,a\nsite,b\n")}) {
+    { std::ofstream(file, std::ios::binary | std::ios::trunc) << bytes; }
+    auto store = SqliteStore::Open(dir.path() + "/data");
+    ASSERT_FALSE(store.ok());
+    EXPECT_EQ(store.status().code(), absl::StatusCode::kDataLoss) << store.status();
+    EXPECT_NE(store.status().message().find(file), std::string::npos) << store.status();
+    std::ifstream in(file, std::ios::binary);
+    EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), bytes);
+  }
+
+  std::system(("rm -f " + file + "*; cp " + dir.path() + "/good " + file).c_str());
+  {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open_v2(file.c_str(), &db, SQLITE_OPEN_READWRITE, nullptr), SQLITE_OK);
+    ASSERT_EQ(sqlite3_exec(db, "PRAGMA user_version = 7", nullptr, nullptr, nullptr), SQLITE_OK);
+    sqlite3_close(db);
+  }
+  auto newer = SqliteStore::Open(dir.path() + "/data");
+  ASSERT_FALSE(newer.ok());
+  EXPECT_EQ(newer.status().code(), absl::StatusCode::kFailedPrecondition) << newer.status();
+  EXPECT_NE(newer.status().message().find(file), std::string::npos) << newer.status();
+  EXPECT_NE(newer.status().message().find("newer release"), std::string::npos) << newer.status();
+  EXPECT_EQ(UserVersion(file), 7);
+}
+
 TEST(Store, ARetiredSceneRefusesWrites) {
   Scene scene(Settings("gone"));
   ASSERT_TRUE(scene.Upsert({{"a", PointSite{{0.1, 0.1}}}}, 10).ok());
