@@ -52,14 +52,21 @@ const gvd = (window.gvd = {
 
 // ---- errors -------------------------------------------------------------------------------
 
-function showError(e) {
+// The banner shows the last error until a call of the same kind (`source`: 'scenes',
+// 'render', 'watch', 'pick', 'write') succeeds, or it is clicked away: a refused edit stays
+// in view while the picture goes on refreshing.
+let errorSource = '';
+
+function showError(e, source) {
   const text = e instanceof GvdError ? e.toString() : String(e?.message ?? e);
   gvd.error = text;
+  errorSource = source;
   $('error').textContent = text;
   $('error').hidden = false;
 }
 
-function clearError() {
+function clearError(source) {
+  if (source !== undefined && source !== errorSource) return;
   gvd.error = '';
   $('error').hidden = true;
 }
@@ -121,7 +128,7 @@ async function loadScenes(preferred) {
   try {
     scenes = (await client.call('ListScenes', {})).scenes ?? [];
   } catch (e) {
-    showError(e);
+    showError(e, 'scenes');
     return;
   }
   clearError();
@@ -159,7 +166,7 @@ async function openScene(id) {
   try {
     state.scene = await client.call('GetScene', { sceneId: id });
   } catch (e) {
-    showError(e);
+    showError(e, 'scenes');
     return;
   }
   const w = state.scene.window ?? {};
@@ -180,7 +187,7 @@ async function createDemo() {
     const r = await client.call('UpsertSites', { sceneId: id, sites: demoSites() });
     noteWrite(r.version);
   } catch (e) {
-    showError(e);
+    showError(e, 'scenes');
     return;
   }
   await loadScenes(id);
@@ -306,14 +313,14 @@ async function refresh(minVersion) {
       state.frameVersion = Math.min(state.image.version, decoded.version);
       gvd.frameVersion = state.frameVersion;
     }
-    clearError();
+    clearError('render');
     drawBase();
     drawOverlay();
     showPanel();
     gvd.refreshes += 1;
     gvd.ready = true;
   } catch (e) {
-    showError(e);
+    showError(e, 'render');
   } finally {
     rendering = false;
     if (wanted >= 0 && sceneId === state.sceneId) {
@@ -333,7 +340,7 @@ async function watch(sceneId) {
     try {
       await client.stream('WatchScene', { sceneId, afterVersion: String(state.frameVersion) }, (event) => {
         if (event.deleted) {
-          showError(new GvdError('not_found', `scene ${sceneId} was deleted`, 200));
+          showError(new GvdError('not_found', `scene ${sceneId} was deleted`, 200), 'scenes');
           controller.abort();
           loadScenes();
           return;
@@ -344,7 +351,7 @@ async function watch(sceneId) {
       }, { signal: controller.signal });
     } catch (e) {
       if (controller.signal.aborted) return;
-      showError(e);
+      showError(e, 'watch');
       if (['unauthenticated', 'permission_denied', 'not_found'].includes(e.code)) return;
     }
     await new Promise((resolve) => setTimeout(resolve, 1000));
@@ -538,9 +545,10 @@ async function pick(at) {
     if (gvd.latencies.length > 4 * kHistory) gvd.latencies.splice(0, gvd.latencies.length - kHistory);
     gvd.hover = { ...state.hover, site: undefined, at: at.cx !== undefined ? [at.cx, at.cy] : null };
     gvd.hoverSeq += 1;
+    clearError('pick');
     showPanel();
   } catch (e) {
-    showError(e);
+    showError(e, 'pick');
   } finally {
     picking = false;
     if (nextPick) {
@@ -558,8 +566,9 @@ async function select([x, y]) {
     const maxDistance = Math.max(0, Number($('max-distance').value) || 0);
     const r = await client.call('Pick', { sceneId: state.sceneId, point: { x, y }, maxDistance });
     state.selected = r.found ? { siteId: r.siteId, site: r.site ?? null } : null;
+    clearError('pick');
   } catch (e) {
-    showError(e);
+    showError(e, 'pick');
   }
   showPanel();
   drawOverlay();
@@ -592,10 +601,11 @@ async function write(method, request) {
   try {
     const r = await client.call(method, { sceneId: state.sceneId, ...request });
     noteWrite(r.version);
+    clearError('write');
     refresh(state.lastWriteVersion);
     return r;
   } catch (e) {
-    showError(e);
+    showError(e, 'write');
     return null;
   }
 }
@@ -801,6 +811,7 @@ for (const radio of document.querySelectorAll('input[name=tool]')) {
   });
 }
 $('hint').textContent = kHints.select;
+$('error').addEventListener('click', () => clearError());
 $('scene').addEventListener('change', () => openScene($('scene').value));
 $('demo').addEventListener('click', createDemo);
 $('delete').addEventListener('click', deleteSelected);

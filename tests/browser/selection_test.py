@@ -597,10 +597,10 @@ class TokenTest(unittest.TestCase):
         d = browser()
         try:
             d.get(f"{self.server.url}/?scene=locked")
-            wait(d, "window.gvd && window.gvd.error", what="the error shown")
+            wait(d, "window.gvd && document.getElementById('error').textContent.includes('unauthenticated')",
+                 what="the error shown")
             banner = d.find_element(By.ID, "error")
             self.assertTrue(banner.is_displayed())
-            self.assertIn("unauthenticated", banner.text)
             self.assertFalse(page(d, "window.gvd.ready"))
             # A reader sees the scene and hovers; its writes are refused, by name.
             open_scene(d, self.server, "locked", token=reader, min_version=version)
@@ -610,7 +610,13 @@ class TokenTest(unittest.TestCase):
             self.assertEqual(answer["siteId"], "a")
             d.find_element(By.CSS_SELECTOR, "input[name=tool][value=point]").click()
             pointer.click(*page(d, "window.gvd.toCanvas(5, 5)"))
-            wait(d, "window.gvd.error", what="the refused write shown")
+            # The refusal stays in view while the picture goes on refreshing.
+            wait(d, "document.getElementById('error').textContent.includes('permission_denied')",
+                 what="the refused write shown")
+            self.assertTrue(d.find_element(By.ID, "error").is_displayed())
+            refreshes = page(d, "window.gvd.refreshes")
+            d.find_element(By.ID, "fit").click()  # a refresh, which succeeds
+            wait(d, f"window.gvd.refreshes > {refreshes}", what="a refresh")
             self.assertIn("permission_denied", d.find_element(By.ID, "error").text)
             # The token field: a writer's token, kept in the page's storage.
             field = d.find_element(By.ID, "token")
