@@ -31,7 +31,8 @@ gvd --scene demo neighbors --min-version 2 2>/dev/null | grep -q '^a b$'
 curl -sf -H 'Content-Type: application/json' \
   -d '{"sceneId": "demo", "points": [{"x": 12, "y": 11}], "exact": true}' \
   "$http/gvd.v1.Voronoi/FindNearest" | grep -q '"siteId":"a","distance":2.23606797749979'
-curl -sf "$http/" | grep -q '<title>gvd</title>'
+curl -sf "$http/" | grep -q '<title>gvd — nearest-object selection</title>'
+curl -sf "$http/app.js" | grep -q 'pointerrawupdate'
 kill -TERM "$server"
 wait "$server"
 echo "smoke-server: the README's first command builds, serves and stops cleanly"
