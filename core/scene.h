@@ -154,6 +154,9 @@ class Scene {
 
   // Seconds since the latest frame was published.
   double frame_age_seconds() const;
+  // The time spent rendering the scene so far (render threads add to it): its render cost.
+  void AddRenderSeconds(double seconds) { render_seconds_.fetch_add(seconds); }
+  double render_seconds() const { return render_seconds_.load(); }
 
   // The latest published frame. Never waits for a render.
   std::shared_ptr<const Frame> frame() const { return frame_.load(); }
@@ -204,6 +207,7 @@ class Scene {
   SharedCell<const SiteSnapshot> snapshot_;
   SharedCell<const Frame> frame_;
   std::atomic<int64_t> published_ns_{0};  // steady_clock
+  std::atomic<double> render_seconds_{0};
 
   std::mutex writer_mu_;  // held by one writer from building a snapshot to publishing it
   std::vector<uint32_t> free_slots_;  // slots free in the latest snapshot; guarded by writer_mu_

@@ -47,6 +47,9 @@ constexpr const char* kUsage = R"(usage: gvd-server [flags]
                               the render thread itself, which keeps query latency low and
                               incremental updates fast; more threads speed up full renders).
                               Ignored on a GPU, and when LP_NUM_THREADS is set.
+  --render-threads N          render threads, each with a GL context of its own (default 2):
+                              a long render holds up only its own scene while the others
+                              render on the other threads
   --shutdown-grace-ms N       on SIGTERM, how long calls in flight may take to finish
                               (default 5000)
   --log-level debug|info|warn|error   (default info)
@@ -86,6 +89,7 @@ struct Flags {
   std::string listen = "127.0.0.1:50051";
   std::string port_file;
   std::string memory_source;  // where limits.max_memory came from
+  int render_threads = 2;
   std::string data;
   std::string egl_device = "auto";
   std::string log_level = "info";
@@ -186,6 +190,7 @@ Flags ParseFlags(int argc, char** argv) {
       }
     }
     else if (arg == "--max-scenes") ParseCount(arg, value, &f.limits.max_scenes);
+    else if (arg == "--render-threads") ParseCount(arg, value, &f.render_threads);
     else if (arg == "--max-memory") {
       auto bytes = gvd::ParseBytes(value);
       if (!bytes) Die(absl::StrCat("--max-memory needs a size such as 4G, 512M or 1073741824, not \"", value, "\""));
@@ -249,7 +254,7 @@ int main(int argc, char** argv) {
   setenv("LP_NUM_THREADS", absl::StrCat(flags.software_render_threads).c_str(), /*overwrite=*/0);
 
   gvd::Metrics metrics;
-  gvd::RenderLoop renderer;
+  gvd::RenderLoop renderer(flags.render_threads);
   renderer.set_metrics(&metrics);
   if (auto s = renderer.Start(*preference); !s.ok()) {
     gvd::Log(gvd::LogLevel::kError, "no_render_context", {{"error", s.ToString()}});
@@ -261,7 +266,8 @@ int main(int argc, char** argv) {
             {"software", renderer.device().software ? "true" : "false"},
             {"drm_node", renderer.device().drm_node},
             {"gl_renderer", renderer.device().gl_renderer},
-            {"gl_version", renderer.device().gl_version}});
+            {"gl_version", renderer.device().gl_version},
+            {"render_threads", absl::StrCat(renderer.lanes())}});
 
   if (flags.data != ":memory:") MakeParents(flags.data);
   auto store = gvd::SqliteStore::Open(flags.data, gvd::LegacyRecords(flags.limits));

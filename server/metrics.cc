@@ -70,12 +70,15 @@ class Metrics::SceneCollector : public prometheus::Collectable {
     auto age = Gauge("gvd_scene_frame_age_seconds", "Age of the scene's rendered frame.");
     auto memory = Gauge("gvd_scene_memory_bytes",
                         "Bytes the memory budget charges the scene: its raster and its sites.");
+    auto render = Gauge("gvd_scene_render_seconds_total",
+                        "Time the render threads have spent on the scene (its render cost).");
     auto total = Gauge("gvd_memory_bytes", "Bytes the scenes hold together (of --max-memory).");
     auto limit = Gauge("gvd_memory_limit_bytes", "The memory budget, --max-memory.");
     double sum = 0;
     for (const SceneSample& s : sampler_()) {
       for (auto [family, value] : {std::pair{&sites, s.sites}, {&lag, s.version_lag},
-                                   {&age, s.frame_age_seconds}, {&memory, s.memory_bytes}}) {
+                                   {&age, s.frame_age_seconds}, {&memory, s.memory_bytes},
+                                   {&render, s.render_seconds}}) {
         prometheus::ClientMetric m;
         m.label.push_back({"scene", s.scene});
         m.gauge.value = value;
@@ -85,7 +88,7 @@ class Metrics::SceneCollector : public prometheus::Collectable {
     }
     total.metric.emplace_back().gauge.value = sum;
     limit.metric.emplace_back().gauge.value = memory_limit_;
-    return {sites, lag, age, memory, total, limit};
+    return {sites, lag, age, memory, render, total, limit};
   }
 
  private:

@@ -32,6 +32,7 @@ class Metrics {
     double version_lag;        // accepted version - rendered version
     double frame_age_seconds;  // since the rendered frame was published
     double memory_bytes;       // Scene::memory_bytes, what the memory budget charges it
+    double render_seconds;     // Scene::render_seconds, its render cost so far
   };
   using SceneSampler = std::function<std::vector<SceneSample>()>;
 

@@ -18,14 +18,17 @@ RenderLoop::~RenderLoop() { Stop(); }
 
 absl::Status RenderLoop::Start(DevicePreference preference) {
   if (const char* hold = std::getenv(kHoldRendersVariable)) hold_path_ = hold;
-  thread_ = std::thread([this, preference] { Run(preference); });
-  std::unique_lock<std::mutex> lock(mu_);
-  cv_.wait(lock, [this] { return started_; });
-  if (!start_status_.ok()) {
-    lock.unlock();
-    thread_.join();
+  for (int lane = 0; lane < lanes_; ++lane) {
+    threads_.emplace_back([this, lane, preference] { Run(lane, preference); });
   }
-  return start_status_;
+  absl::Status status;
+  {
+    std::unique_lock<std::mutex> lock(mu_);
+    cv_.wait(lock, [this] { return started_ == lanes_; });
+    status = start_status_;
+  }
+  if (!status.ok()) Stop();
+  return status;
 }
 
 void RenderLoop::Stop() {
@@ -34,7 +37,9 @@ void RenderLoop::Stop() {
     stopping_ = true;
   }
   cv_.notify_all();
-  if (thread_.joinable()) thread_.join();
+  for (std::thread& t : threads_) {
+    if (t.joinable()) t.join();
+  }
 }
 
 void RenderLoop::MarkDirty(std::shared_ptr<Scene> scene) {
@@ -52,7 +57,7 @@ absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> RenderLoop::Zoom(
   auto result = done.get_future();
   {
     std::lock_guard<std::mutex> lock(mu_);
-    if (stopping_ || !started_ || !start_status_.ok()) {
+    if (stopping_ || started_ < lanes_ || !start_status_.ok()) {
       return absl::UnavailableError("the render thread is not running");
     }
     tasks_.push_back([&, base = std::move(base), grids = std::move(grids)](
@@ -68,7 +73,24 @@ absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> RenderLoop::Zoom(
   return result.get();
 }
 
-void RenderLoop::Run(DevicePreference preference) {
+std::shared_ptr<Scene> RenderLoop::Take(int lane) {
+  for (auto it = queue_.begin(); it != queue_.end(); ++it) {
+    const Scene* scene = it->get();
+    if (rendering_.count(scene)) continue;
+    auto owner = owner_.find(scene);
+    if (owner != owner_.end() && owner->second != lane && !busy_[owner->second]) continue;
+    std::shared_ptr<Scene> taken = std::move(*it);
+    queue_.erase(it);
+    queued_.erase(scene);
+    owner_[scene] = lane;
+    rendering_.insert(scene);
+    busy_[lane] = true;
+    return taken;
+  }
+  return nullptr;
+}
+
+void RenderLoop::Run(int lane, DevicePreference preference) {
   std::unique_ptr<GlContext> context;
   std::unique_ptr<Rasterizer> rasterizer;
   {
@@ -86,29 +108,50 @@ void RenderLoop::Run(DevicePreference preference) {
       status = ctx.status();
     }
     std::lock_guard<std::mutex> lock(mu_);
-    if (context) device_ = context->info();
-    start_status_ = status;
-    started_ = true;
+    if (context && lane == 0) device_ = context->info();
+    if (!status.ok() && start_status_.ok()) start_status_ = status;
+    ++started_;
     cv_.notify_all();
     if (!status.ok()) return;
   }
 
-  // One SceneRaster (GPU buffers and incremental state) per scene, kept between renders;
-  // released when the scene is deleted or a render fails.
+  // One SceneRaster (GPU buffers and incremental state) per scene this lane holds, kept
+  // between renders; released when the scene is deleted, taken over by another lane, or a
+  // render fails.
   std::map<const Scene*, std::pair<std::weak_ptr<Scene>, std::unique_ptr<SceneRaster>>> rasters;
   ZoomRenderer zoom;
+  // Ends this lane's turn on a scene: another lane may take it (or one this lane left) now.
+  auto finish = [&](const Scene* scene) {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      rendering_.erase(scene);
+      busy_[lane] = false;
+    }
+    cv_.notify_all();
+  };
   while (true) {
     std::shared_ptr<Scene> scene;
     std::deque<std::function<void(Rasterizer*, ZoomRenderer*)>> tasks;
+    std::set<const Scene*> mine;
     {
       std::unique_lock<std::mutex> lock(mu_);
-      cv_.wait(lock, [this] { return stopping_ || !queue_.empty() || !tasks_.empty(); });
-      if (stopping_) break;
+      cv_.wait(lock, [&] {
+        if (stopping_ || !tasks_.empty()) return true;
+        scene = Take(lane);
+        return scene != nullptr;
+      });
+      if (stopping_) {
+        if (scene) {
+          rendering_.erase(scene.get());
+          if (queued_.insert(scene.get()).second) {
+            queue_.push_front(std::move(scene));  // its waiters fail with the rest below
+          }
+        }
+        break;
+      }
       tasks.swap(tasks_);
-      if (!queue_.empty()) {
-        scene = std::move(queue_.front());
-        queue_.pop_front();
-        queued_.erase(scene.get());
+      for (const auto& [s, owner] : owner_) {
+        if (owner == lane) mine.insert(s);
       }
     }
     // Zooms first (they are small, and a caller waits on each), then one scene.
@@ -118,17 +161,34 @@ void RenderLoop::Run(DevicePreference preference) {
       // Held (kHoldRendersVariable): the scene goes back to the front of the queue, and the
       // loop looks again shortly, still taking zooms and a stop meanwhile.
       std::unique_lock<std::mutex> lock(mu_);
+      rendering_.erase(scene.get());
+      busy_[lane] = false;
       if (queued_.insert(scene.get()).second) queue_.push_front(std::move(scene));
       cv_.wait_for(lock, std::chrono::milliseconds(5),
                    [this] { return stopping_ || !tasks_.empty(); });
       continue;
     }
-    // Drop the state of scenes that are gone.
+    // Drop the state of scenes that are gone or that another lane took over.
     for (auto it = rasters.begin(); it != rasters.end();) {
       auto owner = it->second.first.lock();
-      it = (!owner || owner->deleted()) ? rasters.erase(it) : std::next(it);
+      it = (!owner || owner->deleted() || !mine.count(it->first)) ? rasters.erase(it) : std::next(it);
     }
-    if (scene->deleted()) continue;
+    if (scene->deleted()) {
+      {
+        std::lock_guard<std::mutex> lock(mu_);
+        owner_.erase(scene.get());
+      }
+      finish(scene.get());
+      continue;
+    }
+    // The test hook's long render of this one scene (kHoldRendersVariable).
+    if (!hold_path_.empty()) {
+      const std::string held = hold_path_ + "." + scene->id();
+      while (access(held.c_str(), F_OK) == 0) {
+        std::unique_lock<std::mutex> lock(mu_);
+        if (cv_.wait_for(lock, std::chrono::milliseconds(5), [this] { return stopping_; })) break;
+      }
+    }
 
     const SceneSettings& settings = scene->settings();
     auto start = std::chrono::steady_clock::now();
@@ -145,7 +205,10 @@ void RenderLoop::Run(DevicePreference preference) {
     }
     // The newest snapshot: the raster draws what differs from the one it drew last.
     std::shared_ptr<const SiteSnapshot> sites = scene->snapshot();
-    if (slot.second && sites->version() <= scene->frame()->version()) continue;
+    if (slot.second && sites->version() <= scene->frame()->version()) {
+      finish(scene.get());
+      continue;
+    }
     RenderStats render_stats;
     if (slot.second) frame = slot.second->Apply(*rasterizer, sites, &render_stats);
     double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -156,16 +219,20 @@ void RenderLoop::Run(DevicePreference preference) {
            {"error", frame.status().ToString()}});
       scene->FailWaiters(absl::UnavailableError(
           absl::StrCat("rendering scene \"", scene->id(), "\" failed: ", frame.status().message())));
+      finish(scene.get());
       continue;
     }
     // Recorded before publishing: publishing releases the queries waiting for this frame.
     if (metrics_) {
       metrics_->ObserveRender(render_stats, seconds);
     }
+    scene->AddRenderSeconds(seconds);
     scene->Publish(*frame);
+    finish(scene.get());
     const PixelRect& w = render_stats.window;
     Log(LogLevel::kDebug, "rendered",
         {{"scene", scene->id()}, {"version", absl::StrCat(sites->version())},
+         {"lane", absl::StrCat(lane)},
          {"sites", absl::StrCat((*frame)->site_count())},
          {"full", render_stats.full ? "true" : "false"},
          {"window", absl::StrCat(w.x0, ",", w.y0, ",", w.x1, ",", w.y1)},

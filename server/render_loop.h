@@ -1,17 +1,20 @@
-// The render thread: it alone owns the GL context. It drains a queue of scenes marked dirty
-// by updates, renders each at its latest version, and publishes the frame. Bursts of updates
-// to one scene coalesce into one render.
+// The render threads: each alone owns a GL context of its own. They drain one queue of scenes
+// marked dirty by updates, render each at its latest version, and publish the frame. Bursts
+// of updates to one scene coalesce into one render; a scene is rendered by one thread at a
+// time.
 #pragma once
 
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <set>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "absl/status/status.h"
 #include "gl/context.h"
@@ -21,19 +24,25 @@
 
 namespace gvd {
 
-// Threads: one thread of its own, the only one that touches GL; it renders, reads back and
-// publishes frames, and runs the zoom tasks handed to it. Its public calls are thread-safe
-// (mu_ guards the queues) and never wait for a render, except Zoom, which waits for its own
-// task and must not be called from the render thread.
+// Threads: `lanes` threads of its own, the only ones that touch GL; they render, read back
+// and publish frames, and run the zoom tasks handed to them. Its public calls are
+// thread-safe (mu_ guards the queues) and never wait for a render, except Zoom, which waits
+// for its own task and must not be called from a render thread.
+//
+// Fairness: a scene's GPU state lives on the lane that rendered it last, which renders it
+// again. While that lane is busy with another scene, an idle lane takes the scene over
+// (rendering it whole on its own context, and the first lane drops its state): so one huge
+// render holds up only its own scene, and with L lanes every other scene's update waits at
+// most for the renders already under way on the other L - 1 lanes, never for the huge one.
 class RenderLoop {
  public:
-  RenderLoop() = default;
+  explicit RenderLoop(int lanes = 2) : lanes_(lanes < 1 ? 1 : lanes), busy_(lanes_, false) {}
   ~RenderLoop();  // stops the thread
   RenderLoop(const RenderLoop&) = delete;
   RenderLoop& operator=(const RenderLoop&) = delete;
 
-  // Starts the thread and waits until it has a GL context and compiled shaders; returns why
-  // it could not. Call once.
+  // Starts the threads and waits until each has a GL context and compiled shaders; returns
+  // why one could not. Call once.
   absl::Status Start(DevicePreference preference);
   // Finishes the render in progress, fails the scenes still queued, and joins the thread.
   void Stop();
@@ -54,26 +63,37 @@ class RenderLoop {
   // Renders are observed here from now on (null: none). Call before Start.
   void set_metrics(Metrics* metrics) { metrics_ = metrics; }
 
+  int lanes() const { return lanes_; }
+
   // A test hook: when the environment variable GVD_TEST_HOLD_RENDERS names a path at Start,
-  // the thread renders no scene while a file exists at that path (zoom windows still run), so
-  // tests can hold a version unrendered for as long as they need, whatever the machine's speed.
+  // no scene is rendered while a file exists at that path (zoom windows still run), so tests
+  // can hold a version unrendered for as long as they need, whatever the machine's speed.
+  // While a file exists at that path + "." + a scene's id, a lane that takes that scene
+  // holds it as if its render went on: a long render, at any machine's speed.
   static constexpr const char* kHoldRendersVariable = "GVD_TEST_HOLD_RENDERS";
 
  private:
-  void Run(DevicePreference preference);
+  void Run(int lane, DevicePreference preference);
+  // The first queued scene `lane` may render now, removed from the queue (null if none):
+  // not being rendered, and its own, nobody's, or a busy lane's. Under mu_.
+  std::shared_ptr<Scene> Take(int lane);
 
-  std::thread thread_;
+  const int lanes_;
+  std::vector<std::thread> threads_;
   DeviceInfo device_;
   Metrics* metrics_ = nullptr;
   std::string hold_path_;  // see kHoldRendersVariable; empty: no hold
 
   mutable std::mutex mu_;
   std::condition_variable cv_;
-  bool started_ = false;
+  int started_ = 0;  // lanes that have tried to make their context
   bool stopping_ = false;
-  absl::Status start_status_;
+  absl::Status start_status_;  // the first lane's failure, if any
   std::deque<std::shared_ptr<Scene>> queue_;
   std::set<const Scene*> queued_;
+  std::map<const Scene*, int> owner_;      // the lane holding each scene's GPU state
+  std::set<const Scene*> rendering_;       // scenes a lane is rendering now
+  std::vector<bool> busy_;                 // per lane: rendering a scene
   // Work for the GL context other than scene renders (zooms); each is told whether the loop
   // still runs.
   std::deque<std::function<void(Rasterizer*, ZoomRenderer*)>> tasks_;

@@ -215,7 +215,7 @@ std::vector<Metrics::SceneSample> VoronoiService::SampleScenes() const {
   for (const auto& s : scenes) {
     double lag = static_cast<double>(s->version() - s->frame()->version());
     out.push_back({s->id(), static_cast<double>(s->site_count()), lag, s->frame_age_seconds(),
-                   static_cast<double>(s->memory_bytes())});
+                   static_cast<double>(s->memory_bytes()), s->render_seconds()});
   }
   return out;
 }
