@@ -82,6 +82,7 @@ std::shared_ptr<Scene> RenderLoop::Take(int lane) {
     std::shared_ptr<Scene> taken = std::move(*it);
     queue_.erase(it);
     queued_.erase(scene);
+    if (owner != owner_.end() && owner->second != lane) taken_from_[owner->second].push_back(scene);
     owner_[scene] = lane;
     rendering_.insert(scene);
     busy_[lane] = true;
@@ -133,10 +134,11 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
     std::shared_ptr<Scene> scene;
     std::deque<std::function<void(Rasterizer*, ZoomRenderer*)>> tasks;
     std::set<const Scene*> mine;
+    std::vector<const Scene*> dropped;
     {
       std::unique_lock<std::mutex> lock(mu_);
       cv_.wait(lock, [&] {
-        if (stopping_ || !tasks_.empty()) return true;
+        if (stopping_ || !tasks_.empty() || !taken_from_[lane].empty()) return true;
         scene = Take(lane);
         return scene != nullptr;
       });
@@ -153,6 +155,11 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
       for (const auto& [s, owner] : owner_) {
         if (owner == lane) mine.insert(s);
       }
+      dropped.swap(taken_from_[lane]);
+    }
+    // Scenes another lane took over: their GPU state goes now, not at this lane's next render.
+    for (const Scene* s : dropped) {
+      if (!mine.count(s)) rasters.erase(s);
     }
     // Zooms first (they are small, and a caller waits on each), then one scene.
     for (auto& task : tasks) task(rasterizer.get(), &zoom);

@@ -36,7 +36,8 @@ namespace gvd {
 // most for the renders already under way on the other L - 1 lanes, never for the huge one.
 class RenderLoop {
  public:
-  explicit RenderLoop(int lanes = 2) : lanes_(lanes < 1 ? 1 : lanes), busy_(lanes_, false) {}
+  explicit RenderLoop(int lanes = 2)
+      : lanes_(lanes < 1 ? 1 : lanes), busy_(lanes_, false), taken_from_(lanes_) {}
   ~RenderLoop();  // stops the thread
   RenderLoop(const RenderLoop&) = delete;
   RenderLoop& operator=(const RenderLoop&) = delete;
@@ -94,6 +95,8 @@ class RenderLoop {
   std::map<const Scene*, int> owner_;      // the lane holding each scene's GPU state
   std::set<const Scene*> rendering_;       // scenes a lane is rendering now
   std::vector<bool> busy_;                 // per lane: rendering a scene
+  // Per lane: scenes other lanes took over, whose GPU state it is to release now.
+  std::vector<std::vector<const Scene*>> taken_from_;
   // Work for the GL context other than scene renders (zooms); each is told whether the loop
   // still runs.
   std::deque<std::function<void(Rasterizer*, ZoomRenderer*)>> tasks_;
