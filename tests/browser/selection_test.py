@@ -16,20 +16,19 @@ import math
 import os
 import random
 import shutil
-import signal
-import subprocess
 import sys
 import tempfile
 import time
 import unittest
-import urllib.error
-import urllib.request
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+import gvdtest  # noqa: E402  (the server and the oracle)
+from gvdtest import bezier_point, distance, points_of, slack, value  # noqa: E402
 
 ARGS = None  # --server, --out
 
 try:
     from selenium import webdriver
-    from selenium.common.exceptions import WebDriverException
     from selenium.webdriver.chrome.service import Service
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
@@ -42,138 +41,10 @@ CHROMIUM = "/usr/bin/chromium"
 CHROMEDRIVER = "/usr/bin/chromedriver"
 
 
-# ---- the server -----------------------------------------------------------------------------
+# ---- the server and the oracle: tests/gvdtest.py --------------------------------------------
 
-class Server:
-    """gvd-server on loopback ports of its choosing, with its own data directory."""
-
-    def __init__(self, *flags):
-        self.dir = tempfile.mkdtemp(prefix="gvd-browser-")
-        port_file = os.path.join(self.dir, "ports")
-        self.log_path = os.path.join(self.dir, "log")
-        self.log = open(self.log_path, "w")
-        self.process = subprocess.Popen(
-            [ARGS.server, "--listen", "127.0.0.1:0", "--http-listen", "127.0.0.1:0",
-             "--port-file", port_file, "--data", os.path.join(self.dir, "data"), *flags],
-            stdout=subprocess.DEVNULL, stderr=self.log)
-        deadline = time.monotonic() + 60
-        while not os.path.exists(port_file):
-            if self.process.poll() is not None or time.monotonic() > deadline:
-                raise RuntimeError(f"gvd-server did not start: {open(self.log_path).read()}")
-            time.sleep(0.05)
-        with open(port_file) as f:
-            lines = f.read().split()
-        self.http_port = int(lines[1])
-        self.url = f"http://127.0.0.1:{self.http_port}"
-
-    def stop(self):
-        self.process.send_signal(signal.SIGTERM)
-        try:
-            self.process.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-        self.log.close()
-        shutil.rmtree(self.dir, ignore_errors=True)
-
-    def call(self, method, request, token=None, body=None, content_type="application/json"):
-        """A unary call over HTTP/JSON: (HTTP status, decoded JSON answer)."""
-        data = body if body is not None else json.dumps(request).encode()
-        headers = {"Content-Type": content_type}
-        if token:
-            headers["Authorization"] = f"Bearer {token}"
-        r = urllib.request.Request(f"{self.url}/gvd.v1.Voronoi/{method}", data=data, headers=headers)
-        try:
-            with urllib.request.urlopen(r, timeout=120) as response:
-                return response.status, json.loads(response.read() or b"{}")
-        except urllib.error.HTTPError as e:
-            return e.code, json.loads(e.read() or b"{}")
-
-    def ok(self, method, request, token=None):
-        status, answer = self.call(method, request, token)
-        if status != 200:
-            raise AssertionError(f"{method}: HTTP {status} {answer}")
-        return answer
-
-
-# ---- the exact oracle -----------------------------------------------------------------------
-
-def to_segment(q, a, b):
-    ax, ay = a
-    dx, dy = b[0] - ax, b[1] - ay
-    length2 = dx * dx + dy * dy
-    t = 0.0 if length2 == 0 else max(0.0, min(1.0, ((q[0] - ax) * dx + (q[1] - ay) * dy) / length2))
-    return math.hypot(q[0] - (ax + t * dx), q[1] - (ay + t * dy))
-
-
-def bezier_point(control, t):
-    p = list(control)
-    for k in range(len(p) - 1, 0, -1):
-        p = [(p[i][0] + t * (p[i + 1][0] - p[i][0]), p[i][1] + t * (p[i + 1][1] - p[i][1])) for i in range(k)]
-    return p[0]
-
-
-def to_bezier(q, control):
-    """Distance to the curve itself: the best of 2,049 samples, refined by golden sections."""
-    d = lambda t: math.hypot(q[0] - bezier_point(control, t)[0], q[1] - bezier_point(control, t)[1])
-    n = 2048
-    best = min(range(n + 1), key=lambda i: d(i / n))
-    lo, hi = max(0.0, (best - 1) / n), min(1.0, (best + 1) / n)
-    g = (math.sqrt(5) - 1) / 2
-    for _ in range(60):
-        a, b = hi - g * (hi - lo), lo + g * (hi - lo)
-        if d(a) < d(b):
-            hi = b
-        else:
-            lo = a
-    return min(d(0.0), d(1.0), d((lo + hi) / 2), d(best / n))
-
-
-def points_of(site, key):
-    return [(p.get("x", 0.0), p.get("y", 0.0)) for p in site.get(key, [])]
-
-
-def distance(q, site):
-    """Euclidean distance from q to the site's geometry (a polygon's boundary): Pick's measure,
-    weights and sides aside."""
-    if "point" in site:
-        p = site["point"]
-        return math.hypot(q[0] - p.get("x", 0.0), q[1] - p.get("y", 0.0))
-    if "segment" in site:
-        s = site["segment"]
-        a, b = s.get("a", {}), s.get("b", {})
-        return to_segment(q, (a.get("x", 0.0), a.get("y", 0.0)), (b.get("x", 0.0), b.get("y", 0.0)))
-    if "polyline" in site or "polygon" in site:
-        v = points_of(site["polyline"], "points") if "polyline" in site else points_of(site["polygon"], "vertices")
-        pairs = list(zip(v, v[1:])) + ([(v[-1], v[0])] if "polygon" in site else [])
-        return min(to_segment(q, a, b) for a, b in pairs)
-    return to_bezier(q, points_of(site["bezier"], "controlPoints"))
-
-
-def inside(q, v):
-    """Whether q is inside the polygon with vertices v (even-odd rule)."""
-    result = False
-    for (ax, ay), (bx, by) in zip(v, v[1:] + v[:1]):
-        if (ay > q[1]) != (by > q[1]) and q[0] < ax + (q[1] - ay) * (bx - ax) / (by - ay):
-            result = not result
-    return result
-
-
-def value(q, site):
-    """The site's value in the diagram (a NEAREST one): m d + a, or infinity where the site
-    does not reach (beyond max_distance, or on the side of a polygon it leaves out)."""
-    d = distance(q, site)
-    if site.get("maxDistance") and d > site["maxDistance"]:
-        return math.inf
-    side = site.get("polygon", {}).get("side", "SIDE_UNSPECIFIED")
-    if side != "SIDE_UNSPECIFIED" and d > 0 and inside(q, points_of(site["polygon"], "vertices")) != (side == "INSIDE"):
-        return math.inf
-    return site.get("multiplicativeWeight", 1) * d + site.get("additiveWeight", 0)
-
-
-def slack(site):
-    """How far the server's distance may be from the oracle's: a Bezier is measured to its
-    flattening, within the tolerance; all else to rounding."""
-    return site["bezier"].get("tolerance", 0.0) + 1e-9 if "bezier" in site else 1e-9
+def Server(*flags):
+    return gvdtest.Server(ARGS.server, *flags)
 
 
 def P(x, y):
