@@ -166,7 +166,7 @@ template <class F>
 void IdMap::ForEachAfter(std::string_view after, F&& f) const {
   for (size_t l = LeafAfter(after); l < leaves_.size(); ++l) {
     for (const Entry& e : *leaves_[l]) {
-      if (!after.empty() && e.id <= after) continue;
+      if (!after.empty() && e.id.compare(after) <= 0) continue;
       if (!f(e)) return;
     }
   }

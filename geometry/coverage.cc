@@ -133,8 +133,10 @@ class PieceCover {
              std::vector<PieceDraw>* pieces) {
     if (!std::isnan(sites.point(slot).x)) return;  // a plain point is its one piece
     const Site& site = *sites.get(slot);
-    auto [it, fresh] = regions_.try_emplace(slot);
-    if (fresh) {
+    // Not a structured binding: clang 14 lets no lambda below capture one.
+    const auto emplaced = regions_.try_emplace(slot);
+    const auto it = emplaced.first;
+    if (emplaced.second) {
       it->second.regions = Regions(site);
       if (site.segment_tree) it->second.of_segment = PiecesOfSegments(site.geometry);
     }
