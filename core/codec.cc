@@ -1,6 +1,7 @@
 #include "core/codec.h"
 
 #include <bit>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <type_traits>
@@ -92,6 +93,38 @@ class Reader {
   bool ok_ = true;
 };
 
+bool Finite(Vec2 p) { return std::isfinite(p.x) && std::isfinite(p.y); }
+bool Finite(const std::vector<Vec2>& points) {
+  for (Vec2 p : points) {
+    if (!Finite(p)) return false;
+  }
+  return true;
+}
+
+// Whether a decoded site keeps the contracts of Site and its geometry (geometry/site.h), as
+// every accepted site did: a stored one that does not was damaged after it was written.
+bool KeepsContract(const Site& site) {
+  if (site.id.empty() || !std::isfinite(site.additive) || site.additive < 0 ||
+      !std::isfinite(site.multiplicative) || site.multiplicative <= 0 ||
+      !(site.max_distance > 0)) {
+    return false;
+  }
+  return std::visit(
+      [](const auto& g) {
+        using T = std::decay_t<decltype(g)>;
+        if constexpr (std::is_same_v<T, PointSite>) return Finite(g.p);
+        if constexpr (std::is_same_v<T, SegmentSite>) return Finite(g.a) && Finite(g.b);
+        if constexpr (std::is_same_v<T, PolylineSite>) return g.points.size() >= 2 && Finite(g.points);
+        if constexpr (std::is_same_v<T, PolygonSite>) return g.vertices.size() >= 3 && Finite(g.vertices);
+        if constexpr (std::is_same_v<T, BezierSite>) {
+          return (g.control.size() == 3 || g.control.size() == 4) && Finite(g.control) &&
+                 std::isfinite(g.tolerance) && g.tolerance >= 0 && g.flat.size() >= 2 &&
+                 Finite(g.flat);
+        }
+      },
+      site.geometry);
+}
+
 }  // namespace
 
 std::string EncodeSite(const Site& site) {
@@ -168,6 +201,7 @@ absl::StatusOr<Site> DecodeSite(std::string_view bytes) {
       r.Fail();
   }
   if (auto s = r.Done("site"); !s.ok()) return s;
+  if (!KeepsContract(site)) return absl::DataLossError("a stored site is damaged");
   return site;
 }
 
@@ -210,6 +244,14 @@ absl::StatusOr<SceneSettings> DecodeSettings(std::string_view bytes) {
   s.mode = static_cast<RenderMode>(mode);
   s.diagram = static_cast<Diagram>(diagram);
   if (auto st = r.Done("scene"); !st.ok()) return st;
+  // What every accepted scene had: an id, a window of positive finite size, pixels, an error
+  // bound and enough triangles to make a cone.
+  const Window& w = s.grid.window;
+  if (s.id.empty() || !(w.max_x - w.min_x > 0) || !std::isfinite(w.max_x - w.min_x) ||
+      !(w.max_y - w.min_y > 0) || !std::isfinite(w.max_y - w.min_y) || s.grid.width == 0 ||
+      s.grid.height == 0 || !(s.eps > 0) || !std::isfinite(s.eps) || s.cone_triangles < 3) {
+    return absl::DataLossError("a stored scene is damaged");
+  }
   return s;
 }
 

@@ -13,6 +13,7 @@
 #include <fstream>
 #include <iterator>
 #include <limits>
+#include <limits>
 #include <map>
 #include <memory>
 #include <random>
@@ -98,6 +99,15 @@ std::string RandomId(std::mt19937_64& rng) {
   return id;
 }
 
+SceneSettings ValidSettings() {
+  SceneSettings s;
+  s.id = "scene";
+  s.grid = Grid{{0, 0, 2, 1}, 64, 32};
+  s.eps = 0.01;
+  s.cone_triangles = 40;
+  return s;
+}
+
 TEST(Codec, SitesRoundTripBitForBit) {
   std::mt19937_64 rng(11);
   for (int i = 0; i < 2000; ++i) {
@@ -155,13 +165,55 @@ TEST(Codec, DamagedBytesAreDataLoss) {
   std::string line = EncodeSite(Site{"l", PolylineSite{{{0, 0}, {1, 1}}}});
   line[1 + 4 + 1 + 24 + 1 + 3] = '\x7f';
   EXPECT_EQ(DecodeSite(line).status().code(), absl::StatusCode::kDataLoss);
-  const std::string settings = EncodeSettings(SceneSettings{});
+  const std::string settings = EncodeSettings(ValidSettings());
+  ASSERT_TRUE(DecodeSettings(settings).ok());
   for (size_t n = 0; n < settings.size(); ++n) {
     EXPECT_EQ(DecodeSettings(settings.substr(0, n)).status().code(), absl::StatusCode::kDataLoss);
   }
   std::string mode = settings;
   mode[mode.size() - 2] = 7;
   EXPECT_EQ(DecodeSettings(mode).status().code(), absl::StatusCode::kDataLoss);
+}
+
+// Well-formed bytes whose values no accepted site or scene has (a NaN coordinate, a negative
+// weight, a polygon of two vertices, an empty window...) were damaged after they were
+// written: DATA_LOSS too, so that the server stops naming the file rather than render them.
+TEST(Codec, ValuesNoAcceptedSiteHadAreDataLoss) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  std::vector<Site> bad = {
+      Site{"", PointSite{{0, 0}}},
+      Site{"p", PointSite{{nan, 0}}},
+      Site{"p", PointSite{{0, inf}}},
+      Site{"s", SegmentSite{{0, 0}, {-inf, 1}}},
+      Site{"l", PolylineSite{{{0, 0}}}},
+      Site{"l", PolylineSite{{{0, 0}, {1, nan}}}},
+      Site{"g", PolygonSite{{{0, 0}, {1, 1}}}},
+      Site{"b", BezierSite{{{0, 0}, {1, 1}}, 0.1, {{0, 0}, {1, 1}}}},
+      Site{"b", BezierSite{{{0, 0}, {1, 1}, {2, 0}}, -1, {{0, 0}, {2, 0}}}},
+  };
+  for (double additive : {-1.0, nan, inf}) bad.push_back(Site{"w", PointSite{{0, 0}}, additive});
+  for (double m : {0.0, -2.0, nan}) bad.push_back(Site{"w", PointSite{{0, 0}}, 0, m});
+  for (double r : {0.0, -1.0, nan}) bad.push_back(Site{"w", PointSite{{0, 0}}, 0, 1, r});
+  for (size_t i = 0; i < bad.size(); ++i) {
+    EXPECT_EQ(DecodeSite(EncodeSite(bad[i])).status().code(), absl::StatusCode::kDataLoss) << i;
+  }
+  // The same sites with their values mended decode.
+  EXPECT_TRUE(DecodeSite(EncodeSite(Site{"p", PointSite{{0, 1e300}}, 1e15, 1e-6, 1e-300})).ok());
+  EXPECT_TRUE(DecodeSite(EncodeSite(Site{"g", PolygonSite{{{0, 0}, {1, 1}, {0, 0}}}})).ok());
+
+  std::vector<SceneSettings> scenes(7, ValidSettings());
+  scenes[0].id.clear();
+  scenes[1].grid.window.max_x = scenes[1].grid.window.min_x;
+  scenes[2].grid.window.min_y = nan;
+  scenes[3].grid.window = {-1e308, 0, 1e308, 1};  // its width overflows
+  scenes[4].grid.height = 0;
+  scenes[5].eps = 0;
+  scenes[6].cone_triangles = 2;
+  for (size_t i = 0; i < scenes.size(); ++i) {
+    EXPECT_EQ(DecodeSettings(EncodeSettings(scenes[i])).status().code(),
+              absl::StatusCode::kDataLoss) << i;
+  }
 }
 
 // A fresh directory under /tmp, removed at the end of the test.

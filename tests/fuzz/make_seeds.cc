@@ -1,9 +1,11 @@
 // Writes the seed corpus: a few valid and invalid requests of each kind (the first byte picks
-// the kind, as in fuzz_requests.cc), and some geometry inputs. Usage: make_seeds CORPUS_DIR
+// the kind, as in fuzz_requests.cc), some geometry inputs, and the store's byte form of a scene's
+// settings and of a site of each kind (as in fuzz_store.cc). Usage: make_seeds CORPUS_DIR
 #include <cmath>
 #include <fstream>
 #include <string>
 
+#include "core/codec.h"
 #include "gvd/v1/voronoi.pb.h"
 
 namespace {
@@ -64,6 +66,27 @@ int main(int argc, char** argv) {
   for (int s = 0; s < 4; ++s) {
     std::ofstream out(dir + "/geometry/seed-" + std::to_string(s), std::ios::binary);
     for (int i = 0; i < 64; ++i) out << static_cast<char>((i * 37 + s * 101) & 0xff);
+  }
+
+  gvd::SceneSettings settings;
+  settings.id = "seed";
+  settings.grid.window = {-1, 0, 3, 2};
+  settings.grid.width = 64;
+  settings.grid.height = 32;
+  settings.eps = 0.05;
+  settings.cone_triangles = 40;
+  std::ofstream(dir + "/store/settings", std::ios::binary) << '\0' << gvd::EncodeSettings(settings);
+  gvd::BezierSite bezier{{{0, 0}, {0.5, 1}, {1, 0}}, 0.01, {{0, 0}, {0.25, 0.375}, {0.5, 0.5}, {0.75, 0.375}, {1, 0}}};
+  const std::vector<gvd::Site> sites = {
+      {"point", gvd::PointSite{{0.25, 0.5}}},
+      {"segment", gvd::SegmentSite{{0.1, 0.1}, {0.9, 0.4}}},
+      {"polyline", gvd::PolylineSite{{{0, 0}, {0.5, 0.5}, {0.2, 0.9}}}},
+      {"polygon", gvd::PolygonSite{{{0.2, 0.2}, {0.8, 0.2}, {0.5, 0.8}}, gvd::Side::kInside}},
+      {"bezier", bezier}};
+  for (gvd::Site site : sites) {
+    site.additive = site.id == "segment" ? 0.25 : 0;
+    site.multiplicative = site.id == "polyline" ? 2 : 1;
+    std::ofstream(dir + "/store/site-" + site.id, std::ios::binary) << '\1' << gvd::EncodeSite(site);
   }
   return 0;
 }
