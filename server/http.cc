@@ -106,6 +106,86 @@ class SessionBase : public std::enable_shared_from_this<SessionBase> {
 
 }  // namespace
 
+ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::string& content_type,
+                              std::string body, const std::string& timeout_ms) {
+  ConnectCall call;
+  auto refuse = [&call](grpc::StatusCode code, std::string message, int http_status = 0) {
+    call.method = nullptr;
+    call.code = code;
+    call.message = std::move(message);
+    call.http_status = http_status;
+    return std::move(call);
+  };
+  const MethodDescriptor* method =
+      google::protobuf::DescriptorPool::generated_pool()->FindMethodByName(
+          absl::StrCat(kService, ".", name));
+  if (method == nullptr) {
+    return refuse(grpc::StatusCode::UNIMPLEMENTED,
+                  absl::StrCat(kService, " has no method \"", name, "\""),
+                  static_cast<int>(http::status::not_found));
+  }
+  if (!post) {
+    return refuse(grpc::StatusCode::UNIMPLEMENTED,
+                  absl::StrCat("call ", kService, "/", name, " with POST"),
+                  static_cast<int>(http::status::method_not_allowed));
+  }
+  std::string type = absl::AsciiStrToLower(content_type);
+  type = std::string(absl::StripAsciiWhitespace(type.substr(0, type.find(';'))));
+  const bool streaming = method->server_streaming();
+  const std::string want_json = streaming ? "application/connect+json" : "application/json";
+  const std::string want_proto = streaming ? "application/connect+proto" : "application/proto";
+  if (type != want_json && type != want_proto) {
+    return refuse(grpc::StatusCode::UNIMPLEMENTED,
+                  absl::StrCat("Content-Type \"", type, "\" is not supported by ", name,
+                               ": send ", want_json, " (or ", want_proto, ")"),
+                  static_cast<int>(http::status::unsupported_media_type));
+  }
+  call.json = type == want_json;
+  if (streaming) {
+    // One enveloped message, uncompressed.
+    if (body.size() < 5 || (static_cast<uint8_t>(body[0]) & 0x01) != 0) {
+      return refuse(grpc::StatusCode::INVALID_ARGUMENT,
+                    "a streaming request's body must be one uncompressed Connect envelope");
+    }
+    const uint32_t n = (uint32_t(uint8_t(body[1])) << 24) | (uint32_t(uint8_t(body[2])) << 16) |
+                       (uint32_t(uint8_t(body[3])) << 8) | uint32_t(uint8_t(body[4]));
+    if (n != body.size() - 5) {
+      return refuse(grpc::StatusCode::INVALID_ARGUMENT,
+                    absl::StrCat("the request's envelope says ", n, " bytes; ", body.size() - 5,
+                                 " follow it"));
+    }
+    body = body.substr(5);
+  }
+  if (call.json) {
+    auto* prototype =
+        google::protobuf::MessageFactory::generated_factory()->GetPrototype(method->input_type());
+    std::unique_ptr<Message> message(prototype->New());
+    google::protobuf::util::JsonParseOptions parse;
+    parse.ignore_unknown_fields = false;
+    if (auto s = google::protobuf::util::JsonStringToMessage(body.empty() ? "{}" : body,
+                                                               message.get(), parse);
+        !s.ok()) {
+      return refuse(grpc::StatusCode::INVALID_ARGUMENT,
+                    absl::StrCat("the body is not a ", method->input_type()->name(), " in JSON: ",
+                                 s.message().ToString()));
+    }
+    call.request = message->SerializeAsString();
+  } else {
+    call.request = std::move(body);
+  }
+  if (!timeout_ms.empty()) {
+    int64_t ms = 0;
+    if (!absl::SimpleAtoi(timeout_ms, &ms) || ms <= 0) {
+      return refuse(grpc::StatusCode::INVALID_ARGUMENT,
+                    absl::StrCat("Connect-Timeout-Ms must be a positive number, not \"",
+                                 timeout_ms, "\""));
+    }
+    call.timeout = std::chrono::milliseconds(ms);
+  }
+  call.method = method;
+  return call;
+}
+
 class HttpServer::Impl {
  public:
   Impl(HttpOptions options, std::shared_ptr<grpc::Channel> channel)
@@ -119,10 +199,6 @@ class HttpServer::Impl {
   // What sessions need.
   const HttpOptions& options() const { return options_; }
   grpc::GenericStub& stub() { return stub_; }
-  const MethodDescriptor* FindMethod(const std::string& name) const {
-    return google::protobuf::DescriptorPool::generated_pool()->FindMethodByName(
-        absl::StrCat(kService, ".", name));
-  }
   bool Allowed(const std::string& origin) const {
     for (const auto& o : options_.cors_origins) {
       if (o == "*" || o == origin) return true;
@@ -232,79 +308,28 @@ class Session final : public SessionBase {
       return Error(grpc::StatusCode::NOT_FOUND, absl::StrCat("no such path: ", target));
     }
     const std::string name = target.substr(prefix.size());
-    const MethodDescriptor* method = server_->FindMethod(name);
-    if (method == nullptr) {
-      return Error(grpc::StatusCode::UNIMPLEMENTED,
-                   absl::StrCat(kService, " has no method \"", name, "\""),
-                   http::status::not_found);
+    auto header = [&req](const auto& field) {
+      const auto v = req[field];
+      return std::string(v.data(), v.size());
+    };
+    ConnectCall call = DecodeConnectCall(name, req.method() == http::verb::post,
+                                         header(http::field::content_type), std::move(req.body()),
+                                         header("Connect-Timeout-Ms"));
+    if (call.method == nullptr) {
+      return Error(call.code, call.message,
+                   call.http_status ? std::optional(static_cast<http::status>(call.http_status))
+                                    : std::nullopt);
     }
-    if (req.method() != http::verb::post) {
-      return Error(grpc::StatusCode::UNIMPLEMENTED,
-                   absl::StrCat("call ", kService, "/", name, " with POST"),
-                   http::status::method_not_allowed);
-    }
-    std::string type = absl::AsciiStrToLower(std::string(req[http::field::content_type]));
-    type = std::string(absl::StripAsciiWhitespace(type.substr(0, type.find(';'))));
-    const bool streaming = method->server_streaming();
-    const std::string want_json = streaming ? "application/connect+json" : "application/json";
-    const std::string want_proto = streaming ? "application/connect+proto" : "application/proto";
-    if (type != want_json && type != want_proto) {
-      return Error(grpc::StatusCode::UNIMPLEMENTED,
-                   absl::StrCat("Content-Type \"", type, "\" is not supported by ", name,
-                                ": send ", want_json, " (or ", want_proto, ")"),
-                   http::status::unsupported_media_type);
-    }
-    json_ = type == want_json;
-    content_type_ = json_ ? want_json : want_proto;
-    // The request message, as protobuf bytes.
-    std::string body = std::move(req.body());
-    if (streaming) {
-      // One enveloped message, uncompressed.
-      if (body.size() < 5 || (static_cast<uint8_t>(body[0]) & 0x01) != 0) {
-        return Error(grpc::StatusCode::INVALID_ARGUMENT,
-                     "a streaming request's body must be one uncompressed Connect envelope");
-      }
-      const uint32_t n = (uint32_t(uint8_t(body[1])) << 24) | (uint32_t(uint8_t(body[2])) << 16) |
-                         (uint32_t(uint8_t(body[3])) << 8) | uint32_t(uint8_t(body[4]));
-      if (n != body.size() - 5) {
-        return Error(grpc::StatusCode::INVALID_ARGUMENT,
-                     absl::StrCat("the request's envelope says ", n, " bytes; ",
-                                  body.size() - 5, " follow it"));
-      }
-      body = body.substr(5);
-    }
-    std::string request;
-    if (json_) {
-      auto* prototype =
-          google::protobuf::MessageFactory::generated_factory()->GetPrototype(method->input_type());
-      std::unique_ptr<Message> message(prototype->New());
-      google::protobuf::util::JsonParseOptions parse;
-      parse.ignore_unknown_fields = false;
-      if (auto s = google::protobuf::util::JsonStringToMessage(body.empty() ? "{}" : body,
-                                                                 message.get(), parse);
-          !s.ok()) {
-        return Error(grpc::StatusCode::INVALID_ARGUMENT,
-                     absl::StrCat("the body is not a ", method->input_type()->name(),
-                                  " in JSON: ", s.message().ToString()));
-      }
-      request = message->SerializeAsString();
-    } else {
-      request = std::move(body);
-    }
-    output_ = method->output_type();
+    const bool streaming = call.method->server_streaming();
+    json_ = call.json;
+    content_type_ = std::string(json_ ? (streaming ? "application/connect+json" : "application/json")
+                                      : (streaming ? "application/connect+proto" : "application/proto"));
+    output_ = call.method->output_type();
     // What the gRPC call carries of the request: its token and its deadline.
     authorization_ = std::string(req[http::field::authorization]);
     deadline_.reset();
-    if (auto t = req["Connect-Timeout-Ms"]; !t.empty()) {
-      int64_t ms = 0;
-      const std::string text(t.data(), t.size());
-      if (!absl::SimpleAtoi(text, &ms) || ms <= 0) {
-        return Error(grpc::StatusCode::INVALID_ARGUMENT,
-                     absl::StrCat("Connect-Timeout-Ms must be a positive number, not \"", text,
-                                  "\""));
-      }
-      deadline_ = std::chrono::system_clock::now() + std::chrono::milliseconds(ms);
-    }
+    if (call.timeout) deadline_ = std::chrono::system_clock::now() + *call.timeout;
+    const std::string request = std::move(call.request);
     const std::string path = absl::StrCat("/", kService, "/", name);
     if (streaming) return Stream(path, request);
     Unary(path, request);

@@ -17,9 +17,11 @@
 #include <chrono>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include <google/protobuf/descriptor.h>
 #include <grpcpp/grpcpp.h>
 
 #include "absl/status/statusor.h"
@@ -39,6 +41,25 @@ struct HttpOptions {
   // Static files served by GET: path ("/", "/app.js") to (content type, body).
   std::map<std::string, std::pair<std::string, std::string>> files;
 };
+
+// A call as an HTTP request states it, decoded (the part of the transport that reads what
+// the client sent): the method named in the path, the request message as protobuf bytes
+// (parsed from JSON, or as sent), and the deadline asked for. `method` is null when the
+// request is refused: then `code` and `message` say why, and `http_status` the HTTP status
+// when it is not the code's own (0).
+struct ConnectCall {
+  const google::protobuf::MethodDescriptor* method = nullptr;
+  bool json = false;
+  std::string request;
+  std::optional<std::chrono::milliseconds> timeout;
+  grpc::StatusCode code = grpc::StatusCode::OK;
+  std::string message;
+  int http_status = 0;
+};
+// `name`: the path after /gvd.v1.Voronoi/; `post`: whether the HTTP method is POST;
+// `timeout_ms`: the Connect-Timeout-Ms header (empty when absent).
+ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::string& content_type,
+                              std::string body, const std::string& timeout_ms);
 
 class HttpServer {
  public:
