@@ -370,6 +370,28 @@ def check_nearest(stats, where, sites, x, y, r, measure=value):
         stats.fail(f"{where}: ({x}, {y}) {sid} at {d} +- {bound}, but the nearest is at {best}")
 
 
+def versioned_call(server, stats, client, model, method, body, min_version):
+    """Calls `method` on the model's scene: the answer, its version and the scene's sites at
+    that version; None when the call met a restart, failed (a failure is recorded) or
+    answered at a version the writer no longer keeps."""
+    try:
+        answer = client.call(method, body)
+    except RestartError:
+        server.wait_serving(0)
+        return None
+    except CallError as e:
+        stats.fail(f"{model.scene_id} {method}: {e}")
+        return None
+    version = int(answer.get("version", 0))
+    if min_version is not None and version < min_version:
+        stats.fail(f"{model.scene_id} {method} min_version {min_version} answered at {version}")
+    sites = model.at(version)
+    if sites is None:
+        stats.count("answers at a version no longer kept")
+        return None
+    return answer, version, sites
+
+
 def reader(server, stats, models, rng, stop):
     client = Client(server, stats)
     while not stop.is_set():
@@ -381,21 +403,11 @@ def reader(server, stats, models, rng, stop):
                            for _ in range(rng.randint(1, 64))]}
         if rng.random() < 0.5:
             body["minVersion"] = str(acked)
-        try:
-            answer = client.call("FindNearest", body)
-        except RestartError:
-            server.wait_serving(0)
+        got = versioned_call(server, stats, client, model, "FindNearest", body,
+                             acked if "minVersion" in body else None)
+        if got is None:
             continue
-        except CallError as e:
-            stats.fail(f"{model.scene_id} FindNearest: {e}")
-            continue
-        version = int(answer.get("version", 0))
-        if "minVersion" in body and version < acked:
-            stats.fail(f"{model.scene_id} FindNearest min_version {acked} answered at {version}")
-        sites = model.at(version)
-        if sites is None:
-            stats.count("answers at a version no longer kept")
-            continue
+        answer, version, sites = got
         for p, r in zip(body["points"], answer.get("results", [])):
             check_nearest(stats, f"{model.scene_id} v{version}", sites, p["x"], p["y"], r)
         if len(answer.get("results", [])) != len(body["points"]):
@@ -416,21 +428,11 @@ def analyst(server, stats, models, rng, stop):
             body = {"sceneId": model.scene_id, "point": {"x": x, "y": y}}
         else:
             body = {"sceneId": model.scene_id, "minVersion": str(acked)}
-        try:
-            answer = client.call(method, body)
-        except RestartError:
-            server.wait_serving(0)
+        got = versioned_call(server, stats, client, model, method, body,
+                             None if method == "Pick" else acked)
+        if got is None:
             continue
-        except CallError as e:
-            stats.fail(f"{model.scene_id} {method}: {e}")
-            continue
-        version = int(answer.get("version", 0))
-        sites = model.at(version)
-        if method != "Pick" and version < acked:
-            stats.fail(f"{model.scene_id} {method} min_version {acked} answered at {version}")
-        if sites is None:
-            stats.count("answers at a version no longer kept")
-            continue
+        answer, version, sites = got
         if method == "Pick":
             if answer.get("found"):
                 answer["exact"] = True
