@@ -5,7 +5,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 shellcheck -x deploy/run-server.sh deploy/debian-deps.sh tests/run-tests.sh tests/bench/run.sh tests/bench/gpu.sh \
-  tests/lint_deploy.sh tests/sanitizers/run.sh tests/smoke-server.sh tests/gallery/make.sh tests/small_disk.sh .ci/run
+  tests/lint_deploy.sh tests/sanitizers/run.sh tests/smoke-server.sh tests/gallery/make.sh tests/small_disk.sh tests/soak.sh \
+  tests/container_test.sh .ci/run
 yamllint -s -c deploy/.yamllint deploy/compose.yaml deploy/k8s/*.yaml
 python3 - deploy/k8s/*.yaml <<'PY'
 import sys
@@ -60,5 +61,17 @@ PY
 # Every COPY source of the Dockerfile (context: the repository root) exists.
 grep -E '^COPY [^-]' deploy/Dockerfile | while read -r _ src _; do
   [ -e "$src" ] || { echo "Dockerfile copies missing $src"; exit 1; }
+done
+# The image's build stage gets every directory the Release build reads: each add_subdirectory
+# of the top CMakeLists.txt (tests aside: the image builds with GVD_BUILD_TESTS=OFF) and each
+# top-level directory a CMakeLists.txt outside tests/ names through PROJECT_SOURCE_DIR (the
+# web app's files, say).
+needed=$( { sed -n 's/^add_subdirectory(\([a-z_]*\))$/\1/p' CMakeLists.txt
+            find . -name CMakeLists.txt -not -path './tests/*' -not -path './build/*' -print0 |
+              xargs -0 grep -ohE 'PROJECT_SOURCE_DIR\}/[a-z_]+/' | sed -E 's|.*\}/([a-z_]+)/|\1|'
+          } | sort -u)
+for dir in $needed; do
+  grep -qE "^COPY $dir $dir\$" deploy/Dockerfile ||
+    { echo "Dockerfile does not copy $dir/, which the build reads"; exit 1; }
 done
 echo "deploy files pass"
