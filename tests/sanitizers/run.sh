@@ -15,7 +15,8 @@ cmake -S . -B build/asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGVD_WERROR
   -DCMAKE_CXX_FLAGS="-O1 -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined" \
   -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" >/dev/null
 cmake --build build/asan --target gvd_unit_tests gvd_core_tests gvd_render_gl_tests gvd_integration_tests \
-  gvd_server_unit_tests gvd-server gvd gvd_fuzz_requests_replay gvd_fuzz_geometry_replay
+  gvd_server_unit_tests gvd-server gvd gvd_fuzz_requests_replay gvd_fuzz_geometry_replay \
+  gvd_fuzz_store_replay gvd_fuzz_http_replay
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 (cd build/asan && ASAN_OPTIONS=detect_leaks=1 ctest --output-on-failure -j "$jobs" -R '^(Cone|Build|Frame|Exact|Nearest|Coverage|SiteIndex|Snapshot|SceneCore|Codec|Store\.|CpuPool|BoundaryEdges|TraceBoundaries|NeighborPairs|HiddenSites|GeometryMeetsBox|TrianglesFromEdges|fuzz_)')
 # The browser tests (browser_*) and the image test (container_*) run in the plain build only:
