@@ -141,6 +141,7 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
                   static_cast<int>(http::status::unsupported_media_type));
   }
   call.json = type == want_json;
+  call.content_type = call.json ? want_json : want_proto;
   if (streaming) {
     // One enveloped message, uncompressed.
     if (body.size() < 5 || (static_cast<uint8_t>(body[0]) & 0x01) != 0) {
@@ -320,10 +321,8 @@ class Session final : public SessionBase {
                    call.http_status ? std::optional(static_cast<http::status>(call.http_status))
                                     : std::nullopt);
     }
-    const bool streaming = call.method->server_streaming();
     json_ = call.json;
-    content_type_ = std::string(json_ ? (streaming ? "application/connect+json" : "application/json")
-                                      : (streaming ? "application/connect+proto" : "application/proto"));
+    content_type_ = call.content_type;
     output_ = call.method->output_type();
     // What the gRPC call carries of the request: its token and its deadline.
     authorization_ = std::string(req[http::field::authorization]);
@@ -331,7 +330,7 @@ class Session final : public SessionBase {
     if (call.timeout) deadline_ = std::chrono::system_clock::now() + *call.timeout;
     const std::string request = std::move(call.request);
     const std::string path = absl::StrCat("/", kService, "/", name);
-    if (streaming) return Stream(path, request);
+    if (call.method->server_streaming()) return Stream(path, request);
     Unary(path, request);
   }
 

@@ -50,6 +50,7 @@ struct HttpOptions {
 struct ConnectCall {
   const google::protobuf::MethodDescriptor* method = nullptr;
   bool json = false;
+  std::string content_type;  // the answer's: the request's, canonical ("application/json"...)
   std::string request;
   std::optional<std::chrono::milliseconds> timeout;
   grpc::StatusCode code = grpc::StatusCode::OK;

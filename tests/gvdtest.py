@@ -34,6 +34,12 @@ def start_server(binary, data, port_file, log, *flags, timeout=60):
         return process, int(f.read().split()[1])
 
 
+def percentile(values, q):
+    """The nearest-rank q-quantile of values (q = 0.99: the p99)."""
+    values = sorted(values)
+    return values[min(len(values) - 1, max(0, math.ceil(q * len(values)) - 1))]
+
+
 class Server:
     """gvd-server on loopback ports of its choosing, with its own data directory."""
 

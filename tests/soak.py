@@ -29,7 +29,6 @@ import argparse
 import atexit
 import http.client
 import json
-import math
 import os
 import random
 import signal
@@ -38,7 +37,7 @@ import tempfile
 import threading
 import time
 
-from gvdtest import distance, start_server, value
+from gvdtest import distance, percentile, start_server, value
 
 SCENES = 4
 WINDOW = (0.0, 0.0, 100.0, 100.0)
@@ -180,7 +179,6 @@ class Stats:
         self.latencies = {}
         self.counts = {}
         self.failures = []
-        self.restart_errors = 0
 
     def latency(self, method, seconds):
         with self.lock:
@@ -506,11 +504,6 @@ def slope_mib_per_min(samples):
     mt, mr = sum(ts) / len(ts), sum(rs) / len(rs)
     den = sum((t - mt) ** 2 for t in ts)
     return 60.0 * sum((t - mt) * (r - mr) for t, r in zip(ts, rs)) / den if den else float("nan")
-
-
-def percentile(values, q):
-    values = sorted(values)
-    return values[min(len(values) - 1, int(math.ceil(q * len(values))) - 1)]
 
 
 def main():

@@ -15,11 +15,14 @@ import argparse
 import json
 import os
 import random
-import subprocess
 import tempfile
 import threading
 import time
 import http.client
+import sys
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+from gvdtest import percentile, start_server  # noqa: E402
 
 
 def call(port, method, body):
@@ -34,22 +37,12 @@ def call(port, method, body):
     return json.loads(payload)
 
 
-def percentile(values, q):
-    values = sorted(values)
-    return values[min(len(values) - 1, max(0, int(q * len(values) + 0.999999) - 1))]
-
-
 def run(server, threads, args):
     work = tempfile.mkdtemp(prefix="gvd-fair-")
-    port_file = os.path.join(work, "port")
-    proc = subprocess.Popen([server, "--listen", "127.0.0.1:0", "--http-listen", "127.0.0.1:0",
-                             "--port-file", port_file, "--data", ":memory:", "--log-level", "warn",
-                             "--render-threads", str(threads)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc, port = start_server(server, ":memory:", os.path.join(work, "port"),
+                              open(os.path.join(work, "log"), "w"), "--log-level", "warn",
+                              "--render-threads", str(threads))
     try:
-        while not os.path.exists(port_file):
-            time.sleep(0.05)
-        port = int(open(port_file).read().split()[1])
         window = {"minX": 0, "minY": 0, "maxX": 1, "maxY": 1}
         call(port, "CreateScene", {"sceneId": "big", "widthPx": args.size, "heightPx": args.size,
                                    "window": window})
