@@ -19,16 +19,16 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
-#include "server/auth.h"
-#include "server/http.h"
+#include "server/grpc/auth.h"
+#include "server/http/http.h"
 #include "server/log.h"
-#include "server/memory.h"
+#include "server/app/memory.h"
 #include "server/metrics.h"
-#include "server/render_loop.h"
-#include "server/service.h"
-#include "server/web_app.h"
-#include "server/convert.h"
-#include "store/sqlite_store.h"
+#include "render/gl/render_loop.h"
+#include "server/grpc/service.h"
+#include "server/http/web_app.h"
+#include "server/grpc/legacy_records.h"
+#include "server/store/sqlite_store.h"
 
 namespace {
 
@@ -255,7 +255,27 @@ int main(int argc, char** argv) {
 
   gvd::Metrics metrics;
   gvd::RenderLoop renderer(flags.render_threads);
-  renderer.set_metrics(&metrics);
+  renderer.set_observer({
+      [&metrics](const gvd::Scene& scene, uint64_t version, const gvd::RenderStats& stats,
+                 double seconds) {
+        metrics.ObserveRender(stats, seconds);
+        const gvd::PixelRect& w = stats.window;
+        gvd::Log(gvd::LogLevel::kDebug, "rendered",
+                 {{"scene", scene.id()}, {"version", absl::StrCat(version)},
+                  {"sites", absl::StrCat(scene.site_count())},
+                  {"full", stats.full ? "true" : "false"},
+                  {"window", absl::StrCat(w.x0, ",", w.y0, ",", w.x1, ",", w.y1)},
+                  {"sites_drawn", absl::StrCat(stats.sites_drawn)},
+                  {"coverage_ms", absl::StrCat(stats.coverage_seconds * 1e3)},
+                  {"draw_ms", absl::StrCat(stats.draw_seconds * 1e3)},
+                  {"readback_ms", absl::StrCat(stats.readback_seconds * 1e3)},
+                  {"total_ms", absl::StrCat(seconds * 1e3)}});
+      },
+      [](const gvd::Scene& scene, uint64_t version, const absl::Status& error) {
+        gvd::Log(gvd::LogLevel::kError, "render_failed",
+                 {{"scene", scene.id()}, {"version", absl::StrCat(version)},
+                  {"error", error.ToString()}});
+      }});
   if (auto s = renderer.Start(*preference); !s.ok()) {
     gvd::Log(gvd::LogLevel::kError, "no_render_context", {{"error", s.ToString()}});
     return 1;

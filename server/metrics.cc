@@ -17,16 +17,6 @@
 namespace gvd {
 namespace {
 
-const char* CodeName(grpc::StatusCode code) {
-  static const char* kNames[] = {"OK", "CANCELLED", "UNKNOWN", "INVALID_ARGUMENT",
-                                 "DEADLINE_EXCEEDED", "NOT_FOUND", "ALREADY_EXISTS",
-                                 "PERMISSION_DENIED", "RESOURCE_EXHAUSTED", "FAILED_PRECONDITION",
-                                 "ABORTED", "OUT_OF_RANGE", "UNIMPLEMENTED", "INTERNAL",
-                                 "UNAVAILABLE", "DATA_LOSS", "UNAUTHENTICATED"};
-  int c = static_cast<int>(code);
-  return c >= 0 && c <= 16 ? kNames[c] : "UNKNOWN";
-}
-
 // Exponential buckets from 10 us to about 40 s.
 prometheus::Histogram::BucketBoundaries Seconds() {
   prometheus::Histogram::BucketBoundaries b;
@@ -168,9 +158,9 @@ void Metrics::RpcEnded(const std::string& method) {
   rpc_in_flight_->Add({{"method", method}}).Decrement();
 }
 
-void Metrics::ObserveRpc(const std::string& method, grpc::StatusCode code, double seconds) {
+void Metrics::ObserveRpc(const std::string& method, absl::StatusCode code, double seconds) {
   rpc_seconds_->Add({{"method", method}}, Seconds()).Observe(seconds);
-  rpc_total_->Add({{"method", method}, {"code", CodeName(code)}}).Increment();
+  rpc_total_->Add({{"method", method}, {"code", absl::StatusCodeToString(code)}}).Increment();
 }
 
 void Metrics::ObserveRender(const RenderStats& stats, double render_seconds) {

@@ -6,10 +6,9 @@
 #include <string>
 #include <vector>
 
-#include <grpcpp/support/status.h>
-
+#include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "gl/raster.h"
+#include "render/gl/render_stats.h"
 
 namespace prometheus {
 class Exposer;
@@ -48,7 +47,7 @@ class Metrics {
   // A call of `method` began, or ended (gvd_rpc_in_flight).
   void RpcStarted(const std::string& method);
   void RpcEnded(const std::string& method);
-  void ObserveRpc(const std::string& method, grpc::StatusCode code, double seconds);
+  void ObserveRpc(const std::string& method, absl::StatusCode code, double seconds);
   // One render of `render_seconds`, as its stats describe it: for a render that drew meshes,
   // the area they drew over the window's; for a computed one, its mean candidates per pixel.
   void ObserveRender(const RenderStats& stats, double render_seconds);

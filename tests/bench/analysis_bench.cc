@@ -7,13 +7,13 @@
 #include <map>
 #include <random>
 
-#include "analysis/analysis.h"
-#include "analysis/plan.h"
-#include "analysis/refine.h"
-#include "gl/scene_raster.h"
-#include "gl/zoom.h"
+#include "render/analysis/analysis.h"
+#include "render/analysis/planning.h"
+#include "render/analysis/refine.h"
+#include "render/gl/scene_raster.h"
+#include "render/gl/zoom.h"
 #include "tests/bench/bench_common.h"
-#include "tests/maze.h"
+#include "tests/support/maze.h"
 
 extern "C" {
 #include <libqhull_r/qhull_ra.h>

@@ -6,9 +6,9 @@
 #include <random>
 #include <string>
 
-#include "gl/context.h"
-#include "gl/raster.h"
-#include "geometry/site.h"
+#include "render/gl/context.h"
+#include "render/gl/rasterizer.h"
+#include "render/kernel/site2.h"
 
 namespace gvd {
 

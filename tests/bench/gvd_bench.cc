@@ -11,12 +11,12 @@
 
 #include "gvd/client.h"
 #include "tests/bench/bench_common.h"
-#include "gl/context.h"
-#include "gl/raster.h"
-#include "gl/scene_raster.h"
-#include "server/render_loop.h"
-#include "server/service.h"
-#include "store/sqlite_store.h"
+#include "render/gl/context.h"
+#include "render/gl/rasterizer.h"
+#include "render/gl/scene_raster.h"
+#include "render/gl/render_loop.h"
+#include "server/grpc/service.h"
+#include "server/store/sqlite_store.h"
 
 #ifdef GVD_BENCH_OPENCV
 #include <opencv2/imgproc.hpp>

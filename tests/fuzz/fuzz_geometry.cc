@@ -7,11 +7,11 @@
 #include <cstring>
 #include <numbers>
 
-#include "analysis/analysis.h"
-#include "geometry/coverage.h"
-#include "geometry/exact.h"
-#include "geometry/mesh.h"
-#include "tests/oracle.h"
+#include "render/analysis/analysis.h"
+#include "render/plan/coverage.h"
+#include "render/kernel/exact2.h"
+#include "render/plan/distance_mesh.h"
+#include "tests/support/oracle.h"
 
 namespace {
 

@@ -18,7 +18,7 @@
 #include <boost/beast/http.hpp>
 
 #include "gvd/v1/voronoi.pb.h"
-#include "server/http.h"
+#include "server/http/http.h"
 
 namespace {
 

@@ -8,9 +8,9 @@
 #include <google/protobuf/stubs/logging.h>
 
 #include "gvd/v1/voronoi.pb.h"
-#include "server/convert.h"
-#include "core/scene.h"
-#include "tests/oracle.h"
+#include "server/grpc/convert.h"
+#include "render/scene/scene.h"
+#include "tests/support/oracle.h"
 
 namespace {
 

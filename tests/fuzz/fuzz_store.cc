@@ -10,9 +10,9 @@
 #include <cstdlib>
 #include <string_view>
 
-#include "core/codec.h"
-#include "core/scene.h"
-#include "tests/oracle.h"
+#include "render/scene/codec.h"
+#include "render/scene/scene.h"
+#include "tests/support/oracle.h"
 
 namespace {
 

@@ -5,7 +5,7 @@
 #include <fstream>
 #include <string>
 
-#include "core/codec.h"
+#include "render/scene/codec.h"
 #include "gvd/v1/voronoi.pb.h"
 
 namespace {

@@ -1,0 +1,169 @@
+#include "client/cli/cli.h"
+
+#include <google/protobuf/util/json_util.h>
+
+#include <charconv>
+#include <cstdio>
+#include <iostream>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
+
+namespace gvd::cli {
+
+const char* const kUsage = R"(usage: gvd [--server HOST:PORT] [--scene ID] [--json] [--timeout SECONDS] COMMAND
+
+Scenes:
+  gvd scene create ID --window MIN_X,MIN_Y,MAX_X,MAX_Y --size WIDTHxHEIGHT [--max-error E]
+                     [--render-mode mesh|exact] [--diagram nearest|farthest]
+  gvd scene get ID
+  gvd scene ls
+  gvd scene rm ID
+  gvd watch SCENE [--after VERSION]
+      one line per frame the scene publishes from now on (after VERSION): its version,
+      the window that changed and its site count; "deleted" and the end when the scene
+      is deleted. --json prints each event as a line of JSON
+Sites (of the scene named by --scene, default "default"):
+  gvd sites add ID X Y [ID X Y ...]              points
+  gvd sites add segment ID X,Y X,Y
+  gvd sites add polyline ID X,Y X,Y [X,Y ...]
+  gvd sites add polygon ID X,Y X,Y X,Y [X,Y ...] [--side outside|inside]
+  gvd sites add bezier ID X,Y X,Y X,Y [X,Y] [--tolerance T]
+      any of them with [--additive A] [--multiplicative M] [--max-distance R]
+  gvd sites add --file PATH   JSON: [{"id": "a", "point": {"x": 1, "y": 2}}, ...] or
+                              {"sites": [...]} (every kind: "segment", "polyline",
+                              "polygon", "bezier", as in the API); GeoJSON: a
+                              FeatureCollection of Point, LineString and Polygon (outer
+                              ring) features, id from the feature's "id" or properties.id,
+                              weights from properties additive_weight,
+                              multiplicative_weight, max_distance, side; or text lines
+                              "ID X Y"; PATH - reads stdin
+  gvd sites rm ID [ID ...]
+  gvd sites ls
+Images:
+  gvd render SCENE -o OUT [--layer ids|features|distance] [--format png|exr]
+             [--window MIN_X,MIN_Y,MAX_X,MAX_Y] [--draw-sites] [--min-version V]
+      writes the scene's frame once its current version is rendered (or from
+      --min-version V on); the format follows OUT's extension unless given
+Structure (paper sec. 5, 6), of the scene named by --scene:
+  gvd boundaries [--window W] [--method full|continuation]
+      the Voronoi boundaries as polylines, one per line: SITE_A SITE_B X,Y X,Y ...
+      (SITE_A "-": where no site reaches)
+  gvd neighbors [SITE] [--window W] [--coarse]
+      Voronoi neighbour pairs (of SITE), refined by zoom windows where pixels are too
+      coarse to tell (--coarse: as the pixels show them); sites that hold no pixel follow
+  gvd delaunay [--coarse]
+      the Delaunay triangles of a scene of points, one per line: A B C counter-clockwise
+  gvd zoom -o OUT --window MIN_X,MIN_Y,MAX_X,MAX_Y --size WIDTHxHEIGHT [--layer ids|distance]
+      renders any window at a resolution of its own and writes its ids (PNG) or distances
+      (EXR, or 16-bit PNG)
+Applications (paper sec. 7):
+  gvd clearance -o OUT [--window W --size WxH]
+      the clearance field (distance to the nearest site, 0 inside solid polygons) as EXR
+      floats, or a 16-bit PNG
+  gvd plan --from X,Y --to X,Y [--radius R] [--prefer clearance|shortest] [-o OUT.png]
+      a collision-free path of maximal clearance for a disc robot of radius R; OUT shows
+      it over the distance field
+  gvd pick X Y [--max-distance D]
+      the site (and its feature) nearest to the point, exactly
+  gvd mosaic IN OUT [--tiles N] [--adaptive] [--seed S] [--mean]
+      IN (any format OpenImageIO reads) as a Voronoi mosaic: N tiles (default 1000) at
+      random, or --adaptive: more and smaller where the image has detail; each tile the
+      colour at its site, or --mean of the tile; the diagram from the server (gvd-mosaic
+      makes the same mosaic with no server, rendering on this machine's EGL)
+  all of them wait for --min-version V when given
+Health:
+  gvd health           the server's grpc.health.v1 status; exit 0 when SERVING
+
+Queries:
+  gvd nearest X Y [X Y ...] [--min-version V] [--exact]
+      prints, per point, the nearest site, its exact distance, and the error bound: no
+      site is closer than distance - error_bound; --exact certifies each answer exact
+
+Flags:
+  --server HOST:PORT   default 127.0.0.1:50051, or $GVD_SERVER
+  --scene ID           default "default", or $GVD_SCENE
+  --json               print responses as JSON
+  --timeout SECONDS    per call (default 30)
+  --token TOKEN        bearer token, or $GVD_TOKEN
+  --tls-ca FILE        use TLS, trusting this CA (PEM); --tls-cert FILE --tls-key FILE add a
+                       client certificate
+)";
+
+[[noreturn]] void Usage(const std::string& message) {
+  std::fprintf(stderr, "gvd: %s\n\n%s", message.c_str(), kUsage);
+  std::exit(2);
+}
+
+double Number(const std::string& word, const std::string& what) {
+  double v;
+  if (!absl::SimpleAtod(word, &v)) Usage(absl::StrCat(what, " must be a number, not \"", word, "\""));
+  return v;
+}
+
+// --window MIN_X,MIN_Y,MAX_X,MAX_Y.
+void ParseWindow(const std::string& text, gvd::v1::Window* w) {
+  std::vector<std::string> c = absl::StrSplit(text, ',');
+  if (c.size() != 4) Usage(absl::StrCat("--window needs MIN_X,MIN_Y,MAX_X,MAX_Y, not ", text));
+  w->set_min_x(Number(c[0], "--window MIN_X"));
+  w->set_min_y(Number(c[1], "--window MIN_Y"));
+  w->set_max_x(Number(c[2], "--window MAX_X"));
+  w->set_max_y(Number(c[3], "--window MAX_Y"));
+}
+
+int Fail(const grpc::Status& s) {
+  static const char* kNames[] = {"OK", "CANCELLED", "UNKNOWN", "INVALID_ARGUMENT",
+                                 "DEADLINE_EXCEEDED", "NOT_FOUND", "ALREADY_EXISTS",
+                                 "PERMISSION_DENIED", "RESOURCE_EXHAUSTED", "FAILED_PRECONDITION",
+                                 "ABORTED", "OUT_OF_RANGE", "UNIMPLEMENTED", "INTERNAL",
+                                 "UNAVAILABLE", "DATA_LOSS", "UNAUTHENTICATED"};
+  int code = s.error_code();
+  std::fprintf(stderr, "gvd: %s: %s\n", code >= 0 && code <= 16 ? kNames[code] : "?",
+               s.error_message().c_str());
+  return 1;
+}
+
+void PrintJson(const google::protobuf::Message& m) {
+  std::string out;
+  google::protobuf::util::JsonPrintOptions options;
+  options.add_whitespace = true;
+  options.preserve_proto_field_names = true;
+  (void)google::protobuf::util::MessageToJsonString(m, &out, options);
+  std::cout << out;
+}
+
+// The shortest decimal form that reads back as v.
+std::string Num(double v) {
+  char buf[32];
+  return std::string(buf, std::to_chars(buf, buf + sizeof buf, v).ptr);
+}
+
+void ParsePoint(const std::string& text, const std::string& flag, v1::Point* p) {
+  std::vector<std::string> c = absl::StrSplit(text, ',');
+  if (c.size() != 2) Usage(absl::StrCat(flag, " needs X,Y, not ", text));
+  p->set_x(Number(c[0], flag + " X"));
+  p->set_y(Number(c[1], flag + " Y"));
+}
+
+void ParseSize(const std::string& text, uint32_t* width, uint32_t* height) {
+  std::vector<std::string> wh = absl::StrSplit(text, 'x');
+  if (wh.size() != 2 || !absl::SimpleAtoi(wh[0], width) || !absl::SimpleAtoi(wh[1], height)) {
+    Usage(absl::StrCat("--size needs WIDTHxHEIGHT in pixels, not ", text));
+  }
+}
+
+const std::string* Option(const Args& a, const char* name) {
+  auto it = a.options.find(name);
+  return it == a.options.end() ? nullptr : &it->second;
+}
+
+uint64_t MinVersion(const Args& a) {
+  const std::string* v = Option(a, "--min-version");
+  if (!v) return 0;
+  uint64_t mv;
+  if (!absl::SimpleAtoi(*v, &mv)) Usage("--min-version needs a version number");
+  return mv;
+}
+
+}  // namespace gvd::cli

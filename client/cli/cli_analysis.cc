@@ -1,0 +1,367 @@
+// The gvd commands on a diagram's structure and its applications: boundaries, neighbors,
+// delaunay, zoom, clearance, plan, pick and mosaic.
+// Protobuf's headers come before OpenImageIO's, whose byte-swap macros they would trip on.
+#include "client/cli/cli.h"
+
+#include <OpenImageIO/imageio.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <random>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "render/image/mosaic.h"
+#include "render/image/image.h"
+
+namespace gvd::cli {
+namespace {
+
+bool EndsWith(const std::string& s, const std::string& tail) {
+  return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
+}
+
+// Writes rows of pixels given from the bottom row up (as the API sends them) top row first.
+absl::Status WritePixels(const std::string& path, uint32_t w, uint32_t h, int channels,
+                         OIIO::TypeDesc type, const void* bottom_up, size_t pixel_bytes) {
+  auto out = OIIO::ImageOutput::create(path);
+  if (!out) return absl::InvalidArgumentError(absl::StrCat("cannot write ", path, ": ", OIIO::geterror()));
+  OIIO::ImageSpec spec(int(w), int(h), channels, type);
+  const auto* base = static_cast<const char*>(bottom_up);
+  // A negative y stride walks the rows from the last (the top) down.
+  const OIIO::stride_t row = OIIO::stride_t(w * pixel_bytes);
+  if (!out->open(path, spec) ||
+      !out->write_image(type, base + size_t(h - 1) * w * pixel_bytes, OIIO::stride_t(pixel_bytes),
+                        -row) ||
+      !out->close()) {
+    return absl::InternalError(absl::StrCat("writing ", path, ": ", out->geterror()));
+  }
+  return absl::OkStatus();
+}
+
+// A float field: 32-bit floats in EXR (and any format that holds them), else 16 bits
+// scaled from 0 to its largest finite value (+infinity as 0).
+absl::Status WriteField(const std::string& path, uint32_t w, uint32_t h, const float* v) {
+  if (EndsWith(path, ".exr") || EndsWith(path, ".tif") || EndsWith(path, ".tiff")) {
+    return WritePixels(path, w, h, 1, OIIO::TypeDesc::FLOAT, v, sizeof(float));
+  }
+  float top = 0;
+  for (size_t k = 0; k < size_t{w} * h; ++k) {
+    if (std::isfinite(v[k])) top = std::max(top, v[k]);
+  }
+  std::vector<uint16_t> grey(size_t{w} * h);
+  for (size_t k = 0; k < grey.size(); ++k) {
+    grey[k] = std::isfinite(v[k]) && top > 0 ? uint16_t(std::lround(v[k] / top * 65535)) : 0;
+  }
+  return WritePixels(path, w, h, 1, OIIO::TypeDesc::UINT16, grey.data(), 2);
+}
+
+int WriteFailed(const absl::Status& s) {
+  std::fprintf(stderr, "gvd: %s\n", std::string(s.message()).c_str());
+  return 1;
+}
+
+// "-" for no site.
+const std::string& Name(const std::string& id) {
+  static const std::string kNone = "-";
+  return id.empty() ? kNone : id;
+}
+
+int Boundaries(const Args& a, Client& client) {
+  v1::GetBoundariesRequest r;
+  r.set_scene_id(a.scene);
+  if (const std::string* window = Option(a, "--window")) ParseWindow(*window, r.mutable_window());
+  if (const std::string* m = Option(a, "--method")) {
+    if (*m == "full") r.set_method(v1::GetBoundariesRequest::FULL_SCAN);
+    else if (*m == "continuation") r.set_method(v1::GetBoundariesRequest::CONTINUATION);
+    else Usage("--method must be full or continuation");
+  }
+  r.set_min_version(MinVersion(a));
+  v1::GetBoundariesResponse response;
+  if (auto s = client.GetBoundaries(r, &response); !s.ok()) return Fail(s);
+  if (a.json) {
+    PrintJson(response);
+    return 0;
+  }
+  for (const auto& b : response.boundaries()) {
+    std::cout << Name(b.site_a()) << " " << b.site_b();
+    for (int k = 0; k + 1 < b.xy_size(); k += 2) std::cout << " " << Num(b.xy(k)) << "," << Num(b.xy(k + 1));
+    if (b.closed()) std::cout << " closed";
+    std::cout << "\n";
+  }
+  std::cerr << response.boundaries_size() << " boundaries, " << response.boundary_pixel_pairs()
+            << " pixel pairs, " << response.cells_visited() << " cells visited, version "
+            << response.version() << "\n";
+  return 0;
+}
+
+void PrintHidden(const google::protobuf::RepeatedPtrField<v1::HiddenSite>& hidden) {
+  for (const auto& h : hidden) {
+    std::cerr << "hidden: " << h.site_id() << " holds no pixel; "
+              << (h.recovered() ? "found by zooming" : "no region found") << "\n";
+  }
+}
+
+int Neighbors(const Args& a, Client& client) {
+  const auto& w = a.words;
+  if (w.size() > 2) Usage("usage: gvd neighbors [SITE] [--window W] [--coarse]");
+  v1::GetNeighborsRequest r;
+  r.set_scene_id(a.scene);
+  if (w.size() == 2) r.set_site_id(w[1]);
+  if (const std::string* window = Option(a, "--window")) ParseWindow(*window, r.mutable_window());
+  r.set_coarse(Option(a, "--coarse") != nullptr);
+  r.set_min_version(MinVersion(a));
+  v1::GetNeighborsResponse response;
+  if (auto s = client.GetNeighbors(r, &response); !s.ok()) return Fail(s);
+  if (a.json) {
+    PrintJson(response);
+    return 0;
+  }
+  for (const auto& p : response.pairs()) std::cout << p.site_a() << " " << p.site_b() << "\n";
+  PrintHidden(response.hidden());
+  std::cerr << response.pairs_size() << " pairs, " << response.zoom_windows()
+            << " zoom windows to depth " << response.zoom_depth() << ", version "
+            << response.version() << "\n";
+  return 0;
+}
+
+int Delaunay(const Args& a, Client& client) {
+  if (a.words.size() != 1) Usage("usage: gvd delaunay [--coarse]");
+  v1::GetDelaunayRequest r;
+  r.set_scene_id(a.scene);
+  r.set_coarse(Option(a, "--coarse") != nullptr);
+  r.set_min_version(MinVersion(a));
+  v1::GetDelaunayResponse response;
+  if (auto s = client.GetDelaunay(r, &response); !s.ok()) return Fail(s);
+  if (a.json) {
+    PrintJson(response);
+    return 0;
+  }
+  for (const auto& t : response.triangles()) std::cout << t.a() << " " << t.b() << " " << t.c() << "\n";
+  PrintHidden(response.hidden());
+  std::cerr << response.triangles_size() << " triangles, " << response.edges_size() << " edges, "
+            << response.zoom_windows() << " zoom windows, version " << response.version() << "\n";
+  return 0;
+}
+
+int Zoom(const Args& a, Client& client) {
+  const std::string* out = Option(a, "--output");
+  const std::string* window = Option(a, "--window");
+  const std::string* size = Option(a, "--size");
+  if (!out || !window || !size) Usage("usage: gvd zoom -o OUT --window W --size WIDTHxHEIGHT");
+  v1::RenderWindowRequest r;
+  r.set_scene_id(a.scene);
+  ParseWindow(*window, r.mutable_window());
+  uint32_t width, height;
+  ParseSize(*size, &width, &height);
+  r.set_width_px(width);
+  r.set_height_px(height);
+  r.set_min_version(MinVersion(a));
+  std::string layer = Option(a, "--layer") ? *Option(a, "--layer") : "ids";
+  if (layer != "ids" && layer != "distance") Usage("--layer must be ids or distance");
+  v1::RenderWindowResponse response;
+  if (auto s = client.RenderWindow(r, &response); !s.ok()) return Fail(s);
+  absl::Status written;
+  if (layer == "distance") {
+    written = WriteField(*out, response.width_px(), response.height_px(), response.distances().data());
+  } else {
+    std::vector<uint8_t> rgb(size_t{response.width_px()} * response.height_px() * 3, 0);
+    for (int k = 0; k < response.ids_size(); ++k) {
+      if (uint32_t id = response.ids(k)) SiteColour(response.site_ids(id - 1), 0, &rgb[size_t(k) * 3]);
+    }
+    written = WritePixels(*out, response.width_px(), response.height_px(), 3,
+                          OIIO::TypeDesc::UINT8, rgb.data(), 3);
+  }
+  if (!written.ok()) return WriteFailed(written);
+  std::cout << "wrote " << *out << ": " << response.width_px() << "x" << response.height_px()
+            << " " << layer << ", " << response.site_ids_size() << " sites, max_error "
+            << Num(response.max_error()) << ", version " << response.version() << "\n";
+  return 0;
+}
+
+int Clearance(const Args& a, Client& client) {
+  const std::string* out = Option(a, "--output");
+  if (!out) Usage("usage: gvd clearance -o OUT [--window W --size WxH]");
+  v1::GetClearanceFieldRequest r;
+  r.set_scene_id(a.scene);
+  if (const std::string* window = Option(a, "--window")) ParseWindow(*window, r.mutable_window());
+  if (const std::string* size = Option(a, "--size")) {
+    uint32_t width, height;
+    ParseSize(*size, &width, &height);
+    r.set_width_px(width);
+    r.set_height_px(height);
+  }
+  r.set_min_version(MinVersion(a));
+  v1::GetClearanceFieldResponse response;
+  if (auto s = client.GetClearanceField(r, &response); !s.ok()) return Fail(s);
+  if (auto s = WriteField(*out, response.width_px(), response.height_px(), response.clearance().data());
+      !s.ok()) {
+    return WriteFailed(s);
+  }
+  std::cout << "wrote " << *out << ": " << response.width_px() << "x" << response.height_px()
+            << " clearance, version " << response.version() << "\n";
+  return 0;
+}
+
+int Plan(const Args& a, Client& client) {
+  const std::string* from = Option(a, "--from");
+  const std::string* to = Option(a, "--to");
+  if (!from || !to || a.words.size() != 1) {
+    Usage("usage: gvd plan --from X,Y --to X,Y [--radius R] [--prefer clearance|shortest] [-o OUT.png]");
+  }
+  v1::PlanPathRequest r;
+  r.set_scene_id(a.scene);
+  ParsePoint(*from, "--from", r.mutable_start());
+  ParsePoint(*to, "--to", r.mutable_goal());
+  if (const std::string* v = Option(a, "--radius")) r.set_robot_radius(Number(*v, "--radius"));
+  if (const std::string* p = Option(a, "--prefer")) {
+    if (*p == "clearance") r.set_prefer(v1::PlanPathRequest::MAX_CLEARANCE);
+    else if (*p == "shortest") r.set_prefer(v1::PlanPathRequest::SHORTEST);
+    else Usage("--prefer must be clearance or shortest");
+  }
+  r.set_min_version(MinVersion(a));
+  v1::PlanPathResponse response;
+  if (auto s = client.PlanPath(r, &response); !s.ok()) return Fail(s);
+  if (a.json) {
+    PrintJson(response);
+  } else {
+    std::cout << "path of " << response.path_size() << " points, length " << Num(response.length())
+              << ", clearance at least " << Num(response.min_clearance()) << " (widest passage "
+              << Num(response.best_clearance()) << "), version " << response.version() << "\n";
+    for (const auto& p : response.path()) std::cout << Num(p.x()) << "," << Num(p.y()) << "\n";
+  }
+  if (const std::string* out = Option(a, "--output")) {
+    v1::RenderImageRequest image;
+    image.set_scene_id(a.scene);
+    image.set_layer(v1::RenderImageRequest::DISTANCE);
+    image.set_draw_sites(true);
+    image.set_min_version(response.version());
+    *image.mutable_polyline() = response.path();
+    v1::RenderImageResponse picture;
+    if (auto s = client.RenderImage(image, &picture); !s.ok()) return Fail(s);
+    std::ofstream file(*out, std::ios::binary);
+    file.write(picture.image().data(), static_cast<std::streamsize>(picture.image().size()));
+    if (!file) {
+      std::fprintf(stderr, "gvd: cannot write %s\n", out->c_str());
+      return 1;
+    }
+    std::cerr << "wrote " << *out << "\n";
+  }
+  return 0;
+}
+
+int Pick(const Args& a, Client& client) {
+  const auto& w = a.words;
+  if (w.size() != 3) Usage("usage: gvd pick X Y [--max-distance D]");
+  v1::PickRequest r;
+  r.set_scene_id(a.scene);
+  r.mutable_point()->set_x(Number(w[1], "X"));
+  r.mutable_point()->set_y(Number(w[2], "Y"));
+  if (const std::string* d = Option(a, "--max-distance")) r.set_max_distance(Number(*d, "--max-distance"));
+  v1::PickResponse response;
+  if (auto s = client.Pick(r, &response); !s.ok()) return Fail(s);
+  if (a.json) {
+    PrintJson(response);
+    return 0;
+  }
+  if (!response.found()) {
+    std::cout << "(nothing within reach)\n";
+    return 0;
+  }
+  std::string kind = response.feature_kind() == v1::EDGE    ? "edge"
+                     : response.feature_kind() == v1::CURVE ? "curve"
+                                                            : "vertex";
+  std::cout << response.site_id() << "\t" << Num(response.distance()) << "\t" << kind << " "
+            << response.feature_index() << "\n";
+  return 0;
+}
+
+// The diagram computed by the server: a scene of its own, made and removed again.
+absl::StatusOr<std::vector<uint32_t>> ServerDiagram(Client& client, const Grid& grid,
+                                                    const std::vector<Vec2>& sites) {
+  auto fail = [](const grpc::Status& s) { return absl::Status(absl::StatusCode(s.error_code()), s.error_message()); };
+  std::mt19937_64 rng(std::random_device{}());
+  const std::string scene = absl::StrCat("mosaic-", getpid(), "-", absl::Hex(rng() & 0xffffff));
+  v1::CreateSceneRequest create;
+  create.set_scene_id(scene);
+  create.mutable_window()->set_min_x(grid.window.min_x);
+  create.mutable_window()->set_min_y(grid.window.min_y);
+  create.mutable_window()->set_max_x(grid.window.max_x);
+  create.mutable_window()->set_max_y(grid.window.max_y);
+  create.set_width_px(grid.width);
+  create.set_height_px(grid.height);
+  create.set_render_mode(v1::EXACT);
+  v1::Scene created;
+  if (auto s = client.CreateScene(create, &created); !s.ok()) return fail(s);
+  auto run = [&]() -> absl::StatusOr<std::vector<uint32_t>> {
+    uint64_t version = 0;
+    for (size_t first = 0; first < sites.size(); first += 100'000) {
+      v1::UpsertSitesRequest upsert;
+      upsert.set_scene_id(scene);
+      for (size_t k = first; k < std::min(sites.size(), first + 100'000); ++k) {
+        v1::Site* site = upsert.add_sites();
+        site->set_id(absl::StrCat(k));
+        site->mutable_point()->set_x(sites[k].x);
+        site->mutable_point()->set_y(sites[k].y);
+      }
+      if (auto s = client.UpsertSites(upsert, &version); !s.ok()) return fail(s);
+    }
+    v1::RenderWindowRequest r;
+    r.set_scene_id(scene);
+    r.set_min_version(version);
+    v1::RenderWindowResponse response;
+    if (auto s = client.RenderWindow(r, &response); !s.ok()) return fail(s);
+    std::vector<uint32_t> index(response.site_ids_size());
+    for (int k = 0; k < response.site_ids_size(); ++k) {
+      if (!absl::SimpleAtoi(response.site_ids(k), &index[k])) {
+        return absl::InternalError("the server named a site this mosaic did not make");
+      }
+    }
+    std::vector<uint32_t> ids(response.ids().begin(), response.ids().end());
+    for (uint32_t& id : ids) id = id == 0 ? 0 : index[id - 1] + 1;
+    return ids;
+  };
+  auto ids = run();
+  (void)client.DeleteScene(scene);
+  return ids;
+}
+
+int Mosaic(const Args& a, Client& client) {
+  const auto& w = a.words;
+  if (w.size() != 3) Usage("usage: gvd mosaic IN OUT [--tiles N] [--adaptive] [--seed S] [--mean]");
+  if (Option(a, "--embedded")) {
+    Usage("--embedded: gvd renders nothing itself; gvd-mosaic IN OUT takes the same flags and "
+          "renders on this machine");
+  }
+  auto options = MosaicOptionsFromFlags(a.options);
+  if (!options.ok()) Usage(std::string(options.status().message()));
+  auto report = RunMosaic(w[1], w[2], *options,
+                          [&](const Grid& grid, const std::vector<Vec2>& sites) {
+                            return ServerDiagram(client, grid, sites);
+                          },
+                          "from the server");
+  if (!report.ok()) return WriteFailed(report.status());
+  std::cout << *report << "\n";
+  return 0;
+}
+
+}  // namespace
+
+int RunAnalysis(const Args& a, Client& client) {
+  const std::string& c = a.words[0];
+  if (c == "boundaries") return Boundaries(a, client);
+  if (c == "neighbors" || c == "neighbours") return Neighbors(a, client);
+  if (c == "delaunay") return Delaunay(a, client);
+  if (c == "zoom") return Zoom(a, client);
+  if (c == "clearance") return Clearance(a, client);
+  if (c == "plan") return Plan(a, client);
+  if (c == "pick") return Pick(a, client);
+  if (c == "mosaic") return Mosaic(a, client);
+  return -1;
+}
+
+}  // namespace gvd::cli

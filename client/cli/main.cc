@@ -1,0 +1,563 @@
+// gvd: the command-line client of gvd-server.
+#include <google/protobuf/struct.pb.h>
+#include <google/protobuf/util/json_util.h>
+#include <grpcpp/create_channel.h>
+#include <grpcpp/security/credentials.h>
+
+#include <charconv>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "absl/strings/str_split.h"
+#include "grpc/health/v1/health.grpc.pb.h"
+#include "client/cli/cli.h"
+#include "gvd/client.h"
+
+namespace gvd::cli {
+namespace {
+
+Args ParseArgs(int argc, char** argv) {
+  Args a;
+  if (const char* s = std::getenv("GVD_SERVER")) a.server = s;
+  if (const char* s = std::getenv("GVD_SCENE")) a.scene = s;
+  if (const char* s = std::getenv("GVD_TOKEN")) a.token = s;
+  for (int i = 1; i < argc; ++i) {
+    std::string arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      std::fputs(kUsage, stdout);
+      std::exit(0);
+    }
+    if (arg == "-o") arg = "--output";
+    if (arg.rfind("--", 0) != 0) {  // "-3.5" is a number, not a flag
+      a.words.push_back(arg);
+      continue;
+    }
+    if (arg == "--json" || arg == "--exact") {
+      (arg == "--json" ? a.json : a.exact) = true;
+      continue;
+    }
+    static const std::set<std::string> kSwitches = {"--draw-sites", "--coarse", "--adaptive",
+                                                    "--mean", "--embedded"};
+    if (kSwitches.count(arg)) {
+      a.options.insert_or_assign(arg, std::string("1"));
+      continue;
+    }
+    std::string value;
+    if (auto eq = arg.find('='); eq != std::string::npos) {
+      value = arg.substr(eq + 1);
+      arg = arg.substr(0, eq);
+    } else if (i + 1 < argc) {
+      value = argv[++i];
+    } else {
+      Usage(absl::StrCat(arg, " needs a value"));
+    }
+    if (arg == "--server") a.server = value;
+    else if (arg == "--token") a.token = value;
+    else if (arg == "--tls-ca") a.tls_ca = value;
+    else if (arg == "--tls-cert") a.tls_cert = value;
+    else if (arg == "--tls-key") a.tls_key = value;
+    else if (arg == "--scene") a.scene = value;
+    else if (arg == "--timeout") {
+      if (!absl::SimpleAtod(value, &a.timeout) || !(a.timeout > 0)) {
+        Usage(absl::StrCat("--timeout needs a positive number of seconds, not \"", value, "\""));
+      }
+    } else if (arg == "--window" || arg == "--size" || arg == "--max-error" || arg == "--file" ||
+               arg == "--min-version" || arg == "--render-mode" || arg == "--diagram" ||
+               arg == "--side" || arg == "--tolerance" || arg == "--additive" ||
+               arg == "--multiplicative" || arg == "--max-distance" || arg == "--output" ||
+               arg == "--layer" || arg == "--format" || arg == "--method" || arg == "--from" ||
+               arg == "--to" || arg == "--radius" || arg == "--prefer" || arg == "--tiles" ||
+               arg == "--seed") {
+      a.options[arg] = value;
+    } else {
+      Usage(absl::StrCat("unknown flag ", arg));
+    }
+  }
+  return a;
+}
+
+void PrintScene(const gvd::v1::Scene& s) {
+  const auto& w = s.window();
+  std::cout << "scene " << s.scene_id() << ": window [" << Num(w.min_x()) << ", " << Num(w.max_x())
+            << "] x [" << Num(w.min_y()) << ", " << Num(w.max_y()) << "], " << s.width_px() << "x"
+            << s.height_px() << " px, max_error " << Num(s.max_error()) << ", "
+            << (s.render_mode() == gvd::v1::EXACT ? std::string("exact render")
+                                                  : absl::StrCat(s.cone_triangles(), " triangles per cone"))
+            << ", version " << s.version() << ", "
+            << s.site_count() << " sites, rendered version " << s.rendered_version() << "\n";
+}
+
+// Sites from a GeoJSON FeatureCollection: Point, LineString (a polyline, or a segment
+// with two points) and Polygon (its outer ring; the closing repeat of the first point is
+// dropped) features.
+bool ReadGeoJson(const std::string& text, const std::string& path,
+                 gvd::v1::UpsertSitesRequest* request, std::string* error) {
+  using google::protobuf::ListValue;
+  using google::protobuf::Struct;
+  using google::protobuf::Value;
+  Struct doc;
+  if (auto st = google::protobuf::util::JsonStringToMessage(text, &doc); !st.ok()) {
+    *error = absl::StrCat(path, ": ", st.message().as_string());
+    return false;
+  }
+  auto fail = [&](size_t i, const std::string& why) {
+    *error = absl::StrCat(path, ": features[", i, "]: ", why);
+    return false;
+  };
+  auto point = [](const Value& v, gvd::v1::Point* p) {
+    const ListValue& c = v.list_value();
+    if (c.values_size() < 2 || !c.values(0).has_number_value() || !c.values(1).has_number_value()) {
+      return false;
+    }
+    p->set_x(c.values(0).number_value());
+    p->set_y(c.values(1).number_value());
+    return true;
+  };
+  const auto& features = doc.fields().at("features").list_value();
+  for (int i = 0; i < features.values_size(); ++i) {
+    const Struct& f = features.values(i).struct_value();
+    auto field = [&](const Struct& s, const std::string& k) -> const Value* {
+      auto it = s.fields().find(k);
+      return it == s.fields().end() ? nullptr : &it->second;
+    };
+    const Value* geometry = field(f, "geometry");
+    const Value* props = field(f, "properties");
+    const Struct empty;
+    const Struct& p = props && props->has_struct_value() ? props->struct_value() : empty;
+    auto* site = request->add_sites();
+    const Value* id = field(f, "id");
+    if (!id) id = field(p, "id");
+    if (!id) return fail(i, "no id (set the feature's \"id\" or properties.id)");
+    site->set_id(id->has_number_value() ? Num(id->number_value()) : id->string_value());
+    if (!geometry || !geometry->has_struct_value()) return fail(i, "no geometry");
+    const Value* type = field(geometry->struct_value(), "type");
+    const Value* coords = field(geometry->struct_value(), "coordinates");
+    if (!type || !coords) return fail(i, "geometry needs type and coordinates");
+    const std::string& t = type->string_value();
+    bool ok = true;
+    if (t == "Point") {
+      ok = point(*coords, site->mutable_point());
+    } else if (t == "LineString") {
+      for (const Value& v : coords->list_value().values()) {
+        ok = ok && point(v, site->mutable_polyline()->add_points());
+      }
+    } else if (t == "Polygon") {
+      if (coords->list_value().values_size() != 1) {
+        return fail(i, "polygons with holes are not supported: give the outer ring only");
+      }
+      auto* poly = site->mutable_polygon();
+      for (const Value& v : coords->list_value().values(0).list_value().values()) {
+        ok = ok && point(v, poly->add_vertices());
+      }
+      int n = poly->vertices_size();
+      if (n > 1 && poly->vertices(0).x() == poly->vertices(n - 1).x() &&
+          poly->vertices(0).y() == poly->vertices(n - 1).y()) {
+        poly->mutable_vertices()->RemoveLast();
+      }
+      if (const Value* side = field(p, "side")) {
+        const std::string& sv = side->string_value();
+        if (sv == "outside") poly->set_side(gvd::v1::Polygon::OUTSIDE);
+        else if (sv == "inside") poly->set_side(gvd::v1::Polygon::INSIDE);
+        else if (!sv.empty()) return fail(i, "properties.side must be \"outside\" or \"inside\"");
+      }
+    } else {
+      return fail(i, absl::StrCat("geometry type ", t, " is not supported (Point, LineString, Polygon)"));
+    }
+    if (!ok) return fail(i, "coordinates must be [x, y] numbers");
+    if (const Value* v = field(p, "additive_weight")) site->set_additive_weight(v->number_value());
+    if (const Value* v = field(p, "multiplicative_weight")) {
+      site->set_multiplicative_weight(v->number_value());
+    }
+    if (const Value* v = field(p, "max_distance")) site->set_max_distance(v->number_value());
+  }
+  return true;
+}
+
+// Reads sites from JSON (an array of Site, or {"sites": [...]}), GeoJSON, or "ID X Y" lines.
+bool ReadSites(const std::string& path, gvd::v1::UpsertSitesRequest* request, std::string* error) {
+  std::stringstream buffer;
+  if (path == "-") {
+    buffer << std::cin.rdbuf();
+  } else {
+    std::ifstream in(path);
+    if (!in) {
+      *error = absl::StrCat("cannot read ", path);
+      return false;
+    }
+    buffer << in.rdbuf();
+  }
+  std::string text = buffer.str();
+  size_t first = text.find_first_not_of(" \t\r\n");
+  if (first != std::string::npos && text[first] == '{' &&
+      text.find("\"FeatureCollection\"") != std::string::npos) {
+    return ReadGeoJson(text, path, request, error);
+  }
+  if (first != std::string::npos && (text[first] == '[' || text[first] == '{')) {
+    std::string json = text[first] == '[' ? absl::StrCat("{\"sites\": ", text, "}") : text;
+    auto st = google::protobuf::util::JsonStringToMessage(json, request);
+    if (!st.ok()) {
+      *error = absl::StrCat(path, ": ", st.message().as_string());
+      return false;
+    }
+    return true;
+  }
+  std::istringstream lines(text);
+  std::string line;
+  for (int n = 1; std::getline(lines, line); ++n) {
+    std::vector<std::string> f = absl::StrSplit(line, absl::ByAnyChar(" \t,"), absl::SkipEmpty());
+    if (f.empty() || f[0][0] == '#') continue;
+    double x, y;
+    if (f.size() != 3 || !absl::SimpleAtod(f[1], &x) || !absl::SimpleAtod(f[2], &y)) {
+      *error = absl::StrCat(path, ":", n, ": expected \"ID X Y\", got \"", line, "\"");
+      return false;
+    }
+    auto* site = request->add_sites();
+    site->set_id(f[0]);
+    site->mutable_point()->set_x(x);
+    site->mutable_point()->set_y(y);
+  }
+  return true;
+}
+
+int Run(const Args& a) {
+  const auto& w = a.words;
+  if (w.empty()) Usage("no command");
+  gvd::ClientOptions options;
+  options.timeout = std::chrono::milliseconds(static_cast<int64_t>(a.timeout * 1000));
+  options.token = a.token;
+  auto read = [](const std::string& flag, const std::string& path) {
+    std::ifstream in(path);
+    if (!in) Usage(absl::StrCat(flag, ": cannot read ", path));
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+  };
+  if (!a.tls_ca.empty()) options.tls_ca = read("--tls-ca", a.tls_ca);
+  if (!a.tls_cert.empty()) options.tls_cert = read("--tls-cert", a.tls_cert);
+  if (!a.tls_key.empty()) options.tls_key = read("--tls-key", a.tls_key);
+  auto client = gvd::Client::Connect(a.server, options);
+  if (int rc = RunAnalysis(a, *client); rc >= 0) return rc;
+  auto need = [&](size_t n, const char* form) {
+    if (w.size() != n) Usage(absl::StrCat("usage: gvd ", form));
+  };
+  auto option = [&](const char* name) -> const std::string* {
+    auto it = a.options.find(name);
+    return it == a.options.end() ? nullptr : &it->second;
+  };
+
+  if (w[0] == "scene" && w.size() >= 2) {
+    const std::string& verb = w[1];
+    if (verb == "create") {
+      need(3, "scene create ID --window MIN_X,MIN_Y,MAX_X,MAX_Y --size WxH [--max-error E]");
+      gvd::v1::CreateSceneRequest r;
+      r.set_scene_id(w[2]);
+      const std::string* window = option("--window");
+      const std::string* size = option("--size");
+      if (!window || !size) Usage("scene create needs --window and --size");
+      ParseWindow(*window, r.mutable_window());
+      std::vector<std::string> wh = absl::StrSplit(*size, 'x');
+      uint32_t width, height;
+      if (wh.size() != 2 || !absl::SimpleAtoi(wh[0], &width) || !absl::SimpleAtoi(wh[1], &height)) {
+        Usage(absl::StrCat("--size needs WIDTHxHEIGHT in pixels, not ", *size));
+      }
+      r.set_width_px(width);
+      r.set_height_px(height);
+      if (const std::string* e = option("--max-error")) r.set_max_error(Number(*e, "--max-error"));
+      if (const std::string* m = option("--render-mode")) {
+        if (*m != "mesh" && *m != "exact") Usage("--render-mode must be mesh or exact");
+        r.set_render_mode(*m == "exact" ? gvd::v1::EXACT : gvd::v1::MESH);
+      }
+      if (const std::string* d = option("--diagram")) {
+        if (*d != "nearest" && *d != "farthest") Usage("--diagram must be nearest or farthest");
+        r.set_diagram(*d == "farthest" ? gvd::v1::FARTHEST : gvd::v1::NEAREST);
+      }
+      gvd::v1::Scene scene;
+      if (auto s = client->CreateScene(r, &scene); !s.ok()) return Fail(s);
+      a.json ? PrintJson(scene) : PrintScene(scene);
+      return 0;
+    }
+    if (verb == "get") {
+      need(3, "scene get ID");
+      gvd::v1::Scene scene;
+      if (auto s = client->GetScene(w[2], &scene); !s.ok()) return Fail(s);
+      a.json ? PrintJson(scene) : PrintScene(scene);
+      return 0;
+    }
+    if (verb == "ls") {
+      need(2, "scene ls");
+      std::vector<gvd::v1::Scene> scenes;
+      if (auto s = client->ListScenes(&scenes); !s.ok()) return Fail(s);
+      gvd::v1::ListScenesResponse all;
+      for (auto& s : scenes) a.json ? void(*all.add_scenes() = s) : PrintScene(s);
+      if (a.json) PrintJson(all);
+      return 0;
+    }
+    if (verb == "rm") {
+      need(3, "scene rm ID");
+      if (auto s = client->DeleteScene(w[2]); !s.ok()) return Fail(s);
+      std::cout << "deleted scene " << w[2] << "\n";
+      return 0;
+    }
+  }
+
+  if (w[0] == "watch") {
+    need(2, "watch SCENE [--after VERSION]");
+    gvd::v1::WatchSceneRequest r;
+    r.set_scene_id(w[1]);
+    if (const std::string* after = option("--after")) {
+      uint64_t v;
+      if (!absl::SimpleAtoi(*after, &v)) Usage(absl::StrCat("--after needs a version, not \"", *after, "\""));
+      r.set_after_version(v);
+    }
+    auto s = client->WatchScene(r, [&](const gvd::v1::SceneEvent& e) {
+      if (a.json) {
+        std::string line;
+        google::protobuf::util::JsonPrintOptions o;
+        (void)google::protobuf::util::MessageToJsonString(e, &line, o);
+        std::cout << line << std::endl;
+      } else if (e.deleted()) {
+        std::cout << "scene " << e.scene_id() << " deleted" << std::endl;
+      } else {
+        std::cout << "version " << e.version() << ": ";
+        if (e.has_changed()) {
+          const auto& c = e.changed();
+          std::cout << "changed [" << c.min_x() << ", " << c.max_x() << "] x [" << c.min_y()
+                    << ", " << c.max_y() << "]";
+        } else {
+          std::cout << "nothing changed";
+        }
+        std::cout << ", " << e.site_count() << " sites" << std::endl;
+      }
+      return true;
+    });
+    return s.ok() ? 0 : Fail(s);
+  }
+
+  if (w[0] == "sites" && w.size() >= 2) {
+    const std::string& verb = w[1];
+    if (verb == "add") {
+      gvd::v1::UpsertSitesRequest r;
+      if (const std::string* file = option("--file")) {
+        std::string error;
+        if (!ReadSites(*file, &r, &error)) {
+          std::fprintf(stderr, "gvd: %s\n", error.c_str());
+          return 2;
+        }
+      }
+      r.set_scene_id(a.scene);  // after ReadSites: parsing JSON resets the message
+      static const std::set<std::string> kKinds = {"segment", "polyline", "polygon", "bezier"};
+      if (w.size() >= 3 && kKinds.count(w[2])) {
+        if (w.size() < 5) Usage(absl::StrCat("sites add ", w[2], " needs ID and points X,Y"));
+        auto* site = r.add_sites();
+        site->set_id(w[3]);
+        std::vector<gvd::v1::Point> pts;
+        for (size_t i = 4; i < w.size(); ++i) {
+          std::vector<std::string> xy = absl::StrSplit(w[i], ',');
+          if (xy.size() != 2) Usage(absl::StrCat("points are X,Y, not \"", w[i], "\""));
+          pts.emplace_back();
+          pts.back().set_x(Number(xy[0], "X"));
+          pts.back().set_y(Number(xy[1], "Y"));
+        }
+        if (w[2] == "segment") {
+          if (pts.size() != 2) Usage("sites add segment ID X,Y X,Y");
+          *site->mutable_segment()->mutable_a() = pts[0];
+          *site->mutable_segment()->mutable_b() = pts[1];
+        } else if (w[2] == "polyline") {
+          for (auto& q : pts) *site->mutable_polyline()->add_points() = q;
+        } else if (w[2] == "polygon") {
+          for (auto& q : pts) *site->mutable_polygon()->add_vertices() = q;
+          if (const std::string* side = option("--side")) {
+            if (*side != "outside" && *side != "inside") Usage("--side must be outside or inside");
+            site->mutable_polygon()->set_side(*side == "outside" ? gvd::v1::Polygon::OUTSIDE
+                                                                 : gvd::v1::Polygon::INSIDE);
+          }
+        } else {
+          for (auto& q : pts) *site->mutable_bezier()->add_control_points() = q;
+          if (const std::string* t = option("--tolerance")) {
+            site->mutable_bezier()->set_tolerance(Number(*t, "--tolerance"));
+          }
+        }
+      } else {
+        if ((w.size() - 2) % 3 != 0) Usage("sites add takes triples ID X Y");
+        for (size_t i = 2; i + 2 < w.size(); i += 3) {
+          auto* site = r.add_sites();
+          site->set_id(w[i]);
+          site->mutable_point()->set_x(Number(w[i + 1], "X"));
+          site->mutable_point()->set_y(Number(w[i + 2], "Y"));
+        }
+      }
+      if (r.sites_size() == 0) Usage("sites add needs ID X Y triples, a kind, or --file");
+      for (auto& site : *r.mutable_sites()) {
+        if (const std::string* v = option("--additive")) site.set_additive_weight(Number(*v, "--additive"));
+        if (const std::string* v = option("--multiplicative")) {
+          site.set_multiplicative_weight(Number(*v, "--multiplicative"));
+        }
+        if (const std::string* v = option("--max-distance")) site.set_max_distance(Number(*v, "--max-distance"));
+      }
+      uint64_t version = 0;
+      if (auto s = client->UpsertSites(r, &version); !s.ok()) return Fail(s);
+      std::cout << "upserted " << r.sites_size() << " sites; scene " << a.scene << " is at version "
+                << version << "\n";
+      return 0;
+    }
+    if (verb == "rm") {
+      if (w.size() < 3) Usage("usage: gvd sites rm ID [ID ...]");
+      uint64_t version = 0;
+      std::vector<std::string> ids(w.begin() + 2, w.end());
+      if (auto s = client->DeleteSites(a.scene, ids, &version); !s.ok()) return Fail(s);
+      std::cout << "deleted " << ids.size() << " sites; scene " << a.scene << " is at version "
+                << version << "\n";
+      return 0;
+    }
+    if (verb == "ls") {
+      need(2, "sites ls");
+      std::vector<gvd::v1::Site> sites;
+      if (auto s = client->ListAllSites(a.scene, &sites); !s.ok()) return Fail(s);
+      if (a.json) {
+        gvd::v1::ListSitesResponse all;
+        for (auto& s : sites) *all.add_sites() = s;
+        PrintJson(all);
+        return 0;
+      }
+      for (const auto& s : sites) {
+        if (s.has_point()) {
+          std::cout << s.id() << "\t" << Num(s.point().x()) << "\t" << Num(s.point().y()) << "\n";
+          continue;
+        }
+        std::vector<gvd::v1::Point> pts;
+        std::string kind;
+        if (s.has_segment()) {
+          kind = "segment";
+          pts = {s.segment().a(), s.segment().b()};
+        } else if (s.has_polyline()) {
+          kind = "polyline";
+          pts.assign(s.polyline().points().begin(), s.polyline().points().end());
+        } else if (s.has_polygon()) {
+          kind = "polygon";
+          pts.assign(s.polygon().vertices().begin(), s.polygon().vertices().end());
+        } else if (s.has_bezier()) {
+          kind = "bezier";
+          pts.assign(s.bezier().control_points().begin(), s.bezier().control_points().end());
+        }
+        std::cout << s.id() << "\t" << kind;
+        for (const auto& q : pts) std::cout << "\t" << Num(q.x()) << "," << Num(q.y());
+        std::cout << "\n";
+      }
+      return 0;
+    }
+  }
+
+  if (w[0] == "health") {
+    need(1, "health");
+    grpc::ChannelArguments args;
+    auto channel = grpc::CreateCustomChannel(
+        a.server,
+        options.tls_ca.empty() ? grpc::InsecureChannelCredentials()
+                               : grpc::SslCredentials({options.tls_ca, options.tls_key, options.tls_cert}),
+        args);
+    auto stub = grpc::health::v1::Health::NewStub(channel);
+    grpc::ClientContext ctx;
+    ctx.set_deadline(std::chrono::system_clock::now() + options.timeout);
+    grpc::health::v1::HealthCheckRequest request;
+    grpc::health::v1::HealthCheckResponse response;
+    if (auto s = stub->Check(&ctx, request, &response); !s.ok()) return Fail(s);
+    std::cout << grpc::health::v1::HealthCheckResponse::ServingStatus_Name(response.status()) << "\n";
+    return response.status() == grpc::health::v1::HealthCheckResponse::SERVING ? 0 : 1;
+  }
+
+  if (w[0] == "nearest") {
+    if (w.size() < 3 || (w.size() - 1) % 2 != 0) Usage("usage: gvd nearest X Y [X Y ...]");
+    gvd::v1::FindNearestRequest r;
+    r.set_scene_id(a.scene);
+    for (size_t i = 1; i + 1 < w.size(); i += 2) {
+      auto* p = r.add_points();
+      p->set_x(Number(w[i], "X"));
+      p->set_y(Number(w[i + 1], "Y"));
+    }
+    if (const std::string* v = option("--min-version")) {
+      uint64_t mv;
+      if (!absl::SimpleAtoi(*v, &mv)) Usage("--min-version needs a version number");
+      r.set_min_version(mv);
+    }
+    r.set_exact(a.exact);
+    gvd::v1::FindNearestResponse response;
+    if (auto s = client->FindNearest(r, &response); !s.ok()) return Fail(s);
+    if (a.json) {
+      PrintJson(response);
+      return 0;
+    }
+    std::cout << "x\ty\tsite\tdistance\terror_bound\texact\tfeature\n";
+    for (int i = 0; i < response.results_size(); ++i) {
+      const auto& n = response.results(i);
+      std::cout << Num(r.points(i).x()) << "\t" << Num(r.points(i).y()) << "\t";
+      if (n.empty()) {
+        std::cout << "(none)\tinf\t0\tyes\t-\n";
+        continue;
+      }
+      std::string kind = n.feature_kind() == gvd::v1::EDGE    ? "edge"
+                         : n.feature_kind() == gvd::v1::CURVE ? "curve"
+                                                              : "vertex";
+      std::cout << n.site_id() << "\t" << Num(n.distance()) << "\t" << Num(n.error_bound())
+                << "\t" << (n.exact() ? "yes" : "no") << "\t" << kind << " "
+                << n.feature_index() << "\n";
+    }
+    return 0;
+  }
+
+  if (w[0] == "render") {
+    need(2, "render SCENE -o OUT [--layer ids|features|distance] [--format png|exr]");
+    const std::string* out = option("--output");
+    if (!out) Usage("render needs -o OUT");
+    gvd::v1::RenderImageRequest r;
+    r.set_scene_id(w[1]);
+    std::string layer = option("--layer") ? *option("--layer") : "ids";
+    if (layer == "ids") r.set_layer(gvd::v1::RenderImageRequest::IDS);
+    else if (layer == "features") r.set_layer(gvd::v1::RenderImageRequest::FEATURES);
+    else if (layer == "distance") r.set_layer(gvd::v1::RenderImageRequest::DISTANCE);
+    else Usage("--layer must be ids, features or distance");
+    std::string format = option("--format") ? *option("--format")
+                         : out->size() > 4 && out->substr(out->size() - 4) == ".exr" ? "exr"
+                                                                                     : "png";
+    if (format != "png" && format != "exr") Usage("--format must be png or exr");
+    r.set_format(format == "exr" ? gvd::v1::RenderImageRequest::EXR
+                                 : gvd::v1::RenderImageRequest::PNG);
+    if (const std::string* window = option("--window")) ParseWindow(*window, r.mutable_window());
+    r.set_draw_sites(option("--draw-sites") != nullptr);
+    if (const std::string* v = option("--min-version")) {
+      uint64_t mv;
+      if (!absl::SimpleAtoi(*v, &mv)) Usage("--min-version needs a version number");
+      r.set_min_version(mv);
+    } else {  // the scene as it is now, once rendered
+      gvd::v1::Scene scene;
+      if (auto s = client->GetScene(w[1], &scene); !s.ok()) return Fail(s);
+      r.set_min_version(scene.version());
+    }
+    gvd::v1::RenderImageResponse response;
+    if (auto s = client->RenderImage(r, &response); !s.ok()) return Fail(s);
+    std::ofstream file(*out, std::ios::binary);
+    file.write(response.image().data(), static_cast<std::streamsize>(response.image().size()));
+    if (!file) {
+      std::fprintf(stderr, "gvd: cannot write %s\n", out->c_str());
+      return 1;
+    }
+    std::cout << "wrote " << *out << ": " << response.width_px() << "x" << response.height_px()
+              << " " << layer << " of scene " << w[1] << " at version " << response.version()
+              << "\n";
+    return 0;
+  }
+  Usage(absl::StrCat("unknown command \"", absl::StrJoin(w, " "), "\""));
+}
+
+}  // namespace
+}  // namespace gvd::cli
+
+int main(int argc, char** argv) { return gvd::cli::Run(gvd::cli::ParseArgs(argc, argv)); }

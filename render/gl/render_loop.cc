@@ -1,0 +1,252 @@
+#include "render/gl/render_loop.h"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <future>
+#include <map>
+
+#include "absl/strings/str_cat.h"
+#include "render/gl/rasterizer.h"
+#include "render/gl/scene_raster.h"
+
+namespace gvd {
+
+RenderLoop::~RenderLoop() { Stop(); }
+
+absl::Status RenderLoop::Start(DevicePreference preference) {
+  if (const char* hold = std::getenv(kHoldRendersVariable)) hold_path_ = hold;
+  for (int lane = 0; lane < lanes_; ++lane) {
+    threads_.emplace_back([this, lane, preference] { Run(lane, preference); });
+  }
+  absl::Status status;
+  {
+    std::unique_lock<std::mutex> lock(mu_);
+    cv_.wait(lock, [this] { return started_ == lanes_; });
+    status = start_status_;
+  }
+  if (!status.ok()) Stop();
+  return status;
+}
+
+void RenderLoop::Stop() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stopping_ = true;
+  }
+  cv_.notify_all();
+  for (std::thread& t : threads_) {
+    if (t.joinable()) t.join();
+  }
+}
+
+void RenderLoop::MarkDirty(std::shared_ptr<Scene> scene) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (stopping_ || !queued_.insert(scene.get()).second) return;
+    queue_.push_back(std::move(scene));
+  }
+  cv_.notify_all();
+}
+
+absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> RenderLoop::Zoom(
+    std::shared_ptr<const Frame> base, RenderMode mode, std::vector<Grid> grids) {
+  std::promise<absl::StatusOr<std::vector<std::shared_ptr<const Frame>>>> done;
+  auto result = done.get_future();
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (stopping_ || started_ < lanes_ || !start_status_.ok()) {
+      return absl::UnavailableError("the render thread is not running");
+    }
+    tasks_.push_back([&, base = std::move(base), grids = std::move(grids)](
+                         Rasterizer* rasterizer, ZoomRenderer* zoom) {
+      if (rasterizer == nullptr) {
+        done.set_value(absl::UnavailableError("the server is shutting down"));
+        return;
+      }
+      done.set_value(zoom->Render(*rasterizer, *base, mode, grids));
+    });
+  }
+  cv_.notify_all();
+  return result.get();
+}
+
+std::shared_ptr<Scene> RenderLoop::Take(int lane) {
+  for (auto it = queue_.begin(); it != queue_.end(); ++it) {
+    const Scene* scene = it->get();
+    if (rendering_.count(scene)) continue;
+    auto owner = owner_.find(scene);
+    if (owner != owner_.end() && owner->second != lane && !busy_[owner->second]) continue;
+    std::shared_ptr<Scene> taken = std::move(*it);
+    queue_.erase(it);
+    queued_.erase(scene);
+    if (owner != owner_.end() && owner->second != lane) taken_from_[owner->second].push_back(scene);
+    owner_[scene] = lane;
+    rendering_.insert(scene);
+    busy_[lane] = true;
+    return taken;
+  }
+  return nullptr;
+}
+
+void RenderLoop::Run(int lane, DevicePreference preference) {
+  std::unique_ptr<GlContext> context;
+  std::unique_ptr<Rasterizer> rasterizer;
+  {
+    absl::Status status;
+    auto ctx = GlContext::Create(preference);
+    if (ctx.ok()) {
+      context = std::move(*ctx);
+      auto r = Rasterizer::Create(context->info());
+      if (r.ok()) {
+        rasterizer = std::move(*r);
+      } else {
+        status = r.status();
+      }
+    } else {
+      status = ctx.status();
+    }
+    std::lock_guard<std::mutex> lock(mu_);
+    if (context && lane == 0) device_ = context->info();
+    if (!status.ok() && start_status_.ok()) start_status_ = status;
+    ++started_;
+    cv_.notify_all();
+    if (!status.ok()) return;
+  }
+
+  // One SceneRaster (GPU buffers and incremental state) per scene this lane holds, kept
+  // between renders; released when the scene is deleted, taken over by another lane, or a
+  // render fails.
+  std::map<const Scene*, std::pair<std::weak_ptr<Scene>, std::unique_ptr<SceneRaster>>> rasters;
+  ZoomRenderer zoom;
+  // Ends this lane's turn on a scene: another lane may take it (or one this lane left) now.
+  auto finish = [&](const Scene* scene) {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      rendering_.erase(scene);
+      busy_[lane] = false;
+    }
+    cv_.notify_all();
+  };
+  while (true) {
+    std::shared_ptr<Scene> scene;
+    std::deque<std::function<void(Rasterizer*, ZoomRenderer*)>> tasks;
+    std::set<const Scene*> mine;
+    std::vector<const Scene*> dropped;
+    {
+      std::unique_lock<std::mutex> lock(mu_);
+      cv_.wait(lock, [&] {
+        if (stopping_ || !tasks_.empty() || !taken_from_[lane].empty()) return true;
+        scene = Take(lane);
+        return scene != nullptr;
+      });
+      if (stopping_) {
+        if (scene) {
+          rendering_.erase(scene.get());
+          if (queued_.insert(scene.get()).second) {
+            queue_.push_front(std::move(scene));  // its waiters fail with the rest below
+          }
+        }
+        break;
+      }
+      tasks.swap(tasks_);
+      for (const auto& [s, owner] : owner_) {
+        if (owner == lane) mine.insert(s);
+      }
+      dropped.swap(taken_from_[lane]);
+    }
+    // Scenes another lane took over: their GPU state goes now, not at this lane's next render.
+    for (const Scene* s : dropped) {
+      if (!mine.count(s)) rasters.erase(s);
+    }
+    // Zooms first (they are small, and a caller waits on each), then one scene.
+    for (auto& task : tasks) task(rasterizer.get(), &zoom);
+    if (!scene) continue;
+    if (!hold_path_.empty() && access(hold_path_.c_str(), F_OK) == 0) {
+      // Held (kHoldRendersVariable): the scene goes back to the front of the queue, and the
+      // loop looks again shortly, still taking zooms and a stop meanwhile.
+      std::unique_lock<std::mutex> lock(mu_);
+      rendering_.erase(scene.get());
+      busy_[lane] = false;
+      if (queued_.insert(scene.get()).second) queue_.push_front(std::move(scene));
+      cv_.wait_for(lock, std::chrono::milliseconds(5),
+                   [this] { return stopping_ || !tasks_.empty(); });
+      continue;
+    }
+    // Drop the state of scenes that are gone or that another lane took over.
+    for (auto it = rasters.begin(); it != rasters.end();) {
+      auto owner = it->second.first.lock();
+      it = (!owner || owner->deleted() || !mine.count(it->first)) ? rasters.erase(it) : std::next(it);
+    }
+    if (scene->deleted()) {
+      {
+        std::lock_guard<std::mutex> lock(mu_);
+        owner_.erase(scene.get());
+      }
+      finish(scene.get());
+      continue;
+    }
+    // The test hook's long render of this one scene (kHoldRendersVariable).
+    if (!hold_path_.empty()) {
+      const std::string held = hold_path_ + "." + scene->id();
+      while (access(held.c_str(), F_OK) == 0) {
+        std::unique_lock<std::mutex> lock(mu_);
+        if (cv_.wait_for(lock, std::chrono::milliseconds(5), [this] { return stopping_; })) break;
+      }
+    }
+
+    const SceneSettings& settings = scene->settings();
+    auto start = std::chrono::steady_clock::now();
+    auto& slot = rasters[scene.get()];
+    absl::StatusOr<std::shared_ptr<const Frame>> frame;
+    if (!slot.second) {
+      auto raster = SceneRaster::Create(settings.grid, settings.eps, settings.mode,
+                                        settings.diagram);
+      if (raster.ok()) {
+        slot = {scene, std::move(*raster)};
+      } else {
+        frame = raster.status();
+      }
+    }
+    // The newest snapshot: the raster draws what differs from the one it drew last.
+    std::shared_ptr<const SiteSnapshot> sites = scene->snapshot();
+    if (slot.second && sites->version() <= scene->frame()->version()) {
+      finish(scene.get());
+      continue;
+    }
+    RenderStats render_stats;
+    if (slot.second) frame = slot.second->Apply(*rasterizer, sites, &render_stats);
+    double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (!frame.ok()) {
+      rasters.erase(scene.get());  // the next render starts from scratch
+      if (observer_.failed) observer_.failed(*scene, sites->version(), frame.status());
+      scene->FailWaiters(absl::UnavailableError(
+          absl::StrCat("rendering scene \"", scene->id(), "\" failed: ", frame.status().message())));
+      finish(scene.get());
+      continue;
+    }
+    // Reported before publishing: publishing releases the queries waiting for this frame.
+    if (observer_.rendered) observer_.rendered(*scene, sites->version(), render_stats, seconds);
+    scene->AddRenderSeconds(seconds);
+    scene->Publish(*frame);
+    finish(scene.get());
+  }
+
+  // Whatever is still queued will not be rendered: release its waiters.
+  std::deque<std::shared_ptr<Scene>> left;
+  std::deque<std::function<void(Rasterizer*, ZoomRenderer*)>> tasks;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    left.swap(queue_);
+    queued_.clear();
+    tasks.swap(tasks_);
+  }
+  for (auto& s : left) s->FailWaiters(absl::UnavailableError("the server is shutting down"));
+  for (auto& task : tasks) task(nullptr, nullptr);
+  rasters.clear();
+  rasterizer.reset();
+  context.reset();
+}
+
+}  // namespace gvd

@@ -1,0 +1,114 @@
+// The render threads: each alone owns a GL context of its own. They drain one queue of scenes
+// marked dirty by updates, render each at its latest version, and publish the frame. Bursts
+// of updates to one scene coalesce into one render; a scene is rendered by one thread at a
+// time.
+#pragma once
+
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "render/gl/context.h"
+#include "render/gl/zoom.h"
+#include "render/gl/render_stats.h"
+#include "render/scene/scene.h"
+
+namespace gvd {
+
+// Threads: `lanes` threads of its own, the only ones that touch GL; they render, read back
+// and publish frames, and run the zoom tasks handed to them. Its public calls are
+// thread-safe (mu_ guards the queues) and never wait for a render, except Zoom, which waits
+// for its own task and must not be called from a render thread.
+//
+// Fairness: a scene's GPU state lives on the lane that rendered it last, which renders it
+// again. While that lane is busy with another scene, an idle lane takes the scene over
+// (rendering it whole on its own context, and the first lane drops its state): so one huge
+// render holds up only its own scene, and with L lanes every other scene's update waits at
+// most for the renders already under way on the other L - 1 lanes, never for the huge one.
+class RenderLoop {
+ public:
+  explicit RenderLoop(int lanes = 2)
+      : lanes_(lanes < 1 ? 1 : lanes), busy_(lanes_, false), taken_from_(lanes_) {}
+  ~RenderLoop();  // stops the thread
+  RenderLoop(const RenderLoop&) = delete;
+  RenderLoop& operator=(const RenderLoop&) = delete;
+
+  // Starts the threads and waits until each has a GL context and compiled shaders; returns
+  // why one could not. Call once.
+  absl::Status Start(DevicePreference preference);
+  // Finishes the render in progress, fails the scenes still queued, and joins the thread.
+  void Stop();
+
+  // The device the context runs on. Valid after Start succeeded.
+  const DeviceInfo& device() const { return device_; }
+
+  // Queues a render of the scene at its latest version. Thread-safe; never blocks on a render.
+  void MarkDirty(std::shared_ptr<Scene> scene);
+
+  // Renders zoom windows of `base` (gl/zoom.h) on the render thread, between scene
+  // renders, and waits for them. Thread-safe; never call it from the render thread. Fails
+  // with Unavailable once the loop stops.
+  absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> Zoom(std::shared_ptr<const Frame> base,
+                                                                 RenderMode mode,
+                                                                 std::vector<Grid> grids);
+
+  // What the render threads report, on the render thread that did it: each render about to
+  // be published (before the waiters for its frame resume), and each render that failed
+  // (its waiters fail with the error). Either may be empty.
+  struct Observer {
+    std::function<void(const Scene& scene, uint64_t version, const RenderStats& stats,
+                       double seconds)>
+        rendered;
+    std::function<void(const Scene& scene, uint64_t version, const absl::Status& error)> failed;
+  };
+  // Call before Start.
+  void set_observer(Observer observer) { observer_ = std::move(observer); }
+
+  int lanes() const { return lanes_; }
+
+  // A test hook: when the environment variable GVD_TEST_HOLD_RENDERS names a path at Start,
+  // no scene is rendered while a file exists at that path (zoom windows still run), so tests
+  // can hold a version unrendered for as long as they need, whatever the machine's speed.
+  // While a file exists at that path + "." + a scene's id, a lane that takes that scene
+  // holds it as if its render went on: a long render, at any machine's speed.
+  static constexpr const char* kHoldRendersVariable = "GVD_TEST_HOLD_RENDERS";
+
+ private:
+  void Run(int lane, DevicePreference preference);
+  // The first queued scene `lane` may render now, removed from the queue (null if none):
+  // not being rendered, and its own, nobody's, or a busy lane's. Under mu_.
+  std::shared_ptr<Scene> Take(int lane);
+
+  const int lanes_;
+  std::vector<std::thread> threads_;
+  DeviceInfo device_;
+  Observer observer_;
+  std::string hold_path_;  // see kHoldRendersVariable; empty: no hold
+
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  int started_ = 0;  // lanes that have tried to make their context
+  bool stopping_ = false;
+  absl::Status start_status_;  // the first lane's failure, if any
+  std::deque<std::shared_ptr<Scene>> queue_;
+  std::set<const Scene*> queued_;
+  std::map<const Scene*, int> owner_;      // the lane holding each scene's GPU state
+  std::set<const Scene*> rendering_;       // scenes a lane is rendering now
+  std::vector<bool> busy_;                 // per lane: rendering a scene
+  // Per lane: scenes other lanes took over, whose GPU state it is to release now.
+  std::vector<std::vector<const Scene*>> taken_from_;
+  // Work for the GL context other than scene renders (zooms); each is told whether the loop
+  // still runs.
+  std::deque<std::function<void(Rasterizer*, ZoomRenderer*)>> tasks_;
+};
+
+}  // namespace gvd

@@ -1,0 +1,220 @@
+#include "render/image/image.h"
+
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imageio.h>
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+#include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
+#include "render/kernel/exact2.h"
+
+namespace gvd {
+namespace {
+
+uint64_t Fnv1a(const std::string& s, uint64_t h = 1469598103934665603ull) {
+  for (unsigned char c : s) h = (h ^ c) * 1099511628211ull;
+  return h;
+}
+
+// The site (slot + 1) shown at pixel (i, j) and its value there, or id 0. A site is
+// present a little beyond its max_distance or side (DrawMargin), where it is no candidate:
+// there the frame's answer at the centre (Frame::Nearest) says who is, if anyone, made
+// exact from the frame's snapshot in a NEAREST diagram (SiteSnapshot::Improve).
+struct ShownSite {
+  uint32_t id = 0;
+  double value = 0;
+};
+ShownSite Shown(const Frame& f, uint32_t i, uint32_t j, std::vector<uint32_t>* scratch) {
+  const uint32_t id = f.id_at(i, j);
+  if (id == 0) return {};
+  if (!f.error().limited_presence) return {id, f.distance_at(i, j)};
+  const Vec2 centre = f.grid().Center(i, j);
+  if (std::isfinite(SiteValue(centre, *f.sites().get(id - 1)))) return {id, f.distance_at(i, j)};
+  const std::optional<NearestAnswer> n = f.Nearest(centre);
+  if (!n || !n->found) return {};
+  uint32_t best = n->site_index;
+  double value = n->distance;
+  if (f.error().diagram == Diagram::kNearest) f.snapshot().Improve(centre, &best, &value, scratch);
+  return {best + 1, value};
+}
+
+// Plots segment ab (scene units) over an RGB image of the rect, row 0 at the top, in `colour`,
+// `thick` pixels wide (a point as a dot of 3 pixels or `thick`, whichever is more).
+void DrawSegment(const Grid& g, const PixelRect& rect, Vec2 a, Vec2 b, const uint8_t colour[3],
+                 int thick, std::vector<uint8_t>* rgb) {
+  const uint32_t w = rect.width(), h = rect.height();
+  auto plot = [&](double x, double y) {  // continuous pixel coordinates
+    long i = std::lround(std::floor(x)) - rect.x0, j = std::lround(std::floor(y)) - rect.y0;
+    if (i < 0 || j < 0 || i >= long(w) || j >= long(h)) return;
+    size_t at = (size_t(h - 1 - j) * w + i) * 3;
+    for (int c = 0; c < 3; ++c) (*rgb)[at + c] = colour[c];
+  };
+  Vec2 pa = g.ToPixel(a), pb = g.ToPixel(b);
+  double len = Distance(pa, pb);
+  const int r = len == 0 ? std::max(1, thick / 2) : thick / 2;
+  auto dot = [&](Vec2 p) {
+    for (int dx = -r; dx <= r; ++dx) {
+      for (int dy = -r; dy <= r; ++dy) plot(p.x + dx, p.y + dy);
+    }
+  };
+  if (len == 0) {
+    dot(pa);
+    return;
+  }
+  // Clip the walk to the image (segments may reach far outside it).
+  double steps = std::min(len * 2, 4.0 * (g.width + g.height) + 8);
+  for (double k = 0; k <= steps; ++k) dot(pa + (k / steps) * (pb - pa));
+}
+
+// Draws the sites' segments (and points, as 3x3 dots) in white.
+void DrawSites(const Frame& f, const PixelRect& rect, std::vector<uint8_t>* rgb) {
+  static constexpr uint8_t kWhite[3] = {255, 255, 255};
+  for (uint32_t s = 0; s < f.sites().size(); ++s) {
+    const Site* site = f.sites().get(s);
+    if (site == nullptr) continue;
+    ForEachSegment(site->geometry, [&](Vec2 a, Vec2 b) {
+      DrawSegment(f.grid(), rect, a, b, kWhite, 1, rgb);
+    });
+  }
+}
+
+}  // namespace
+
+void SiteColour(const std::string& id, uint32_t feature, uint8_t rgb[3]) {
+  uint64_t h = Fnv1a(id);
+  h = (h ^ feature) * 1099511628211ull;
+  h ^= h >> 29;
+  // Hue from the hash, high saturation and value: distinct from black and white.
+  double hue = (h % 3600) / 3600.0 * 6, sat = 0.45 + (h >> 12) % 50 / 100.0,
+         val = 0.7 + (h >> 20) % 30 / 100.0;
+  int sector = static_cast<int>(hue) % 6;
+  double frac = hue - std::floor(hue);
+  double p = val * (1 - sat), q = val * (1 - sat * frac), t = val * (1 - sat * (1 - frac));
+  double r, gr, b;
+  switch (sector) {
+    case 0: r = val, gr = t, b = p; break;
+    case 1: r = q, gr = val, b = p; break;
+    case 2: r = p, gr = val, b = t; break;
+    case 3: r = p, gr = q, b = val; break;
+    case 4: r = t, gr = p, b = val; break;
+    default: r = val, gr = p, b = q; break;
+  }
+  rgb[0] = static_cast<uint8_t>(r * 255);
+  rgb[1] = static_cast<uint8_t>(gr * 255);
+  rgb[2] = static_cast<uint8_t>(b * 255);
+}
+
+absl::StatusOr<EncodedImage> EncodeImage(const Frame& f, const ImageOptions& o) {
+  const PixelRect& rect = o.rect;
+  const uint32_t w = rect.width(), h = rect.height();
+  EncodedImage out;
+  out.width = w;
+  out.height = h;
+  const bool png = o.format == ImageFormat::kPng;
+  OIIO::ImageSpec spec;
+  std::vector<uint8_t> rgb;
+  std::vector<uint16_t> grey;
+  std::vector<float> depth;
+  std::vector<uint32_t> scratch;  // Shown's
+  if (o.layer == ImageLayer::kDistance) {
+    double max_value = 0;
+    for (uint32_t j = rect.y0; j < rect.y1; ++j) {
+      for (uint32_t i = rect.x0; i < rect.x1; ++i) {
+        if (ShownSite s = Shown(f, i, j, &scratch); s.id) max_value = std::max(max_value, s.value);
+      }
+    }
+    if (png) {
+      grey.resize(size_t{w} * h);
+      spec = OIIO::ImageSpec(int(w), int(h), 1, OIIO::TypeDesc::UINT16);
+    } else {
+      depth.resize(size_t{w} * h);
+      spec = OIIO::ImageSpec(int(w), int(h), 1, OIIO::TypeDesc::FLOAT);
+      spec.channelnames = {"Z"};
+    }
+    for (uint32_t j = rect.y0; j < rect.y1; ++j) {
+      for (uint32_t i = rect.x0; i < rect.x1; ++i) {
+        size_t at = size_t(rect.y1 - 1 - j) * w + (i - rect.x0);
+        const ShownSite s = Shown(f, i, j, &scratch);
+        const bool shown = s.id != 0;
+        const double v = s.value;
+        if (png) {
+          grey[at] = shown && max_value > 0
+                         ? static_cast<uint16_t>(std::lround(std::min(v / max_value, 1.0) * 65535))
+                         : 0;
+        } else {
+          depth[at] = shown ? static_cast<float>(v) : INFINITY;
+        }
+      }
+    }
+    spec.attribute("gvd:max_distance", static_cast<float>(max_value));
+  } else {
+    if (!png) return absl::InvalidArgumentError("format EXR holds the DISTANCE layer only");
+    rgb.assign(size_t{w} * h * 3, 0);
+    spec = OIIO::ImageSpec(int(w), int(h), 3, OIIO::TypeDesc::UINT8);
+    std::unordered_map<uint32_t, uint32_t> index;  // kSiteIndex: slot + 1 -> number written
+    for (uint32_t j = rect.y0; j < rect.y1; ++j) {
+      for (uint32_t i = rect.x0; i < rect.x1; ++i) {
+        const uint32_t id = Shown(f, i, j, &scratch).id;
+        if (id == 0) continue;
+        if (o.layer == ImageLayer::kSiteIndex) {
+          auto [it, fresh] = index.try_emplace(id, static_cast<uint32_t>(out.site_ids.size() + 1));
+          if (fresh) {
+            if (it->second >= (1u << 24)) {
+              return absl::ResourceExhaustedError(
+                  "the window shows more than 16,777,215 sites: SITE_INDEX holds 24 bits");
+            }
+            out.site_ids.push_back(f.sites().get(id - 1)->id);
+          }
+          uint8_t* px = &rgb[(size_t(rect.y1 - 1 - j) * w + (i - rect.x0)) * 3];
+          px[0] = static_cast<uint8_t>(it->second >> 16);
+          px[1] = static_cast<uint8_t>(it->second >> 8);
+          px[2] = static_cast<uint8_t>(it->second);
+          continue;
+        }
+        const Site& site = *f.sites().get(id - 1);
+        uint32_t feature = 0;
+        if (o.layer == ImageLayer::kFeatures) {
+          FeatureHit hit = NearestFeature(f.grid().Center(i, j), site);
+          feature = 1 + (hit.index << 2 | static_cast<uint32_t>(hit.kind));
+        }
+        SiteColour(site.id, feature, &rgb[(size_t(rect.y1 - 1 - j) * w + (i - rect.x0)) * 3]);
+      }
+    }
+  }
+  if (o.draw_sites || !o.polyline.empty()) {
+    if (!png) return absl::InvalidArgumentError("draw_sites and polyline need format PNG");
+    if (rgb.empty()) {  // a distance layer: grey to RGB
+      rgb.resize(size_t{w} * h * 3);
+      for (size_t k = 0; k < grey.size(); ++k) rgb[3 * k] = rgb[3 * k + 1] = rgb[3 * k + 2] = grey[k] >> 8;
+      spec = OIIO::ImageSpec(int(w), int(h), 3, OIIO::TypeDesc::UINT8);
+      grey.clear();
+    }
+    if (o.draw_sites) DrawSites(f, rect, &rgb);
+    static constexpr uint8_t kRed[3] = {255, 32, 32};
+    const int thick = std::max<int>(3, std::min(w, h) / 256 * 2 + 1);
+    for (size_t k = 1; k < o.polyline.size(); ++k) {
+      DrawSegment(f.grid(), rect, o.polyline[k - 1], o.polyline[k], kRed, thick, &rgb);
+    }
+  }
+  OIIO::Filesystem::IOVecOutput proxy(out.bytes);
+  const std::string name = png ? "image.png" : "image.exr";
+  auto writer = OIIO::ImageOutput::create(name, &proxy);
+  if (!writer) {
+    return absl::InternalError(absl::StrCat("OpenImageIO has no writer for ", name, ": ",
+                                            OIIO::geterror()));
+  }
+  if (!png) spec.attribute("compression", "zip");
+  const void* data = !rgb.empty() ? static_cast<const void*>(rgb.data())
+                     : !grey.empty() ? static_cast<const void*>(grey.data())
+                                     : static_cast<const void*>(depth.data());
+  if (!writer->open(name, spec) || !writer->write_image(spec.format, data) || !writer->close()) {
+    return absl::InternalError(absl::StrCat("encoding the image: ", writer->geterror()));
+  }
+  out.mime_type = png ? "image/png" : "image/x-exr";
+  return out;
+}
+
+}  // namespace gvd

@@ -1,0 +1,190 @@
+#include "render/kernel/exact2.h"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+
+#include "render/kernel/segment_tree.h"
+
+namespace gvd {
+
+double SegmentDistance(Vec2 q, Vec2 a, Vec2 b, double* t) {
+  Vec2 ab = b - a;
+  double len2 = glm::dot(ab, ab);
+  double u = len2 > 0 ? std::clamp(glm::dot(q - a, ab) / len2, 0.0, 1.0) : 0.0;
+  if (t) *t = u;
+  if (u == 0) return Distance(q, a);
+  if (u == 1) return Distance(q, b);
+  return Distance(q, a + u * ab);
+}
+
+double ExactDistance(Vec2 q, const Geometry& g) {
+  if (const auto* p = std::get_if<PointSite>(&g)) return Distance(q, p->p);  // the hot path
+  double best = INFINITY;
+  ForEachSegment(g, [&](Vec2 a, Vec2 b) { best = std::min(best, SegmentDistance(q, a, b)); });
+  return best;
+}
+
+namespace {
+
+// The feature of g that segment i (in ForEachSegment order) at parameter t is, at distance d.
+FeatureHit FeatureOf(const Geometry& g, double d, uint32_t i, double t) {
+  FeatureHit best = t == 0   ? FeatureHit{d, FeatureKind::kVertex, i}
+                    : t == 1 ? FeatureHit{d, FeatureKind::kVertex, i + 1}
+                             : FeatureHit{d, FeatureKind::kEdge, i};
+  if (const auto* poly = std::get_if<PolygonSite>(&g)) {
+    if (best.kind == FeatureKind::kVertex) best.index %= poly->vertices.size();
+  } else if (const auto* bez = std::get_if<BezierSite>(&g)) {
+    uint32_t last = static_cast<uint32_t>(bez->flat.size() - 1);
+    if (best.kind == FeatureKind::kVertex && best.index == 0) {
+      best.index = 0;
+    } else if (best.kind == FeatureKind::kVertex && best.index == last) {
+      best.index = static_cast<uint32_t>(bez->control.size() - 1);
+    } else {
+      best.kind = FeatureKind::kCurve;
+      best.index = 0;
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
+FeatureHit NearestFeature(Vec2 q, const Geometry& g) {
+  double best = INFINITY, best_t = 0;
+  uint32_t i = 0, best_i = 0;
+  ForEachSegment(g, [&](Vec2 a, Vec2 b) {
+    double t = 0;
+    double d = SegmentDistance(q, a, b, &t);
+    if (d < best) {
+      best = d;
+      best_i = i;
+      best_t = t;
+    }
+    ++i;
+  });
+  return FeatureOf(g, best, best_i, best_t);
+}
+
+FeatureHit NearestFeature(Vec2 q, const Site& site) {
+  if (site.segment_tree == nullptr) return NearestFeature(q, site.geometry);
+  const SegmentTree::Hit hit = site.segment_tree->Nearest(q);
+  return FeatureOf(site.geometry, hit.distance, hit.index, hit.t);
+}
+
+double ExactDistance(Vec2 q, const Site& site) {
+  return site.segment_tree ? site.segment_tree->Nearest(q).distance
+                           : ExactDistance(q, site.geometry);
+}
+
+double FarthestDistance(const Window& rect, const Site& site) {
+  return site.segment_tree ? site.segment_tree->Farthest(rect)
+                           : FarthestDistance(rect, site.geometry);
+}
+
+bool InsidePolygon(Vec2 q, const std::vector<Vec2>& v) {
+  bool inside = false;
+  for (size_t i = 0, j = v.size() - 1; i < v.size(); j = i++) {
+    if ((v[i].y > q.y) != (v[j].y > q.y)) {
+      double x = v[i].x + (q.y - v[i].y) / (v[j].y - v[i].y) * (v[j].x - v[i].x);
+      if (q.x < x) inside = !inside;
+    }
+  }
+  return inside;
+}
+
+double SiteValue(Vec2 q, const Site& site) {
+  double d = ExactDistance(q, site);
+  if (d > site.max_distance) return INFINITY;
+  if (const auto* poly = std::get_if<PolygonSite>(&site.geometry)) {
+    if (poly->side != Side::kBoth && d > 0 &&
+        InsidePolygon(q, poly->vertices) != (poly->side == Side::kInside)) {
+      return INFINITY;
+    }
+  }
+  return site.multiplicative * d + site.additive;
+}
+
+Vec2 BezierPoint(const std::vector<Vec2>& control, double t) {
+  std::vector<Vec2> p = control;
+  for (size_t k = p.size() - 1; k > 0; --k) {
+    for (size_t i = 0; i < k; ++i) p[i] = p[i] + t * (p[i + 1] - p[i]);
+  }
+  return p[0];
+}
+
+std::vector<Vec2> Flatten(const std::vector<Vec2>& control, double tolerance) {
+  assert(control.size() == 3 || control.size() == 4);
+  assert(tolerance > 0);
+  const double deg = static_cast<double>(control.size() - 1);
+  double m = 0;
+  for (size_t i = 0; i + 2 < control.size(); ++i) {
+    m = std::max(m, Length(control[i + 2] - 2.0 * control[i + 1] + control[i]));
+  }
+  double n = std::ceil(std::sqrt(deg * (deg - 1) / 8 * m / tolerance));
+  uint32_t pieces = !(n >= 1) ? 1 : n >= kMaxBezierPieces ? kMaxBezierPieces : uint32_t(n);
+  std::vector<Vec2> flat(pieces + 1);
+  for (uint32_t i = 0; i <= pieces; ++i) flat[i] = BezierPoint(control, double(i) / pieces);
+  flat.front() = control.front();  // exactly
+  flat.back() = control.back();
+  return flat;
+}
+
+BezierSite MakeBezier(std::vector<Vec2> control, double tolerance) {
+  if (!(tolerance > 0)) {
+    double length = 0;
+    for (size_t i = 0; i + 1 < control.size(); ++i) length += Distance(control[i], control[i + 1]);
+    tolerance = length > 0 ? length / 1000 : 1e-9;
+  }
+  // Past kMaxBezierPieces the bound says how far the flattening may stray: state that.
+  const double deg = static_cast<double>(control.size() - 1);
+  double m = 0;
+  for (size_t i = 0; i + 2 < control.size(); ++i) {
+    m = std::max(m, Length(control[i + 2] - 2.0 * control[i + 1] + control[i]));
+  }
+  double floor_tol = deg * (deg - 1) / 8 * m / (double(kMaxBezierPieces) * kMaxBezierPieces);
+  tolerance = std::max(tolerance, floor_tol);
+  BezierSite b;
+  b.flat = Flatten(control, tolerance);
+  b.control = std::move(control);
+  b.tolerance = tolerance;
+  return b;
+}
+
+double TotalLength(const Geometry& g) {
+  double length = 0;
+  ForEachSegment(g, [&](Vec2 a, Vec2 b) { length += Distance(a, b); });
+  return length;
+}
+
+Window BoundingBox(const Geometry& g) {
+  Window w{INFINITY, INFINITY, -INFINITY, -INFINITY};
+  auto add = [&](Vec2 p) {
+    w.min_x = std::min(w.min_x, p.x);
+    w.min_y = std::min(w.min_y, p.y);
+    w.max_x = std::max(w.max_x, p.x);
+    w.max_y = std::max(w.max_y, p.y);
+  };
+  ForEachSegment(g, [&](Vec2 a, Vec2 b) {
+    add(a);
+    add(b);
+  });
+  return w;
+}
+
+double FarthestDistance(const Window& rect, const Geometry& g) {
+  if (const auto* p = std::get_if<PointSite>(&g)) return rect.FarthestDistance(p->p);
+  // d(., g) <= d(., s) for each segment s, and d(., s) is convex (s is convex), so its
+  // maximum over the rectangle is at a corner.
+  const Vec2 corners[4] = {{rect.min_x, rect.min_y}, {rect.max_x, rect.min_y},
+                           {rect.min_x, rect.max_y}, {rect.max_x, rect.max_y}};
+  double best = INFINITY;
+  ForEachSegment(g, [&](Vec2 a, Vec2 b) {
+    double m = 0;
+    for (Vec2 c : corners) m = std::max(m, SegmentDistance(c, a, b));
+    best = std::min(best, m);
+  });
+  return best;
+}
+
+}  // namespace gvd

@@ -1,0 +1,85 @@
+// The 2D kernel's sites: an id, a geometry of one of the plane's kinds, weights and a reach.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "render/kernel/grid2.h"
+
+namespace gvd {
+
+struct PointSite {
+  Vec2 p;
+};
+
+// A closed segment; a == b is allowed (it is then a point).
+struct SegmentSite {
+  Vec2 a, b;
+};
+
+// An open chain of segments through `points` (at least two; repeats allowed).
+struct PolylineSite {
+  std::vector<Vec2> points;
+};
+
+// Where a polygon's distance function is defined (paper sec. 4.3).
+enum class Side : uint8_t { kBoth, kOutside, kInside };
+
+// A closed chain: edge i runs from vertex i to vertex i + 1 (mod n); at least three
+// vertices, repeats allowed. Its distance is the distance to that boundary. Inside and
+// outside follow the even-odd rule, so a self-intersecting polygon is well defined; one of
+// zero area has no inside. With kOutside (kInside) the polygon is a candidate only at points
+// outside (inside) it, or on its boundary.
+struct PolygonSite {
+  std::vector<Vec2> vertices;
+  Side side = Side::kBoth;
+};
+
+// A quadratic (3 control points) or cubic (4) Bezier curve, represented by `flat`: a
+// polyline through points of the curve within `tolerance` of it (see Flatten in exact.h).
+// Distances to the site are distances to `flat`.
+struct BezierSite {
+  std::vector<Vec2> control;
+  double tolerance = 0;
+  std::vector<Vec2> flat;
+};
+
+// Every site kind; new kinds are added here, in exact.cc and in the rasterizer's primitives.
+using Geometry = std::variant<PointSite, SegmentSite, PolylineSite, PolygonSite, BezierSite>;
+
+// What a site's part nearest to a point is (NearestSite.feature_kind in the API).
+enum class FeatureKind : uint8_t { kVertex, kEdge, kCurve };
+
+class SegmentTree;  // geometry/segment_tree.h
+
+struct Site {
+  std::string id;
+  Geometry geometry;
+  // The site's value at q is multiplicative * d + additive, d the Euclidean distance from q
+  // to the geometry (paper sec. 4.4); beyond max_distance (in d) the site has no influence.
+  // CONTRACT: additive >= 0 and multiplicative > 0, both finite; max_distance > 0.
+  double additive = 0;
+  double multiplicative = 1;
+  double max_distance = INFINITY;
+  // The geometry's segments in a tree, for sites of many segments (IndexSegments, which the
+  // slot table calls as a site enters it); null otherwise. The exact functions taking a Site
+  // (exact.h) use it: it changes how fast they find a value, never the value.
+  std::shared_ptr<const SegmentTree> segment_tree;
+
+  bool weighted() const { return additive != 0 || multiplicative != 1; }
+  // Whether the site is a candidate everywhere at its plain distance: unweighted, unbounded
+  // and not restricted to a side.
+  bool plain() const;
+};
+
+// A densely indexed list of sites; the id buffer holds index + 1.
+using SiteTable = std::vector<Site>;
+
+}  // namespace gvd

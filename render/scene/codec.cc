@@ -1,0 +1,258 @@
+#include "render/scene/codec.h"
+
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <type_traits>
+
+#include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
+
+namespace gvd {
+namespace {
+
+static_assert(std::endian::native == std::endian::little,
+              "the stored form is little-endian and written as the host's bytes");
+
+// Format bytes: a change of layout takes a new one, and decoders keep reading the old ones.
+constexpr uint8_t kSiteFormat = 1;
+constexpr uint8_t kSettingsFormat = 1;
+
+// Geometry tags, one per alternative of Geometry; never reused.
+enum Tag : uint8_t { kPoint = 1, kSegment = 2, kPolyline = 3, kPolygon = 4, kBezier = 5 };
+
+class Writer {
+ public:
+  template <class T>
+  void Put(T v) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    out_.append(reinterpret_cast<const char*>(&v), sizeof v);
+  }
+  void Put(Vec2 p) {
+    Put(p.x);
+    Put(p.y);
+  }
+  void Put(std::string_view s) {
+    Put(static_cast<uint32_t>(s.size()));
+    out_.append(s);
+  }
+  void Put(const std::vector<Vec2>& points) {
+    Put(static_cast<uint32_t>(points.size()));
+    for (Vec2 p : points) Put(p);
+  }
+  std::string Take() { return std::move(out_); }
+
+ private:
+  std::string out_;
+};
+
+// Reads what Writer wrote; the first failure sticks and later reads return zeros.
+class Reader {
+ public:
+  explicit Reader(std::string_view in) : in_(in) {}
+  template <class T>
+  T Get() {
+    T v{};
+    if (!Need(sizeof v)) return v;
+    std::memcpy(&v, in_.data(), sizeof v);
+    in_.remove_prefix(sizeof v);
+    return v;
+  }
+  Vec2 GetVec2() {
+    double x = Get<double>();
+    return {x, Get<double>()};
+  }
+  std::string GetString() {
+    uint32_t n = Get<uint32_t>();
+    if (!Need(n)) return {};
+    std::string s(in_.substr(0, n));
+    in_.remove_prefix(n);
+    return s;
+  }
+  std::vector<Vec2> GetPoints() {
+    uint32_t n = Get<uint32_t>();
+    if (!Need(uint64_t{n} * 16)) return {};
+    std::vector<Vec2> points(n);
+    for (Vec2& p : points) p = GetVec2();
+    return points;
+  }
+  void Fail() { ok_ = false; }
+  // OK when every read fitted and nothing is left over.
+  absl::Status Done(const char* what) const {
+    if (ok_ && in_.empty()) return absl::OkStatus();
+    return absl::DataLossError(absl::StrCat("a stored ", what, " is damaged"));
+  }
+
+ private:
+  bool Need(uint64_t n) {
+    if (!ok_ || n > in_.size()) ok_ = false;
+    return ok_;
+  }
+  std::string_view in_;
+  bool ok_ = true;
+};
+
+bool Finite(Vec2 p) { return std::isfinite(p.x) && std::isfinite(p.y); }
+bool Finite(const std::vector<Vec2>& points) {
+  for (Vec2 p : points) {
+    if (!Finite(p)) return false;
+  }
+  return true;
+}
+
+// Whether a decoded site keeps the contracts of Site and its geometry (geometry/site.h), as
+// every accepted site did: a stored one that does not was damaged after it was written.
+bool KeepsContract(const Site& site) {
+  if (site.id.empty() || !std::isfinite(site.additive) || site.additive < 0 ||
+      !std::isfinite(site.multiplicative) || site.multiplicative <= 0 ||
+      !(site.max_distance > 0)) {
+    return false;
+  }
+  return std::visit(
+      [](const auto& g) {
+        using T = std::decay_t<decltype(g)>;
+        if constexpr (std::is_same_v<T, PointSite>) return Finite(g.p);
+        if constexpr (std::is_same_v<T, SegmentSite>) return Finite(g.a) && Finite(g.b);
+        if constexpr (std::is_same_v<T, PolylineSite>) return g.points.size() >= 2 && Finite(g.points);
+        if constexpr (std::is_same_v<T, PolygonSite>) return g.vertices.size() >= 3 && Finite(g.vertices);
+        if constexpr (std::is_same_v<T, BezierSite>) {
+          return (g.control.size() == 3 || g.control.size() == 4) && Finite(g.control) &&
+                 std::isfinite(g.tolerance) && g.tolerance >= 0 && g.flat.size() >= 2 &&
+                 Finite(g.flat);
+        }
+      },
+      site.geometry);
+}
+
+}  // namespace
+
+std::string EncodeSite(const Site& site) {
+  Writer w;
+  w.Put(kSiteFormat);
+  w.Put(std::string_view(site.id));
+  w.Put(site.additive);
+  w.Put(site.multiplicative);
+  w.Put(site.max_distance);
+  std::visit(
+      [&w](const auto& g) {
+        using T = std::decay_t<decltype(g)>;
+        if constexpr (std::is_same_v<T, PointSite>) {
+          w.Put(kPoint);
+          w.Put(g.p);
+        } else if constexpr (std::is_same_v<T, SegmentSite>) {
+          w.Put(kSegment);
+          w.Put(g.a);
+          w.Put(g.b);
+        } else if constexpr (std::is_same_v<T, PolylineSite>) {
+          w.Put(kPolyline);
+          w.Put(g.points);
+        } else if constexpr (std::is_same_v<T, PolygonSite>) {
+          w.Put(kPolygon);
+          w.Put(static_cast<uint8_t>(g.side));
+          w.Put(g.vertices);
+        } else {
+          static_assert(std::is_same_v<T, BezierSite>);
+          w.Put(kBezier);
+          w.Put(g.tolerance);
+          w.Put(g.control);
+          w.Put(g.flat);
+        }
+      },
+      site.geometry);
+  return w.Take();
+}
+
+absl::StatusOr<Site> DecodeSite(std::string_view bytes) {
+  Reader r(bytes);
+  if (r.Get<uint8_t>() != kSiteFormat) r.Fail();
+  Site site;
+  site.id = r.GetString();
+  site.additive = r.Get<double>();
+  site.multiplicative = r.Get<double>();
+  site.max_distance = r.Get<double>();
+  switch (r.Get<uint8_t>()) {
+    case kPoint:
+      site.geometry = PointSite{r.GetVec2()};
+      break;
+    case kSegment: {
+      Vec2 a = r.GetVec2();
+      site.geometry = SegmentSite{a, r.GetVec2()};
+      break;
+    }
+    case kPolyline:
+      site.geometry = PolylineSite{r.GetPoints()};
+      break;
+    case kPolygon: {
+      uint8_t side = r.Get<uint8_t>();
+      if (side > static_cast<uint8_t>(Side::kInside)) r.Fail();
+      site.geometry = PolygonSite{r.GetPoints(), static_cast<Side>(side)};
+      break;
+    }
+    case kBezier: {
+      BezierSite b;
+      b.tolerance = r.Get<double>();
+      b.control = r.GetPoints();
+      b.flat = r.GetPoints();
+      site.geometry = std::move(b);
+      break;
+    }
+    default:
+      r.Fail();
+  }
+  if (auto s = r.Done("site"); !s.ok()) return s;
+  if (!KeepsContract(site)) return absl::DataLossError("a stored site is damaged");
+  return site;
+}
+
+std::string EncodeSettings(const SceneSettings& s) {
+  Writer w;
+  w.Put(kSettingsFormat);
+  w.Put(std::string_view(s.id));
+  w.Put(s.grid.window.min_x);
+  w.Put(s.grid.window.min_y);
+  w.Put(s.grid.window.max_x);
+  w.Put(s.grid.window.max_y);
+  w.Put(s.grid.width);
+  w.Put(s.grid.height);
+  w.Put(s.eps);
+  w.Put(s.cone_triangles);
+  w.Put(static_cast<uint8_t>(s.mode));
+  w.Put(static_cast<uint8_t>(s.diagram));
+  return w.Take();
+}
+
+absl::StatusOr<SceneSettings> DecodeSettings(std::string_view bytes) {
+  Reader r(bytes);
+  if (r.Get<uint8_t>() != kSettingsFormat) r.Fail();
+  SceneSettings s;
+  s.id = r.GetString();
+  s.grid.window.min_x = r.Get<double>();
+  s.grid.window.min_y = r.Get<double>();
+  s.grid.window.max_x = r.Get<double>();
+  s.grid.window.max_y = r.Get<double>();
+  s.grid.width = r.Get<uint32_t>();
+  s.grid.height = r.Get<uint32_t>();
+  s.eps = r.Get<double>();
+  s.cone_triangles = r.Get<uint32_t>();
+  uint8_t mode = r.Get<uint8_t>();
+  uint8_t diagram = r.Get<uint8_t>();
+  if (mode > static_cast<uint8_t>(RenderMode::kExact) ||
+      diagram > static_cast<uint8_t>(Diagram::kFarthest)) {
+    r.Fail();
+  }
+  s.mode = static_cast<RenderMode>(mode);
+  s.diagram = static_cast<Diagram>(diagram);
+  if (auto st = r.Done("scene"); !st.ok()) return st;
+  // What every accepted scene had: an id, a window of positive finite size, pixels, an error
+  // bound and enough triangles to make a cone.
+  const Window& w = s.grid.window;
+  if (s.id.empty() || !(w.max_x - w.min_x > 0) || !std::isfinite(w.max_x - w.min_x) ||
+      !(w.max_y - w.min_y > 0) || !std::isfinite(w.max_y - w.min_y) || s.grid.width == 0 ||
+      s.grid.height == 0 || !(s.eps > 0) || !std::isfinite(s.eps) || s.cone_triangles < 3) {
+    return absl::DataLossError("a stored scene is damaged");
+  }
+  return s;
+}
+
+}  // namespace gvd

@@ -1,0 +1,22 @@
+// The core's own byte form of sites and scene settings, as stores keep them: compact, exact
+// (doubles bit for bit) and versioned by a leading format byte. Decoding checks the
+// structure (lengths, tags, enum values) and reports damage as DATA_LOSS; it does not judge
+// the values again, which were checked when the site was accepted.
+#pragma once
+
+#include <string>
+#include <string_view>
+
+#include "absl/status/statusor.h"
+#include "render/scene/settings.h"
+#include "render/kernel/site2.h"
+
+namespace gvd {
+
+std::string EncodeSite(const Site& site);
+absl::StatusOr<Site> DecodeSite(std::string_view bytes);
+
+std::string EncodeSettings(const SceneSettings& settings);
+absl::StatusOr<SceneSettings> DecodeSettings(std::string_view bytes);
+
+}  // namespace gvd

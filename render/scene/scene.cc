@@ -1,0 +1,363 @@
+#include "render/scene/scene.h"
+
+#include <atomic>
+#include <algorithm>
+#include <chrono>
+
+#include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
+#include "render/kernel/exact2.h"
+#include "render/scene/cpu_pool.h"
+
+namespace gvd {
+
+namespace {
+int64_t NowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+}  // namespace
+
+Scene::Scene(SceneSettings settings, Executor executor)
+    : settings_(std::move(settings)), executor_(std::move(executor)) {
+  snapshot_.store(SiteSnapshot::Empty(1));
+  frame_.store(Frame::Empty(settings_.grid, settings_.eps, snapshot_.load()));
+  published_ns_ = NowNs();
+}
+
+double Scene::frame_age_seconds() const { return (NowNs() - published_ns_.load()) * 1e-9; }
+
+Scene::Scene(SceneSettings settings, uint64_t version, std::vector<Site> sites, Executor executor)
+    : Scene(std::move(settings), std::move(executor)) {
+  SnapshotBuilder builder(snapshot_.load(), &free_slots_);
+  for (Site& site : sites) builder.Put(std::move(site));
+  snapshot_.store(builder.Build(version));
+}
+
+absl::StatusOr<uint64_t> Scene::Write(const std::function<absl::Status(SnapshotBuilder&)>& edit,
+                                      const Persist& persist) {
+  std::lock_guard<std::mutex> lock(writer_mu_);
+  if (deleted_) return Gone();
+  auto base = snapshot_.load();
+  SnapshotBuilder builder(base, &free_slots_);
+  absl::Status status = edit(builder);
+  std::shared_ptr<const SiteSnapshot> next;
+  if (status.ok()) {
+    auto store = [&] {
+      if (persist) {
+        status = persist(ChangeSet{id(), base->version() + 1, builder.put(), builder.removed()});
+      }
+    };
+    // A bulk change builds the next snapshot while the store makes it durable (the snapshot
+    // is dropped if the store refuses); a small one builds only what the store took.
+    constexpr size_t kBulk = 4096;
+    if (builder.put().size() + builder.removed().size() >= kBulk) {
+      ParallelFor(2, 1, [&](size_t begin, size_t end) {
+        for (size_t k = begin; k < end; ++k) {
+          if (k == 0) {
+            store();
+          } else {
+            next = builder.Build(base->version() + 1);
+          }
+        }
+      });
+    } else {
+      store();
+      if (status.ok()) next = builder.Build(base->version() + 1);
+    }
+  }
+  if (!status.ok()) {
+    builder.Abandon();
+    return status;
+  }
+  // Freed slots are taken again only by later snapshots: this one's frames may still show
+  // them until the render of the next.
+  free_slots_.insert(free_slots_.end(), builder.freed().rbegin(), builder.freed().rend());
+  snapshot_.store(next);
+  return next->version();
+}
+
+absl::Status Scene::Gone() const {
+  return absl::NotFoundError(absl::StrCat("scene \"", id(), "\" was deleted"));
+}
+
+absl::Status Scene::Retire(const std::function<absl::Status()>& persist) {
+  std::lock_guard<std::mutex> lock(writer_mu_);
+  if (deleted_) return Gone();
+  if (persist) {
+    if (auto s = persist(); !s.ok()) return s;
+  }
+  deleted_ = true;
+  Notify(nullptr, /*last=*/true);
+  return absl::OkStatus();
+}
+
+uint64_t Scene::Watch(FrameListener listener) {
+  std::lock_guard<std::mutex> lock(listeners_mu_);
+  const uint64_t token = next_listener_++;
+  listeners_.emplace(token, std::make_shared<const FrameListener>(std::move(listener)));
+  return token;
+}
+
+void Scene::Unwatch(uint64_t token) {
+  std::lock_guard<std::mutex> calling(listeners_call_mu_);
+  std::lock_guard<std::mutex> lock(listeners_mu_);
+  listeners_.erase(token);
+}
+
+void Scene::Notify(const std::shared_ptr<const Frame>& frame, bool last) {
+  std::lock_guard<std::mutex> calling(listeners_call_mu_);
+  std::vector<std::shared_ptr<const FrameListener>> listeners;
+  {
+    std::lock_guard<std::mutex> lock(listeners_mu_);
+    listeners.reserve(listeners_.size());
+    for (const auto& [token, l] : listeners_) listeners.push_back(l);
+    if (last) listeners_.clear();
+  }
+  for (const auto& l : listeners) (*l)(frame);
+}
+
+absl::StatusOr<uint64_t> Scene::Upsert(std::vector<Site> sites, size_t max_sites,
+                                       const Persist& persist) {
+  return Write(
+      [&](SnapshotBuilder& builder) {
+        for (Site& s : sites) builder.Put(std::move(s));
+        if (builder.size() > max_sites) {
+          return absl::ResourceExhaustedError(
+              absl::StrCat("scene \"", id(), "\" would hold ", builder.size(),
+                           " sites; the limit per scene is ", max_sites,
+                           " (--max-sites-per-scene)"));
+        }
+        return absl::OkStatus();
+      },
+      persist);
+}
+
+absl::StatusOr<uint64_t> Scene::Delete(const std::vector<std::string>& ids,
+                                       const Persist& persist) {
+  return Write(
+      [&](SnapshotBuilder& builder) {
+        for (size_t i = 0; i < ids.size(); ++i) {
+          if (!builder.Remove(ids[i])) {
+            return absl::NotFoundError(absl::StrCat("ids[", i, "] \"", ids[i],
+                                                    "\" is not a site of scene \"", id(), "\""));
+          }
+        }
+        return absl::OkStatus();
+      },
+      persist);
+}
+
+Scene::Picked Scene::Pick(Vec2 q, double max_distance) const {
+  auto snapshot = snapshot_.load();
+  Picked p;
+  p.version = snapshot->version();
+  if (snapshot->empty()) return p;
+  ExactNearest n = snapshot->index().Nearest(q);
+  if (!n.found() || n.distance > max_distance) return p;
+  p.site = snapshot->sites().ptr(static_cast<uint32_t>(n.index));
+  const Site& site = *p.site;
+  FeatureHit f = NearestFeature(q, site);
+  p.found = true;
+  p.distance = n.distance;
+  p.feature_kind = f.kind;
+  p.feature_index = f.index;
+  return p;
+}
+
+uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactAnswer>* answers,
+                             const std::function<bool()>& cancelled, bool features) const {
+  std::atomic<bool> stop{false};
+  const auto snapshot = snapshot_.load();
+  const auto frame = frame_.load();
+  // The frame bounds the search only when it shows this very snapshot: then its ids are this
+  // snapshot's slots.
+  const bool fresh = frame->snapshot_ptr() == snapshot && !frame->empty();
+  const SlotTable& slots = snapshot->sites();
+  const SiteIndex& index = snapshot->index();
+  const Window& window = settings_.grid.window;
+  // With only plain sites, the nearest site is the nearest by distance: the frame and the
+  // spatial index find it. With weights, max_distance or sides, the index finds the sites
+  // that can beat a value found at the point. A FARTHEST diagram scores every site.
+  const bool nearest = settings_.diagram == Diagram::kNearest;
+  const bool plain = snapshot->plain() && nearest;
+  answers->resize(points.size());
+  auto answer = [&](Vec2 q, uint32_t slot, double value) {
+    const Site* site = slots.get(slot);
+    FeatureHit f = features ? NearestFeature(q, *site) : FeatureHit{};
+    return ExactAnswer{site->id, value, f.kind, f.index, true, slot};
+  };
+  // Cancellation is checked about every million site evaluations: every 4,096 points when
+  // the index answers, more often when each point scores every site.
+  const size_t check_every =
+      nearest ? 4096 : std::max<size_t>(1, (size_t{1} << 20) / std::max<uint32_t>(1, slots.size()));
+  // Large batches are split across cores, all on this one snapshot, and answered tile by
+  // tile of the grid.
+  const std::vector<uint32_t> order = OrderByTile(settings_.grid, points);
+  ParallelFor(points.size(), 8192, [&](size_t begin, size_t end) {
+    std::vector<uint32_t> nearer;
+    for (size_t k = begin; k < end; ++k) {
+      const size_t i = order.empty() ? k : order[k];
+      if (k % check_every == 0 && cancelled && (stop || cancelled())) {
+        stop = true;
+        return;
+      }
+      const Vec2 q = points[i];
+      if (!plain && nearest) {
+        // Weights, max_distance or sides: a value V found at q bounds the search, as a site
+        // s beats it only where m_s d + a_s < V, so d < (V - least a) / least m. V comes from
+        // the frame when it shows this snapshot (its answer's value is exact; "no candidate"
+        // is certain), else from the site nearest by distance; where neither gives one,
+        // every site is scored below.
+        uint32_t best = 0;
+        double value = INFINITY;
+        std::optional<NearestAnswer> raster;
+        if (fresh && window.Contains(q)) raster = frame->Nearest(q);
+        if (raster && !raster->found) {
+          (*answers)[i] = ExactAnswer{};
+          continue;
+        }
+        if (raster) {
+          best = raster->site_index;
+          value = raster->distance;
+        } else if (ExactNearest n = index.Nearest(q); n.found()) {
+          best = static_cast<uint32_t>(n.index);
+          value = SiteValue(q, *slots.get(best));
+        }
+        if (std::isfinite(value)) {
+          snapshot->Improve(q, &best, &value, &nearer);
+          (*answers)[i] = answer(q, best, value);
+          continue;
+        }
+      }
+      if (!plain) {
+        uint32_t best = 0;
+        double value = 0;
+        bool found = false;
+        for (uint32_t s = 0; s < slots.size(); ++s) {
+          const Site* site = slots.get(s);
+          if (site == nullptr) continue;
+          double v = SiteValue(q, *site);
+          if (std::isfinite(v) && (!found || Beats(settings_.diagram, v, value))) {
+            best = s;
+            value = v;
+            found = true;
+          }
+        }
+        (*answers)[i] = found ? answer(q, best, value) : ExactAnswer{};
+        continue;
+      }
+      std::optional<NearestAnswer> raster;
+      if (fresh && window.Contains(q)) raster = frame->Nearest(q);
+      if (!raster) {
+        ExactNearest best = index.Nearest(q);
+        (*answers)[i] = answer(q, static_cast<uint32_t>(best.index), best.distance);
+        continue;
+      }
+      // The frame's site is at exactly this distance from q: only sites the index finds
+      // within that radius can be nearer.
+      uint32_t best = raster->site_index;
+      double distance = raster->distance;
+      nearer.clear();
+      index.Within(q, distance, &nearer);
+      for (uint32_t s : nearer) {
+        double d = ExactDistance(q, *slots.get(s));
+        if (d < distance) {
+          best = s;
+          distance = d;
+        }
+      }
+      (*answers)[i] = answer(q, best, distance);
+    }
+  });
+  if (stop) return 0;
+  return snapshot->version();
+}
+
+Scene::SitePage Scene::ListSites(std::string_view after, size_t limit) const {
+  auto snapshot = snapshot_.load();
+  SitePage page;
+  page.version = snapshot->version();
+  bool more = false;
+  snapshot->ids().ForEachAfter(after, [&](const IdMap::Entry& e) {
+    if (page.sites.size() == limit) {
+      more = true;
+      return false;
+    }
+    page.sites.push_back(*snapshot->sites().get(e.slot));
+    return true;
+  });
+  if (more && !page.sites.empty()) page.last_id = page.sites.back().id;
+  return page;
+}
+
+void Scene::Publish(std::shared_ptr<const Frame> frame) {
+  std::vector<FrameCallback> ready;
+  {
+    std::lock_guard<std::mutex> lock(waiters_mu_);
+    frame_.store(frame);
+    published_ns_ = NowNs();
+    for (auto it = waiters_.begin(); it != waiters_.end();) {
+      if (it->second.min_version <= frame->version()) {
+        ready.push_back(std::move(it->second.done));
+        it = waiters_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+  for (auto& done : ready) {
+    if (executor_) {
+      executor_([done = std::move(done), frame] { done(frame); });
+    } else {
+      done(frame);
+    }
+  }
+  if (!deleted_) Notify(frame, /*last=*/false);
+}
+
+void Scene::FailWaiters(const absl::Status& status) {
+  std::map<uint64_t, Waiter> failed;
+  {
+    std::lock_guard<std::mutex> lock(waiters_mu_);
+    failed.swap(waiters_);
+  }
+  for (auto& [token, w] : failed) w.done(status);
+}
+
+uint64_t Scene::WhenRendered(uint64_t min_version, FrameCallback done) {
+  // Fast path, without the lock: frames only get newer.
+  if (auto current = frame_.load(); current->version() >= min_version) {
+    done(std::move(current));
+    return 0;
+  }
+  std::shared_ptr<const Frame> ready;
+  uint64_t token;
+  {
+    std::lock_guard<std::mutex> lock(waiters_mu_);
+    token = next_token_++;
+    auto current = frame_.load();
+    if (current->version() >= min_version) {
+      ready = std::move(current);
+    } else {
+      waiters_.emplace(token, Waiter{min_version, std::move(done)});
+    }
+  }
+  if (ready) done(std::move(ready));
+  return token;
+}
+
+void Scene::Cancel(uint64_t token, const absl::Status& why) {
+  FrameCallback done;
+  {
+    std::lock_guard<std::mutex> lock(waiters_mu_);
+    auto it = waiters_.find(token);
+    if (it == waiters_.end()) return;
+    done = std::move(it->second.done);
+    waiters_.erase(it);
+  }
+  done(why);
+}
+
+}  // namespace gvd

@@ -1,0 +1,206 @@
+#include "render/scene/snapshot.h"
+
+#include <algorithm>
+#include <map>
+
+#include "render/scene/cpu_pool.h"
+#include "render/kernel/segment_tree.h"
+
+namespace gvd {
+
+// ---- IdMap ----
+
+size_t IdMap::LeafAfter(std::string_view after) const {
+  // The last leaf whose first id is <= after holds the ids just above it (or none do).
+  auto it = std::upper_bound(leaves_.begin(), leaves_.end(), after,
+                             [](std::string_view a, const std::shared_ptr<const Leaf>& leaf) {
+                               return a < leaf->front().id;
+                             });
+  return it == leaves_.begin() ? 0 : static_cast<size_t>(it - leaves_.begin()) - 1;
+}
+
+std::optional<uint32_t> IdMap::Find(std::string_view id) const {
+  if (leaves_.empty()) return std::nullopt;
+  const Leaf& leaf = *leaves_[LeafAfter(id)];
+  auto it = std::lower_bound(leaf.begin(), leaf.end(), id,
+                             [](const Entry& e, std::string_view x) { return e.id < x; });
+  if (it == leaf.end() || it->id != id) return std::nullopt;
+  return it->slot;
+}
+
+IdMap IdMap::With(const std::vector<Change>& changes) const {
+  IdMap out;
+  out.size_ = size_;
+  out.leaves_.reserve(leaves_.size() + changes.size() / kLeaf + 1);
+  auto emit = [&out](Leaf&& merged) {
+    // Split into leaves of kLeaf when it outgrew 2 * kLeaf; drop it when it emptied.
+    for (size_t b = 0; b < merged.size();) {
+      size_t e = merged.size() - b <= 2 * kLeaf ? merged.size() : b + kLeaf;
+      out.leaves_.push_back(std::make_shared<const Leaf>(
+          std::make_move_iterator(merged.begin() + b), std::make_move_iterator(merged.begin() + e)));
+      b = e;
+    }
+  };
+  // Each change goes to the leaf holding the greatest first id <= its id (or leaf 0), found
+  // by binary search; the leaves between changed ones are shared as they are.
+  size_t shared = 0;  // leaves_[0, shared) are in out
+  for (size_t c = 0; c < changes.size();) {
+    const size_t l = leaves_.empty() ? 0 : LeafAfter(changes[c].first);
+    out.leaves_.insert(out.leaves_.end(), leaves_.begin() + shared, leaves_.begin() + l);
+    const bool last = l + 1 >= leaves_.size();
+    size_t end = c;
+    while (end < changes.size() && (last || changes[end].first < leaves_[l + 1]->front().id)) ++end;
+    static const Leaf kNone;
+    const Leaf& old = leaves_.empty() ? kNone : *leaves_[l];
+    Leaf merged;
+    merged.reserve(old.size() + (end - c));
+    size_t i = 0;
+    for (; c < end; ++c) {
+      const auto& [id, slot] = changes[c];
+      while (i < old.size() && old[i].id < id) merged.push_back(old[i++]);
+      const bool present = i < old.size() && old[i].id == id;
+      if (present) ++i;
+      if (slot) merged.push_back({id, *slot});
+    }
+    while (i < old.size()) merged.push_back(old[i++]);
+    out.size_ = out.size_ - old.size() + merged.size();
+    emit(std::move(merged));
+    shared = std::min(l + 1, leaves_.size());
+  }
+  out.leaves_.insert(out.leaves_.end(), leaves_.begin() + shared, leaves_.end());
+  return out;
+}
+
+// ---- SiteSnapshot ----
+
+std::shared_ptr<const SiteSnapshot> SiteSnapshot::Empty(uint64_t version) {
+  std::shared_ptr<SiteSnapshot> s(new SiteSnapshot);
+  s->version_ = version;
+  return s;
+}
+
+void SiteSnapshot::Improve(Vec2 q, uint32_t* best, double* value,
+                           std::vector<uint32_t>* scratch) const {
+  scratch->clear();
+  index_.Within(q, (*value - least_.additive) / least_.multiplicative * (1 + 1e-12), scratch);
+  for (uint32_t s : *scratch) {
+    const double v = SiteValue(q, *sites().get(s));
+    if (v < *value || (v == *value && s < *best)) {
+      *best = s;
+      *value = v;
+    }
+  }
+}
+
+std::shared_ptr<const SiteSnapshot> SiteSnapshot::Of(uint64_t version, std::vector<Site> sites) {
+  std::vector<uint32_t> free_slots;
+  SnapshotBuilder b(Empty(0), &free_slots);
+  for (Site& s : sites) b.Put(std::move(s));
+  return b.Build(version);
+}
+
+// ---- SnapshotBuilder ----
+
+SnapshotBuilder::SnapshotBuilder(std::shared_ptr<const SiteSnapshot> base,
+                                 std::vector<uint32_t>* free_slots)
+    : base_(std::move(base)),
+      free_slots_(free_slots),
+      table_(base_->sites()),
+      next_slot_(base_->sites().size()),
+      size_(base_->size()),
+      non_plain_(base_->non_plain_),
+      ink_(base_->ink_),
+      bytes_(base_->bytes_) {}
+
+void SnapshotBuilder::Put(Site site) {
+  uint32_t slot;
+  if (auto found = base_->Find(site.id)) {
+    slot = *found;
+    non_plain_ -= !base_->sites().get(slot)->plain();
+    ink_ -= TotalLength(base_->sites().get(slot)->geometry);
+    bytes_ -= SiteBytes(*base_->sites().get(slot));
+  } else {
+    if (!free_slots_->empty()) {
+      slot = free_slots_->back();
+      free_slots_->pop_back();
+      taken_.push_back(slot);
+    } else {
+      slot = next_slot_++;
+    }
+    id_changes_.emplace_back(site.id, slot);
+    ++size_;
+  }
+  non_plain_ += !site.plain();
+  ink_ += TotalLength(site.geometry);
+  bytes_ += SiteBytes(site);
+  changed_.push_back(slot);
+  table_.Set(slot, std::optional<Site>(std::move(site)));
+  put_.push_back(table_.ptr(slot));
+}
+
+bool SnapshotBuilder::Remove(std::string_view id) {
+  auto found = base_->Find(id);
+  if (!found || table_.get(*found) == nullptr) return false;
+  non_plain_ -= !table_.get(*found)->plain();
+  ink_ -= TotalLength(table_.get(*found)->geometry);
+  bytes_ -= SiteBytes(*table_.get(*found));
+  table_.Set(*found, std::shared_ptr<const Site>());
+  changed_.push_back(*found);
+  freed_.push_back(*found);
+  id_changes_.emplace_back(std::string(id), std::nullopt);
+  removed_.emplace_back(id);
+  --size_;
+  return true;
+}
+
+void SnapshotBuilder::Apply(SiteChange change) {
+  if (change.site) {
+    change.site->id = std::move(change.id);
+    Put(std::move(*change.site));
+  } else {
+    Remove(change.id);
+  }
+}
+
+std::shared_ptr<const SiteSnapshot> SnapshotBuilder::Build(uint64_t version) {
+  std::shared_ptr<SiteSnapshot> s(new SiteSnapshot);
+  s->version_ = version;
+  s->non_plain_ = non_plain_;
+  // Rounding of the sums must not leave a little ink in an emptied scene.
+  s->ink_ = size_ == 0 ? 0 : std::max(0.0, ink_);
+  s->bytes_ = bytes_;
+  auto index = [&] {
+    s->index_ = base_->index_.Update(table_, changed_);
+    s->least_ = table_.least();
+  };
+  auto ids = [&] {
+    std::sort(id_changes_.begin(), id_changes_.end(),
+              [](const IdMap::Change& a, const IdMap::Change& b) { return a.first < b.first; });
+    s->ids_ = base_->ids_.With(id_changes_);
+  };
+  // Bulk changes build the index and the id map side by side; small ones on this thread.
+  constexpr size_t kSideBySide = 4096;
+  ParallelFor(2, changed_.size() >= kSideBySide ? 1 : 2, [&](size_t begin, size_t end) {
+    for (size_t k = begin; k < end; ++k) k == 0 ? index() : ids();
+  });
+  return s;
+}
+
+void SnapshotBuilder::Abandon() {
+  free_slots_->insert(free_slots_->end(), taken_.rbegin(), taken_.rend());
+  taken_.clear();
+}
+
+std::shared_ptr<const SiteSnapshot> Advance(const std::shared_ptr<const SiteSnapshot>& base,
+                                            std::vector<SiteChange> changes,
+                                            std::vector<uint32_t>* free_slots) {
+  std::map<std::string, std::optional<Site>> last;
+  for (SiteChange& c : changes) last[c.id] = std::move(c.site);
+  SnapshotBuilder builder(base, free_slots);
+  for (auto& [id, site] : last) builder.Apply({id, std::move(site)});
+  auto next = builder.Build(base->version() + 1);
+  free_slots->insert(free_slots->end(), builder.freed().rbegin(), builder.freed().rend());
+  return next;
+}
+
+}  // namespace gvd

@@ -1,0 +1,175 @@
+// A scene's sites at one version: an immutable snapshot shared by the writers that make the
+// next one, the renderer that draws it, the frames rendered from it and the queries that read
+// them. Slot numbers mean the same thing in every structure built from one snapshot (its
+// table, its index, the id buffers of its frames), and snapshots of nearby versions share
+// almost all of their storage.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "render/kernel/site2.h"
+#include "render/scene/site_index.h"
+#include "render/scene/slot_table.h"
+
+namespace gvd {
+
+// Site ids to slots, in id order: a persistent (copy-on-write) sorted map in leaves of up to
+// 2 * kLeaf entries that versions share. Immutable once made.
+class IdMap {
+ public:
+  static constexpr size_t kLeaf = 256;
+  struct Entry {
+    std::string id;
+    uint32_t slot;
+  };
+  // (id, slot): insert or reassign; (id, nullopt): erase (an unknown id is ignored).
+  using Change = std::pair<std::string, std::optional<uint32_t>>;
+
+  size_t size() const { return size_; }
+  std::optional<uint32_t> Find(std::string_view id) const;
+  // The map with the changes applied. CONTRACT: changes sorted by id, ids distinct. Copies
+  // only the leaves the changes fall in: O(changes + touched leaves * kLeaf + leaves).
+  IdMap With(const std::vector<Change>& changes) const;
+  // Calls f(entry) in id order for the ids greater than `after` (all, when empty) until f
+  // returns false.
+  template <class F>
+  void ForEachAfter(std::string_view after, F&& f) const;
+
+ private:
+  using Leaf = std::vector<Entry>;  // sorted, never empty
+  // The first leaf that can hold ids greater than `after`.
+  size_t LeafAfter(std::string_view after) const;
+  std::vector<std::shared_ptr<const Leaf>> leaves_;
+  size_t size_ = 0;
+};
+
+// Immutable; shared between threads by shared_ptr<const SiteSnapshot>. Made by
+// SnapshotBuilder.
+class SiteSnapshot {
+ public:
+  // No sites.
+  static std::shared_ptr<const SiteSnapshot> Empty(uint64_t version);
+  // The sites in slots 0..n-1, in order. CONTRACT: ids distinct.
+  static std::shared_ptr<const SiteSnapshot> Of(uint64_t version, std::vector<Site> sites);
+
+  uint64_t version() const { return version_; }
+  size_t size() const { return index_.size(); }  // live sites
+  bool empty() const { return size() == 0; }
+  const SlotTable& sites() const { return index_.sites(); }
+  const SiteIndex& index() const { return index_; }
+  const IdMap& ids() const { return ids_; }
+  // The slot of a site id, if it is a site of this version.
+  std::optional<uint32_t> Find(std::string_view id) const { return ids_.Find(id); }
+  // Whether every site is plain (Site::plain): then the nearest site is the nearest by
+  // Euclidean distance alone.
+  bool plain() const { return non_plain_ == 0; }
+  // The least weights over the sites (SlotTable::least), found once when the version is
+  // built, for the queries that bound their search with them.
+  const LeastWeights& least() const { return least_; }
+  // The summed length of the sites' segments (TotalLength): how much line the coverage's
+  // tiles must resolve (DefaultTilePx).
+  double ink() const { return ink_; }
+  // The bytes its sites hold (SiteBytes summed), for the memory budget.
+  size_t bytes() const { return bytes_; }
+  // In a NEAREST diagram: given a site `best` whose value at q is `value` (finite), makes
+  // them the best site at q and its value, exactly (least slot on ties). Only a site within
+  // (value - least additive) / least multiplicative of q can beat the value (m d + a < V
+  // needs d < (V - a) / m), and the index finds those. `scratch` is reused between calls.
+  void Improve(Vec2 q, uint32_t* best, double* value, std::vector<uint32_t>* scratch) const;
+
+ private:
+  friend class SnapshotBuilder;
+  SiteSnapshot() = default;
+
+  uint64_t version_ = 0;
+  SiteIndex index_;
+  IdMap ids_;
+  size_t non_plain_ = 0;
+  double ink_ = 0;
+  size_t bytes_ = 0;
+  LeastWeights least_;
+};
+
+// An upsert (site set) or a deletion (site empty) of the site `id`.
+struct SiteChange {
+  SiteChange(std::string id, std::optional<Site> site) : id(std::move(id)), site(std::move(site)) {}
+  // An upsert of a plain site.
+  SiteChange(std::string id, Geometry geometry)
+      : id(std::move(id)), site(Site{this->id, std::move(geometry)}) {}
+  std::string id;
+  std::optional<Site> site;
+};
+
+// Makes the next snapshot from a base: the one way sites change. Not thread-safe; the base
+// is not modified.
+//
+// Slots. A new id takes a slot from `free_slots` (the scene's list of slots free in the base,
+// kept by its single writer) or the next slot past the base's table. Slots freed by Remove are
+// listed by freed() and are the caller's to return to its list once the snapshot is
+// published; Abandon() returns the slots taken, for a change that is not published.
+class SnapshotBuilder {
+ public:
+  SnapshotBuilder(std::shared_ptr<const SiteSnapshot> base, std::vector<uint32_t>* free_slots);
+
+  // Inserts or replaces the site with this id. CONTRACT: each id at most once per builder.
+  void Put(Site site);
+  // Removes the site; false (and nothing changes) when the id is not a site of the base.
+  bool Remove(std::string_view id);
+  void Apply(SiteChange change);
+
+  // Live sites once the changes are made.
+  size_t size() const { return size_; }
+  const std::vector<uint32_t>& freed() const { return freed_; }
+  // The sites put and the ids removed so far, in call order: what a store commits.
+  const std::vector<std::shared_ptr<const Site>>& put() const { return put_; }
+  const std::vector<std::string>& removed() const { return removed_; }
+
+  // The snapshot at `version`. Call once. It leaves put() and removed() as they are: another
+  // thread may read them meanwhile.
+  std::shared_ptr<const SiteSnapshot> Build(uint64_t version);
+  // Gives the slots taken from `free_slots` back, when the change is not published (after
+  // Build too, if its snapshot is dropped).
+  void Abandon();
+
+ private:
+  std::shared_ptr<const SiteSnapshot> base_;
+  std::vector<uint32_t>* free_slots_;
+  SlotTable table_;
+  uint32_t next_slot_;
+  size_t size_;
+  size_t non_plain_;
+  double ink_;
+  size_t bytes_;
+  std::vector<uint32_t> changed_, taken_, freed_;
+  std::vector<IdMap::Change> id_changes_;
+  std::vector<std::shared_ptr<const Site>> put_;
+  std::vector<std::string> removed_;
+};
+
+// `base` with the changes applied in order (a later change of an id overrides an earlier
+// one; deleting an unknown id does nothing), at base's version + 1: for callers with no
+// writer of their own (tests, benchmarks, one-off renders). `free_slots` is the list of
+// slots free in base, updated for the result.
+std::shared_ptr<const SiteSnapshot> Advance(const std::shared_ptr<const SiteSnapshot>& base,
+                                            std::vector<SiteChange> changes,
+                                            std::vector<uint32_t>* free_slots);
+
+// ---- implementation ----
+
+template <class F>
+void IdMap::ForEachAfter(std::string_view after, F&& f) const {
+  for (size_t l = LeafAfter(after); l < leaves_.size(); ++l) {
+    for (const Entry& e : *leaves_[l]) {
+      if (!after.empty() && e.id.compare(after) <= 0) continue;
+      if (!f(e)) return;
+    }
+  }
+}
+
+}  // namespace gvd

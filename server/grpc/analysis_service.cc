@@ -1,0 +1,420 @@
+// The service's calls on the structure of a diagram and its applications (paper sec. 5-7):
+// boundaries, neighbours, Delaunay, zoom windows, clearance, planning and picking. Each waits
+// for its frame like a query, then works on a worker thread (never on gRPC's), rendering
+// zoom windows through the render thread when it needs them.
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+
+#include "absl/strings/str_cat.h"
+#include "render/analysis/analysis.h"
+#include "render/analysis/planning.h"
+#include "render/analysis/refine.h"
+#include "server/grpc/call_scope.h"
+#include "server/grpc/convert.h"
+#include "server/grpc/frame_job.h"
+#include "server/grpc/service.h"
+
+namespace gvd {
+namespace {
+
+using grpc::Status;
+using grpc::StatusCode;
+
+// The id of the site in `slot + 1` (0: no site, the empty string).
+const std::string& IdOf(const Frame& frame, uint32_t id) {
+  static const std::string kNone;
+  return id == 0 ? kNone : frame.sites().get(id - 1)->id;
+}
+
+// Zoom windows of `frame` through the render thread; stops once the call is cancelled. The
+// refinement of neighbours zooms in EXACT mode whatever the scene's: where four sites are
+// nearly equidistant, a mesh's error (even at the zoom's finer eps) blurs which is nearest
+// over a band much wider than the structure sought.
+ZoomFn Zoomer(RenderLoop* renderer, std::shared_ptr<const Frame> frame, RenderMode mode,
+              grpc::CallbackServerContext* ctx) {
+  return [=](const std::vector<Grid>& grids)
+             -> absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> {
+    if (ctx->IsCancelled()) return absl::CancelledError("the call was cancelled");
+    return renderer->Zoom(frame, mode, grids);
+  };
+}
+
+// The frame's neighbour pairs in `rect`, refined through zoom windows unless `coarse`.
+absl::StatusOr<RefinedNeighbors> Neighbours(RenderLoop* renderer,
+                                            const std::shared_ptr<const Frame>& frame,
+                                            PixelRect rect, bool coarse,
+                                            grpc::CallbackServerContext* ctx) {
+  ZoomFn zoom;
+  if (!coarse) zoom = Zoomer(renderer, frame, RenderMode::kExact, ctx);
+  return RefineNeighbors(*frame, rect, zoom);
+}
+
+// The pixels of the frame a request names: its window (clipped), or all of them.
+Status RectOf(bool has_window, const v1::Window& window, const Grid& grid, PixelRect* rect) {
+  *rect = grid.all();
+  return has_window ? ToPixelRect(window, grid, rect) : Status::OK;
+}
+
+// A zoom request: none (the frame's own pixels, over the window when there is one), or a
+// window of the plane at width x height.
+struct ZoomSpec {
+  bool render = false;
+  Grid grid;       // when render
+  PixelRect rect;  // when not
+};
+
+Status ToZoomSpec(bool has_window, const v1::Window& window, uint32_t width, uint32_t height,
+                  const Grid& scene, const ServerLimits& limits, ZoomSpec* spec) {
+  if (width == 0 && height == 0) return RectOf(has_window, window, scene, &spec->rect);
+  spec->render = true;
+  spec->grid.window = scene.window;
+  if (has_window) {
+    if (auto s = ToWindow(window, "window", &spec->grid.window); !s.ok()) return s;
+  }
+  if (auto s = ToGridSize(width, height, limits, &spec->grid); !s.ok()) return s;
+  // Each pixel answers with an id and a float at least.
+  if (spec->grid.pixel_count() * 10 > uint64_t(limits.max_message_bytes)) {
+    return Status(StatusCode::RESOURCE_EXHAUSTED,
+                  absl::StrCat(width, "x", height, " pixels do not fit in a message of ",
+                               limits.max_message_bytes, " bytes (--max-message-bytes)"));
+  }
+  return Status::OK;
+}
+
+// The frame a ZoomSpec asks for, and the rect of it to answer with.
+absl::StatusOr<std::pair<std::shared_ptr<const Frame>, PixelRect>> Resolve(
+    const ZoomSpec& spec, const std::shared_ptr<const Frame>& frame, RenderMode mode,
+    RenderLoop* renderer, grpc::CallbackServerContext* ctx) {
+  if (!spec.render) return std::pair{frame, spec.rect};
+  auto zoomed = Zoomer(renderer, frame, mode, ctx)({spec.grid});
+  if (!zoomed.ok()) return zoomed.status();
+  return std::pair{(*zoomed)[0], spec.grid.all()};
+}
+
+// The window covered by `rect` of the grid, out to its pixels' edges.
+Window EdgesOf(const Grid& g, PixelRect rect) {
+  Window w{g.window.min_x + rect.x0 * g.pixel_width(), g.window.min_y + rect.y0 * g.pixel_height(),
+           g.window.min_x + rect.x1 * g.pixel_width(), g.window.min_y + rect.y1 * g.pixel_height()};
+  if (rect.x1 == g.width) w.max_x = g.window.max_x;
+  if (rect.y1 == g.height) w.max_y = g.window.max_y;
+  return w;
+}
+
+void AddHidden(const Frame& frame, const RefinedNeighbors& r,
+               google::protobuf::RepeatedPtrField<v1::HiddenSite>* out) {
+  std::set<uint32_t> recovered(r.recovered.begin(), r.recovered.end());
+  for (uint32_t s : r.hidden) {
+    v1::HiddenSite* h = out->Add();
+    h->set_site_id(frame.sites().get(s)->id);
+    h->set_recovered(recovered.count(s) > 0);
+  }
+}
+
+// Site-id pairs (a < b bytewise) from id pairs, in order.
+std::vector<std::pair<std::string, std::string>> NamedPairs(const Frame& frame,
+                                                            const NeighborCounts& pairs) {
+  std::vector<std::pair<std::string, std::string>> out;
+  for (const auto& [p, n] : pairs) {
+    const std::string &a = IdOf(frame, p.first), &b = IdOf(frame, p.second);
+    out.push_back(a < b ? std::pair{a, b} : std::pair{b, a});
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+}  // namespace
+
+grpc::ServerUnaryReactor* VoronoiService::StartAnalysis(
+    const char* method, grpc::CallbackServerContext* ctx, const std::string& scene_id,
+    uint64_t min_version, std::function<Status(NearestQuery*)> validate,
+    std::function<Status(const std::shared_ptr<const Frame>&, const Scene&)> work) {
+  Call call = Begin(ctx, method, Access::kRead, &scene_id);
+  if (!call.ok()) return call.Finish(ctx);
+  NearestQuery query{call.scope, ctx, call.scene};
+  if (validate) {
+    if (auto s = validate(&query); !s.ok()) return call.Finish(ctx, s);
+  }
+  if (auto s = WaitFor(min_version, &query); !s.ok()) return call.Finish(ctx, s);
+  CpuPool::Lane* workers = &analyses_;
+  query.on_frame_async = [workers, ctx, scene = query.scene, work = std::move(work)](
+                             std::shared_ptr<const Frame> frame, NearestQuery::Done done) {
+    bool queued = workers->Submit([ctx, work, scene, frame, done] {
+      if (ctx->IsCancelled()) {
+        done(Status(StatusCode::CANCELLED, "the call was cancelled"));
+        return;
+      }
+      done(work(frame, *scene));
+    });
+    if (!queued) {
+      done(Status(StatusCode::RESOURCE_EXHAUSTED,
+                  absl::StrCat(workers->max_queued(),
+                               " analysis calls already wait for a worker (--max-queued-analyses)")));
+    }
+  };
+  auto* reactor = new FrameReactor(std::move(query));
+  reactor->Start();
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* VoronoiService::GetBoundaries(grpc::CallbackServerContext* ctx,
+                                                        const v1::GetBoundariesRequest* request,
+                                                        v1::GetBoundariesResponse* response) {
+  struct Params {
+    PixelRect rect;
+    BoundaryMethod method = BoundaryMethod::kFullScan;
+  };
+  auto p = std::make_shared<Params>();
+  return StartAnalysis(
+      "GetBoundaries", ctx, request->scene_id(), request->min_version(),
+      [=](NearestQuery* q) {
+        if (auto s = ToBoundaryMethod(*request, &p->method); !s.ok()) return s;
+        return RectOf(request->has_window(), request->window(), q->scene->settings().grid,
+                      &p->rect);
+      },
+      [=](const std::shared_ptr<const Frame>& frame, const Scene&) {
+        IdImage image = IdsOf(*frame, p->rect);
+        BoundaryEdges edges = FindBoundaryEdges(image, p->method);
+        for (const BoundaryPolyline& line :
+             TraceBoundaries(image, edges, frame->sites(), frame->error().diagram)) {
+          v1::Boundary* b = response->add_boundaries();
+          const std::string &a = IdOf(*frame, line.a), &c = IdOf(*frame, line.b);
+          b->set_site_a(std::min(a, c));
+          b->set_site_b(std::max(a, c));
+          b->mutable_xy()->Reserve(static_cast<int>(line.points.size() * 2));
+          for (Vec2 pt : line.points) {
+            b->add_xy(pt.x);
+            b->add_xy(pt.y);
+          }
+          b->set_closed(line.closed);
+        }
+        response->set_version(frame->version());
+        response->set_boundary_pixel_pairs(edges.count);
+        response->set_cells_visited(edges.cells_visited);
+        return Status::OK;
+      });
+}
+
+grpc::ServerUnaryReactor* VoronoiService::GetNeighbors(grpc::CallbackServerContext* ctx,
+                                                       const v1::GetNeighborsRequest* request,
+                                                       v1::GetNeighborsResponse* response) {
+  auto rect = std::make_shared<PixelRect>();
+  RenderLoop* renderer = renderer_;
+  return StartAnalysis(
+      "GetNeighbors", ctx, request->scene_id(), request->min_version(),
+      [=](NearestQuery* q) {
+        return RectOf(request->has_window(), request->window(), q->scene->settings().grid,
+                      rect.get());
+      },
+      [=](const std::shared_ptr<const Frame>& frame, const Scene&) {
+        const std::string& only = request->site_id();
+        if (!only.empty()) {
+          bool live = false;
+          for (uint32_t s = 0; s < frame->sites().size() && !live; ++s) {
+            const Site* site = frame->sites().get(s);
+            live = site && site->id == only;
+          }
+          if (!live) {
+            return Status(StatusCode::NOT_FOUND,
+                          absl::StrCat("site_id \"", only, "\" is not in the scene at version ",
+                                       frame->version()));
+          }
+        }
+        auto r = Neighbours(renderer, frame, *rect, request->coarse(), ctx);
+        if (!r.ok()) return ToGrpc(r.status());
+        for (const auto& [a, b] : NamedPairs(*frame, r->pairs)) {
+          if (!only.empty() && a != only && b != only) continue;
+          v1::NeighborPair* pair = response->add_pairs();
+          pair->set_site_a(a);
+          pair->set_site_b(b);
+        }
+        AddHidden(*frame, *r, response->mutable_hidden());
+        response->set_version(frame->version());
+        response->set_zoom_windows(r->windows);
+        response->set_zoom_depth(r->depth);
+        return Status::OK;
+      });
+}
+
+grpc::ServerUnaryReactor* VoronoiService::GetDelaunay(grpc::CallbackServerContext* ctx,
+                                                      const v1::GetDelaunayRequest* request,
+                                                      v1::GetDelaunayResponse* response) {
+  RenderLoop* renderer = renderer_;
+  return StartAnalysis(
+      "GetDelaunay", ctx, request->scene_id(), request->min_version(), nullptr,
+      [=](const std::shared_ptr<const Frame>& frame, const Scene&) {
+        const SlotTable& sites = frame->sites();
+        std::vector<Vec2> points(sites.size());
+        for (uint32_t s = 0; s < sites.size(); ++s) {
+          const Site* site = sites.get(s);
+          if (site == nullptr) continue;
+          const auto* p = std::get_if<PointSite>(&site->geometry);
+          if (p == nullptr) {
+            return Status(StatusCode::FAILED_PRECONDITION,
+                          absl::StrCat("site \"", site->id,
+                                       "\" is not a point; a Delaunay triangulation needs point "
+                                       "sites only (GetNeighbors works for every kind)"));
+          }
+          points[s] = p->p;
+        }
+        auto r = Neighbours(renderer, frame, frame->grid().all(), request->coarse(), ctx);
+        if (!r.ok()) return ToGrpc(r.status());
+        std::vector<std::pair<uint32_t, uint32_t>> edges;
+        for (const auto& [p, n] : r->pairs) edges.push_back({p.first - 1, p.second - 1});
+        for (const auto& [a, b] : NamedPairs(*frame, r->pairs)) {
+          v1::NeighborPair* e = response->add_edges();
+          e->set_site_a(a);
+          e->set_site_b(b);
+        }
+        for (const auto& t : TrianglesFromEdges(points, edges)) {
+          v1::Triangle* out = response->add_triangles();
+          out->set_a(sites.get(t[0])->id);
+          out->set_b(sites.get(t[1])->id);
+          out->set_c(sites.get(t[2])->id);
+        }
+        AddHidden(*frame, *r, response->mutable_hidden());
+        response->set_version(frame->version());
+        response->set_zoom_windows(r->windows);
+        return Status::OK;
+      });
+}
+
+grpc::ServerUnaryReactor* VoronoiService::RenderWindow(grpc::CallbackServerContext* ctx,
+                                                       const v1::RenderWindowRequest* request,
+                                                       v1::RenderWindowResponse* response) {
+  auto spec = std::make_shared<ZoomSpec>();
+  RenderLoop* renderer = renderer_;
+  const ServerLimits limits = limits_;
+  return StartAnalysis(
+      "RenderWindow", ctx, request->scene_id(), request->min_version(),
+      [=](NearestQuery* q) {
+        return ToZoomSpec(request->has_window(), request->window(), request->width_px(),
+                          request->height_px(), q->scene->settings().grid, limits, spec.get());
+      },
+      [=](const std::shared_ptr<const Frame>& frame, const Scene& scene) {
+        auto resolved = Resolve(*spec, frame, scene.settings().mode, renderer, ctx);
+        if (!resolved.ok()) return ToGrpc(resolved.status());
+        const auto& [f, rect] = *resolved;
+        std::map<uint32_t, uint32_t> named;  // id -> index + 1 into site_ids
+        auto* ids = response->mutable_ids();
+        auto* distances = response->mutable_distances();
+        ids->Reserve(static_cast<int>(rect.area()));
+        distances->Reserve(static_cast<int>(rect.area()));
+        for (uint32_t j = rect.y0; j < rect.y1; ++j) {
+          for (uint32_t i = rect.x0; i < rect.x1; ++i) {
+            uint32_t id = f->id_at(i, j);
+            if (id == 0) {
+              ids->Add(0);
+              distances->Add(INFINITY);
+              continue;
+            }
+            auto [it, fresh] = named.emplace(id, static_cast<uint32_t>(named.size() + 1));
+            if (fresh) response->add_site_ids(IdOf(*f, id));
+            ids->Add(it->second);
+            distances->Add(f->distance_at(i, j));
+          }
+        }
+        response->set_version(f->version());
+        ToProto(EdgesOf(f->grid(), rect), response->mutable_window());
+        response->set_width_px(rect.width());
+        response->set_height_px(rect.height());
+        response->set_max_error(f->error().max_excess);
+        return Status::OK;
+      });
+}
+
+grpc::ServerUnaryReactor* VoronoiService::GetClearanceField(
+    grpc::CallbackServerContext* ctx, const v1::GetClearanceFieldRequest* request,
+    v1::GetClearanceFieldResponse* response) {
+  auto spec = std::make_shared<ZoomSpec>();
+  RenderLoop* renderer = renderer_;
+  const ServerLimits limits = limits_;
+  return StartAnalysis(
+      "GetClearanceField", ctx, request->scene_id(), request->min_version(),
+      [=](NearestQuery* q) {
+        if (q->scene->settings().diagram != Diagram::kNearest) {
+          return Status(StatusCode::FAILED_PRECONDITION,
+                        absl::StrCat("scene \"", q->scene->id(),
+                                     "\" is a FARTHEST diagram; clearance needs NEAREST"));
+        }
+        return ToZoomSpec(request->has_window(), request->window(), request->width_px(),
+                          request->height_px(), q->scene->settings().grid, limits, spec.get());
+      },
+      [=](const std::shared_ptr<const Frame>& frame, const Scene& scene) {
+        auto resolved = Resolve(*spec, frame, scene.settings().mode, renderer, ctx);
+        if (!resolved.ok()) return ToGrpc(resolved.status());
+        const auto& [f, rect] = *resolved;
+        ClearanceField field = MakeClearanceField(*f);
+        auto* out = response->mutable_clearance();
+        out->Reserve(static_cast<int>(rect.area()));
+        for (uint32_t j = rect.y0; j < rect.y1; ++j) {
+          for (uint32_t i = rect.x0; i < rect.x1; ++i) out->Add(field.at(i, j));
+        }
+        response->set_version(f->version());
+        ToProto(EdgesOf(f->grid(), rect), response->mutable_window());
+        response->set_width_px(rect.width());
+        response->set_height_px(rect.height());
+        return Status::OK;
+      });
+}
+
+grpc::ServerUnaryReactor* VoronoiService::PlanPath(grpc::CallbackServerContext* ctx,
+                                                   const v1::PlanPathRequest* request,
+                                                   v1::PlanPathResponse* response) {
+  auto plan_request = std::make_shared<PlanRequest>();
+  return StartAnalysis(
+      "PlanPath", ctx, request->scene_id(), request->min_version(),
+      [=](NearestQuery* q) {
+        if (q->scene->settings().diagram != Diagram::kNearest) {
+          return Status(StatusCode::FAILED_PRECONDITION,
+                        absl::StrCat("scene \"", q->scene->id(),
+                                     "\" is a FARTHEST diagram; planning needs NEAREST"));
+        }
+        if (!request->has_start()) return Status(StatusCode::INVALID_ARGUMENT, "start is not set");
+        if (!request->has_goal()) return Status(StatusCode::INVALID_ARGUMENT, "goal is not set");
+        plan_request->start = {request->start().x(), request->start().y()};
+        plan_request->goal = {request->goal().x(), request->goal().y()};
+        plan_request->radius = request->robot_radius();
+        return ToPathPreference(*request, &plan_request->prefer);
+      },
+      [=](const std::shared_ptr<const Frame>& frame, const Scene& scene) {
+        // Repeated plans on one frame share its clearance field.
+        auto field = scene.Derived<ClearanceField>(frame, MakeClearanceField);
+        auto plan = gvd::PlanPath(*frame, *field, *plan_request);
+        if (!plan.ok()) return ToGrpc(plan.status());
+        for (Vec2 p : plan->path) {
+          v1::Point* out = response->add_path();
+          out->set_x(p.x);
+          out->set_y(p.y);
+        }
+        response->set_min_clearance(plan->min_clearance);
+        response->set_best_clearance(plan->best_clearance);
+        response->set_length(plan->length);
+        response->set_version(frame->version());
+        return Status::OK;
+      });
+}
+
+grpc::ServerUnaryReactor* VoronoiService::Pick(grpc::CallbackServerContext* ctx,
+                                               const v1::PickRequest* request,
+                                               v1::PickResponse* response) {
+  Call call = Begin(ctx, "Pick", Access::kRead, &request->scene_id());
+  if (!call.ok()) return call.Finish(ctx);
+  Vec2 point;
+  double max_distance;
+  if (auto s = ToPick(*request, &point, &max_distance); !s.ok()) return call.Finish(ctx, s);
+  Scene::Picked picked = call.scene->Pick(point, max_distance);
+  response->set_found(picked.found);
+  response->set_version(picked.version);
+  if (picked.found) {
+    response->set_site_id(picked.site->id);
+    response->set_distance(picked.distance);
+    response->set_feature_kind(ToProto(picked.feature_kind));
+    response->set_feature_index(picked.feature_index);
+    ToProto(*picked.site, response->mutable_site());
+  }
+  return call.Finish(ctx, Status::OK);
+}
+
+}  // namespace gvd

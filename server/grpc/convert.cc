@@ -1,0 +1,532 @@
+#include "server/grpc/convert.h"
+
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <unordered_set>
+
+#include "absl/strings/str_cat.h"
+#include "render/kernel/exact2.h"
+#include "render/plan/distance_mesh.h"
+
+namespace gvd {
+namespace {
+
+using grpc::Status;
+using grpc::StatusCode;
+
+Status Invalid(std::string message) { return Status(StatusCode::INVALID_ARGUMENT, message); }
+
+Status CheckFinite(double v, const FieldPath& field) {
+  if (std::isfinite(v)) return Status::OK;
+  return Invalid(
+      absl::StrCat(field.str(), " is ", FormatNumber(v), "; coordinates must be finite"));
+}
+
+Status CheckPoint(const v1::Point& p, const FieldPath& field) {
+  if (auto s = CheckFinite(p.x(), field.Member("x")); !s.ok()) return s;
+  return CheckFinite(p.y(), field.Member("y"));
+}
+
+std::string Quoted(const std::string& s, size_t max = 64) {
+  return absl::StrCat("\"", s.size() > max ? s.substr(0, max) + "..." : s, "\"");
+}
+
+}  // namespace
+
+std::string FieldPath::str() const {
+  std::string s = parent_ == nullptr ? "" : parent_->str();
+  if (!name_.empty()) {
+    if (!s.empty()) s += '.';
+    s.append(name_);
+  }
+  if (index_ >= 0) absl::StrAppend(&s, "[", index_, "]");
+  return s;
+}
+
+std::string FormatNumber(double v) {
+  if (std::isnan(v)) return "NaN";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  char buf[32];  // the shortest form that reads back as v
+  auto end = std::to_chars(buf, buf + sizeof buf, v).ptr;
+  return std::string(buf, end);
+}
+
+Status ValidateSceneId(const std::string& id, const ServerLimits& limits, const char* field) {
+  if (id.empty()) return Invalid(absl::StrCat(field, " is empty"));
+  if (id.size() > limits.max_scene_id_chars) {
+    return Invalid(absl::StrCat(field, " ", Quoted(id), " is ", id.size(),
+                                " characters; the limit is ", limits.max_scene_id_chars));
+  }
+  for (char c : id) {
+    bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+              c == '.' || c == '_' || c == '-';
+    if (!ok) {
+      return Invalid(absl::StrCat(field, " ", Quoted(id),
+                                  " may hold only letters, digits, '.', '_' and '-'"));
+    }
+  }
+  return Status::OK;
+}
+
+Status ToSceneSettings(const v1::CreateSceneRequest& r, const ServerLimits& limits,
+                       SceneSettings* settings) {
+  if (auto s = ValidateSceneId(r.scene_id(), limits); !s.ok()) return s;
+  if (!r.has_window()) return Invalid("window is not set");
+  Grid grid;
+  if (auto s = ToWindow(r.window(), "window", &grid.window); !s.ok()) return s;
+  if (auto s = ToGridSize(r.width_px(), r.height_px(), limits, &grid); !s.ok()) return s;
+  double eps = r.max_error();
+  if (!std::isfinite(eps) || eps < 0) {
+    return Invalid(absl::StrCat("max_error is ", FormatNumber(eps),
+                                "; it must be finite and not negative (0 means one pixel)"));
+  }
+  double pixel = grid.pixel_size();
+  if (eps == 0) eps = pixel;
+  if (eps < pixel / 64) {
+    return Invalid(absl::StrCat("max_error ", FormatNumber(eps),
+                                " is below 1/64 pixel (", FormatNumber(pixel / 64),
+                                " scene units), which would need too many triangles per cone"));
+  }
+  if (!(eps > 0)) return Invalid("max_error underflows to 0 for this window");
+  settings->id = r.scene_id();
+  settings->grid = grid;
+  settings->eps = eps;
+  settings->cone_triangles = ConeSegments(grid.window.diagonal() + eps, eps);
+  switch (r.render_mode()) {
+    case v1::RENDER_MODE_UNSPECIFIED:
+    case v1::MESH:
+      settings->mode = RenderMode::kMesh;
+      break;
+    case v1::EXACT:
+      settings->mode = RenderMode::kExact;
+      break;
+    default:
+      return Invalid(absl::StrCat("render_mode is ", r.render_mode(), "; it must be MESH or EXACT"));
+  }
+  switch (r.diagram()) {
+    case v1::DIAGRAM_UNSPECIFIED:
+    case v1::NEAREST:
+      settings->diagram = Diagram::kNearest;
+      break;
+    case v1::FARTHEST:
+      settings->diagram = Diagram::kFarthest;
+      break;
+    default:
+      return Invalid(absl::StrCat("diagram is ", r.diagram(), "; it must be NEAREST or FARTHEST"));
+  }
+  return Status::OK;
+}
+
+Status ToSite(const v1::Site& s, const FieldPath& field, const ServerLimits& limits,
+              Site* site) {
+  site->id = s.id();
+  auto points = [&](const auto& list, const FieldPath& name, size_t min,
+                    std::vector<Vec2>* out) -> Status {
+    if (size_t(list.size()) < min) {
+      return Invalid(absl::StrCat(name.str(), " has ", list.size(), " points; it needs at least ",
+                                  min, " (site ", Quoted(s.id()), ")"));
+    }
+    if (size_t(list.size()) > limits.max_vertices_per_site) {
+      return Status(StatusCode::RESOURCE_EXHAUSTED,
+                    absl::StrCat(name.str(), " has ", list.size(), " points; the limit is ",
+                                 limits.max_vertices_per_site, " (--max-vertices-per-site)"));
+    }
+    out->clear();
+    out->reserve(list.size());
+    for (int k = 0; k < list.size(); ++k) {
+      if (auto st = CheckPoint(list[k], name[k]); !st.ok()) return st;
+      out->push_back({list[k].x(), list[k].y()});
+    }
+    return Status::OK;
+  };
+  switch (s.geometry_case()) {
+    case v1::Site::kPoint: {
+      if (auto st = CheckPoint(s.point(), field.Member("point")); !st.ok()) return st;
+      site->geometry = PointSite{{s.point().x(), s.point().y()}};
+      break;
+    }
+    case v1::Site::kSegment: {
+      const FieldPath segment = field.Member("segment");
+      if (auto st = CheckPoint(s.segment().a(), segment.Member("a")); !st.ok()) return st;
+      if (auto st = CheckPoint(s.segment().b(), segment.Member("b")); !st.ok()) return st;
+      site->geometry = SegmentSite{{s.segment().a().x(), s.segment().a().y()},
+                                   {s.segment().b().x(), s.segment().b().y()}};
+      break;
+    }
+    case v1::Site::kPolyline: {
+      PolylineSite l;
+      const FieldPath polyline = field.Member("polyline");
+      if (auto st = points(s.polyline().points(), polyline.Member("points"), 2, &l.points);
+          !st.ok()) {
+        return st;
+      }
+      site->geometry = std::move(l);
+      break;
+    }
+    case v1::Site::kPolygon: {
+      PolygonSite poly;
+      const FieldPath polygon = field.Member("polygon");
+      if (auto st = points(s.polygon().vertices(), polygon.Member("vertices"), 3, &poly.vertices);
+          !st.ok()) {
+        return st;
+      }
+      switch (s.polygon().side()) {
+        case v1::Polygon::SIDE_UNSPECIFIED: poly.side = Side::kBoth; break;
+        case v1::Polygon::OUTSIDE: poly.side = Side::kOutside; break;
+        case v1::Polygon::INSIDE: poly.side = Side::kInside; break;
+        default:
+          return Invalid(absl::StrCat(field.str(), ".polygon.side is ", s.polygon().side(),
+                                      "; it must be SIDE_UNSPECIFIED, OUTSIDE or INSIDE"));
+      }
+      site->geometry = std::move(poly);
+      break;
+    }
+    case v1::Site::kBezier: {
+      std::vector<Vec2> control;
+      const FieldPath bezier = field.Member("bezier");
+      const FieldPath name = bezier.Member("control_points");
+      if (auto st = points(s.bezier().control_points(), name, 3, &control); !st.ok()) return st;
+      if (control.size() > 4) {
+        return Invalid(absl::StrCat(name.str(), " has ", control.size(),
+                                    " points; a Bezier takes 3 (quadratic) or 4 (cubic)"));
+      }
+      double tol = s.bezier().tolerance();
+      if (!std::isfinite(tol) || tol < 0) {
+        return Invalid(absl::StrCat(field.str(), ".bezier.tolerance is ", FormatNumber(tol),
+                                    "; it must be finite and not negative (0 means a "
+                                    "thousandth of the control polygon)"));
+      }
+      site->geometry = MakeBezier(std::move(control), tol);
+      break;
+    }
+    case v1::Site::GEOMETRY_NOT_SET:
+      return Invalid(absl::StrCat(field.str(), ".geometry is not set (site ", Quoted(s.id()), ")"));
+  }
+  // Extents must stay finite for distances to be.
+  Window box = BoundingBox(site->geometry);
+  if (!std::isfinite(box.width()) || !std::isfinite(box.height())) {
+    return Invalid(absl::StrCat(field.str(), " spans ", FormatNumber(box.width()), " x ",
+                                FormatNumber(box.height()),
+                                ", which overflows a double (site ", Quoted(s.id()), ")"));
+  }
+  double a = s.additive_weight(), m = s.multiplicative_weight(), r = s.max_distance();
+  if (!std::isfinite(a) || a < 0 || a > 1e15) {
+    return Invalid(absl::StrCat(field.str(), ".additive_weight is ", FormatNumber(a),
+                                "; it must be 0 to 1e15"));
+  }
+  if (!std::isfinite(m) || m < 0 || m > 1e6 || (m != 0 && m < 1e-6)) {
+    return Invalid(absl::StrCat(field.str(), ".multiplicative_weight is ", FormatNumber(m),
+                                "; it must be 0 (meaning 1) or 1e-6 to 1e6"));
+  }
+  if (!std::isfinite(r) || r < 0) {
+    return Invalid(absl::StrCat(field.str(), ".max_distance is ", FormatNumber(r),
+                                "; it must be finite and positive, or 0 for none"));
+  }
+  site->additive = a;
+  site->multiplicative = m == 0 ? 1 : m;
+  site->max_distance = r == 0 ? INFINITY : r;
+  return Status::OK;
+}
+
+Status ToSites(const v1::UpsertSitesRequest& r, const ServerLimits& limits,
+               std::vector<Site>* sites) {
+  if (r.sites_size() == 0) return Invalid("sites is empty");
+  if (size_t(r.sites_size()) > limits.max_sites_per_request) {
+    return Status(StatusCode::RESOURCE_EXHAUSTED,
+                  absl::StrCat("sites has ", r.sites_size(), " entries; the limit per request is ",
+                               limits.max_sites_per_request, " (--max-sites-per-request)"));
+  }
+  std::unordered_map<std::string_view, size_t> seen;
+  seen.reserve(r.sites_size());
+  sites->clear();
+  sites->reserve(r.sites_size());
+  const FieldPath all("sites");
+  for (int i = 0; i < r.sites_size(); ++i) {
+    const v1::Site& s = r.sites(i);
+    const FieldPath field = all[i];
+    if (s.id().empty()) return Invalid(absl::StrCat(field.str(), ".id is empty"));
+    if (s.id().size() > limits.max_site_id_bytes) {
+      return Invalid(absl::StrCat(field.str(), ".id ", Quoted(s.id()), " is ", s.id().size(),
+                                  " bytes; the limit is ", limits.max_site_id_bytes));
+    }
+    auto [it, fresh] = seen.emplace(s.id(), i);
+    if (!fresh) {
+      return Invalid(absl::StrCat(field.str(), ".id ", Quoted(s.id()), " repeats sites[",
+                                  it->second, "].id; ids in one request must be distinct"));
+    }
+    Site site;
+    if (auto st = ToSite(s, field, limits, &site); !st.ok()) return st;
+    sites->push_back(std::move(site));
+  }
+  return Status::OK;
+}
+
+Status ToSiteIds(const v1::DeleteSitesRequest& r, const ServerLimits& limits,
+                 std::vector<std::string>* ids) {
+  if (r.ids_size() == 0) return Invalid("ids is empty");
+  if (size_t(r.ids_size()) > limits.max_sites_per_request) {
+    return Status(StatusCode::RESOURCE_EXHAUSTED,
+                  absl::StrCat("ids has ", r.ids_size(), " entries; the limit per request is ",
+                               limits.max_sites_per_request, " (--max-sites-per-request)"));
+  }
+  std::unordered_map<std::string_view, size_t> seen;
+  for (int i = 0; i < r.ids_size(); ++i) {
+    const std::string& id = r.ids(i);
+    if (id.empty()) return Invalid(absl::StrCat(FieldPath("ids")[i].str(), " is empty"));
+    auto [it, fresh] = seen.emplace(id, i);
+    if (!fresh) {
+      return Invalid(absl::StrCat(FieldPath("ids")[i].str(), " ", Quoted(id), " repeats ids[",
+                                  it->second, "]"));
+    }
+  }
+  ids->assign(r.ids().begin(), r.ids().end());
+  return Status::OK;
+}
+
+Status ToQueryPoints(const v1::FindNearestRequest& r, const Window& w, const ServerLimits& limits,
+                     std::vector<Vec2>* points, bool* outside) {
+  if (r.points_size() > 0 && r.xy_size() > 0) {
+    return Invalid("points and xy are both set; use one form");
+  }
+  if (r.xy_size() % 2 != 0) {
+    return Invalid(absl::StrCat("xy has ", r.xy_size(), " values; it needs x, y pairs"));
+  }
+  const size_t n = r.xy_size() > 0 ? r.xy_size() / 2 : r.points_size();
+  if (n == 0) return Invalid("points is empty");
+  if (n > limits.max_points_per_query) {
+    return Status(StatusCode::RESOURCE_EXHAUSTED,
+                  absl::StrCat(r.xy_size() > 0 ? "xy" : "points", " has ", n,
+                               " points; the limit per query is ", limits.max_points_per_query,
+                               " (--max-points-per-query)"));
+  }
+  points->resize(n);
+  *outside = false;
+  if (r.xy_size() > 0) {
+    for (int i = 0; i < r.xy_size(); ++i) {
+      if (auto s = CheckFinite(r.xy(i), FieldPath("xy")[i]); !s.ok()) return s;
+    }
+    for (size_t i = 0; i < n; ++i) (*points)[i] = {r.xy(2 * i), r.xy(2 * i + 1)};
+  } else {
+    for (int i = 0; i < r.points_size(); ++i) {
+      if (auto s = CheckPoint(r.points(i), FieldPath("points")[i]); !s.ok()) return s;
+      (*points)[i] = {r.points(i).x(), r.points(i).y()};
+    }
+  }
+  for (const Vec2& p : *points) *outside = *outside || !w.Contains(p);
+  return Status::OK;
+}
+
+void ToProto(const Site& site, v1::Site* out) {
+  out->set_id(site.id);
+  auto set = [](Vec2 p, v1::Point* q) {
+    q->set_x(p.x);
+    q->set_y(p.y);
+  };
+  if (const auto* p = std::get_if<PointSite>(&site.geometry)) {
+    set(p->p, out->mutable_point());
+  } else if (const auto* seg = std::get_if<SegmentSite>(&site.geometry)) {
+    set(seg->a, out->mutable_segment()->mutable_a());
+    set(seg->b, out->mutable_segment()->mutable_b());
+  } else if (const auto* l = std::get_if<PolylineSite>(&site.geometry)) {
+    for (Vec2 q : l->points) set(q, out->mutable_polyline()->add_points());
+  } else if (const auto* poly = std::get_if<PolygonSite>(&site.geometry)) {
+    for (Vec2 q : poly->vertices) set(q, out->mutable_polygon()->add_vertices());
+    out->mutable_polygon()->set_side(poly->side == Side::kOutside  ? v1::Polygon::OUTSIDE
+                                     : poly->side == Side::kInside ? v1::Polygon::INSIDE
+                                                                   : v1::Polygon::SIDE_UNSPECIFIED);
+  } else if (const auto* b = std::get_if<BezierSite>(&site.geometry)) {
+    for (Vec2 q : b->control) set(q, out->mutable_bezier()->add_control_points());
+    out->mutable_bezier()->set_tolerance(b->tolerance);
+  }
+  if (site.additive != 0) out->set_additive_weight(site.additive);
+  if (site.multiplicative != 1) out->set_multiplicative_weight(site.multiplicative);
+  if (std::isfinite(site.max_distance)) out->set_max_distance(site.max_distance);
+}
+
+void ToProto(const SceneSettings& s, v1::Scene* out) {
+  out->set_scene_id(s.id);
+  ToProto(s.grid.window, out->mutable_window());
+  out->set_width_px(s.grid.width);
+  out->set_height_px(s.grid.height);
+  out->set_max_error(s.eps);
+  out->set_cone_triangles(s.cone_triangles);
+  out->set_render_mode(s.mode == RenderMode::kExact ? v1::EXACT : v1::MESH);
+  out->set_diagram(s.diagram == Diagram::kFarthest ? v1::FARTHEST : v1::NEAREST);
+}
+
+void ToProto(const Scene& scene, v1::Scene* out) {
+  ToProto(scene.settings(), out);
+  out->set_version(scene.version());
+  out->set_site_count(scene.site_count());
+  out->set_rendered_version(scene.frame()->version());
+  out->set_memory_bytes(scene.memory_bytes());
+}
+
+grpc::Status ToGrpc(const absl::Status& status) {
+  if (status.ok()) return Status::OK;
+  return Status(static_cast<StatusCode>(status.code()), std::string(status.message()));
+}
+
+grpc::Status ToPixelRect(const v1::Window& w, const Grid& grid, PixelRect* rect) {
+  for (double v : {w.min_x(), w.min_y(), w.max_x(), w.max_y()}) {
+    if (!std::isfinite(v)) {
+      return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                          absl::StrCat("window holds ", FormatNumber(v),
+                                       "; coordinates must be finite"));
+    }
+  }
+  *rect = grid.CentresIn({w.min_x(), w.min_y()}, {w.max_x(), w.max_y()});
+  if (rect->empty()) {
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                        absl::StrCat("window [", FormatNumber(w.min_x()), ", ",
+                                     FormatNumber(w.max_x()), "] x [", FormatNumber(w.min_y()),
+                                     ", ", FormatNumber(w.max_y()),
+                                     "] holds no pixel centre of the scene"));
+  }
+  return grpc::Status::OK;
+}
+
+grpc::Status ToWindow(const v1::Window& w, const std::string& field, Window* out) {
+  const FieldPath window(field.c_str());
+  for (auto [v, name] : {std::pair{w.min_x(), "min_x"}, {w.min_y(), "min_y"},
+                         {w.max_x(), "max_x"}, {w.max_y(), "max_y"}}) {
+    if (auto s = CheckFinite(v, window.Member(name)); !s.ok()) return s;
+  }
+  if (!(w.min_x() < w.max_x())) {
+    return Invalid(absl::StrCat(field, ".min_x ", FormatNumber(w.min_x()), " must be less than ",
+                                field, ".max_x ", FormatNumber(w.max_x())));
+  }
+  if (!(w.min_y() < w.max_y())) {
+    return Invalid(absl::StrCat(field, ".min_y ", FormatNumber(w.min_y()), " must be less than ",
+                                field, ".max_y ", FormatNumber(w.max_y())));
+  }
+  if (!std::isfinite(w.max_x() - w.min_x()) || !std::isfinite(w.max_y() - w.min_y())) {
+    return Invalid(absl::StrCat(field, " is too large: its width or height overflows a double"));
+  }
+  *out = {w.min_x(), w.min_y(), w.max_x(), w.max_y()};
+  return grpc::Status::OK;
+}
+
+grpc::Status ToGridSize(uint32_t width, uint32_t height, const ServerLimits& limits, Grid* grid) {
+  for (auto [v, name] : {std::pair{width, "width_px"}, {height, "height_px"}}) {
+    if (v == 0 || v > limits.max_side_px) {
+      return Invalid(absl::StrCat(name, " is ", v, "; it must be 1 to ", limits.max_side_px,
+                                  " (--max-side-px)"));
+    }
+  }
+  uint64_t pixels = uint64_t{width} * height;
+  if (pixels > limits.max_scene_pixels) {
+    return Status(StatusCode::RESOURCE_EXHAUSTED,
+                  absl::StrCat("width_px x height_px is ", pixels, " pixels; the limit is ",
+                               limits.max_scene_pixels, " (--max-side-px squared)"));
+  }
+  grid->width = width;
+  grid->height = height;
+  return grpc::Status::OK;
+}
+
+void ToProto(const Window& w, v1::Window* out) {
+  out->set_min_x(w.min_x);
+  out->set_min_y(w.min_y);
+  out->set_max_x(w.max_x);
+  out->set_max_y(w.max_y);
+}
+
+grpc::Status ToImageOptions(const v1::RenderImageRequest& request, const Grid& grid,
+                            ImageOptions* options) {
+  switch (request.layer()) {
+    case v1::RenderImageRequest::LAYER_UNSPECIFIED:
+    case v1::RenderImageRequest::IDS: options->layer = ImageLayer::kIds; break;
+    case v1::RenderImageRequest::FEATURES: options->layer = ImageLayer::kFeatures; break;
+    case v1::RenderImageRequest::DISTANCE: options->layer = ImageLayer::kDistance; break;
+    case v1::RenderImageRequest::SITE_INDEX: options->layer = ImageLayer::kSiteIndex; break;
+    default:
+      return Invalid(absl::StrCat("layer is ", request.layer(),
+                                  "; it must be IDS, FEATURES, DISTANCE or SITE_INDEX"));
+  }
+  switch (request.format()) {
+    case v1::RenderImageRequest::FORMAT_UNSPECIFIED:
+    case v1::RenderImageRequest::PNG: options->format = ImageFormat::kPng; break;
+    case v1::RenderImageRequest::EXR: options->format = ImageFormat::kExr; break;
+    default:
+      return Invalid(absl::StrCat("format is ", request.format(), "; it must be PNG or EXR"));
+  }
+  const bool exr = options->format == ImageFormat::kExr;
+  if (exr && options->layer != ImageLayer::kDistance) {
+    return Invalid("format EXR holds the DISTANCE layer only");
+  }
+  if (exr && request.draw_sites()) return Invalid("draw_sites needs format PNG");
+  if (options->layer == ImageLayer::kSiteIndex &&
+      (request.draw_sites() || request.polyline_size() > 0)) {
+    return Invalid("layer SITE_INDEX takes neither draw_sites nor polyline: its pixels are numbers");
+  }
+  options->draw_sites = request.draw_sites();
+  options->rect = grid.all();
+  if (request.has_window()) {
+    if (auto s = ToPixelRect(request.window(), grid, &options->rect); !s.ok()) return s;
+  }
+  for (int k = 0; k < request.polyline_size(); ++k) {
+    Vec2 p;
+    if (auto s = ToPoint(request.polyline(k), FieldPath("polyline")[k], &p); !s.ok()) return s;
+    options->polyline.push_back(p);
+  }
+  if (!options->polyline.empty() && exr) return Invalid("polyline needs format PNG");
+  return Status::OK;
+}
+
+grpc::Status ToPoint(const v1::Point& p, const FieldPath& field, Vec2* out) {
+  if (!std::isfinite(p.x()) || !std::isfinite(p.y())) {
+    return Invalid(absl::StrCat(field.str(), " is (", FormatNumber(p.x()), ", ", FormatNumber(p.y()),
+                                "); coordinates must be finite"));
+  }
+  *out = {p.x(), p.y()};
+  return Status::OK;
+}
+
+grpc::Status ToPick(const v1::PickRequest& request, Vec2* point, double* max_distance) {
+  if (!request.has_point()) return Invalid("point is not set");
+  if (auto s = ToPoint(request.point(), "point", point); !s.ok()) return s;
+  const double limit = request.max_distance();
+  if (!std::isfinite(limit) || limit < 0) {
+    return Invalid(absl::StrCat("max_distance is ", FormatNumber(limit),
+                                "; it must be finite and not negative (0: no limit)"));
+  }
+  *max_distance = limit == 0 ? INFINITY : limit;
+  return Status::OK;
+}
+
+grpc::Status ToBoundaryMethod(const v1::GetBoundariesRequest& request, BoundaryMethod* method) {
+  switch (request.method()) {
+    case v1::GetBoundariesRequest::METHOD_UNSPECIFIED:
+    case v1::GetBoundariesRequest::FULL_SCAN: *method = BoundaryMethod::kFullScan; break;
+    case v1::GetBoundariesRequest::CONTINUATION: *method = BoundaryMethod::kContinuation; break;
+    default:
+      return Invalid(absl::StrCat("method is ", request.method(),
+                                  "; it must be FULL_SCAN or CONTINUATION"));
+  }
+  return Status::OK;
+}
+
+grpc::Status ToPathPreference(const v1::PlanPathRequest& request, PathPreference* prefer) {
+  switch (request.prefer()) {
+    case v1::PlanPathRequest::PREFER_UNSPECIFIED:
+    case v1::PlanPathRequest::MAX_CLEARANCE: *prefer = PathPreference::kMaxClearance; break;
+    case v1::PlanPathRequest::SHORTEST: *prefer = PathPreference::kShortest; break;
+    default:
+      return Invalid(absl::StrCat("prefer is ", request.prefer(),
+                                  "; it must be MAX_CLEARANCE or SHORTEST"));
+  }
+  return Status::OK;
+}
+
+v1::FeatureKind ToProto(FeatureKind k) {
+  switch (k) {
+    case FeatureKind::kVertex: return v1::VERTEX;
+    case FeatureKind::kEdge: return v1::EDGE;
+    case FeatureKind::kCurve: return v1::CURVE;
+  }
+  return v1::FEATURE_KIND_UNSPECIFIED;
+}
+
+}  // namespace gvd

@@ -1,0 +1,73 @@
+// WatchScene's streams: one reactor per stream, fed by its scene's frame listener. Events a
+// slow reader has not taken yet are merged into the next one; a stream ends when its scene
+// is deleted (OK, after a last event saying so), when the client goes, or when the server
+// drains (UNAVAILABLE).
+#pragma once
+
+#include <memory>
+#include <mutex>
+#include <set>
+
+#include <grpcpp/grpcpp.h>
+
+#include "gvd/v1/voronoi.grpc.pb.h"
+#include "render/scene/scene.h"
+#include "server/grpc/call_scope.h"
+
+namespace gvd {
+
+class WatchStream;
+
+// What a stream has yet to tell: the newest frame noted since its last event, with the
+// changed parts of every frame noted since joined. Not thread-safe.
+class PendingEvent {
+ public:
+  // For a stream of events after version `after`.
+  explicit PendingEvent(uint64_t after) : sent_(after) {}
+
+  // Notes a frame: ignored unless newer than the last event and the frames noted since.
+  // `whole`: count the whole window as changed (the first frame a stream takes, as it cannot
+  // tell what changed since `after`).
+  void Note(const Frame& frame, bool whole = false);
+  bool ready() const { return version_ > sent_; }
+  // Writes what is pending into `event` (version, site count, changed window in the scene
+  // units of `grid`) and starts afresh. CONTRACT: ready().
+  void Take(const Grid& grid, v1::SceneEvent* event);
+  // The version of the last event taken (or `after`).
+  uint64_t sent() const { return sent_; }
+
+ private:
+  uint64_t sent_;
+  uint64_t version_ = 0;
+  uint64_t sites_ = 0;
+  PixelRect changed_;
+};
+
+// The streams open now. Thread-safe.
+class Watches {
+ public:
+  Watches() = default;
+  Watches(const Watches&) = delete;
+  Watches& operator=(const Watches&) = delete;
+
+  // A stream of `scene`'s events for frames newer than `after`, counted in `scope` until it
+  // ends.
+  grpc::ServerWriteReactor<v1::SceneEvent>* Start(std::shared_ptr<CallScope> scope,
+                                                  std::shared_ptr<Scene> scene, uint64_t after);
+  // A stream that ends at once with `status` (a refused call).
+  static grpc::ServerWriteReactor<v1::SceneEvent>* Refuse(std::shared_ptr<CallScope> scope,
+                                                          const grpc::Status& status);
+  // Ends every open stream with `status` (the drain), and every stream started from now on.
+  void EndAll(const grpc::Status& status);
+
+ private:
+  friend class WatchStream;
+  void Remove(WatchStream* stream);
+
+  std::mutex mu_;
+  std::set<WatchStream*> open_;
+  bool ended_ = false;
+  grpc::Status end_status_;
+};
+
+}  // namespace gvd

@@ -1,0 +1,705 @@
+#include "server/http/http.h"
+
+#include <google/protobuf/descriptor.h>
+#include <google/protobuf/dynamic_message.h>
+#include <google/protobuf/struct.pb.h>
+#include <google/protobuf/util/json_util.h>
+#include <grpcpp/generic/generic_stub.h>
+
+#include <atomic>
+#include <boost/asio/ssl.hpp>
+#include <boost/asio/strand.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/ssl.hpp>
+#include <charconv>
+#include <deque>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <thread>
+
+#include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
+#include "server/log.h"
+
+namespace gvd {
+namespace {
+
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace net = boost::asio;
+namespace ssl = net::ssl;
+using tcp = net::ip::tcp;
+using google::protobuf::Message;
+using google::protobuf::MethodDescriptor;
+
+const char* const kService = "gvd.v1.Voronoi";
+
+// The Connect protocol's name and HTTP status for each gRPC code.
+struct ConnectCode {
+  const char* name;
+  http::status status;
+};
+ConnectCode ToConnect(grpc::StatusCode code) {
+  switch (code) {
+    case grpc::StatusCode::CANCELLED: return {"canceled", static_cast<http::status>(499)};
+    case grpc::StatusCode::INVALID_ARGUMENT: return {"invalid_argument", http::status::bad_request};
+    case grpc::StatusCode::DEADLINE_EXCEEDED: return {"deadline_exceeded", http::status::gateway_timeout};
+    case grpc::StatusCode::NOT_FOUND: return {"not_found", http::status::not_found};
+    case grpc::StatusCode::ALREADY_EXISTS: return {"already_exists", http::status::conflict};
+    case grpc::StatusCode::PERMISSION_DENIED: return {"permission_denied", http::status::forbidden};
+    case grpc::StatusCode::RESOURCE_EXHAUSTED: return {"resource_exhausted", http::status::too_many_requests};
+    case grpc::StatusCode::FAILED_PRECONDITION: return {"failed_precondition", http::status::bad_request};
+    case grpc::StatusCode::ABORTED: return {"aborted", http::status::conflict};
+    case grpc::StatusCode::OUT_OF_RANGE: return {"out_of_range", http::status::bad_request};
+    case grpc::StatusCode::UNIMPLEMENTED: return {"unimplemented", http::status::not_implemented};
+    case grpc::StatusCode::INTERNAL: return {"internal", http::status::internal_server_error};
+    case grpc::StatusCode::UNAVAILABLE: return {"unavailable", http::status::service_unavailable};
+    case grpc::StatusCode::DATA_LOSS: return {"data_loss", http::status::internal_server_error};
+    case grpc::StatusCode::UNAUTHENTICATED: return {"unauthenticated", http::status::unauthorized};
+    default: return {"unknown", http::status::internal_server_error};
+  }
+}
+
+// {"code": ..., "message": ...}, the message escaped by protobuf's JSON printer.
+std::string ErrorJson(const char* code, const std::string& message) {
+  google::protobuf::Value text;
+  text.set_string_value(message);
+  std::string quoted;
+  (void)google::protobuf::util::MessageToJsonString(text, &quoted);
+  return absl::StrCat("{\"code\":\"", code, "\",\"message\":", quoted, "}");
+}
+
+std::string Bytes(const grpc::ByteBuffer& buffer) {
+  std::vector<grpc::Slice> slices;
+  (void)buffer.Dump(&slices);
+  std::string out;
+  for (const auto& s : slices) out.append(reinterpret_cast<const char*>(s.begin()), s.size());
+  return out;
+}
+
+grpc::ByteBuffer Buffer(const std::string& bytes) {
+  grpc::Slice slice(bytes);
+  return grpc::ByteBuffer(&slice, 1);
+}
+
+// A 5-byte Connect envelope (flags, big-endian length) and its payload.
+std::string Envelope(uint8_t flags, const std::string& payload) {
+  std::string out(5, '\0');
+  out[0] = static_cast<char>(flags);
+  const uint32_t n = static_cast<uint32_t>(payload.size());
+  for (int i = 0; i < 4; ++i) out[1 + i] = static_cast<char>((n >> (24 - 8 * i)) & 0xff);
+  return out + payload;
+}
+
+// One HTTP/1.1 connection: requests one at a time; each RPC forwarded over the generic stub.
+class SessionBase : public std::enable_shared_from_this<SessionBase> {
+ public:
+  virtual ~SessionBase() = default;
+  // Closes the connection when it is idle now or after its current request (the drain).
+  virtual void CloseWhenIdle() = 0;
+};
+
+}  // namespace
+
+ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::string& content_type,
+                              std::string body, const std::string& timeout_ms) {
+  ConnectCall call;
+  auto refuse = [&call](grpc::StatusCode code, std::string message, int http_status = 0) {
+    call.method = nullptr;
+    call.code = code;
+    call.message = std::move(message);
+    call.http_status = http_status;
+    return std::move(call);
+  };
+  const MethodDescriptor* method =
+      google::protobuf::DescriptorPool::generated_pool()->FindMethodByName(
+          absl::StrCat(kService, ".", name));
+  if (method == nullptr) {
+    return refuse(grpc::StatusCode::UNIMPLEMENTED,
+                  absl::StrCat(kService, " has no method \"", name, "\""),
+                  static_cast<int>(http::status::not_found));
+  }
+  if (!post) {
+    return refuse(grpc::StatusCode::UNIMPLEMENTED,
+                  absl::StrCat("call ", kService, "/", name, " with POST"),
+                  static_cast<int>(http::status::method_not_allowed));
+  }
+  std::string type = absl::AsciiStrToLower(content_type);
+  type = std::string(absl::StripAsciiWhitespace(type.substr(0, type.find(';'))));
+  const bool streaming = method->server_streaming();
+  const std::string want_json = streaming ? "application/connect+json" : "application/json";
+  const std::string want_proto = streaming ? "application/connect+proto" : "application/proto";
+  if (type != want_json && type != want_proto) {
+    return refuse(grpc::StatusCode::UNIMPLEMENTED,
+                  absl::StrCat("Content-Type \"", type, "\" is not supported by ", name,
+                               ": send ", want_json, " (or ", want_proto, ")"),
+                  static_cast<int>(http::status::unsupported_media_type));
+  }
+  call.json = type == want_json;
+  call.content_type = call.json ? want_json : want_proto;
+  if (streaming) {
+    // One enveloped message, uncompressed.
+    if (body.size() < 5 || (static_cast<uint8_t>(body[0]) & 0x01) != 0) {
+      return refuse(grpc::StatusCode::INVALID_ARGUMENT,
+                    "a streaming request's body must be one uncompressed Connect envelope");
+    }
+    const uint32_t n = (uint32_t(uint8_t(body[1])) << 24) | (uint32_t(uint8_t(body[2])) << 16) |
+                       (uint32_t(uint8_t(body[3])) << 8) | uint32_t(uint8_t(body[4]));
+    if (n != body.size() - 5) {
+      return refuse(grpc::StatusCode::INVALID_ARGUMENT,
+                    absl::StrCat("the request's envelope says ", n, " bytes; ", body.size() - 5,
+                                 " follow it"));
+    }
+    body = body.substr(5);
+  }
+  if (call.json) {
+    auto* prototype =
+        google::protobuf::MessageFactory::generated_factory()->GetPrototype(method->input_type());
+    std::unique_ptr<Message> message(prototype->New());
+    google::protobuf::util::JsonParseOptions parse;
+    parse.ignore_unknown_fields = false;
+    if (auto s = google::protobuf::util::JsonStringToMessage(body.empty() ? "{}" : body,
+                                                               message.get(), parse);
+        !s.ok()) {
+      return refuse(grpc::StatusCode::INVALID_ARGUMENT,
+                    absl::StrCat("the body is not a ", method->input_type()->name(), " in JSON: ",
+                                 s.message().ToString()));
+    }
+    call.request = message->SerializeAsString();
+  } else {
+    call.request = std::move(body);
+  }
+  if (!timeout_ms.empty()) {
+    int64_t ms = 0;
+    if (!absl::SimpleAtoi(timeout_ms, &ms) || ms <= 0) {
+      return refuse(grpc::StatusCode::INVALID_ARGUMENT,
+                    absl::StrCat("Connect-Timeout-Ms must be a positive number, not \"",
+                                 timeout_ms, "\""));
+    }
+    call.timeout = std::chrono::milliseconds(ms);
+  }
+  call.method = method;
+  return call;
+}
+
+class HttpServer::Impl {
+ public:
+  Impl(HttpOptions options, std::shared_ptr<grpc::Channel> channel)
+      : options_(std::move(options)), channel_(std::move(channel)), stub_(channel_),
+        acceptor_(ioc_) {}
+
+  absl::Status Start();
+  void Shutdown(std::chrono::milliseconds grace);
+  int port() const { return port_; }
+
+  // What sessions need.
+  const HttpOptions& options() const { return options_; }
+  grpc::GenericStub& stub() { return stub_; }
+  bool Allowed(const std::string& origin) const {
+    for (const auto& o : options_.cors_origins) {
+      if (o == "*" || o == origin) return true;
+    }
+    return false;
+  }
+  void Register(const std::shared_ptr<SessionBase>& s) {
+    {
+      std::lock_guard<std::mutex> lock(sessions_mu_);
+      sessions_.emplace(s.get(), s);
+    }
+    if (stopping_) s->CloseWhenIdle();
+  }
+  void Unregister(SessionBase* s) {
+    std::lock_guard<std::mutex> lock(sessions_mu_);
+    sessions_.erase(s);
+  }
+  bool stopping() const { return stopping_; }
+
+ private:
+  void Accept();
+
+  HttpOptions options_;
+  std::shared_ptr<grpc::Channel> channel_;
+  grpc::GenericStub stub_;
+  net::io_context ioc_;
+  std::optional<ssl::context> tls_;
+  tcp::acceptor acceptor_;
+  std::vector<std::thread> threads_;
+  std::optional<net::executor_work_guard<net::io_context::executor_type>> work_;
+  int port_ = 0;
+  std::atomic<bool> stopping_{false};
+  std::mutex sessions_mu_;
+  std::map<SessionBase*, std::weak_ptr<SessionBase>> sessions_;
+};
+
+namespace {
+
+template <class StreamType>
+class Session final : public SessionBase {
+ public:
+  Session(HttpServer::Impl* server, StreamType stream)
+      : server_(server), stream_(std::move(stream)) {}
+  ~Session() override { server_->Unregister(this); }
+
+  void Run() {
+    if constexpr (std::is_same_v<StreamType, beast::tcp_stream>) {
+      Read();
+    } else {
+      beast::get_lowest_layer(stream_).expires_after(std::chrono::seconds(30));
+      stream_.async_handshake(ssl::stream_base::server,
+                              [self = Self()](beast::error_code ec) {
+                                if (ec) return;  // a failed handshake: nothing to answer
+                                self->Read();
+                              });
+    }
+  }
+
+  void CloseWhenIdle() override {
+    net::post(stream_.get_executor(), [self = Self()] {
+      self->closing_ = true;
+      if (self->idle_) self->Close();
+    });
+  }
+
+ private:
+  std::shared_ptr<Session> Self() {
+    return std::static_pointer_cast<Session>(shared_from_this());
+  }
+
+  void Read() {
+    if (closing_) return Close();
+    idle_ = true;
+    parser_.emplace();
+    parser_->header_limit(64 << 10);
+    parser_->body_limit(server_->options().max_body_bytes);
+    beast::get_lowest_layer(stream_).expires_after(std::chrono::seconds(120));
+    http::async_read(stream_, buffer_, *parser_,
+                     [self = Self()](beast::error_code ec, size_t) { self->OnRead(ec); });
+  }
+
+  void OnRead(beast::error_code ec) {
+    idle_ = false;
+    if (ec == http::error::body_limit) {
+      keep_alive_ = false;
+      return Error(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                   absl::StrCat("the request body exceeds ", server_->options().max_body_bytes,
+                                " bytes (--max-message-bytes)"),
+                   http::status::payload_too_large);
+    }
+    if (ec) return Close();  // the peer went, timed out, or spoke no HTTP
+    Handle(parser_->release());
+  }
+
+  void Handle(http::request<http::string_body> req) {
+    version_ = req.version();
+    keep_alive_ = req.keep_alive() && !server_->stopping();
+    origin_ = std::string(req[http::field::origin]);
+    std::string target(req.target().data(), req.target().size());
+    target = target.substr(0, target.find('?'));
+    if (req.method() == http::verb::options) return Preflight();
+    const std::string prefix = absl::StrCat("/", kService, "/");
+    if (!absl::StartsWith(target, prefix)) {
+      if (req.method() == http::verb::get || req.method() == http::verb::head) {
+        return StaticFile(target, req.method() == http::verb::head);
+      }
+      return Error(grpc::StatusCode::NOT_FOUND, absl::StrCat("no such path: ", target));
+    }
+    const std::string name = target.substr(prefix.size());
+    auto header = [&req](const auto& field) {
+      const auto v = req[field];
+      return std::string(v.data(), v.size());
+    };
+    ConnectCall call = DecodeConnectCall(name, req.method() == http::verb::post,
+                                         header(http::field::content_type), std::move(req.body()),
+                                         header("Connect-Timeout-Ms"));
+    if (call.method == nullptr) {
+      return Error(call.code, call.message,
+                   call.http_status ? std::optional(static_cast<http::status>(call.http_status))
+                                    : std::nullopt);
+    }
+    json_ = call.json;
+    content_type_ = call.content_type;
+    output_ = call.method->output_type();
+    // What the gRPC call carries of the request: its token and its deadline.
+    authorization_ = std::string(req[http::field::authorization]);
+    deadline_.reset();
+    if (call.timeout) deadline_ = std::chrono::system_clock::now() + *call.timeout;
+    const std::string request = std::move(call.request);
+    const std::string path = absl::StrCat("/", kService, "/", name);
+    if (call.method->server_streaming()) return Stream(path, request);
+    Unary(path, request);
+  }
+
+  void Prepare(grpc::ClientContext* ctx) const {
+    if (!authorization_.empty()) ctx->AddMetadata("authorization", authorization_);
+    if (deadline_) ctx->set_deadline(*deadline_);
+  }
+
+  // A unary call: the gRPC call, then one response.
+  void Unary(const std::string& path, const std::string& request) {
+    struct Call {
+      grpc::ClientContext ctx;
+      grpc::ByteBuffer request, response;
+    };
+    auto call = std::make_shared<Call>();
+    Prepare(&call->ctx);
+    call->request = Buffer(request);
+    server_->stub().UnaryCall(
+        &call->ctx, path, grpc::StubOptions(), &call->request, &call->response,
+        [self = Self(), call](grpc::Status s) {
+          net::post(self->stream_.get_executor(), [self, call, s] {
+            if (!s.ok()) return self->Error(s.error_code(), s.error_message());
+            std::string body = Bytes(call->response);
+            if (self->json_) {
+              auto json = self->ToJson(body);
+              if (!json) return;  // answered
+              body = std::move(*json);
+            }
+            self->Send(http::status::ok, self->content_type_, std::move(body));
+          });
+        });
+  }
+
+  // The response message in JSON; nullopt (having answered INTERNAL) when it does not parse.
+  std::optional<std::string> ToJson(const std::string& bytes) {
+    auto* prototype = google::protobuf::MessageFactory::generated_factory()->GetPrototype(output_);
+    std::unique_ptr<Message> message(prototype->New());
+    std::string json;
+    if (!message->ParseFromString(bytes) ||
+        !google::protobuf::util::MessageToJsonString(*message, &json).ok()) {
+      Error(grpc::StatusCode::INTERNAL, "the service's answer could not be written as JSON");
+      return std::nullopt;
+    }
+    return json;
+  }
+
+  // A server-streaming call: a 200 response with chunked transfer, one envelope per message
+  // as the service sends it (the next is read when the last is written: the HTTP reader's
+  // pace is the stream's), then the end-of-stream envelope with the status.
+  class StreamCall;
+  // What the connection's strand and the call's gRPC threads share: the call, until its
+  // OnDone (after which it is gone).
+  struct CallHandle {
+    std::mutex mu;
+    StreamCall* call = nullptr;  // null once done
+  };
+  class StreamCall final : public grpc::ClientBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer> {
+   public:
+    StreamCall(std::shared_ptr<Session> session, std::shared_ptr<CallHandle> handle)
+        : session_(std::move(session)), handle_(std::move(handle)) {}
+    grpc::ClientContext ctx;
+    grpc::ByteBuffer request, message;
+
+    void OnReadDone(bool ok) override {
+      if (!ok) return;  // the stream ends: OnDone follows
+      std::string bytes = Bytes(message);
+      auto session = session_;
+      net::post(session->stream_.get_executor(), [session, bytes = std::move(bytes)]() mutable {
+        session->StreamMessage(std::move(bytes));
+      });
+    }
+    void OnDone(const grpc::Status& s) override {
+      {
+        std::lock_guard<std::mutex> lock(handle_->mu);
+        handle_->call = nullptr;
+      }
+      auto session = std::move(session_);
+      net::post(session->stream_.get_executor(), [session, s] { session->StreamEnd(s); });
+      delete this;
+    }
+
+   private:
+    std::shared_ptr<Session> session_;
+    std::shared_ptr<CallHandle> handle_;
+  };
+
+  void Stream(const std::string& path, const std::string& request) {
+    call_ = std::make_shared<CallHandle>();
+    auto* call = new StreamCall(Self(), call_);
+    call_->call = call;
+    Prepare(&call->ctx);
+    call->request = Buffer(request);
+    // The response header first; messages follow as they come.
+    response_header_.emplace(http::status::ok, version_);
+    response_header_->set(http::field::content_type, content_type_);
+    Cors(*response_header_);
+    response_header_->chunked(true);
+    response_header_->keep_alive(keep_alive_);
+    serializer_.emplace(*response_header_);
+    beast::get_lowest_layer(stream_).expires_never();
+    server_->stub().PrepareBidiStreamingCall(&call->ctx, path, grpc::StubOptions(), call);
+    call->StartWrite(&call->request);
+    call->StartWritesDone();
+    call->StartCall();
+    http::async_write_header(stream_, *serializer_, [self = Self()](beast::error_code ec, size_t) {
+      if (ec) return self->StreamBroken();
+      self->NextRead();
+    });
+  }
+
+  // Asks the call for its next message, unless it is done.
+  void NextRead() {
+    if (!call_) return;
+    std::lock_guard<std::mutex> lock(call_->mu);
+    if (call_->call != nullptr) call_->call->StartRead(&call_->call->message);
+  }
+
+  void StreamMessage(std::string bytes) {
+    if (broken_) return;
+    std::string payload = std::move(bytes);
+    if (json_) {
+      auto* prototype = google::protobuf::MessageFactory::generated_factory()->GetPrototype(output_);
+      std::unique_ptr<Message> message(prototype->New());
+      std::string json;
+      if (message->ParseFromString(payload) &&
+          google::protobuf::util::MessageToJsonString(*message, &json).ok()) {
+        payload = std::move(json);
+      }
+    }
+    auto chunk = std::make_shared<std::string>(Envelope(0, payload));
+    net::async_write(stream_, http::make_chunk(net::buffer(*chunk)),
+                     [self = Self(), chunk](beast::error_code ec, size_t) {
+                       if (ec) return self->StreamBroken();
+                       self->NextRead();
+                     });
+  }
+
+  void StreamEnd(const grpc::Status& s) {
+    call_.reset();
+    if (broken_) return Close();
+    std::string end = "{}";
+    if (!s.ok()) {
+      const ConnectCode c = ToConnect(s.error_code());
+      end = absl::StrCat("{\"error\":", ErrorJson(c.name, s.error_message()), "}");
+    }
+    auto chunk = std::make_shared<std::string>(Envelope(0x02, end));
+    net::async_write(stream_, http::make_chunk(net::buffer(*chunk)),
+                     [self = Self(), chunk](beast::error_code ec, size_t) {
+                       if (ec) return self->Close();
+                       net::async_write(self->stream_, http::make_chunk_last(),
+                                        [self](beast::error_code ec2, size_t) {
+                                          if (ec2 || !self->keep_alive_) return self->Close();
+                                          self->Read();
+                                        });
+                     });
+  }
+
+  // The connection failed under a stream: cancel the call; its end then closes.
+  void StreamBroken() {
+    broken_ = true;
+    if (!call_) return Close();
+    std::lock_guard<std::mutex> lock(call_->mu);
+    if (call_->call != nullptr) call_->call->ctx.TryCancel();
+  }
+
+  void Preflight() {
+    if (origin_.empty() || !server_->Allowed(origin_)) {
+      return Error(grpc::StatusCode::PERMISSION_DENIED,
+                   absl::StrCat("origin \"", origin_, "\" is not allowed (--http-cors-origins)"),
+                   http::status::forbidden);
+    }
+    auto res = std::make_shared<http::response<http::string_body>>(http::status::no_content, version_);
+    Cors(*res);
+    res->set(http::field::access_control_allow_methods, "POST, GET, OPTIONS");
+    res->set(http::field::access_control_allow_headers,
+             "Content-Type, Authorization, Connect-Protocol-Version, Connect-Timeout-Ms");
+    res->set(http::field::access_control_max_age, "7200");
+    Write(res);
+  }
+
+  void StaticFile(const std::string& path, bool head) {
+    const auto& files = server_->options().files;
+    auto it = files.find(path.empty() ? "/" : path);
+    if (it == files.end()) {
+      return Error(grpc::StatusCode::NOT_FOUND, absl::StrCat("no such path: ", path));
+    }
+    auto res = std::make_shared<http::response<http::string_body>>(http::status::ok, version_);
+    res->set(http::field::content_type, it->second.first);
+    res->set(http::field::cache_control, "no-cache");
+    res->body() = head ? std::string() : it->second.second;
+    if (head) res->content_length(it->second.second.size());
+    Cors(*res);
+    Write(res, /*prepared=*/head);
+  }
+
+  template <class Response>
+  void Cors(Response& res) {
+    if (!origin_.empty() && server_->Allowed(origin_)) {
+      res.set(http::field::access_control_allow_origin, origin_);
+      res.set(http::field::vary, "Origin");
+    }
+  }
+
+  void Error(grpc::StatusCode code, const std::string& message,
+             std::optional<http::status> status = std::nullopt) {
+    const ConnectCode c = ToConnect(code);
+    Send(status.value_or(c.status), "application/json", ErrorJson(c.name, message));
+  }
+
+  void Send(http::status status, const std::string& type, std::string body) {
+    auto res = std::make_shared<http::response<http::string_body>>(status, version_);
+    res->set(http::field::content_type, type);
+    res->body() = std::move(body);
+    Cors(*res);
+    Write(res);
+  }
+
+  void Write(const std::shared_ptr<http::response<http::string_body>>& res, bool prepared = false) {
+    res->keep_alive(keep_alive_ && !closing_);
+    if (!prepared) res->prepare_payload();
+    beast::get_lowest_layer(stream_).expires_after(std::chrono::seconds(120));
+    http::async_write(stream_, *res, [self = Self(), res](beast::error_code ec, size_t) {
+      if (ec || !res->keep_alive()) return self->Close();
+      self->Read();
+    });
+  }
+
+  void Close() {
+    if (closed_) return;
+    closed_ = true;
+    beast::error_code ec;
+    if constexpr (std::is_same_v<StreamType, beast::tcp_stream>) {
+      stream_.socket().shutdown(tcp::socket::shutdown_send, ec);
+      stream_.close();
+    } else {
+      beast::get_lowest_layer(stream_).close();
+    }
+  }
+
+  HttpServer::Impl* const server_;
+  StreamType stream_;
+  beast::flat_buffer buffer_;
+  std::optional<http::request_parser<http::string_body>> parser_;
+  unsigned version_ = 11;
+  bool keep_alive_ = false, idle_ = false, closing_ = false, closed_ = false;
+  bool json_ = true, broken_ = false;
+  std::string origin_, content_type_, authorization_;
+  std::optional<std::chrono::system_clock::time_point> deadline_;
+  const google::protobuf::Descriptor* output_ = nullptr;
+  std::shared_ptr<CallHandle> call_;
+  std::optional<http::response<http::empty_body>> response_header_;
+  std::optional<http::response_serializer<http::empty_body>> serializer_;
+};
+
+}  // namespace
+
+absl::Status HttpServer::Impl::Start() {
+  const auto colon = options_.listen.rfind(':');
+  if (colon == std::string::npos) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--http-listen needs HOST:PORT, not \"", options_.listen, "\""));
+  }
+  std::string host = options_.listen.substr(0, colon);
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
+  int port = 0;
+  if (!absl::SimpleAtoi(options_.listen.substr(colon + 1), &port) || port < 0 || port > 65535) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--http-listen needs HOST:PORT, not \"", options_.listen, "\""));
+  }
+  beast::error_code ec;
+  const auto address = net::ip::make_address(host == "localhost" ? "127.0.0.1" : host, ec);
+  if (ec) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--http-listen: \"", host, "\" is not an IP address"));
+  }
+  if (!options_.tls_cert.empty()) {
+    tls_.emplace(ssl::context::tls_server);
+    tls_->set_options(ssl::context::default_workarounds | ssl::context::no_sslv2 |
+                      ssl::context::no_sslv3 | ssl::context::no_tlsv1 | ssl::context::no_tlsv1_1);
+    tls_->use_certificate_chain(net::buffer(options_.tls_cert), ec);
+    if (!ec) tls_->use_private_key(net::buffer(options_.tls_key), ssl::context::pem, ec);
+    if (!ec && !options_.tls_client_ca.empty()) {
+      tls_->add_certificate_authority(net::buffer(options_.tls_client_ca), ec);
+      tls_->set_verify_mode(ssl::verify_peer | ssl::verify_fail_if_no_peer_cert);
+    }
+    if (ec) return absl::InvalidArgumentError(absl::StrCat("HTTP TLS: ", ec.message()));
+  }
+  const tcp::endpoint endpoint(address, static_cast<unsigned short>(port));
+  acceptor_.open(endpoint.protocol(), ec);
+  if (!ec) acceptor_.set_option(net::socket_base::reuse_address(true), ec);
+  if (!ec) acceptor_.bind(endpoint, ec);
+  if (!ec) acceptor_.listen(net::socket_base::max_listen_connections, ec);
+  if (ec) {
+    return absl::UnavailableError(
+        absl::StrCat("cannot listen on ", options_.listen, " for HTTP: ", ec.message()));
+  }
+  port_ = acceptor_.local_endpoint().port();
+  Accept();
+  work_.emplace(net::make_work_guard(ioc_));
+  for (int i = 0; i < std::max(1, options_.threads); ++i) {
+    threads_.emplace_back([this] { ioc_.run(); });
+  }
+  return absl::OkStatus();
+}
+
+void HttpServer::Impl::Accept() {
+  acceptor_.async_accept(net::make_strand(ioc_), [this](beast::error_code ec, tcp::socket socket) {
+    if (ec) {
+      if (!stopping_ && ec != net::error::operation_aborted) Accept();
+      return;
+    }
+    if (tls_) {
+      auto s = std::make_shared<Session<beast::ssl_stream<beast::tcp_stream>>>(
+          this, beast::ssl_stream<beast::tcp_stream>(std::move(socket), *tls_));
+      Register(s);
+      s->Run();
+    } else {
+      auto s = std::make_shared<Session<beast::tcp_stream>>(this, beast::tcp_stream(std::move(socket)));
+      Register(s);
+      s->Run();
+    }
+    Accept();
+  });
+}
+
+void HttpServer::Impl::Shutdown(std::chrono::milliseconds grace) {
+  stopping_ = true;
+  net::post(ioc_, [this] {
+    beast::error_code ec;
+    acceptor_.close(ec);
+  });
+  std::vector<std::shared_ptr<SessionBase>> open;
+  {
+    std::lock_guard<std::mutex> lock(sessions_mu_);
+    for (auto& [raw, weak] : sessions_) {
+      if (auto s = weak.lock()) open.push_back(std::move(s));
+    }
+  }
+  for (auto& s : open) s->CloseWhenIdle();
+  open.clear();  // outside the lock: a session's destructor takes it
+  const auto deadline = std::chrono::steady_clock::now() + grace;
+  while (std::chrono::steady_clock::now() < deadline) {
+    {
+      std::lock_guard<std::mutex> lock(sessions_mu_);
+      if (sessions_.empty()) break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  work_.reset();
+  ioc_.stop();
+  for (auto& t : threads_) t.join();
+  threads_.clear();
+}
+
+absl::StatusOr<std::unique_ptr<HttpServer>> HttpServer::Start(
+    HttpOptions options, std::shared_ptr<grpc::Channel> channel) {
+  auto impl = std::make_unique<Impl>(std::move(options), std::move(channel));
+  if (auto s = impl->Start(); !s.ok()) return s;
+  return std::unique_ptr<HttpServer>(new HttpServer(std::move(impl)));
+}
+
+HttpServer::HttpServer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+HttpServer::~HttpServer() {
+  if (impl_) impl_->Shutdown(std::chrono::milliseconds(0));
+}
+
+int HttpServer::port() const { return impl_->port(); }
+
+void HttpServer::Shutdown(std::chrono::milliseconds grace) { impl_->Shutdown(grace); }
+
+}  // namespace gvd

@@ -1,0 +1,16 @@
+#include "server/http/web_app.h"
+
+#include "server/http/web_files.h"
+
+namespace gvd {
+
+std::map<std::string, std::pair<std::string, std::string>> WebApp() {
+  const std::pair<std::string, std::string> index{"text/html; charset=utf-8", web::kIndex};
+  return {{"/", index},
+          {"/index.html", index},
+          {"/app.js", {"text/javascript; charset=utf-8", web::kApp}},
+          {"/api.js", {"text/javascript; charset=utf-8", web::kApi}},
+          {"/style.css", {"text/css; charset=utf-8", web::kStyle}}};
+}
+
+}  // namespace gvd

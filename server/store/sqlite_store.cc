@@ -1,0 +1,393 @@
+#include "server/store/sqlite_store.h"
+
+#include <sqlite3.h>
+#include <sys/stat.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+
+#include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
+#include "render/scene/codec.h"
+
+namespace gvd {
+namespace {
+
+// The connection's last error as a status naming the store's file, by what it means for a
+// caller: a full disk is RESOURCE_EXHAUSTED and failing or busy storage UNAVAILABLE (both
+// pass: a later write succeeds once space is freed or the device recovers), a damaged file
+// DATA_LOSS.
+absl::Status SqliteError(sqlite3* db, const std::string& what) {
+  const char* file = sqlite3_db_filename(db, "main");
+  const std::string text = absl::StrCat("store ", file && *file ? file : ":memory:", ": ", what,
+                                        ": ", sqlite3_errmsg(db));
+  switch (sqlite3_extended_errcode(db) & 0xff) {
+    case SQLITE_FULL:
+      return absl::ResourceExhaustedError(
+          absl::StrCat(text, " (its disk is full: nothing was stored, and writes succeed again "
+                             "once space is freed)"));
+    case SQLITE_IOERR:
+    case SQLITE_BUSY:
+    case SQLITE_LOCKED:
+    case SQLITE_READONLY:
+    case SQLITE_CANTOPEN:
+    case SQLITE_NOMEM:
+      return absl::UnavailableError(text);
+    case SQLITE_CORRUPT:
+    case SQLITE_NOTADB:
+      return absl::DataLossError(absl::StrCat(text, " (the file is damaged, or is not a gvd store)"));
+    default:
+      return absl::InternalError(text);
+  }
+}
+
+// A statement of the connection's cache (SqliteStore::Prepared), reset with its bindings
+// cleared when the scope ends so that the next user finds it fresh.
+class Statement {
+ public:
+  explicit Statement(sqlite3_stmt* stmt) : stmt_(stmt) {}
+  ~Statement() {
+    if (stmt_ == nullptr) return;
+    sqlite3_reset(stmt_);
+    sqlite3_clear_bindings(stmt_);
+  }
+  Statement(const Statement&) = delete;
+  Statement& operator=(const Statement&) = delete;
+  bool ok() const { return stmt_ != nullptr; }
+  sqlite3_stmt* get() { return stmt_; }
+  void Text(int i, std::string_view s) {
+    sqlite3_bind_text(stmt_, i, s.data(), static_cast<int>(s.size()), SQLITE_TRANSIENT);
+  }
+  void Blob(int i, std::string_view s) {
+    sqlite3_bind_blob(stmt_, i, s.data(), static_cast<int>(s.size()), SQLITE_TRANSIENT);
+  }
+  void Int(int i, uint64_t v) { sqlite3_bind_int64(stmt_, i, static_cast<sqlite3_int64>(v)); }
+  // Steps a statement that returns no rows, and resets it for reuse.
+  bool Run() {
+    int rc = sqlite3_step(stmt_);
+    sqlite3_reset(stmt_);
+    sqlite3_clear_bindings(stmt_);
+    return rc == SQLITE_DONE;
+  }
+
+ private:
+  sqlite3_stmt* stmt_ = nullptr;
+};
+
+std::string_view ColumnBlob(sqlite3_stmt* s, int i) {
+  const void* p = sqlite3_column_blob(s, i);
+  return std::string_view(static_cast<const char*>(p), sqlite3_column_bytes(s, i));
+}
+
+std::string ColumnText(sqlite3_stmt* s, int i) {
+  const unsigned char* p = sqlite3_column_text(s, i);
+  return p ? std::string(reinterpret_cast<const char*>(p), sqlite3_column_bytes(s, i)) : "";
+}
+
+// The database's schema. The earlier one (tables "scenes" and "sites", holding request
+// messages) is converted by Migrate.
+// The version of kSchema, recorded in the file (PRAGMA user_version).
+constexpr int kSchemaVersion = 1;
+constexpr const char* kSchema[] = {
+    "CREATE TABLE IF NOT EXISTS scene ("
+    "  id TEXT PRIMARY KEY,"
+    "  settings BLOB NOT NULL,"  // EncodeSettings
+    "  version INTEGER NOT NULL)",
+    "CREATE TABLE IF NOT EXISTS site ("
+    "  scene TEXT NOT NULL REFERENCES scene(id) ON DELETE CASCADE,"  // kept by the store
+    "  id TEXT NOT NULL,"
+    "  site BLOB NOT NULL,"  // EncodeSite
+    "  PRIMARY KEY (scene, id)) WITHOUT ROWID",
+};
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string& dir,
+                                                               const Legacy& legacy) {
+  bool persistent = dir != ":memory:";
+  std::string path = ":memory:";
+  if (persistent) {
+    if (mkdir(dir.c_str(), 0700) != 0 && errno != EEXIST) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("store: cannot create directory ", dir, ": ", std::strerror(errno)));
+    }
+    path = dir + "/gvd.sqlite3";
+  }
+  sqlite3* db = nullptr;
+  if (sqlite3_open_v2(path.c_str(), &db,
+                      SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX,
+                      nullptr) != SQLITE_OK) {
+    absl::Status s = absl::FailedPreconditionError(
+        absl::StrCat("store: cannot open ", path, ": ", db ? sqlite3_errmsg(db) : "out of memory"));
+    sqlite3_close(db);
+    return s;
+  }
+  std::unique_ptr<SqliteStore> store(new SqliteStore(db, path));
+  sqlite3_busy_timeout(db, 5000);
+  // Foreign keys stay off: checking each site row's scene made a bulk insert four to six
+  // times slower once the table held other scenes' rows. The store keeps the reference
+  // itself: Write stores nothing for a scene that is not stored, DeleteScene deletes its
+  // sites.
+  for (const char* sql : {"PRAGMA journal_mode=WAL", "PRAGMA synchronous=FULL",
+                          "PRAGMA foreign_keys=OFF"}) {
+    if (auto s = store->Exec(sql); !s.ok()) return s;
+  }
+  // The schema's version (PRAGMA user_version; 0 in stores made before it was recorded,
+  // which hold this same schema): a store from a newer release is left as it is.
+  int version = 0;
+  {
+    Statement v(store->Prepared("PRAGMA user_version"));
+    if (!v.ok() || sqlite3_step(v.get()) != SQLITE_ROW) return SqliteError(db, "reading the schema version");
+    version = sqlite3_column_int(v.get(), 0);
+  }
+  if (version > kSchemaVersion) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "store ", path, " was written by a newer release of gvd (schema version ", version,
+        "; this release reads up to ", kSchemaVersion, "): run that release, or start on a new "
+        "--data directory"));
+  }
+  for (const char* sql : kSchema) {
+    if (auto s = store->Exec(sql); !s.ok()) return s;
+  }
+  if (auto s = store->Migrate(legacy); !s.ok()) return s;
+  if (version < kSchemaVersion) {
+    if (auto s = store->Exec(absl::StrCat("PRAGMA user_version = ", kSchemaVersion).c_str()); !s.ok()) {
+      return s;
+    }
+  }
+  return store;
+}
+
+SqliteStore::~SqliteStore() {
+  for (const auto& [sql, stmt] : statements_) sqlite3_finalize(stmt);
+  sqlite3_close(db_);
+}
+
+sqlite3_stmt* SqliteStore::Prepared(const char* sql) {
+  auto [it, added] = statements_.try_emplace(sql, nullptr);
+  if (added &&
+      sqlite3_prepare_v3(db_, sql, -1, SQLITE_PREPARE_PERSISTENT, &it->second, nullptr) != SQLITE_OK) {
+    statements_.erase(it);
+    return nullptr;
+  }
+  return it->second;
+}
+
+absl::Status SqliteStore::Step(const char* sql) {
+  Statement s(Prepared(sql));
+  if (!s.ok() || !s.Run()) return SqliteError(db_, sql);
+  return absl::OkStatus();
+}
+
+absl::Status SqliteStore::Exec(const char* sql) {
+  if (sqlite3_exec(db_, sql, nullptr, nullptr, nullptr) != SQLITE_OK) return SqliteError(db_, sql);
+  return absl::OkStatus();
+}
+
+template <class Body>
+absl::Status SqliteStore::Transaction(Body body) {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto start = std::chrono::steady_clock::now();
+  if (auto s = Step("BEGIN IMMEDIATE"); !s.ok()) return s;
+  absl::Status s = body();
+  if (s.ok()) s = Step("COMMIT");
+  if (!s.ok()) {
+    Step("ROLLBACK").IgnoreError();
+    return s;
+  }
+  last_commit_seconds_ =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return absl::OkStatus();
+}
+
+double SqliteStore::last_commit_seconds() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return last_commit_seconds_;
+}
+
+absl::Status SqliteStore::Migrate(const Legacy& legacy) {
+  {
+    Statement old(Prepared("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'scenes'"));
+    if (!old.ok()) return SqliteError(db_, "reading the schema");
+    if (sqlite3_step(old.get()) != SQLITE_ROW) return absl::OkStatus();
+  }
+  if (!legacy.scene || !legacy.site) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("store: ", path_, " was written by an earlier release; this program "
+                     "cannot convert it"));
+  }
+  return Transaction([&]() -> absl::Status {
+    Statement scenes(Prepared("SELECT id, request, version FROM scenes ORDER BY id"));
+    Statement sites(Prepared("SELECT site FROM sites WHERE scene = ?"));
+    Statement put_scene(Prepared("INSERT INTO scene (id, settings, version) VALUES (?, ?, ?)"));
+    Statement put_site(Prepared("INSERT INTO site (scene, id, site) VALUES (?, ?, ?)"));
+    if (!scenes.ok() || !sites.ok() || !put_scene.ok() || !put_site.ok()) {
+      return SqliteError(db_, "converting the earlier schema");
+    }
+    int rc;
+    while ((rc = sqlite3_step(scenes.get())) == SQLITE_ROW) {
+      const std::string id = ColumnText(scenes.get(), 0);
+      auto settings = legacy.scene(ColumnBlob(scenes.get(), 1));
+      if (!settings.ok()) {
+        return absl::DataLossError(absl::StrCat("store: scene \"", id,
+                                                "\" cannot be converted: ",
+                                                settings.status().message()));
+      }
+      put_scene.Text(1, id);
+      put_scene.Blob(2, EncodeSettings(*settings));
+      put_scene.Int(3, static_cast<uint64_t>(sqlite3_column_int64(scenes.get(), 2)));
+      if (!put_scene.Run()) return SqliteError(db_, "converting a scene");
+      sites.Text(1, id);
+      while ((rc = sqlite3_step(sites.get())) == SQLITE_ROW) {
+        auto site = legacy.site(ColumnBlob(sites.get(), 0));
+        if (!site.ok()) {
+          return absl::DataLossError(absl::StrCat("store: a site of scene \"", id,
+                                                  "\" cannot be converted: ",
+                                                  site.status().message()));
+        }
+        put_site.Text(1, id);
+        put_site.Text(2, site->id);
+        put_site.Blob(3, EncodeSite(*site));
+        if (!put_site.Run()) return SqliteError(db_, "converting a site");
+      }
+      sqlite3_reset(sites.get());
+      if (rc != SQLITE_DONE) return SqliteError(db_, "reading sites");
+    }
+    if (rc != SQLITE_DONE) return SqliteError(db_, "reading scenes");
+    sqlite3_reset(scenes.get());
+    if (auto s = Exec("DROP TABLE sites"); !s.ok()) return s;
+    return Exec("DROP TABLE scenes");
+  });
+}
+
+absl::StatusOr<std::vector<StoredScene>> SqliteStore::Load() {
+  std::lock_guard<std::mutex> lock(mu_);
+  std::vector<StoredScene> scenes;
+  Statement s(Prepared("SELECT id, settings, version FROM scene ORDER BY id"));
+  if (!s.ok()) return SqliteError(db_, "reading scenes");
+  int rc;
+  while ((rc = sqlite3_step(s.get())) == SQLITE_ROW) {
+    auto settings = DecodeSettings(ColumnBlob(s.get(), 1));
+    if (!settings.ok()) {
+      return absl::DataLossError(absl::StrCat("store: scene \"", ColumnText(s.get(), 0),
+                                              "\": ", settings.status().message()));
+    }
+    StoredScene scene;
+    scene.settings = std::move(*settings);
+    scene.version = static_cast<uint64_t>(sqlite3_column_int64(s.get(), 2));
+    scenes.push_back(std::move(scene));
+  }
+  if (rc != SQLITE_DONE) return SqliteError(db_, "reading scenes");
+  Statement sites(Prepared("SELECT site FROM site WHERE scene = ?"));
+  if (!sites.ok()) return SqliteError(db_, "reading sites");
+  for (StoredScene& scene : scenes) {
+    sites.Text(1, scene.settings.id);
+    while ((rc = sqlite3_step(sites.get())) == SQLITE_ROW) {
+      auto site = DecodeSite(ColumnBlob(sites.get(), 0));
+      if (!site.ok()) {
+        return absl::DataLossError(absl::StrCat("store: a site of scene \"", scene.settings.id,
+                                                "\": ", site.status().message()));
+      }
+      scene.sites.push_back(std::move(*site));
+    }
+    sqlite3_reset(sites.get());
+    if (rc != SQLITE_DONE) return SqliteError(db_, "reading sites");
+  }
+  return scenes;
+}
+
+absl::Status SqliteStore::CreateScene(const SceneSettings& settings, uint64_t version) {
+  return Transaction([&]() -> absl::Status {
+    Statement s(Prepared("INSERT INTO scene (id, settings, version) VALUES (?, ?, ?)"));
+    s.Text(1, settings.id);
+    s.Blob(2, EncodeSettings(settings));
+    s.Int(3, version);
+    if (!s.ok() || !s.Run()) return SqliteError(db_, "storing the scene");
+    return absl::OkStatus();
+  });
+}
+
+absl::Status SqliteStore::DeleteScene(std::string_view scene_id) {
+  return Transaction([&]() -> absl::Status {
+    Statement sites(Prepared("DELETE FROM site WHERE scene = ?"));
+    sites.Text(1, scene_id);
+    if (!sites.ok() || !sites.Run()) return SqliteError(db_, "deleting the scene's sites");
+    Statement s(Prepared("DELETE FROM scene WHERE id = ?"));
+    s.Text(1, scene_id);
+    if (!s.ok() || !s.Run()) return SqliteError(db_, "deleting the scene");
+    return absl::OkStatus();
+  });
+}
+
+absl::Status SqliteStore::Commit(const ChangeSet& changes) {
+  Waiter me{&changes};
+  std::vector<Waiter*> group;
+  {
+    std::unique_lock<std::mutex> lock(group_mu_);
+    waiting_.push_back(&me);
+    group_cv_.wait(lock, [&] { return me.done || !committing_; });
+    if (me.done) return me.status;  // a leader committed it
+    committing_ = true;             // lead: take every waiter so far, this one included
+    group.swap(waiting_);
+  }
+  absl::Status s = Transaction([&]() -> absl::Status {
+    for (Waiter* w : group) {
+      if (auto st = Step("SAVEPOINT change_set"); !st.ok()) return st;
+      w->status = Write(*w->changes);
+      // A failed change set leaves nothing behind; the others go on.
+      if (!w->status.ok()) {
+        if (auto st = Step("ROLLBACK TO change_set"); !st.ok()) return st;
+      }
+      if (auto st = Step("RELEASE change_set"); !st.ok()) return st;
+    }
+    return absl::OkStatus();
+  });
+  {
+    std::lock_guard<std::mutex> lock(group_mu_);
+    for (Waiter* w : group) {
+      if (!s.ok()) w->status = s;  // nothing of the transaction is stored
+      w->done = true;
+    }
+    committing_ = false;
+    if (s.ok()) {
+      ++group_stats_.transactions;
+      for (Waiter* w : group) group_stats_.change_sets += w->status.ok();
+    }
+  }
+  group_cv_.notify_all();
+  return me.status;
+}
+
+SqliteStore::GroupStats SqliteStore::group_stats() const {
+  std::lock_guard<std::mutex> lock(group_mu_);
+  return group_stats_;
+}
+
+absl::Status SqliteStore::Write(const ChangeSet& changes) {
+  Statement put(Prepared("INSERT OR REPLACE INTO site (scene, id, site) VALUES (?, ?, ?)"));
+  Statement del(Prepared("DELETE FROM site WHERE scene = ? AND id = ?"));
+  Statement version(Prepared("UPDATE scene SET version = ? WHERE id = ?"));
+  if (!put.ok() || !del.ok() || !version.ok()) return SqliteError(db_, "storing sites");
+  version.Int(1, changes.version);
+  version.Text(2, changes.scene_id);
+  if (!version.Run()) return SqliteError(db_, "storing the version");
+  if (sqlite3_changes(db_) != 1) {
+    return absl::NotFoundError(
+        absl::StrCat("store: scene \"", std::string(changes.scene_id), "\" is not stored"));
+  }
+  for (const auto& site : changes.put) {
+    put.Text(1, changes.scene_id);
+    put.Text(2, site->id);
+    put.Blob(3, EncodeSite(*site));
+    if (!put.Run()) return SqliteError(db_, "storing a site");
+  }
+  for (const std::string& id : changes.removed) {
+    del.Text(1, changes.scene_id);
+    del.Text(2, id);
+    if (!del.Run()) return SqliteError(db_, "deleting a site");
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace gvd

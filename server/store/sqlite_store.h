@@ -1,0 +1,93 @@
+// SceneStore on SQLite: one database file in WAL mode with synchronous=FULL, durable before
+// each call returns. Commits of change sets that arrive while another is being made durable
+// share the next transaction (group commit: one fsync for all of them), each in a savepoint
+// of its own, so that one that fails rolls back alone. Sites and settings are kept in the core's byte
+// form (core/codec.h), so every site kind the core gains is stored without a schema change.
+#pragma once
+
+#include <condition_variable>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <string_view>
+#include <unordered_map>
+
+#include "absl/status/statusor.h"
+#include "render/scene/store.h"
+
+struct sqlite3;
+struct sqlite3_stmt;
+
+namespace gvd {
+
+// Thread-safe: one connection behind a mutex (SQLite has one writer at a time anyway).
+class SqliteStore final : public SceneStore {
+ public:
+  // Reads the records of an earlier schema, which kept each scene's CreateSceneRequest and
+  // each site's Site message: given to Open by the one who knows those messages (the server)
+  // so that a database written by an earlier release is converted once, in one transaction.
+  struct Legacy {
+    std::function<absl::StatusOr<SceneSettings>(std::string_view request)> scene;
+    std::function<absl::StatusOr<Site>(std::string_view site)> site;
+  };
+
+  // Opens (creating if needed) DIR/gvd.sqlite3. ":memory:" keeps nothing across restarts.
+  // A database of the earlier schema is converted with `legacy`, or refused without it.
+  static absl::StatusOr<std::unique_ptr<SqliteStore>> Open(const std::string& dir,
+                                                           const Legacy& legacy = {});
+  ~SqliteStore() override;  // closes the database cleanly (checkpointing the WAL)
+  SqliteStore(const SqliteStore&) = delete;
+  SqliteStore& operator=(const SqliteStore&) = delete;
+
+  absl::StatusOr<std::vector<StoredScene>> Load() override;
+  absl::Status CreateScene(const SceneSettings& settings, uint64_t version) override;
+  absl::Status Commit(const ChangeSet& changes) override;
+  absl::Status DeleteScene(std::string_view scene_id) override;
+  std::string Describe() const override { return path_; }
+
+  // Seconds the last transaction took (BEGIN to durable COMMIT).
+  double last_commit_seconds() const;
+  // Transactions that committed change sets, and the change sets they committed.
+  struct GroupStats {
+    uint64_t transactions = 0;
+    uint64_t change_sets = 0;
+  };
+  GroupStats group_stats() const;
+
+ private:
+  SqliteStore(sqlite3* db, std::string path) : db_(db), path_(std::move(path)) {}
+  absl::Status Exec(const char* sql);
+  // The statement prepared once for the connection's life (null if it cannot be prepared).
+  // CONTRACT: mu_ held, or the store not yet shared.
+  sqlite3_stmt* Prepared(const char* sql);
+  // Runs a cached statement that takes no parameters and returns no rows.
+  absl::Status Step(const char* sql);
+  absl::Status Migrate(const Legacy& legacy);
+  // Runs `body` inside BEGIN IMMEDIATE ... COMMIT, rolling back if it fails.
+  template <class Body>
+  absl::Status Transaction(Body body);
+  // One change set's writes, inside the open transaction. CONTRACT: mu_ held.
+  absl::Status Write(const ChangeSet& changes);
+
+  // Group commit: the change sets waiting for the next transaction, and whether one is under
+  // way (its leader commits every waiter it took).
+  struct Waiter {
+    const ChangeSet* changes;
+    absl::Status status;
+    bool done = false;
+  };
+  mutable std::mutex group_mu_;
+  std::condition_variable group_cv_;
+  std::vector<Waiter*> waiting_;
+  bool committing_ = false;
+  GroupStats group_stats_;
+
+  mutable std::mutex mu_;
+  sqlite3* db_;
+  std::string path_;
+  std::unordered_map<std::string, sqlite3_stmt*> statements_;  // by SQL text
+  double last_commit_seconds_ = 0;
+};
+
+}  // namespace gvd

@@ -1,0 +1,390 @@
+// The gvd command-line tool against the real server: the README's tour, files, errors.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <map>
+#include <random>
+#include <set>
+#include <thread>
+#include <vector>
+#include <fstream>
+#include <sstream>
+
+#include "render/kernel/exact2.h"
+#include "tests/support/server_process.h"
+
+namespace gvd {
+namespace {
+
+struct Result {
+  int exit_code;
+  std::string out;  // stdout and stderr together
+};
+
+class CliTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    server_ = new testing::ServerProcess(GVD_SERVER_PATH);
+    ASSERT_TRUE(server_->error().empty()) << server_->error();
+  }
+  static void TearDownTestSuite() { delete server_; }
+
+  static Result Gvd(const std::string& args) {
+    return Run(std::string(GVD_CLI_PATH) + " --server " + server_->address() + " " + args);
+  }
+  // gvd-mosaic, which renders in its own process.
+  static Result Mosaic(const std::string& args) {
+    return Run(std::string(GVD_MOSAIC_PATH) + " " + args);
+  }
+  static Result Run(const std::string& line) {
+    std::string command = line + " 2>&1";
+    FILE* p = popen(command.c_str(), "r");
+    std::string out;
+    char buf[4096];
+    size_t n;
+    while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+    int status = pclose(p);
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+  }
+
+  static std::string WriteFile(const std::string& name, const std::string& text) {
+    std::string path = server_->dir() + "/" + name;
+    std::ofstream(path) << text;
+    return path;
+  }
+
+  static inline testing::ServerProcess* server_ = nullptr;
+};
+
+TEST_F(CliTest, TourFromTheReadme) {
+  Result r = Gvd("scene create demo --window 0,0,100,100 --size 512x512");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("scene demo: window [0, 100] x [0, 100], 512x512 px"), std::string::npos)
+      << r.out;
+  r = Gvd("--scene demo sites add a 10 10 b 80 20 c 50 90");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("upserted 3 sites; scene demo is at version 2"), std::string::npos) << r.out;
+  r = Gvd("--scene demo nearest 12 11 70 25 --min-version 2");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  std::istringstream lines(r.out);
+  std::string header, line;
+  std::getline(lines, header);
+  EXPECT_EQ(header, "x\ty\tsite\tdistance\terror_bound\texact\tfeature");
+  struct Expect {
+    double x, y;
+    const char* site;
+    Vec2 at;
+  };
+  for (Expect e : {Expect{12, 11, "a", {10, 10}}, Expect{70, 25, "b", {80, 20}}}) {
+    ASSERT_TRUE(std::getline(lines, line)) << r.out;
+    std::istringstream f(line);
+    double x, y, distance, bound;
+    std::string site;
+    f >> x >> y >> site >> distance >> bound;
+    EXPECT_EQ(x, e.x);
+    EXPECT_EQ(y, e.y);
+    EXPECT_EQ(site, e.site);
+    EXPECT_DOUBLE_EQ(distance, Distance({x, y}, e.at));
+    EXPECT_GE(bound, 0);
+    EXPECT_LT(bound, 1);
+  }
+  r = Gvd("--scene demo nearest 45 80 --exact");
+  EXPECT_NE(r.out.find("45\t80\tc\t" ), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\t0\tyes\tvertex 0\n"), std::string::npos) << r.out;
+  r = Gvd("scene ls");
+  EXPECT_NE(r.out.find("scene demo:"), std::string::npos) << r.out;
+  r = Gvd("--scene demo sites ls");
+  EXPECT_EQ(r.out, "a\t10\t10\nb\t80\t20\nc\t50\t90\n");
+  r = Gvd("--scene demo sites rm b");
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  r = Gvd("--scene demo nearest 70 25 --min-version 3 --json");
+  EXPECT_NE(r.out.find("\"site_id\": \"a\""), std::string::npos) << r.out;
+  r = Gvd("scene rm demo");
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  r = Gvd("scene get demo");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("gvd: NOT_FOUND: scene \"demo\" does not exist"), std::string::npos) << r.out;
+}
+
+// Every kind from arguments and from GeoJSON; an image of the scene from `gvd render`.
+TEST_F(CliTest, EveryKindAndAnImage) {
+  ASSERT_EQ(Gvd("scene create kinds --window 0,0,10,10 --size 128x128").exit_code, 0);
+  for (const char* add : {"segment s 1,1 4,2", "polyline l 1,8 3,9 5,8",
+                          "polygon g 6,1 9,1 8,4 --side outside",
+                          "bezier b 6,6 7,9 9,5 9,9 --tolerance 0.01",
+                          "p 5 5 --multiplicative 2 --max-distance 3"}) {
+    Result r = Gvd(std::string("--scene kinds sites add ") + add);
+    ASSERT_EQ(r.exit_code, 0) << add << ": " << r.out;
+  }
+  std::string geo = WriteFile("kinds.geojson", R"({"type": "FeatureCollection", "features": [
+    {"type": "Feature", "id": "gp", "geometry": {"type": "Point", "coordinates": [2, 5]}},
+    {"type": "Feature", "properties": {"id": "gl", "additive_weight": 0.5},
+     "geometry": {"type": "LineString", "coordinates": [[0, 0], [1, 3]]}},
+    {"type": "Feature", "properties": {"id": "gg", "side": "inside"},
+     "geometry": {"type": "Polygon", "coordinates": [[[3, 3], [5, 3], [4, 5], [3, 3]]]}}]})");
+  Result r = Gvd("--scene kinds sites add --file " + geo);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  r = Gvd("--scene kinds sites ls");
+  EXPECT_NE(r.out.find("g\tpolygon\t6,1\t9,1\t8,4\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("gg\tpolygon\t3,3\t5,3\t4,5\n"), std::string::npos) << r.out;
+  r = Gvd("--scene kinds nearest 2.5 1.4 --exact");
+  EXPECT_NE(r.out.find("\ts\t"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\tedge 0\n"), std::string::npos) << r.out;
+  std::string png = server_->dir() + "/kinds.png";
+  r = Gvd("render kinds -o " + png + " --layer features --draw-sites");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  std::ifstream in(png, std::ios::binary);
+  std::string magic(8, '\0');
+  in.read(magic.data(), 8);
+  EXPECT_EQ(magic, "\x89PNG\r\n\x1a\n");
+  r = Gvd("render kinds -o " + server_->dir() + "/kinds.exr --layer ids");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("INVALID_ARGUMENT: format EXR holds the DISTANCE layer only"),
+            std::string::npos)
+      << r.out;
+}
+
+TEST_F(CliTest, SitesFromJsonAndTextFiles) {
+  Result created = Gvd("scene create files --window -1,-1,1,1 --size 64x64 --render-mode exact");
+  ASSERT_EQ(created.exit_code, 0) << created.out;
+  EXPECT_NE(created.out.find("exact render"), std::string::npos) << created.out;
+  std::string json = WriteFile("sites.json", R"([
+    {"id": "left", "point": {"x": -0.5, "y": 0}},
+    {"id": "right", "point": {"x": 0.5, "y": 0}}
+  ])");
+  Result r = Gvd("--scene files sites add --file " + json);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  std::string text = WriteFile("sites.txt", "# id x y\nup 0 0.75\ndown 0 -0.75\n");
+  r = Gvd("--scene files sites add --file " + text);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("version 3"), std::string::npos) << r.out;
+  r = Gvd("--scene files sites ls");
+  EXPECT_EQ(r.out, "down\t0\t-0.75\nleft\t-0.5\t0\nright\t0.5\t0\nup\t0\t0.75\n");
+  r = Gvd("--scene files nearest -0.9 0.1 0 0.9 --min-version 3");
+  EXPECT_NE(r.out.find("\tleft\t"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\tup\t"), std::string::npos) << r.out;
+
+  std::string bad = WriteFile("bad.txt", "a 1\n");
+  r = Gvd("--scene files sites add --file " + bad);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.out.find("bad.txt:1: expected \"ID X Y\""), std::string::npos) << r.out;
+}
+
+TEST_F(CliTest, ErrorsAreReportedWithTheirStatus) {
+  Result r = Gvd("scene create x --window 0,0,1,1 --size 0x10");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("gvd: INVALID_ARGUMENT: width_px is 0"), std::string::npos) << r.out;
+  r = Gvd("--scene nowhere nearest 1 1");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("NOT_FOUND"), std::string::npos) << r.out;
+  r = Gvd("nearest 1");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.out.find("usage"), std::string::npos) << r.out;
+  r = Gvd("frobnicate");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.out.find("unknown command"), std::string::npos) << r.out;
+}
+
+// The structure and planning commands on a small scene: their output is checked against
+// what the scene makes certain (three points: one triangle, three pairs).
+TEST_F(CliTest, StructurePlanningAndPicking) {
+  ASSERT_EQ(Gvd("scene create tri --window 0,0,1,1 --size 256x256").exit_code, 0);
+  ASSERT_EQ(Gvd("--scene tri sites add a 0.2 0.2 b 0.8 0.25 c 0.5 0.8").exit_code, 0);
+  Result r = Gvd("--scene tri neighbors --min-version 2");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("a b\na c\nb c\n"), std::string::npos) << r.out;
+  r = Gvd("--scene tri neighbors c");
+  EXPECT_NE(r.out.find("a c\nb c\n"), std::string::npos) << r.out;
+  r = Gvd("--scene tri delaunay");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("a b c\n"), std::string::npos) << r.out;
+  r = Gvd("--scene tri boundaries --method continuation");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("3 boundaries"), std::string::npos) << r.out;
+  r = Gvd("--scene tri pick 0.21 0.2");
+  {
+    std::istringstream f(r.out);
+    std::string site, kind;
+    double distance;
+    uint32_t index;
+    f >> site >> distance >> kind >> index;
+    EXPECT_EQ(site, "a") << r.out;
+    EXPECT_EQ(distance, Distance({0.21, 0.2}, {0.2, 0.2})) << r.out;
+    EXPECT_EQ(kind, "vertex");
+  }
+  r = Gvd("--scene tri pick 0.5 0.5 --max-distance 0.01");
+  EXPECT_EQ(r.out, "(nothing within reach)\n");
+  std::string path = server_->dir() + "/path.png";
+  r = Gvd("--scene tri plan --from 0.05,0.05 --to 0.95,0.95 --radius 0.05 -o " + path);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("clearance at least"), std::string::npos) << r.out;
+  std::ifstream in(path, std::ios::binary);
+  std::string magic(8, '\0');
+  in.read(magic.data(), 8);
+  EXPECT_EQ(magic, "\x89PNG\r\n\x1a\n");
+  r = Gvd("--scene tri plan --from 0.2,0.21 --to 0.9,0.9 --radius 0.05");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("NOT_FOUND: start (0.2, 0.21) is within robot_radius 0.05 of site \"a\""),
+            std::string::npos)
+      << r.out;
+  for (const char* out : {"/zoom.png", "/clearance.exr"}) {
+    std::string file = server_->dir() + out;
+    r = Gvd(std::string("--scene tri ") +
+            (out[1] == 'z' ? "zoom --window 0.4,0.2,0.6,0.3 --size 100x50 -o " : "clearance -o ") + file);
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    std::ifstream f(file, std::ios::binary);
+    std::string head(4, '\0');
+    f.read(head.data(), 4);
+    EXPECT_EQ(head, out[1] == 'z' ? std::string("\x89PNG") : std::string("\x76\x2f\x31\x01")) << out;
+  }
+}
+
+// A P6 PPM (which OpenImageIO reads and writes): width, height, then RGB bytes top row first.
+struct Ppm {
+  int w = 0, h = 0;
+  std::vector<unsigned char> rgb;
+  unsigned char* at(int x, int y) { return &rgb[(size_t(y) * w + x) * 3]; }
+};
+
+void WritePpm(const std::string& path, const Ppm& p) {
+  std::ofstream out(path, std::ios::binary);
+  out << "P6\n" << p.w << " " << p.h << "\n255\n";
+  out.write(reinterpret_cast<const char*>(p.rgb.data()), std::streamsize(p.rgb.size()));
+}
+
+Ppm ReadPpm(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string magic;
+  int max = 0;
+  Ppm p;
+  in >> magic >> p.w >> p.h >> max;
+  in.get();
+  p.rgb.resize(size_t(p.w) * p.h * 3);
+  in.read(reinterpret_cast<char*>(p.rgb.data()), std::streamsize(p.rgb.size()));
+  EXPECT_EQ(magic, "P6");
+  return p;
+}
+
+// An image with a smooth left half (a gradient) and a detailed right half (noise): a mosaic
+// keeps only colours of the image, one per tile; --adaptive puts its tiles where the detail
+// is; the server and the embedded renderer make the same mosaic.
+TEST_F(CliTest, MosaicsFromTheServerAndEmbedded) {
+  Ppm in{240, 160, {}};
+  in.rgb.resize(240 * 160 * 3);
+  std::mt19937 rng(2);
+  for (int y = 0; y < in.h; ++y) {
+    for (int x = 0; x < in.w; ++x) {
+      unsigned char* p = in.at(x, y);
+      if (x < in.w / 2) {
+        p[0] = static_cast<unsigned char>(x * 2);
+        p[1] = static_cast<unsigned char>(y);
+        p[2] = 90;
+      } else {
+        p[0] = static_cast<unsigned char>(rng() % 256);
+        p[1] = static_cast<unsigned char>(rng() % 256);
+        p[2] = static_cast<unsigned char>(rng() % 256);
+      }
+    }
+  }
+  const std::string src = server_->dir() + "/photo.ppm";
+  WritePpm(src, in);
+  auto colours = [](Ppm& p, int x0, int x1) {
+    std::set<std::array<unsigned char, 3>> c;
+    for (int y = 0; y < p.h; ++y) {
+      for (int x = x0; x < x1; ++x) c.insert({p.at(x, y)[0], p.at(x, y)[1], p.at(x, y)[2]});
+    }
+    return c;
+  };
+  std::set<std::array<unsigned char, 3>> all = colours(in, 0, in.w);
+  // gvd mosaic takes the diagram from the server; gvd-mosaic renders it itself.
+  std::map<std::string, Ppm> made;
+  for (const char* how : {"embedded", "server", "adaptive embedded"}) {
+    const std::string out = server_->dir() + "/mosaic" + std::to_string(made.size()) + ".ppm";
+    const std::string args = src + " " + out + " --tiles 300 --seed 5" +
+                             (std::string(how).find("adaptive") == 0 ? " --adaptive" : "");
+    Result r = std::string(how) == "server" ? Gvd("mosaic " + args) : Mosaic(args);
+    ASSERT_EQ(r.exit_code, 0) << how << ": " << r.out;
+    EXPECT_NE(r.out.find("300"), std::string::npos) << r.out;
+    Ppm m = ReadPpm(out);
+    ASSERT_EQ(m.w, in.w);
+    ASSERT_EQ(m.h, in.h);
+    auto used = colours(m, 0, m.w);
+    EXPECT_LE(used.size(), 300u) << how;
+    EXPECT_GT(used.size(), 200u) << how;
+    for (const auto& c : used) ASSERT_TRUE(all.count(c)) << how << ": a colour not in the image";
+    made[how] = m;
+  }
+  EXPECT_EQ(made["embedded"].rgb, made["server"].rgb) << "server and embedded mosaics differ";
+  // Random tiles fall about evenly; adaptive ones crowd the noisy half.
+  Ppm& random = made["embedded"];
+  Ppm& adaptive = made["adaptive embedded"];
+  size_t random_left = colours(random, 0, 100).size(), random_right = colours(random, 140, 240).size();
+  size_t adaptive_left = colours(adaptive, 0, 100).size(), adaptive_right = colours(adaptive, 140, 240).size();
+  EXPECT_LT(random_right, 2 * random_left);
+  EXPECT_GT(adaptive_right, 4 * adaptive_left);
+  // Tile means: the smooth half's tiles average a linear gradient, so they keep its colours
+  // near; a bad input name, a bad flag and the CLI's old --embedded are clear errors.
+  Result r = Mosaic(src + " " + server_->dir() + "/mean.ppm --tiles 50 --mean");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  for (Result bad : {Mosaic("/nonexistent.png " + server_->dir() + "/x.png"),
+                     Gvd("mosaic /nonexistent.png " + server_->dir() + "/x.png")}) {
+    EXPECT_EQ(bad.exit_code, 1);
+    EXPECT_NE(bad.out.find("cannot read /nonexistent.png"), std::string::npos) << bad.out;
+  }
+  r = Mosaic(src + " " + server_->dir() + "/y.png --tiles -3");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.out.find("--tiles needs a positive count, not \"-3\""), std::string::npos) << r.out;
+  r = Gvd("mosaic " + src + " " + server_->dir() + "/y.png --embedded");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.out.find("gvd-mosaic"), std::string::npos) << r.out;
+}
+
+// gvd watch prints a line per event until the scene is deleted, then exits 0.
+TEST_F(CliTest, WatchPrintsEventsUntilTheSceneIsDeleted) {
+  ASSERT_EQ(Gvd("scene create watched --window 0,0,10,10 --size 64x64").exit_code, 0);
+  const std::string out = server_->dir() + "/watch.txt";
+  Result watch;
+  std::thread t([&] { watch = Gvd("watch watched > " + out); });
+  auto printed = [&] {
+    std::ifstream in(out);
+    std::stringstream text;
+    text << in.rdbuf();
+    return text.str();
+  };
+  // Its first line: the latest frame, the whole window changed, no sites yet.
+  for (int i = 0; i < 600 && printed().empty(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_EQ(printed(), "version 1: changed [0, 10] x [0, 10], 0 sites\n");
+  ASSERT_EQ(Gvd("--scene watched sites add a 5 5").exit_code, 0);
+  for (int i = 0; i < 600 && printed().find("1 sites") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  ASSERT_EQ(Gvd("scene rm watched").exit_code, 0);
+  t.join();
+  EXPECT_EQ(watch.exit_code, 0) << watch.out;
+  const std::string text = printed();
+  EXPECT_NE(text.find("\nversion 2: changed ["), std::string::npos) << text;
+  EXPECT_NE(text.find("], 1 sites\nscene watched deleted\n"), std::string::npos) << text;
+  EXPECT_EQ(Gvd("watch nowhere").exit_code, 1);
+}
+
+TEST_F(CliTest, HealthSaysServing) {
+  Result r = Gvd("health");
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_EQ(r.out, "SERVING\n");
+}
+
+TEST_F(CliTest, UnreachableServerIsAClearError) {
+  std::string command = std::string(GVD_CLI_PATH) + " --server 127.0.0.1:1 --timeout 2 scene ls 2>&1";
+  FILE* p = popen(command.c_str(), "r");
+  char buf[512] = {};
+  size_t n = fread(buf, 1, sizeof buf - 1, p);
+  int status = pclose(p);
+  EXPECT_EQ(WEXITSTATUS(status), 1);
+  EXPECT_NE(std::string(buf, n).find("UNAVAILABLE"), std::string::npos) << buf;
+}
+
+}  // namespace
+}  // namespace gvd

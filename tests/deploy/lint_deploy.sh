@@ -1,0 +1,77 @@
+#!/usr/bin/env bash
+# Checks the deployment files and scripts: shellcheck, yamllint, the Kubernetes manifests'
+# structure (what a Deployment/Service/PVC must hold, and that they refer to each other
+# consistently), and that every file the Dockerfile copies exists.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+shellcheck -x deploy/run-server.sh deploy/debian-deps.sh tests/run-tests.sh tests/bench/run.sh tests/bench/gpu.sh \
+  tests/deploy/lint_deploy.sh tests/sanitizers/run.sh tests/smoke-server.sh tests/gallery/make.sh tests/server/small_disk.sh tests/soak.sh \
+  tests/deploy/container_test.sh .ci/run
+yamllint -s -c deploy/.yamllint deploy/compose.yaml deploy/k8s/*.yaml
+python3 - deploy/k8s/*.yaml <<'PY'
+import sys
+import yaml
+
+problems = []
+docs = [d for path in sys.argv[1:] for d in yaml.safe_load_all(open(path)) if d]
+by_kind = {}
+for d in docs:
+    for key in ("apiVersion", "kind", "metadata"):
+        if key not in d:
+            problems.append(f"a document lacks {key}")
+    by_kind.setdefault(d.get("kind"), []).append(d)
+for dep in by_kind.get("Deployment", []):
+    spec = dep["spec"]
+    labels = spec["template"]["metadata"]["labels"]
+    for k, v in spec["selector"]["matchLabels"].items():
+        if labels.get(k) != v:
+            problems.append(f"Deployment {dep['metadata']['name']}: selector {k}={v} misses the pod labels")
+    claims = {c["metadata"]["name"] for c in by_kind.get("PersistentVolumeClaim", [])}
+    volumes = {v["name"]: v for v in spec["template"]["spec"].get("volumes", [])}
+    for c in spec["template"]["spec"]["containers"]:
+        ports = {p["name"]: p["containerPort"] for p in c.get("ports", [])}
+        for probe in ("startupProbe", "readinessProbe", "livenessProbe"):
+            p = c.get(probe)
+            if not p or "grpc" not in p or p["grpc"]["port"] not in ports.values():
+                problems.append(f"container {c['name']}: {probe} is not a gRPC probe on a declared port")
+        for m in c.get("volumeMounts", []):
+            v = volumes.get(m["name"])
+            if v is None:
+                problems.append(f"container {c['name']}: mounts unknown volume {m['name']}")
+            elif "persistentVolumeClaim" in v and v["persistentVolumeClaim"]["claimName"] not in claims:
+                problems.append(f"volume {m['name']}: claim {v['persistentVolumeClaim']['claimName']} is not defined")
+        if "nvidia.com/gpu" not in c.get("resources", {}).get("limits", {}):
+            problems.append(f"container {c['name']}: no nvidia.com/gpu limit")
+    for svc in by_kind.get("Service", []):
+        for k, v in svc["spec"]["selector"].items():
+            if labels.get(k) != v:
+                problems.append(f"Service {svc['metadata']['name']}: selector {k}={v} matches no pod")
+        named = {p["name"] for c in spec["template"]["spec"]["containers"] for p in c.get("ports", [])}
+        for p in svc["spec"]["ports"]:
+            if isinstance(p.get("targetPort"), str) and p["targetPort"] not in named:
+                problems.append(f"Service {svc['metadata']['name']}: targetPort {p['targetPort']} is not a container port")
+for kind in ("Deployment", "Service", "PersistentVolumeClaim"):
+    if kind not in by_kind:
+        problems.append(f"no {kind}")
+if problems:
+    print("\n".join(problems))
+    sys.exit(1)
+print(f"{len(docs)} manifests consistent")
+PY
+# Every COPY source of the Dockerfile (context: the repository root) exists.
+grep -E '^COPY [^-]' deploy/Dockerfile | while read -r _ src _; do
+  [ -e "$src" ] || { echo "Dockerfile copies missing $src"; exit 1; }
+done
+# The image's build stage gets every directory the Release build reads: each add_subdirectory
+# of the top CMakeLists.txt (tests aside: the image builds with GVD_BUILD_TESTS=OFF) and each
+# top-level directory a CMakeLists.txt outside tests/ names through PROJECT_SOURCE_DIR (the
+# web app's files, say).
+needed=$( { sed -n 's/^add_subdirectory(\([a-z_]*\))$/\1/p' CMakeLists.txt
+            find . -name CMakeLists.txt -not -path './tests/*' -not -path './build/*' -print0 |
+              xargs -0 grep -ohE 'PROJECT_SOURCE_DIR\}/[a-z_]+/' | sed -E 's|.*\}/([a-z_]+)/|\1|'
+          } | sort -u)
+for dir in $needed; do
+  grep -qE "^COPY $dir $dir\$" deploy/Dockerfile ||
+    { echo "Dockerfile does not copy $dir/, which the build reads"; exit 1; }
+done
+echo "deploy files pass"

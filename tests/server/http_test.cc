@@ -1,0 +1,497 @@
+// The HTTP transport (--http-listen, the Connect protocol in JSON) against the real server:
+// the same answers and the same errors as gRPC, bad requests refused with the field named
+// and nothing changed, tokens, TLS and CORS, server streams, and the drain.
+#include <gtest/gtest.h>
+
+#include <google/protobuf/util/json_util.h>
+#include <google/protobuf/util/message_differencer.h>
+
+#include <boost/asio/connect.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/ssl.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/ssl.hpp>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <thread>
+
+#include "gvd/client.h"
+#include "tests/support/server_process.h"
+#include "tests/support/test_scenes.h"
+
+namespace gvd {
+namespace {
+
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace net = boost::asio;
+namespace ssl = net::ssl;
+using grpc::StatusCode;
+using tcp = net::ip::tcp;
+
+struct Reply {
+  int status = 0;
+  std::map<std::string, std::string> headers;  // lower-case names
+  std::string body;
+};
+
+// One HTTP/1.1 request on a connection of its own (HTTPS when `ca` is set).
+Reply Send(int port, http::verb verb, const std::string& target, const std::string& body,
+           const std::map<std::string, std::string>& headers = {},
+           const std::string& ca = "") {
+  net::io_context ioc;
+  http::request<http::string_body> req{verb, target, 11};
+  req.set(http::field::host, "127.0.0.1");
+  for (const auto& [k, v] : headers) req.set(k, v);
+  req.body() = body;
+  req.prepare_payload();
+  http::response<http::string_body> res;
+  beast::flat_buffer buffer;
+  tcp::resolver resolver(ioc);
+  auto endpoints = resolver.resolve("127.0.0.1", std::to_string(port));
+  if (ca.empty()) {
+    beast::tcp_stream stream(ioc);
+    stream.connect(endpoints);
+    http::write(stream, req);
+    http::read(stream, buffer, res);
+  } else {
+    ssl::context ctx(ssl::context::tls_client);
+    ctx.add_certificate_authority(net::buffer(ca));
+    ctx.set_verify_mode(ssl::verify_peer);
+    beast::ssl_stream<beast::tcp_stream> stream(ioc, ctx);
+    beast::get_lowest_layer(stream).connect(endpoints);
+    stream.handshake(ssl::stream_base::client);
+    http::write(stream, req);
+    http::read(stream, buffer, res);
+  }
+  Reply r;
+  r.status = static_cast<int>(res.result_int());
+  for (const auto& f : res) {
+    std::string name(f.name_string());
+    for (char& c : name) c = static_cast<char>(std::tolower(c));
+    r.headers[name] = std::string(f.value());
+  }
+  r.body = res.body();
+  return r;
+}
+
+Reply Post(int port, const std::string& method, const std::string& json,
+           std::map<std::string, std::string> headers = {}) {
+  headers.emplace("Content-Type", "application/json");
+  return Send(port, http::verb::post, "/gvd.v1.Voronoi/" + method, json, headers);
+}
+
+template <class M>
+std::string Json(const M& m) {
+  std::string out;
+  EXPECT_TRUE(google::protobuf::util::MessageToJsonString(m, &out).ok());
+  return out;
+}
+template <class M>
+M Parse(const std::string& json) {
+  M m;
+  auto s = google::protobuf::util::JsonStringToMessage(json, &m);
+  EXPECT_TRUE(s.ok()) << s.message() << " in " << json;
+  return m;
+}
+
+// The string value of the first "key" in a JSON text (with \" and \\ unescaped), or "?".
+// (Not protobuf's Struct: Debian's protobuf maps crash under the TSan build's instrumentation.)
+std::string JsonString(const std::string& json, const std::string& key) {
+  const std::string start = "\"" + key + "\":\"";
+  size_t at = json.find(start);
+  if (at == std::string::npos) return "?";
+  std::string out;
+  for (at += start.size(); at < json.size() && json[at] != '"'; ++at) {
+    if (json[at] == '\\' && at + 1 < json.size()) ++at;
+    out += json[at];
+  }
+  return out;
+}
+
+// The Connect error of a reply: its code and message.
+std::pair<std::string, std::string> ConnectError(const Reply& r) {
+  EXPECT_EQ(r.headers.count("content-type") ? r.headers.at("content-type") : "", "application/json");
+  return {JsonString(r.body, "code"), JsonString(r.body, "message")};
+}
+
+const char* CodeName(StatusCode c) {
+  switch (c) {
+    case StatusCode::INVALID_ARGUMENT: return "invalid_argument";
+    case StatusCode::NOT_FOUND: return "not_found";
+    case StatusCode::ALREADY_EXISTS: return "already_exists";
+    case StatusCode::OUT_OF_RANGE: return "out_of_range";
+    case StatusCode::FAILED_PRECONDITION: return "failed_precondition";
+    case StatusCode::RESOURCE_EXHAUSTED: return "resource_exhausted";
+    case StatusCode::UNAUTHENTICATED: return "unauthenticated";
+    case StatusCode::PERMISSION_DENIED: return "permission_denied";
+    default: return "?";
+  }
+}
+
+// The messages of a Connect server stream: the enveloped JSON messages, then the end.
+struct StreamReply {
+  int status = 0;
+  std::vector<std::string> messages;
+  std::string end;  // the end-of-stream JSON
+};
+StreamReply ReadStream(const std::string& body, int status) {
+  StreamReply r;
+  r.status = status;
+  size_t at = 0;
+  while (at + 5 <= body.size()) {
+    const uint8_t flags = static_cast<uint8_t>(body[at]);
+    const uint32_t n = (uint32_t(uint8_t(body[at + 1])) << 24) | (uint32_t(uint8_t(body[at + 2])) << 16) |
+                       (uint32_t(uint8_t(body[at + 3])) << 8) | uint32_t(uint8_t(body[at + 4]));
+    std::string payload = body.substr(at + 5, n);
+    at += 5 + n;
+    if (flags & 0x02) {
+      r.end = payload;
+    } else {
+      r.messages.push_back(payload);
+    }
+  }
+  return r;
+}
+std::string Envelope(const std::string& json) {
+  std::string out(5, '\0');
+  const uint32_t n = static_cast<uint32_t>(json.size());
+  for (int i = 0; i < 4; ++i) out[1 + i] = static_cast<char>((n >> (24 - 8 * i)) & 0xff);
+  return out + json;
+}
+StreamReply Stream(int port, const std::string& method, const std::string& json) {
+  Reply r = Send(port, http::verb::post, "/gvd.v1.Voronoi/" + method, Envelope(json),
+                 {{"Content-Type", "application/connect+json"}});
+  EXPECT_EQ(r.headers["content-type"], "application/connect+json");
+  return ReadStream(r.body, r.status);
+}
+
+class HttpTest : public testing::SharedServerTest {
+ protected:
+  static void SetUpTestSuite() {
+    StartServer({"--http-listen", "127.0.0.1:0", "--max-message-bytes", "200000",
+                 "--http-cors-origins", "https://app.example.com"});
+  }
+  static int port() { return server_->http_port(); }
+};
+
+// Every kind of call, JSON over HTTP and gRPC, gives the same answer; the same bad requests
+// get the same code and message.
+TEST_F(HttpTest, JsonAndGrpcGiveTheSameAnswersAndErrors) {
+  ASSERT_GT(port(), 0);
+  v1::CreateSceneRequest create;
+  create.set_scene_id("both");
+  create.mutable_window()->set_max_x(1);
+  create.mutable_window()->set_max_y(1);
+  create.set_width_px(128);
+  create.set_height_px(128);
+  Reply r = Post(port(), "CreateScene", Json(create));
+  ASSERT_EQ(r.status, 200) << r.body;
+  EXPECT_EQ(r.headers["content-type"], "application/json");
+  v1::UpsertSitesRequest upsert;
+  upsert.set_scene_id("both");
+  for (const Site& s : std::vector<Site>{{"a", PointSite{{0.2, 0.3}}},
+                                         {"b", SegmentSite{{0.6, 0.6}, {0.9, 0.7}}},
+                                         {"c", PolygonSite{{{0.1, 0.8}, {0.3, 0.9}, {0.2, 0.6}}}}}) {
+    *upsert.add_sites() = testing::ToProtoSite(s);
+  }
+  r = Post(port(), "UpsertSites", Json(upsert));
+  ASSERT_EQ(r.status, 200) << r.body;
+  const uint64_t version = Parse<v1::UpsertSitesResponse>(r.body).version();
+  ASSERT_EQ(version, 2u);
+
+  auto same = [&](const std::string& method, const google::protobuf::Message& grpc_answer,
+                  const std::string& request) {
+    Reply h = Post(port(), method, request);
+    ASSERT_EQ(h.status, 200) << method << ": " << h.body;
+    std::unique_ptr<google::protobuf::Message> parsed(grpc_answer.New());
+    ASSERT_TRUE(google::protobuf::util::JsonStringToMessage(h.body, parsed.get()).ok()) << h.body;
+    EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(*parsed, grpc_answer))
+        << method << "\nHTTP: " << parsed->DebugString() << "\ngRPC: " << grpc_answer.DebugString();
+  };
+  v1::FindNearestRequest find;
+  find.set_scene_id("both");
+  find.set_min_version(version);
+  for (double x : {0.1, 0.5, 0.85}) {
+    auto* p = find.add_points();
+    p->set_x(x);
+    p->set_y(0.65);
+  }
+  v1::FindNearestResponse found;
+  ASSERT_TRUE(client_->FindNearest(find, &found).ok());
+  same("FindNearest", found, Json(find));
+  v1::FindNearestRequest packed;
+  packed.set_scene_id("both");
+  packed.set_exact(true);
+  for (double v : {0.1, 0.2, 0.5, 0.5, 2.0, -1.0}) packed.add_xy(v);
+  ASSERT_TRUE(client_->FindNearest(packed, &found).ok());
+  same("FindNearest", found, Json(packed));
+  v1::Scene scene;
+  ASSERT_TRUE(client_->GetScene("both", &scene).ok());
+  v1::GetSceneRequest get;
+  get.set_scene_id("both");
+  same("GetScene", scene, Json(get));
+  v1::ListSitesRequest list;
+  list.set_scene_id("both");
+  v1::ListSitesResponse sites;
+  ASSERT_TRUE(client_->ListSites(list, &sites).ok());
+  same("ListSites", sites, Json(list));
+  v1::PickRequest pick;
+  pick.set_scene_id("both");
+  pick.mutable_point()->set_x(0.75);
+  pick.mutable_point()->set_y(0.6);
+  v1::PickResponse picked;
+  ASSERT_TRUE(client_->Pick(pick, &picked).ok());
+  same("Pick", picked, Json(pick));
+  v1::RenderImageRequest image;
+  image.set_scene_id("both");
+  image.set_min_version(version);
+  v1::RenderImageResponse png;
+  ASSERT_TRUE(client_->RenderImage(image, &png).ok());
+  same("RenderImage", png, Json(image));  // bytes travel as base64
+  v1::GetBoundariesRequest bounds;
+  bounds.set_scene_id("both");
+  bounds.set_min_version(version);
+  v1::GetBoundariesResponse boundaries;
+  ASSERT_TRUE(client_->GetBoundaries(bounds, &boundaries).ok());
+  same("GetBoundaries", boundaries, Json(bounds));
+
+  // Errors: the same code and message both ways, and the HTTP status of the code.
+  struct Bad {
+    std::string method, json;
+    std::function<grpc::Status()> grpc_call;
+    int http_status;
+  };
+  v1::CreateSceneRequest zero = create;
+  zero.set_scene_id("zero");
+  zero.set_width_px(0);
+  v1::FindNearestRequest ahead = find;
+  ahead.set_min_version(99);
+  v1::GetSceneRequest missing;
+  missing.set_scene_id("missing");
+  const std::vector<Bad> bad = {
+      {"CreateScene", Json(zero), [&] { return client_->CreateScene(zero, &scene); }, 400},
+      {"CreateScene", Json(create), [&] { return client_->CreateScene(create, &scene); }, 409},
+      {"FindNearest", Json(ahead), [&] { return client_->FindNearest(ahead, &found); }, 400},
+      {"GetScene", Json(missing), [&] { return client_->GetScene("missing", &scene); }, 404},
+  };
+  for (const Bad& b : bad) {
+    grpc::Status g = b.grpc_call();
+    ASSERT_FALSE(g.ok()) << b.json;
+    Reply h = Post(port(), b.method, b.json);
+    EXPECT_EQ(h.status, b.http_status) << h.body;
+    EXPECT_EQ(h.headers["content-type"], "application/json");
+    auto [code, message] = ConnectError(h);
+    EXPECT_EQ(code, CodeName(g.error_code())) << h.body;
+    EXPECT_EQ(message, g.error_message());
+  }
+}
+
+// Bad JSON, fields unknown or of the wrong type, oversize bodies, unknown methods, wrong
+// verbs and content types: a 4xx naming what is wrong, and nothing changed.
+TEST_F(HttpTest, BadRequestsAreRefusedByNameAndChangeNothing) {
+  std::vector<v1::Scene> before, after;
+  ASSERT_TRUE(client_->ListScenes(&before).ok());
+  struct Case {
+    std::string what;
+    Reply reply;
+    int status;
+    std::string code, names;
+  };
+  const std::string huge(300000, ' ');
+  const std::vector<Case> cases = {
+      {"not JSON", Post(port(), "CreateScene", "{\"sceneId\": "), 400, "invalid_argument", ""},
+      {"unknown field", Post(port(), "CreateScene", R"({"sceneId": "x", "colour": "red"})"), 400,
+       "invalid_argument", "colour"},
+      {"wrong type", Post(port(), "CreateScene", R"({"sceneId": "x", "widthPx": "wide"})"), 400,
+       "invalid_argument", "width_px"},
+      {"wrong type in a list",
+       Post(port(), "UpsertSites", R"({"sceneId": "x", "sites": [{"id": "a", "point": {"x": []}}]})"),
+       400, "invalid_argument", "x"},
+      {"oversize", Post(port(), "CreateScene", "{\"sceneId\": \"x\"" + huge + "}"), 413,
+       "resource_exhausted", "--max-message-bytes"},
+      {"unknown method", Post(port(), "MakeCoffee", "{}"), 404, "unimplemented", "MakeCoffee"},
+      {"GET of a method", Send(port(), http::verb::get, "/gvd.v1.Voronoi/ListScenes", ""), 405,
+       "unimplemented", "POST"},
+      {"plain text", Send(port(), http::verb::post, "/gvd.v1.Voronoi/ListScenes", "{}",
+                          {{"Content-Type", "text/plain"}}),
+       415, "unimplemented", "application/json"},
+      {"unknown path", Send(port(), http::verb::get, "/etc/passwd", ""), 404, "not_found",
+       "/etc/passwd"},
+      {"bad timeout", Post(port(), "ListScenes", "{}", {{"Connect-Timeout-Ms", "soon"}}), 400,
+       "invalid_argument", "Connect-Timeout-Ms"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.what);
+    EXPECT_EQ(c.reply.status, c.status) << c.reply.body;
+    auto [code, message] = ConnectError(c.reply);
+    EXPECT_EQ(code, c.code);
+    EXPECT_NE(message.find(c.names), std::string::npos) << message;
+  }
+  ASSERT_TRUE(client_->ListScenes(&after).ok());
+  EXPECT_EQ(before.size(), after.size());
+  // The connection stays usable after a refusal it could read through.
+  EXPECT_EQ(Post(port(), "ListScenes", "{}").status, 200);
+}
+
+// Server streams in the Connect protocol: FindNearestStream's chunks as gRPC gives them,
+// WatchScene's events and its end at the scene's deletion, and an error's end.
+TEST_F(HttpTest, ServerStreamsOverHttp) {
+  v1::CreateSceneRequest create;
+  create.set_scene_id("streamed");
+  create.mutable_window()->set_max_x(1);
+  create.mutable_window()->set_max_y(1);
+  create.set_width_px(64);
+  create.set_height_px(64);
+  v1::Scene scene;
+  ASSERT_TRUE(client_->CreateScene(create, &scene).ok());
+  const uint64_t v = Upsert("streamed", {{"a", PointSite{{0.2, 0.2}}}, {"b", PointSite{{0.8, 0.7}}}});
+  v1::FindNearestRequest find;
+  find.set_scene_id("streamed");
+  find.set_min_version(v);
+  find.set_chunk_size(3);
+  for (int i = 0; i < 10; ++i) {
+    find.add_xy(i / 10.0);
+    find.add_xy(1 - i / 10.0);
+  }
+  std::vector<v1::FindNearestResponse> chunks;
+  ASSERT_TRUE(client_->FindNearestStream(find, &chunks).ok());
+  StreamReply s = Stream(port(), "FindNearestStream", Json(find));
+  EXPECT_EQ(s.status, 200);
+  ASSERT_EQ(s.messages.size(), chunks.size());
+  for (size_t k = 0; k < chunks.size(); ++k) {
+    EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(
+        Parse<v1::FindNearestResponse>(s.messages[k]), chunks[k]));
+  }
+  EXPECT_EQ(s.end, "{}");
+
+  // A watch, on its own thread until the deletion ends it.
+  StreamReply watched;
+  std::thread watcher([&] {
+    v1::WatchSceneRequest w;
+    w.set_scene_id("streamed");
+    w.set_after_version(v);
+    watched = Stream(port(), "WatchScene", Json(w));
+  });
+  uint64_t last = v;
+  // Writes until the watch has certainly seen one: each write is a new version, and the
+  // watch waits for versions after v.
+  for (int i = 0; i < 3; ++i) {
+    last = Upsert("streamed", {{"c" + std::to_string(i), PointSite{{0.5, 0.1 * i}}}});
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_TRUE(client_->DeleteScene("streamed").ok());
+  watcher.join();
+  EXPECT_EQ(watched.status, 200);
+  ASSERT_GE(watched.messages.size(), 2u);
+  EXPECT_EQ(Parse<v1::SceneEvent>(watched.messages.front()).scene_id(), "streamed");
+  EXPECT_GT(Parse<v1::SceneEvent>(watched.messages.front()).version(), v);
+  EXPECT_TRUE(Parse<v1::SceneEvent>(watched.messages.back()).deleted());
+  EXPECT_LE(Parse<v1::SceneEvent>(watched.messages[watched.messages.size() - 2]).version(), last);
+  EXPECT_EQ(watched.end, "{}");
+
+  v1::WatchSceneRequest gone;
+  gone.set_scene_id("streamed");
+  StreamReply error = Stream(port(), "WatchScene", Json(gone));
+  EXPECT_EQ(error.status, 200);
+  EXPECT_TRUE(error.messages.empty());
+  EXPECT_EQ(error.end.rfind("{\"error\":{", 0), 0u) << error.end;
+  EXPECT_EQ(JsonString(error.end, "code"), "not_found");
+}
+
+// CORS: a preflight from an allowed origin is answered with what a browser needs, from
+// another origin refused; answers carry Access-Control-Allow-Origin only for allowed ones.
+TEST_F(HttpTest, CorsForTheAllowedOriginsOnly) {
+  Reply ok = Send(port(), http::verb::options, "/gvd.v1.Voronoi/ListScenes", "",
+                  {{"Origin", "https://app.example.com"},
+                   {"Access-Control-Request-Method", "POST"},
+                   {"Access-Control-Request-Headers", "content-type, authorization"}});
+  EXPECT_EQ(ok.status, 204);
+  EXPECT_EQ(ok.headers["access-control-allow-origin"], "https://app.example.com");
+  EXPECT_NE(ok.headers["access-control-allow-headers"].find("Authorization"), std::string::npos);
+  EXPECT_NE(ok.headers["access-control-allow-methods"].find("POST"), std::string::npos);
+  Reply other = Send(port(), http::verb::options, "/gvd.v1.Voronoi/ListScenes", "",
+                     {{"Origin", "https://evil.example.com"}, {"Access-Control-Request-Method", "POST"}});
+  EXPECT_EQ(other.status, 403);
+  EXPECT_EQ(other.headers.count("access-control-allow-origin"), 0u);
+  EXPECT_EQ(Post(port(), "ListScenes", "{}", {{"Origin", "https://app.example.com"}})
+                .headers["access-control-allow-origin"],
+            "https://app.example.com");
+  EXPECT_EQ(Post(port(), "ListScenes", "{}", {{"Origin", "https://evil.example.com"}})
+                .headers.count("access-control-allow-origin"),
+            0u);
+}
+
+// Tokens and TLS apply to HTTP as to gRPC: no token, UNAUTHENTICATED (401); a read token on
+// a write, PERMISSION_DENIED (403); a write token works; only over HTTPS with the server's
+// certificate.
+TEST(HttpSecurity, TokensAndTls) {
+  char dir_template[] = "/tmp/gvd-http-pki-XXXXXX";
+  const std::string d = mkdtemp(dir_template);
+  const std::string ec = " -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes ";
+  const std::string script =
+      "cd " + d + " && exec >openssl.log 2>&1 && set -e && "
+      "openssl req -x509" + ec + "-keyout ca.key -out ca.pem -days 2 -subj /CN=gvd-test-ca && "
+      "openssl req" + ec + "-keyout server.key -out server.csr -subj /CN=localhost && "
+      "printf 'subjectAltName=IP:127.0.0.1,DNS:localhost' > san.ext && "
+      "openssl x509 -req -in server.csr -CA ca.pem -CAkey ca.key -CAcreateserial "
+      "-out server.pem -days 2 -extfile san.ext";
+  if (std::system(("bash -c \"" + script + "\"").c_str()) != 0) {
+    GTEST_SKIP() << "openssl could not make test certificates";
+  }
+  std::ofstream(d + "/tokens") << "reader-token-0123456789 read\nwriter-token-0123456789 write\n";
+  testing::ServerProcess server(GVD_SERVER_PATH,
+                                {"--http-listen", "127.0.0.1:0", "--tokens", d + "/tokens",
+                                 "--tls-cert", d + "/server.pem", "--tls-key", d + "/server.key"});
+  ASSERT_TRUE(server.error().empty()) << server.error();
+  std::stringstream ca;
+  ca << std::ifstream(d + "/ca.pem").rdbuf();
+  auto post = [&](const std::string& method, const std::string& json, const std::string& token) {
+    std::map<std::string, std::string> h{{"Content-Type", "application/json"}};
+    if (!token.empty()) h["Authorization"] = "Bearer " + token;
+    return Send(server.http_port(), http::verb::post, "/gvd.v1.Voronoi/" + method, json, h,
+                ca.str());
+  };
+  const std::string create =
+      R"({"sceneId": "s", "window": {"maxX": 1, "maxY": 1}, "widthPx": 8, "heightPx": 8})";
+  Reply r = post("ListScenes", "{}", "");
+  EXPECT_EQ(r.status, 401);
+  EXPECT_EQ(ConnectError(r).first, "unauthenticated");
+  r = post("CreateScene", create, "reader-token-0123456789");
+  EXPECT_EQ(r.status, 403);
+  EXPECT_EQ(ConnectError(r).first, "permission_denied");
+  EXPECT_EQ(post("CreateScene", create, "writer-token-0123456789").status, 200);
+  EXPECT_EQ(post("ListScenes", "{}", "reader-token-0123456789").status, 200);
+  // Plain HTTP on the TLS port gets no answer.
+  EXPECT_ANY_THROW(Send(server.http_port(), http::verb::post, "/gvd.v1.Voronoi/ListScenes", "{}",
+                        {{"Content-Type", "application/json"}}));
+  std::system(("rm -rf " + d).c_str());
+}
+
+// SIGTERM: an HTTP watch ends with UNAVAILABLE in its end-of-stream, and the server exits 0.
+TEST(HttpDrain, ShutdownEndsHttpStreams) {
+  testing::ServerProcess server(GVD_SERVER_PATH,
+                                {"--http-listen", "127.0.0.1:0", "--shutdown-grace-ms", "600000"});
+  ASSERT_TRUE(server.error().empty()) << server.error();
+  ASSERT_EQ(Post(server.http_port(), "CreateScene",
+                 R"({"sceneId": "s", "window": {"maxX": 1, "maxY": 1}, "widthPx": 8, "heightPx": 8})")
+                .status,
+            200);
+  StreamReply watched;
+  std::thread watcher([&] { watched = Stream(server.http_port(), "WatchScene", R"({"sceneId": "s"})"); });
+  // The first event comes at once (the scene's frame); then the drain.
+  for (int i = 0; i < 100; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  server.Terminate();
+  watcher.join();
+  EXPECT_EQ(watched.status, 200);
+  ASSERT_FALSE(watched.messages.empty());
+  EXPECT_EQ(watched.end.rfind("{\"error\":{", 0), 0u) << watched.end;
+  EXPECT_EQ(JsonString(watched.end, "code"), "unavailable");
+  const int status = server.Wait();
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << server.log();
+}
+
+}  // namespace
+}  // namespace gvd

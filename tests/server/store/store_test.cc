@@ -1,0 +1,571 @@
+// The store behind the scene core: the byte form of sites and settings, and SqliteStore's
+// load, commit, delete, reopen and conversion of the earlier schema. The oracle is a plain
+// model kept here (a std::map of encoded-by-hand fields), compared bit for bit.
+#include <sqlite3.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <limits>
+#include <map>
+#include <memory>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "render/scene/codec.h"
+#include "render/scene/scene.h"
+#include "server/store/sqlite_store.h"
+
+namespace gvd {
+namespace {
+
+bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+bool SamePoints(const std::vector<Vec2>& a, const std::vector<Vec2>& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (!SameBits(a[i].x, b[i].x) || !SameBits(a[i].y, b[i].y)) return false;
+  }
+  return true;
+}
+
+// Field by field and bit for bit, written here rather than taken from the code under test.
+bool SameSite(const Site& a, const Site& b) {
+  if (a.id != b.id || !SameBits(a.additive, b.additive) ||
+      !SameBits(a.multiplicative, b.multiplicative) || !SameBits(a.max_distance, b.max_distance) ||
+      a.geometry.index() != b.geometry.index()) {
+    return false;
+  }
+  if (auto* p = std::get_if<PointSite>(&a.geometry)) {
+    return SamePoints({p->p}, {std::get<PointSite>(b.geometry).p});
+  }
+  if (auto* s = std::get_if<SegmentSite>(&a.geometry)) {
+    const auto& t = std::get<SegmentSite>(b.geometry);
+    return SamePoints({s->a, s->b}, {t.a, t.b});
+  }
+  if (auto* l = std::get_if<PolylineSite>(&a.geometry)) {
+    return SamePoints(l->points, std::get<PolylineSite>(b.geometry).points);
+  }
+  if (auto* g = std::get_if<PolygonSite>(&a.geometry)) {
+    const auto& h = std::get<PolygonSite>(b.geometry);
+    return g->side == h.side && SamePoints(g->vertices, h.vertices);
+  }
+  const auto& c = std::get<BezierSite>(a.geometry);
+  const auto& d = std::get<BezierSite>(b.geometry);
+  return SameBits(c.tolerance, d.tolerance) && SamePoints(c.control, d.control) &&
+         SamePoints(c.flat, d.flat);
+}
+
+// A random site of every kind in turn, with awkward values: -0, subnormals, huge and tiny
+// magnitudes, infinite max_distance, ids with bytes of every value.
+Site RandomSite(std::mt19937_64& rng, int kind, const std::string& id) {
+  const double awkward[] = {-0.0, 5e-324, 1e308, -1e-300, 0.1, 1.0 / 3, -7.5e12};
+  std::uniform_real_distribution<double> u(-1e6, 1e6);
+  auto value = [&] { return rng() % 4 == 0 ? awkward[rng() % 7] : u(rng); };
+  auto points = [&](size_t n) {
+    std::vector<Vec2> v(n);
+    for (Vec2& p : v) p = {value(), value()};
+    return v;
+  };
+  Site s;
+  s.id = id;
+  s.additive = rng() % 2 ? 0 : std::abs(value());
+  s.multiplicative = rng() % 2 ? 1 : 1 + std::abs(u(rng));
+  s.max_distance = rng() % 2 ? INFINITY : 1 + std::abs(u(rng));
+  switch (kind % 5) {
+    case 0: s.geometry = PointSite{{value(), value()}}; break;
+    case 1: s.geometry = SegmentSite{{value(), value()}, {value(), value()}}; break;
+    case 2: s.geometry = PolylineSite{points(2 + rng() % 40)}; break;
+    case 3: s.geometry = PolygonSite{points(3 + rng() % 40), static_cast<Side>(rng() % 3)}; break;
+    default: s.geometry = BezierSite{points(3 + rng() % 2), std::abs(value()), points(2 + rng() % 90)};
+  }
+  return s;
+}
+
+std::string RandomId(std::mt19937_64& rng) {
+  std::string id(1 + rng() % 12, '\0');
+  for (char& c : id) c = static_cast<char>(rng() % 256);
+  return id;
+}
+
+SceneSettings ValidSettings() {
+  SceneSettings s;
+  s.id = "scene";
+  s.grid = Grid{{0, 0, 2, 1}, 64, 32};
+  s.eps = 0.01;
+  s.cone_triangles = 40;
+  return s;
+}
+
+TEST(Codec, SitesRoundTripBitForBit) {
+  std::mt19937_64 rng(11);
+  for (int i = 0; i < 2000; ++i) {
+    Site s = RandomSite(rng, i, RandomId(rng));
+    auto back = DecodeSite(EncodeSite(s));
+    ASSERT_TRUE(back.ok()) << back.status();
+    EXPECT_TRUE(SameSite(s, *back)) << "site " << i;
+  }
+}
+
+TEST(Codec, SettingsRoundTripBitForBit) {
+  SceneSettings s;
+  s.id = std::string("scene\0with nul", 14);
+  s.grid = Grid{{-0.0, -1e300, 5e-324, 1e300}, 4096, 3};
+  s.eps = 1.0 / 3;
+  s.cone_triangles = 77;
+  s.mode = RenderMode::kExact;
+  s.diagram = Diagram::kFarthest;
+  auto back = DecodeSettings(EncodeSettings(s));
+  ASSERT_TRUE(back.ok()) << back.status();
+  EXPECT_EQ(back->id, s.id);
+  EXPECT_TRUE(SameBits(back->grid.window.min_x, -0.0));
+  EXPECT_TRUE(SameBits(back->grid.window.min_y, -1e300));
+  EXPECT_TRUE(SameBits(back->grid.window.max_x, 5e-324));
+  EXPECT_TRUE(SameBits(back->grid.window.max_y, 1e300));
+  EXPECT_EQ(back->grid.width, 4096u);
+  EXPECT_EQ(back->grid.height, 3u);
+  EXPECT_TRUE(SameBits(back->eps, 1.0 / 3));
+  EXPECT_EQ(back->cone_triangles, 77u);
+  EXPECT_EQ(back->mode, RenderMode::kExact);
+  EXPECT_EQ(back->diagram, Diagram::kFarthest);
+}
+
+// Damage is DATA_LOSS, never a crash or a site read from garbage: every proper prefix, every
+// extension and every changed format or tag byte of an encoding is refused.
+TEST(Codec, DamagedBytesAreDataLoss) {
+  std::mt19937_64 rng(12);
+  for (int kind = 0; kind < 5; ++kind) {
+    const std::string bytes = EncodeSite(RandomSite(rng, kind, "id"));
+    for (size_t n = 0; n < bytes.size(); ++n) {
+      auto s = DecodeSite(std::string_view(bytes).substr(0, n));
+      ASSERT_EQ(s.status().code(), absl::StatusCode::kDataLoss) << "kind " << kind << " prefix " << n;
+    }
+    EXPECT_EQ(DecodeSite(bytes + "x").status().code(), absl::StatusCode::kDataLoss);
+    std::string format = bytes;
+    format[0] = 9;
+    EXPECT_EQ(DecodeSite(format).status().code(), absl::StatusCode::kDataLoss);
+    // The geometry tag follows the format byte, the id (4-byte length + 2 bytes) and the
+    // three weights.
+    std::string tag = bytes;
+    tag[1 + 4 + 2 + 24] = 0;
+    EXPECT_EQ(DecodeSite(tag).status().code(), absl::StatusCode::kDataLoss);
+  }
+  // A point count far beyond the bytes present.
+  std::string line = EncodeSite(Site{"l", PolylineSite{{{0, 0}, {1, 1}}}});
+  line[1 + 4 + 1 + 24 + 1 + 3] = '\x7f';
+  EXPECT_EQ(DecodeSite(line).status().code(), absl::StatusCode::kDataLoss);
+  const std::string settings = EncodeSettings(ValidSettings());
+  ASSERT_TRUE(DecodeSettings(settings).ok());
+  for (size_t n = 0; n < settings.size(); ++n) {
+    EXPECT_EQ(DecodeSettings(settings.substr(0, n)).status().code(), absl::StatusCode::kDataLoss);
+  }
+  std::string mode = settings;
+  mode[mode.size() - 2] = 7;
+  EXPECT_EQ(DecodeSettings(mode).status().code(), absl::StatusCode::kDataLoss);
+}
+
+// Well-formed bytes whose values no accepted site or scene has (a NaN coordinate, a negative
+// weight, a polygon of two vertices, an empty window...) were damaged after they were
+// written: DATA_LOSS too, so that the server stops naming the file rather than render them.
+TEST(Codec, ValuesNoAcceptedSiteHadAreDataLoss) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  std::vector<Site> bad = {
+      Site{"", PointSite{{0, 0}}},
+      Site{"p", PointSite{{nan, 0}}},
+      Site{"p", PointSite{{0, inf}}},
+      Site{"s", SegmentSite{{0, 0}, {-inf, 1}}},
+      Site{"l", PolylineSite{{{0, 0}}}},
+      Site{"l", PolylineSite{{{0, 0}, {1, nan}}}},
+      Site{"g", PolygonSite{{{0, 0}, {1, 1}}}},
+      Site{"b", BezierSite{{{0, 0}, {1, 1}}, 0.1, {{0, 0}, {1, 1}}}},
+      Site{"b", BezierSite{{{0, 0}, {1, 1}, {2, 0}}, -1, {{0, 0}, {2, 0}}}},
+  };
+  for (double additive : {-1.0, nan, inf}) bad.push_back(Site{"w", PointSite{{0, 0}}, additive});
+  for (double m : {0.0, -2.0, nan}) bad.push_back(Site{"w", PointSite{{0, 0}}, 0, m});
+  for (double r : {0.0, -1.0, nan}) bad.push_back(Site{"w", PointSite{{0, 0}}, 0, 1, r});
+  for (size_t i = 0; i < bad.size(); ++i) {
+    EXPECT_EQ(DecodeSite(EncodeSite(bad[i])).status().code(), absl::StatusCode::kDataLoss) << i;
+  }
+  // The same sites with their values mended decode.
+  EXPECT_TRUE(DecodeSite(EncodeSite(Site{"p", PointSite{{0, 1e300}}, 1e15, 1e-6, 1e-300})).ok());
+  EXPECT_TRUE(DecodeSite(EncodeSite(Site{"g", PolygonSite{{{0, 0}, {1, 1}, {0, 0}}}})).ok());
+
+  std::vector<SceneSettings> scenes(7, ValidSettings());
+  scenes[0].id.clear();
+  scenes[1].grid.window.max_x = scenes[1].grid.window.min_x;
+  scenes[2].grid.window.min_y = nan;
+  scenes[3].grid.window = {-1e308, 0, 1e308, 1};  // its width overflows
+  scenes[4].grid.height = 0;
+  scenes[5].eps = 0;
+  scenes[6].cone_triangles = 2;
+  for (size_t i = 0; i < scenes.size(); ++i) {
+    EXPECT_EQ(DecodeSettings(EncodeSettings(scenes[i])).status().code(),
+              absl::StatusCode::kDataLoss) << i;
+  }
+}
+
+// A fresh directory under /tmp, removed at the end of the test.
+class TempDir {
+ public:
+  TempDir() {
+    char t[] = "/tmp/gvd-store-XXXXXX";
+    path_ = mkdtemp(t);
+  }
+  ~TempDir() { std::system(("rm -rf '" + path_ + "'").c_str()); }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
+SceneSettings Settings(const std::string& id) {
+  SceneSettings s;
+  s.id = id;
+  s.grid = Grid{{0, 0, 1, 1}, 32, 16};
+  s.eps = 0.25;
+  s.cone_triangles = 9;
+  return s;
+}
+
+using SceneModel = std::map<std::string, Site>;
+struct StoreModel {
+  std::map<std::string, uint64_t> versions;
+  std::map<std::string, SceneModel> sites;
+};
+
+void ExpectStoreHolds(SqliteStore& store, const StoreModel& model) {
+  auto loaded = store.Load();
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  ASSERT_EQ(loaded->size(), model.versions.size());
+  auto expected = model.versions.begin();
+  for (const StoredScene& scene : *loaded) {
+    SCOPED_TRACE(scene.settings.id);
+    ASSERT_EQ(scene.settings.id, expected->first);  // in id order
+    EXPECT_EQ(scene.version, expected->second);
+    EXPECT_EQ(scene.settings.grid.width, 32u);
+    EXPECT_TRUE(SameBits(scene.settings.eps, 0.25));
+    const SceneModel& sites = model.sites.at(scene.settings.id);
+    ASSERT_EQ(scene.sites.size(), sites.size());
+    for (const Site& site : scene.sites) {
+      auto it = sites.find(site.id);
+      ASSERT_NE(it, sites.end()) << site.id;
+      EXPECT_TRUE(SameSite(site, it->second)) << site.id;
+    }
+    ++expected;
+  }
+}
+
+// Random creates, change sets and deletes, checked against the model after each reopen: what
+// a call acknowledged is there, a refused call left nothing behind.
+TEST(Store, KeepsWhatWasCommittedAcrossReopens) {
+  TempDir dir;
+  std::mt19937_64 rng(13);
+  StoreModel model;
+  for (int round = 0; round < 4; ++round) {
+    auto store = SqliteStore::Open(dir.path() + "/data");
+    ASSERT_TRUE(store.ok()) << store.status();
+    ExpectStoreHolds(**store, model);
+    for (int op = 0; op < 60; ++op) {
+      const std::string scene = "s" + std::to_string(rng() % 4);
+      const bool exists = model.versions.count(scene) > 0;
+      if (!exists) {
+        ASSERT_TRUE((*store)->CreateScene(Settings(scene), 5).ok());
+        model.versions[scene] = 5;
+        model.sites[scene] = {};
+        continue;
+      }
+      if (rng() % 15 == 0) {
+        ASSERT_TRUE((*store)->DeleteScene(scene).ok());
+        model.versions.erase(scene);
+        model.sites.erase(scene);
+        continue;
+      }
+      SceneModel& sites = model.sites[scene];
+      std::vector<std::shared_ptr<const Site>> put;
+      std::vector<std::string> removed;
+      std::map<std::string, bool> touched;
+      for (int k = 0, n = 1 + rng() % 30; k < n; ++k) {
+        std::string id = "id" + std::to_string(rng() % 50);
+        if (touched.count(id)) continue;
+        touched[id] = true;
+        if (sites.count(id) && rng() % 3 == 0) {
+          removed.push_back(id);
+        } else {
+          put.push_back(std::make_shared<const Site>(RandomSite(rng, static_cast<int>(rng()), id)));
+        }
+      }
+      const uint64_t version = model.versions[scene] + 1;
+      ASSERT_TRUE((*store)->Commit({scene, version, put, removed}).ok());
+      for (const auto& s : put) sites[s->id] = *s;
+      for (const auto& id : removed) sites.erase(id);
+      model.versions[scene] = version;
+    }
+    // A change set for a scene that is not stored is refused whole.
+    auto site = std::make_shared<const Site>(Site{"x", PointSite{{0, 0}}});
+    std::vector<std::shared_ptr<const Site>> put = {site};
+    EXPECT_EQ((*store)->Commit({"absent", 9, put, {}}).code(), absl::StatusCode::kNotFound);
+    // A second create of a stored scene is refused and changes nothing.
+    if (!model.versions.empty()) {
+      EXPECT_FALSE((*store)->CreateScene(Settings(model.versions.begin()->first), 1).ok());
+    }
+    ExpectStoreHolds(**store, model);
+  }
+}
+
+// Executes SQL on a database file directly, as an earlier release would have.
+void RawSql(const std::string& path, const std::vector<std::string>& statements) {
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  for (const std::string& sql : statements) {
+    char* error = nullptr;
+    EXPECT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &error), SQLITE_OK)
+        << sql << ": " << (error ? error : "");
+    sqlite3_free(error);
+  }
+  sqlite3_close(db);
+}
+
+// The earlier schema, holding records that the test's own legacy reader understands:
+// a scene's record is its id, a site's is "id x y".
+void WriteEarlierSchema(const std::string& dir) {
+  ASSERT_EQ(system(("mkdir -p '" + dir + "'").c_str()), 0);
+  RawSql(dir + "/gvd.sqlite3",
+         {"CREATE TABLE scenes (id TEXT PRIMARY KEY, request BLOB NOT NULL, version INTEGER NOT NULL)",
+          "CREATE TABLE sites (scene TEXT NOT NULL REFERENCES scenes(id) ON DELETE CASCADE,"
+          " id TEXT NOT NULL, site BLOB NOT NULL, PRIMARY KEY (scene, id)) WITHOUT ROWID",
+          "INSERT INTO scenes VALUES ('a', 'a', 7), ('b', 'b', 3)",
+          "INSERT INTO sites VALUES ('a', 'p', 'p 0.25 0.5'), ('a', 'q', 'q 0.75 0.125'),"
+          " ('b', 'r', 'r 0.5 0.5')"});
+}
+
+SqliteStore::Legacy TestLegacy(bool refuse_r = false) {
+  return {
+      [](std::string_view id) -> absl::StatusOr<SceneSettings> {
+        return Settings(std::string(id));
+      },
+      [refuse_r](std::string_view record) -> absl::StatusOr<Site> {
+        std::string s(record);
+        char id[8];
+        double x, y;
+        if (std::sscanf(s.c_str(), "%7s %lf %lf", id, &x, &y) != 3) {
+          return absl::DataLossError("bad record");
+        }
+        if (refuse_r && std::string(id) == "r") return absl::DataLossError("refused r");
+        return Site{id, PointSite{{x, y}}};
+      },
+  };
+}
+
+// Writers of several scenes commit at once: whatever transactions their change sets share,
+// each acknowledged one is stored after a reopen, and the ones refused (a scene that is not
+// stored, committed in the middle of the others) leave nothing behind.
+TEST(Store, ConcurrentWritersShareTransactionsAndFailAlone) {
+  TempDir dir;
+  constexpr int kWriters = 6, kCommits = 40;
+  StoreModel model;
+  {
+    auto store = SqliteStore::Open(dir.path() + "/data");
+    ASSERT_TRUE(store.ok()) << store.status();
+    for (int w = 0; w < kWriters; ++w) {
+      const std::string scene = "w" + std::to_string(w);
+      ASSERT_TRUE((*store)->CreateScene(Settings(scene), 1).ok());
+      model.versions[scene] = 1 + kCommits;
+      model.sites[scene] = {};
+    }
+    std::vector<SceneModel> written(kWriters);
+    std::vector<std::thread> writers;
+    std::atomic<uint64_t> failures{0};
+    for (int w = 0; w <= kWriters; ++w) {  // the last one writes to a scene never stored
+      writers.emplace_back([&, w] {
+        std::mt19937_64 rng(100 + w);
+        const std::string scene = w < kWriters ? "w" + std::to_string(w) : "missing";
+        for (int c = 0; c < kCommits; ++c) {
+          std::vector<std::shared_ptr<const Site>> put;
+          for (int k = 0; k < 3; ++k) {
+            put.push_back(std::make_shared<const Site>(
+                RandomSite(rng, static_cast<int>(rng()), "id" + std::to_string(rng() % 20))));
+          }
+          std::sort(put.begin(), put.end(), [](const auto& a, const auto& b) { return a->id < b->id; });
+          put.erase(std::unique(put.begin(), put.end(),
+                                [](const auto& a, const auto& b) { return a->id == b->id; }),
+                    put.end());
+          absl::Status s = (*store)->Commit({scene, uint64_t(2 + c), put, {}});
+          if (w == kWriters) {
+            if (s.code() != absl::StatusCode::kNotFound) ++failures;
+            continue;
+          }
+          if (!s.ok()) {
+            ++failures;
+            continue;
+          }
+          for (const auto& site : put) written[w][site->id] = *site;
+        }
+      });
+    }
+    for (auto& t : writers) t.join();
+    ASSERT_EQ(failures.load(), 0u);
+    for (int w = 0; w < kWriters; ++w) model.sites["w" + std::to_string(w)] = written[w];
+    SqliteStore::GroupStats stats = (*store)->group_stats();
+    EXPECT_EQ(stats.change_sets, uint64_t(kWriters) * kCommits);
+    EXPECT_LE(stats.transactions, stats.change_sets);
+    std::printf("%llu change sets in %llu transactions\n",
+                static_cast<unsigned long long>(stats.change_sets),
+                static_cast<unsigned long long>(stats.transactions));
+  }
+  auto store = SqliteStore::Open(dir.path() + "/data");
+  ASSERT_TRUE(store.ok()) << store.status();
+  ExpectStoreHolds(**store, model);
+}
+
+TEST(Store, ConvertsTheEarlierSchemaOnce) {
+  TempDir dir;
+  const std::string data = dir.path() + "/data";
+  WriteEarlierSchema(data);
+  {
+    // Without a reader for the old records the database is refused, and left as it was.
+    auto refused = SqliteStore::Open(data);
+    EXPECT_EQ(refused.status().code(), absl::StatusCode::kFailedPrecondition);
+    // A record the reader refuses stops the conversion, which changes nothing.
+    auto failed = SqliteStore::Open(data, TestLegacy(/*refuse_r=*/true));
+    EXPECT_EQ(failed.status().code(), absl::StatusCode::kDataLoss);
+    EXPECT_NE(failed.status().message().find("refused r"), std::string::npos);
+  }
+  StoreModel model;
+  model.versions = {{"a", 7}, {"b", 3}};
+  model.sites["a"]["p"] = Site{"p", PointSite{{0.25, 0.5}}};
+  model.sites["a"]["q"] = Site{"q", PointSite{{0.75, 0.125}}};
+  model.sites["b"]["r"] = Site{"r", PointSite{{0.5, 0.5}}};
+  {
+    auto store = SqliteStore::Open(data, TestLegacy());
+    ASSERT_TRUE(store.ok()) << store.status();
+    ExpectStoreHolds(**store, model);
+    auto site = std::make_shared<const Site>(Site{"s", PointSite{{0.1, 0.2}}});
+    std::vector<std::shared_ptr<const Site>> put = {site};
+    ASSERT_TRUE((*store)->Commit({"b", 4, put, {}}).ok());
+    model.versions["b"] = 4;
+    model.sites["b"]["s"] = *site;
+  }
+  // Converted once: a reopen needs no reader and finds the converted data and what followed.
+  auto again = SqliteStore::Open(data);
+  ASSERT_TRUE(again.ok()) << again.status();
+  ExpectStoreHolds(**again, model);
+}
+
+// Deleting a scene waits for its writer, and every later write finds it gone.
+// The schema version in the file, read with SQLite itself.
+int UserVersion(const std::string& file) {
+  sqlite3* db = nullptr;
+  EXPECT_EQ(sqlite3_open_v2(file.c_str(), &db, SQLITE_OPEN_READWRITE, nullptr), SQLITE_OK);
+  sqlite3_stmt* stmt = nullptr;
+  sqlite3_prepare_v2(db, "PRAGMA user_version", -1, &stmt, nullptr);
+  int v = sqlite3_step(stmt) == SQLITE_ROW ? sqlite3_column_int(stmt, 0) : -1;
+  sqlite3_finalize(stmt);
+  sqlite3_close(db);
+  return v;
+}
+
+// A damaged file, a file of something else and a store of a newer release are refused when
+// the store opens, each naming the file, and none is changed.
+TEST(Store, DamagedForeignAndNewerFilesAreRefusedByName) {
+  TempDir dir;
+  const std::string file = dir.path() + "/data/gvd.sqlite3";
+  {
+    auto store = SqliteStore::Open(dir.path() + "/data");
+    ASSERT_TRUE(store.ok()) << store.status();
+    ASSERT_TRUE((*store)->CreateScene(Settings("a"), 1).ok());
+  }
+  EXPECT_EQ(UserVersion(file), 1);  // recorded in every store
+  std::system(("cp " + file + " " + dir.path() + "/good").c_str());
+
+  std::mt19937_64 rng(5);
+  std::string noise(64 * 1024, '\0');
+  for (char& c : noise) c = static_cast<char>(rng());
+  for (const std::string& bytes : {noise, std::string("scene,a\nsite,b\n")}) {
+    { std::ofstream(file, std::ios::binary | std::ios::trunc) << bytes; }
+    auto store = SqliteStore::Open(dir.path() + "/data");
+    ASSERT_FALSE(store.ok());
+    EXPECT_EQ(store.status().code(), absl::StatusCode::kDataLoss) << store.status();
+    EXPECT_NE(store.status().message().find(file), std::string::npos) << store.status();
+    std::ifstream in(file, std::ios::binary);
+    EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), bytes);
+  }
+
+  std::system(("rm -f " + file + "*; cp " + dir.path() + "/good " + file).c_str());
+  {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open_v2(file.c_str(), &db, SQLITE_OPEN_READWRITE, nullptr), SQLITE_OK);
+    ASSERT_EQ(sqlite3_exec(db, "PRAGMA user_version = 7", nullptr, nullptr, nullptr), SQLITE_OK);
+    sqlite3_close(db);
+  }
+  auto newer = SqliteStore::Open(dir.path() + "/data");
+  ASSERT_FALSE(newer.ok());
+  EXPECT_EQ(newer.status().code(), absl::StatusCode::kFailedPrecondition) << newer.status();
+  EXPECT_NE(newer.status().message().find(file), std::string::npos) << newer.status();
+  EXPECT_NE(newer.status().message().find("newer release"), std::string::npos) << newer.status();
+  EXPECT_EQ(UserVersion(file), 7);
+}
+
+TEST(Store, ARetiredSceneRefusesWrites) {
+  Scene scene(Settings("gone"));
+  ASSERT_TRUE(scene.Upsert({{"a", PointSite{{0.1, 0.1}}}}, 10).ok());
+  EXPECT_EQ(scene.Retire([] { return absl::UnavailableError("disk"); }).code(),
+            absl::StatusCode::kUnavailable);
+  EXPECT_FALSE(scene.deleted());  // a failed delete keeps the scene
+  ASSERT_TRUE(scene.Retire().ok());
+  EXPECT_TRUE(scene.deleted());
+  EXPECT_EQ(scene.Retire().code(), absl::StatusCode::kNotFound);
+  bool persisted = false;
+  auto write = scene.Upsert({{"b", PointSite{{0.2, 0.2}}}}, 10, [&](const ChangeSet&) {
+    persisted = true;
+    return absl::OkStatus();
+  });
+  EXPECT_EQ(write.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_FALSE(persisted);
+  EXPECT_EQ(scene.Delete({"a"}).status().code(), absl::StatusCode::kNotFound);
+  EXPECT_EQ(scene.version(), 2u);
+}
+
+// The change set a write hands to the store is exactly what it did.
+TEST(Store, ChangeSetsNameWhatAWriteDid) {
+  Scene scene(Settings("c"));
+  ASSERT_TRUE(scene.Upsert({{"a", PointSite{{0.1, 0.1}}}, {"b", PointSite{{0.2, 0.2}}}}, 10).ok());
+  std::vector<std::string> put_ids, removed;
+  uint64_t version = 0;
+  ASSERT_TRUE(scene
+                  .Upsert({{"b", PointSite{{0.3, 0.3}}}, {"c", PointSite{{0.4, 0.4}}}}, 10,
+                          [&](const ChangeSet& c) {
+                            for (const auto& s : c.put) put_ids.push_back(s->id);
+                            version = c.version;
+                            EXPECT_EQ(c.scene_id, "c");
+                            EXPECT_TRUE(c.removed.empty());
+                            return absl::OkStatus();
+                          })
+                  .ok());
+  EXPECT_EQ(put_ids, (std::vector<std::string>{"b", "c"}));
+  EXPECT_EQ(version, 3u);
+  ASSERT_TRUE(scene
+                  .Delete({"a", "c"},
+                          [&](const ChangeSet& c) {
+                            removed.assign(c.removed.begin(), c.removed.end());
+                            EXPECT_TRUE(c.put.empty());
+                            EXPECT_EQ(c.version, 4u);
+                            return absl::OkStatus();
+                          })
+                  .ok());
+  EXPECT_EQ(removed, (std::vector<std::string>{"a", "c"}));
+}
+
+}  // namespace
+}  // namespace gvd

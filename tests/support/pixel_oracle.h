@@ -1,0 +1,150 @@
+// Checks of rendered frames against the tests' double-precision oracle (oracle.h), and random sites of
+// every kind, shared by the GL tests.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "render/kernel/exact2.h"
+#include "tests/support/oracle.h"
+#include "render/scene/frame.h"
+
+namespace gvd {
+
+// The site's value ignoring its max_distance and side.
+inline double Unrestricted(Vec2 p, const Site& s) {
+  return s.multiplicative * oracle::Distance(p, s.geometry) + s.additive;
+}
+
+// Whether the site may be drawn at p: within max_distance + margin (the margin widened by
+// what a fan's corners and float arithmetic add), and on its polygon's side or within
+// margin of the boundary (geometry/geometry.h).
+inline bool MayBeDrawn(Vec2 p, const Site& s, const Frame& f) {
+  const double margin = DrawMargin(f.grid()) * (1 + 1e-5);
+  double d = oracle::Distance(p, s.geometry);
+  if (d > (s.max_distance + margin + f.grid().pixel_size() / 8) * f.error().overestimate)
+    return false;
+  if (const auto* poly = std::get_if<PolygonSite>(&s.geometry)) {
+    if (poly->side != Side::kBoth && d > margin &&
+        oracle::Inside(p, poly->vertices) != (poly->side == Side::kInside)) {
+      return false;
+    }
+  }
+  return true;
+}
+
+struct PixelReport {
+  size_t empty = 0;  // pixel centres where no site is a candidate
+  size_t band = 0;   // centres held by a site present there but not a candidate
+  double worst_px = 0;
+};
+
+// Every pixel centre p of the frame, against the oracle:
+//  - an empty centre has no candidate site; a centre with a candidate holds some site;
+//  - the stored value D is the stored site's value within the meshes' error (never below
+//    it by more than the arithmetic slack), and the site is present at p;
+//  - when that site is a candidate at p, it is within 2 eps (times the weight) of the best;
+//  - D bounds the best value at p as the frame's error model says (what queries rely on).
+inline PixelReport CheckEveryPixel(const Frame& f, const SiteTable& sites, const std::string& what) {
+  const Grid& g = f.grid();
+  const ErrorModel& e = f.error();
+  const double excess = e.max_excess;
+  const bool nearest = e.diagram == Diagram::kNearest;
+  PixelReport report;
+  int failures = 0;
+  for (uint32_t j = 0; j < g.height && failures < 5; ++j) {
+    for (uint32_t i = 0; i < g.width && failures < 5; ++i) {
+      Vec2 p = g.Center(i, j);
+      oracle::Best truth = oracle::BestSite(p, sites, e.diagram);
+      uint32_t id = f.id_at(i, j);
+      auto fail = [&](const std::string& why) {
+        ++failures;
+        ADD_FAILURE() << what << ": pixel " << i << "," << j << " at (" << p.x << ", " << p.y
+                      << "): " << why << " (id " << id << ", stored " << f.distance_at(i, j)
+                      << ", truth " << (truth.found ? sites[truth.index].id : "none") << " "
+                      << truth.value << ")";
+      };
+      if (id == 0) {
+        ++report.empty;
+        if (truth.found) fail("empty, but a site is a candidate");
+        continue;
+      }
+      if (id > sites.size()) {
+        fail("names no site");
+        continue;
+      }
+      const Site& s = sites[id - 1];
+      const double stored = f.distance_at(i, j), slack = e.Slack(stored);
+      const double v = Unrestricted(p, s);
+      report.worst_px = std::max(report.worst_px, std::abs(stored - v) / g.pixel_size());
+      if (!(stored >= v - slack && stored <= v + excess + slack)) fail("stored value off");
+      if (!MayBeDrawn(p, s, f)) fail("site drawn where it is not present");
+      if (!truth.found) {
+        ++report.band;
+        continue;
+      }
+      if (nearest ? !(e.LowerBound(stored) <= truth.value)
+                  : !(e.UpperBound(stored) >= truth.value)) {
+        fail("the error model's bound fails");
+      }
+      if (!std::isfinite(oracle::Value(p, s))) {
+        ++report.band;
+        continue;
+      }
+      double gap = nearest ? v - truth.value : truth.value - v;
+      if (!(gap <= 2 * excess + 2 * slack)) fail("stored site not within 2 eps of the best");
+    }
+  }
+  return report;
+}
+
+// Random geometry of each kind, around the unit window (partly outside it).
+struct Generator {
+  std::mt19937_64 rng;
+  explicit Generator(uint64_t seed) : rng(seed) {}
+  double U(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); }
+  Vec2 P() { return {U(-0.1, 1.1), U(-0.1, 1.1)}; }
+  Vec2 Near(Vec2 c, double r) { return {c.x + U(-r, r), c.y + U(-r, r)}; }
+
+  Geometry Kind(int kind) {
+    switch (kind) {
+      case 0:
+        return PointSite{P()};
+      case 1: {
+        Vec2 a = P();
+        return SegmentSite{a, Near(a, 0.3)};
+      }
+      case 2: {
+        PolylineSite l{{P()}};
+        int n = 2 + int(U(0, 4));
+        for (int k = 1; k < n; ++k) l.points.push_back(Near(l.points.back(), 0.2));
+        return l;
+      }
+      case 3:
+      case 4:
+      case 5: {  // star-shaped, often concave
+        Vec2 c = P();
+        int n = 3 + int(U(0, 6));
+        PolygonSite poly;
+        for (int k = 0; k < n; ++k) {
+          double t = 2 * M_PI * (k + U(0, 0.8)) / n, r = U(0.03, 0.2);
+          poly.vertices.push_back({c.x + r * std::cos(t), c.y + r * std::sin(t)});
+        }
+        poly.side = kind == 3 ? Side::kBoth : kind == 4 ? Side::kOutside : Side::kInside;
+        return poly;
+      }
+      default: {
+        Vec2 a = P();
+        std::vector<Vec2> control{a, Near(a, 0.3), Near(a, 0.3)};
+        if (U(0, 1) < 0.5) control.push_back(Near(a, 0.3));
+        return MakeBezier(control, 0.002);
+      }
+    }
+  }
+};
+
+}  // namespace gvd

@@ -1,0 +1,67 @@
+// Small helpers shared by the integration tests.
+#pragma once
+
+#include <cmath>
+#include <string>
+
+#include "gvd/v1/voronoi.pb.h"
+#include "render/kernel/exact2.h"
+#include "render/kernel/site2.h"
+#include "tests/support/oracle.h"
+
+namespace gvd::testing {
+
+// Whether an answer's feature (as the API numbers it) is a part of the geometry nearest to
+// q, by the tests' oracle.
+inline bool IsNearestFeature(Vec2 q, const Geometry& g, v1::FeatureKind kind, uint32_t index) {
+  switch (kind) {
+    case v1::VERTEX: return oracle::IsNearestFeature(q, g, FeatureKind::kVertex, index);
+    case v1::EDGE: return oracle::IsNearestFeature(q, g, FeatureKind::kEdge, index);
+    case v1::CURVE: return oracle::IsNearestFeature(q, g, FeatureKind::kCurve, index);
+    default: return false;
+  }
+}
+
+inline void SetPoint(Vec2 p, v1::Point* out) {
+  out->set_x(p.x);
+  out->set_y(p.y);
+}
+
+// The API's form of a render-layer site (Bezier: its control points and tolerance).
+inline v1::Site ToProtoSite(const Site& s) {
+  v1::Site out;
+  out.set_id(s.id);
+  if (const auto* p = std::get_if<PointSite>(&s.geometry)) {
+    SetPoint(p->p, out.mutable_point());
+  } else if (const auto* seg = std::get_if<SegmentSite>(&s.geometry)) {
+    SetPoint(seg->a, out.mutable_segment()->mutable_a());
+    SetPoint(seg->b, out.mutable_segment()->mutable_b());
+  } else if (const auto* l = std::get_if<PolylineSite>(&s.geometry)) {
+    for (Vec2 q : l->points) SetPoint(q, out.mutable_polyline()->add_points());
+  } else if (const auto* poly = std::get_if<PolygonSite>(&s.geometry)) {
+    for (Vec2 q : poly->vertices) SetPoint(q, out.mutable_polygon()->add_vertices());
+    out.mutable_polygon()->set_side(poly->side == Side::kOutside  ? v1::Polygon::OUTSIDE
+                                    : poly->side == Side::kInside ? v1::Polygon::INSIDE
+                                                                  : v1::Polygon::SIDE_UNSPECIFIED);
+  } else if (const auto* b = std::get_if<BezierSite>(&s.geometry)) {
+    for (Vec2 q : b->control) SetPoint(q, out.mutable_bezier()->add_control_points());
+    out.mutable_bezier()->set_tolerance(b->tolerance);
+  }
+  out.set_additive_weight(s.additive);
+  out.set_multiplicative_weight(s.multiplicative);
+  if (std::isfinite(s.max_distance)) out.set_max_distance(s.max_distance);
+  return out;
+}
+
+// A CreateSceneRequest for the unit square at width x height pixels.
+inline v1::CreateSceneRequest UnitScene(const std::string& id, uint32_t width, uint32_t height) {
+  v1::CreateSceneRequest r;
+  r.set_scene_id(id);
+  r.mutable_window()->set_max_x(1);
+  r.mutable_window()->set_max_y(1);
+  r.set_width_px(width);
+  r.set_height_px(height);
+  return r;
+}
+
+}  // namespace gvd::testing
