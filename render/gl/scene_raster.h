@@ -12,6 +12,7 @@
 #include "absl/status/statusor.h"
 #include "render/scene/frame.h"
 #include "render/gl/rasterizer.h"
+#include "render/plan/error_tally.h"
 #include "render/scene/snapshot.h"
 
 namespace gvd {

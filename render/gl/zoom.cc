@@ -3,6 +3,8 @@
 #include <algorithm>
 
 #include "render/plan/coverage.h"
+#include "render/plan/error_tally.h"
+#include "render/plan/site_shape.h"
 
 namespace gvd {
 namespace {
@@ -77,7 +79,7 @@ absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> ZoomRenderer::Render(
       draws = SparseCoverage(g, sites, snapshot.index(), g.all(), kZoomTilePx, diagram,
                              mode == RenderMode::kMesh);
       for (const SiteDraw& d : draws) {
-        SiteShape shape = rasterizer.Shape(g, params, *sites.get(d.slot), d);
+        SiteShape shape = ShapeOf(g, params, *sites.get(d.slot), d);
         max_value = std::max(max_value, shape.max_value);
         tally.Drawn(g, *sites.get(d.slot), shape);
       }

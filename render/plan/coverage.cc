@@ -4,12 +4,14 @@
 #include <array>
 #include <cstdint>
 #include <cmath>
+#include <mutex>
 #include <numbers>
 #include <unordered_map>
 
 #include "render/kernel/exact2.h"
 #include "render/plan/distance_mesh.h"
 #include "render/kernel/segment_tree.h"
+#include "render/scene/cpu_pool.h"
 
 namespace gvd {
 namespace {
@@ -618,6 +620,47 @@ std::vector<SiteDraw> SparseCoverage(const Grid& grid, const SlotTable& sites,
   std::sort(out.begin(), out.end(),
             [](const SiteDraw& a, const SiteDraw& b) { return a.slot < b.slot; });
   return out;
+}
+
+Coverage ParallelCoverage(const Grid& grid, const SiteSnapshot& snapshot, PixelRect region,
+                          Diagram diagram, bool pieces) {
+  const SlotTable& slots = snapshot.sites();
+  const SiteIndex& index = snapshot.index();
+  const uint32_t leaf = DefaultTilePx(grid, snapshot.size(), snapshot.ink());
+  const uint32_t top = TopTilePx(grid, index.size(), leaf);
+  const size_t bands = (size_t{region.height()} + top - 1) / top;
+  if (bands < 2) {
+    return ComputeCoverage(grid, slots, index, region, leaf, diagram, pieces);
+  }
+  std::mutex mu;
+  std::vector<Coverage> parts;
+  ParallelFor(bands, 1, [&](size_t begin, size_t end) {
+    PixelRect band{region.x0, static_cast<uint32_t>(region.y0 + begin * top), region.x1,
+                   static_cast<uint32_t>(std::min<size_t>(region.y0 + end * top, region.y1))};
+    Coverage part = ComputeCoverage(grid, slots, index, band, leaf, diagram, pieces);
+    std::lock_guard<std::mutex> lock(mu);
+    parts.push_back(std::move(part));
+  });
+  Coverage cov = std::move(parts[0]);
+  for (size_t p = 1; p < parts.size(); ++p) {
+    const Coverage& part = parts[p];
+    cov.pairs += part.pairs;
+    for (uint32_t s = 0; s < slots.size(); ++s) {
+      if (part.radius[s] < 0) continue;
+      cov.radius[s] = std::max(cov.radius[s], part.radius[s]);
+      cov.clip[s] = cov.clip[s].Union(part.clip[s]);
+      if (s >= part.pieces.size() || part.pieces[s].empty()) continue;
+      std::vector<PieceDraw>& into = cov.pieces[s];
+      into.resize(std::max(into.size(), part.pieces[s].size()));
+      for (size_t k = 0; k < part.pieces[s].size(); ++k) {
+        into[k].radius = std::max(into[k].radius, part.pieces[s][k].radius);
+        into[k].clip = into[k].clip.Union(part.pieces[s][k].clip);
+        into[k].from = std::min(into[k].from, part.pieces[s][k].from);
+        into[k].to = std::max(into[k].to, part.pieces[s][k].to);
+      }
+    }
+  }
+  return cov;
 }
 
 }  // namespace gvd

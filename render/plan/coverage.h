@@ -15,6 +15,7 @@
 #include "render/kernel/grid2.h"
 #include "render/kernel/site2.h"
 #include "render/scene/site_index.h"
+#include "render/scene/snapshot.h"
 #include "render/scene/slot_table.h"
 
 namespace gvd {
@@ -196,5 +197,11 @@ class TileCover {
 std::vector<SiteDraw> SparseCoverage(const Grid& grid, const SlotTable& sites,
                                      const SiteIndex& index, PixelRect region, uint32_t tile_px,
                                      Diagram diagram, bool pieces = false);
+
+// ComputeCoverage of `region` for the snapshot's sites, at its default tile sizes
+// (DefaultTilePx), in bands of TopTilePx rows covered in parallel on the CPU pool: the tiles,
+// and so the radii and clips, are the same as in one pass.
+Coverage ParallelCoverage(const Grid& grid, const SiteSnapshot& snapshot, PixelRect region,
+                          Diagram diagram, bool pieces);
 
 }  // namespace gvd
