@@ -1,16 +1,22 @@
 #include "render/scene/cpu_pool.h"
 
+#include <pthread.h>
+
 #include <algorithm>
 #include <limits>
 
 namespace gvd {
 
-CpuPool::CpuPool(size_t threads) {
+CpuPool::CpuPool(size_t threads, std::string name) {
   parallel_ = std::make_unique<Lane>(*this, std::numeric_limits<int>::max(),
                                      std::numeric_limits<size_t>::max(),
                                      std::numeric_limits<size_t>::max());
+  name.resize(std::min<size_t>(name.size(), 15));  // the kernel's limit
   for (size_t t = 0; t < std::max<size_t>(threads, 1); ++t) {
-    threads_.emplace_back([this] { Run(); });
+    threads_.emplace_back([this, name] {
+      pthread_setname_np(pthread_self(), name.c_str());
+      Run();
+    });
   }
 }
 

@@ -10,6 +10,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -19,7 +20,8 @@ namespace gvd {
 // highest priority that has one and is under its limit of running jobs.
 class CpuPool {
  public:
-  explicit CpuPool(size_t threads);
+  // `threads` threads, named `name` (what `top -H` and debuggers show; 15 characters kept).
+  explicit CpuPool(size_t threads, std::string name = "gvd-cpu");
   ~CpuPool();  // CONTRACT: every lane is gone; joins the threads
   CpuPool(const CpuPool&) = delete;
   CpuPool& operator=(const CpuPool&) = delete;

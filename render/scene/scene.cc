@@ -7,6 +7,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "render/kernel/exact2.h"
+#include "render/scene/batch.h"
 #include "render/scene/cpu_pool.h"
 
 namespace gvd {
@@ -42,40 +43,64 @@ absl::StatusOr<uint64_t> Scene::Write(const std::function<absl::Status(SnapshotB
   auto base = snapshot_.load();
   SnapshotBuilder builder(base, &free_slots_);
   absl::Status status = edit(builder);
+  if (!status.ok()) {
+    builder.Abandon();
+    return status;
+  }
+  const ChangeSet change{id(), base->version() + 1, builder.put(), builder.removed()};
+  // A bulk change builds the next snapshot while the store makes it durable (the snapshot
+  // is dropped if the store refuses); a small one builds only what the store took.
+  constexpr size_t kBulk = 4096;
   std::shared_ptr<const SiteSnapshot> next;
-  if (status.ok()) {
-    auto store = [&] {
-      if (persist) {
-        status = persist(ChangeSet{id(), base->version() + 1, builder.put(), builder.removed()});
-      }
-    };
-    // A bulk change builds the next snapshot while the store makes it durable (the snapshot
-    // is dropped if the store refuses); a small one builds only what the store took.
-    constexpr size_t kBulk = 4096;
-    if (builder.put().size() + builder.removed().size() >= kBulk) {
-      ParallelFor(2, 1, [&](size_t begin, size_t end) {
-        for (size_t k = begin; k < end; ++k) {
-          if (k == 0) {
-            store();
-          } else {
-            next = builder.Build(base->version() + 1);
-          }
+  if (persist && builder.put().size() + builder.removed().size() >= kBulk) {
+    ParallelFor(2, 1, [&](size_t begin, size_t end) {
+      for (size_t k = begin; k < end; ++k) {
+        if (k == 0) {
+          status = persist(change);
+        } else {
+          next = builder.Build(change.version);
         }
-      });
-    } else {
-      store();
-      if (status.ok()) next = builder.Build(base->version() + 1);
-    }
+      }
+    });
+  } else if (persist) {
+    status = persist(change);
   }
   if (!status.ok()) {
     builder.Abandon();
     return status;
   }
+  return Install(builder, std::move(next), change.version);
+}
+
+absl::StatusOr<uint64_t> Scene::Apply(const ChangeSet& committed) {
+  std::lock_guard<std::mutex> lock(writer_mu_);
+  if (deleted_) return Gone();
+  auto base = snapshot_.load();
+  if (committed.version != base->version() + 1) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("scene \"", id(), "\" is at version ", base->version(),
+                     "; a change to version ", committed.version, " cannot follow it"));
+  }
+  SnapshotBuilder builder(base, &free_slots_);
+  for (const std::string& removed : committed.removed) {
+    if (!builder.Remove(removed)) {
+      builder.Abandon();
+      return absl::NotFoundError(absl::StrCat("\"", removed, "\" is not a site of scene \"",
+                                              id(), "\" at version ", base->version()));
+    }
+  }
+  for (const std::shared_ptr<const Site>& site : committed.put) builder.Put(*site);
+  return Install(builder, nullptr, committed.version);
+}
+
+uint64_t Scene::Install(SnapshotBuilder& builder, std::shared_ptr<const SiteSnapshot> next,
+                        uint64_t version) {
+  if (next == nullptr) next = builder.Build(version);
   // Freed slots are taken again only by later snapshots: this one's frames may still show
   // them until the render of the next.
   free_slots_.insert(free_slots_.end(), builder.freed().rbegin(), builder.freed().rend());
   snapshot_.store(next);
-  return next->version();
+  return version;
 }
 
 absl::Status Scene::Gone() const {
@@ -168,7 +193,6 @@ Scene::Picked Scene::Pick(Vec2 q, double max_distance) const {
 
 uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactAnswer>* answers,
                              const std::function<bool()>& cancelled, bool features) const {
-  std::atomic<bool> stop{false};
   const auto snapshot = snapshot_.load();
   const auto frame = frame_.load();
   // The frame bounds the search only when it shows this very snapshot: then its ids are this
@@ -192,86 +216,78 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
   // the index answers, more often when each point scores every site.
   const size_t check_every =
       nearest ? 4096 : std::max<size_t>(1, (size_t{1} << 20) / std::max<uint32_t>(1, slots.size()));
-  // Large batches are split across cores, all on this one snapshot, and answered tile by
-  // tile of the grid.
-  const std::vector<uint32_t> order = OrderByTile(settings_.grid, points);
-  ParallelFor(points.size(), 8192, [&](size_t begin, size_t end) {
-    std::vector<uint32_t> nearer;
-    for (size_t k = begin; k < end; ++k) {
-      const size_t i = order.empty() ? k : order[k];
-      if (k % check_every == 0 && cancelled && (stop || cancelled())) {
-        stop = true;
-        return;
-      }
-      const Vec2 q = points[i];
-      if (!plain && nearest) {
-        // Weights, max_distance or sides: a value V found at q bounds the search, as a site
-        // s beats it only where m_s d + a_s < V, so d < (V - least a) / least m. V comes from
-        // the frame when it shows this snapshot (its answer's value is exact; "no candidate"
-        // is certain), else from the site nearest by distance; where neither gives one,
-        // every site is scored below.
-        uint32_t best = 0;
-        double value = INFINITY;
-        std::optional<NearestAnswer> raster;
-        if (fresh && window.Contains(q)) raster = frame->Nearest(q);
-        if (raster && !raster->found) {
-          (*answers)[i] = ExactAnswer{};
-          continue;
-        }
-        if (raster) {
-          best = raster->site_index;
-          value = raster->distance;
-        } else if (ExactNearest n = index.Nearest(q); n.found()) {
-          best = static_cast<uint32_t>(n.index);
-          value = SiteValue(q, *slots.get(best));
-        }
-        if (std::isfinite(value)) {
-          snapshot->Improve(q, &best, &value, &nearer);
-          (*answers)[i] = answer(q, best, value);
-          continue;
-        }
-      }
-      if (!plain) {
-        uint32_t best = 0;
-        double value = 0;
-        bool found = false;
-        for (uint32_t s = 0; s < slots.size(); ++s) {
-          const Site* site = slots.get(s);
-          if (site == nullptr) continue;
-          double v = SiteValue(q, *site);
-          if (std::isfinite(v) && (!found || Beats(settings_.diagram, v, value))) {
-            best = s;
-            value = v;
-            found = true;
+  // Large batches are split across cores, all on this one snapshot.
+  const bool done = AnswerBatch(
+      settings_.grid, points, check_every, cancelled, [&](size_t i, std::vector<uint32_t>& nearer) {
+        const Vec2 q = points[i];
+        if (!plain && nearest) {
+          // Weights, max_distance or sides: a value V found at q bounds the search, as a site
+          // s beats it only where m_s d + a_s < V, so d < (V - least a) / least m. V comes from
+          // the frame when it shows this snapshot (its answer's value is exact; "no candidate"
+          // is certain), else from the site nearest by distance; where neither gives one,
+          // every site is scored below.
+          uint32_t best = 0;
+          double value = INFINITY;
+          std::optional<NearestAnswer> raster;
+          if (fresh && window.Contains(q)) raster = frame->Nearest(q);
+          if (raster && !raster->found) {
+            (*answers)[i] = ExactAnswer{};
+            return true;
+          }
+          if (raster) {
+            best = raster->site_index;
+            value = raster->distance;
+          } else if (ExactNearest n = index.Nearest(q); n.found()) {
+            best = static_cast<uint32_t>(n.index);
+            value = SiteValue(q, *slots.get(best));
+          }
+          if (std::isfinite(value)) {
+            snapshot->Improve(q, &best, &value, &nearer);
+            (*answers)[i] = answer(q, best, value);
+            return true;
           }
         }
-        (*answers)[i] = found ? answer(q, best, value) : ExactAnswer{};
-        continue;
-      }
-      std::optional<NearestAnswer> raster;
-      if (fresh && window.Contains(q)) raster = frame->Nearest(q);
-      if (!raster) {
-        ExactNearest best = index.Nearest(q);
-        (*answers)[i] = answer(q, static_cast<uint32_t>(best.index), best.distance);
-        continue;
-      }
-      // The frame's site is at exactly this distance from q: only sites the index finds
-      // within that radius can be nearer.
-      uint32_t best = raster->site_index;
-      double distance = raster->distance;
-      nearer.clear();
-      index.Within(q, distance, &nearer);
-      for (uint32_t s : nearer) {
-        double d = ExactDistance(q, *slots.get(s));
-        if (d < distance) {
-          best = s;
-          distance = d;
+        if (!plain) {
+          uint32_t best = 0;
+          double value = 0;
+          bool found = false;
+          for (uint32_t s = 0; s < slots.size(); ++s) {
+            const Site* site = slots.get(s);
+            if (site == nullptr) continue;
+            double v = SiteValue(q, *site);
+            if (std::isfinite(v) && (!found || Beats(settings_.diagram, v, value))) {
+              best = s;
+              value = v;
+              found = true;
+            }
+          }
+          (*answers)[i] = found ? answer(q, best, value) : ExactAnswer{};
+          return true;
         }
-      }
-      (*answers)[i] = answer(q, best, distance);
-    }
-  });
-  if (stop) return 0;
+        std::optional<NearestAnswer> raster;
+        if (fresh && window.Contains(q)) raster = frame->Nearest(q);
+        if (!raster) {
+          ExactNearest best = index.Nearest(q);
+          (*answers)[i] = answer(q, static_cast<uint32_t>(best.index), best.distance);
+          return true;
+        }
+        // The frame's site is at exactly this distance from q: only sites the index finds
+        // within that radius can be nearer.
+        uint32_t best = raster->site_index;
+        double distance = raster->distance;
+        nearer.clear();
+        index.Within(q, distance, &nearer);
+        for (uint32_t s : nearer) {
+          double d = ExactDistance(q, *slots.get(s));
+          if (d < distance) {
+            best = s;
+            distance = d;
+          }
+        }
+        (*answers)[i] = answer(q, best, distance);
+        return true;
+      });
+  if (!done) return 0;
   return snapshot->version();
 }
 

@@ -67,6 +67,11 @@ class Scene {
   // and says why (NotFound naming ids[i]). CONTRACT: ids are distinct.
   absl::StatusOr<uint64_t> Delete(const std::vector<std::string>& ids,
                                   const Persist& persist = nullptr);
+  // Publishes a change that is durable already (committed by another server, say): the same
+  // last step as Upsert's and Delete's, after their commit. FAILED_PRECONDITION unless it
+  // brings the scene from its version to the next; NOT_FOUND if it removes an unknown id or
+  // the scene was deleted. Changes nothing then.
+  absl::StatusOr<uint64_t> Apply(const ChangeSet& committed);
 
   // The latest snapshot of the sites. Never waits for a writer.
   std::shared_ptr<const SiteSnapshot> snapshot() const { return snapshot_.load(); }
@@ -196,9 +201,13 @@ class Scene {
   };
 
   // Builds, persists and publishes the next snapshot; `edit` fills the builder and may
-  // refuse. Under the writer lock.
+  // refuse. Takes the writer lock.
   absl::StatusOr<uint64_t> Write(const std::function<absl::Status(SnapshotBuilder&)>& edit,
                                  const Persist& persist);
+  // Publishes the builder's snapshot at `version` (built already when `next` is given) and
+  // takes back the slots it freed: where every write ends. Under the writer lock.
+  uint64_t Install(SnapshotBuilder& builder, std::shared_ptr<const SiteSnapshot> next,
+                   uint64_t version);
   absl::Status Gone() const;  // NOT_FOUND: the scene was deleted
 
   const SceneSettings settings_;
