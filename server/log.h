@@ -22,4 +22,8 @@ using LogField = std::pair<std::string_view, std::string>;
 // Writes one line if `level` is enabled; values are quoted when they need it.
 void Log(LogLevel level, std::string_view event, std::initializer_list<LogField> fields = {});
 
+// A number as logs and error messages write it: the shortest form that reads back as `v`
+// (up to 17 significant digits), NaN, inf, -inf.
+std::string FormatNumber(double v);
+
 }  // namespace gvd

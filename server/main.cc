@@ -25,6 +25,7 @@
 #include "server/app/memory.h"
 #include "server/metrics.h"
 #include "render/gl/render_loop.h"
+#include "server/app/registry.h"
 #include "server/grpc/service.h"
 #include "server/http/web_app.h"
 #include "server/grpc/legacy_records.h"
@@ -68,6 +69,9 @@ constexpr const char* kUsage = R"(usage: gvd-server [flags]
                               and planning calls run at once on the CPU pool (default 2)
   --max-queued-analyses N     such calls waiting for their turn before RESOURCE_EXHAUSTED
                               (default 64)
+  --max-queued-writes N       writes (CreateScene, DeleteScene, UpsertSites, DeleteSites)
+                              waiting for a commit thread before RESOURCE_EXHAUSTED
+                              (default 1024)
   --metrics-listen HOST:PORT  serve Prometheus metrics at http://HOST:PORT/metrics (default off)
   --http-listen HOST:PORT     also serve every call over HTTP/1.1 in the Connect protocol
                               (JSON: POST /gvd.v1.Voronoi/METHOD), and the web app at /
@@ -205,6 +209,7 @@ Flags ParseFlags(int argc, char** argv) {
     else if (arg == "--max-message-bytes") ParseCount(arg, value, &f.limits.max_message_bytes);
     else if (arg == "--analysis-threads") ParseCount(arg, value, &f.limits.analysis_threads);
     else if (arg == "--max-queued-analyses") ParseCount(arg, value, &f.limits.max_queued_analyses);
+    else if (arg == "--max-queued-writes") ParseCount(arg, value, &f.limits.max_queued_writes);
     else Die(absl::StrCat("unknown flag ", arg));
   }
   f.limits.max_scene_pixels = uint64_t{f.limits.max_side_px} * f.limits.max_side_px;
@@ -318,14 +323,15 @@ int main(int argc, char** argv) {
            {{"tls", flags.tls_cert.empty() ? "off" : "on"},
             {"client_certificates", flags.tls_client_ca.empty() ? "not required" : "required"},
             {"tokens", auth ? absl::StrCat(auth->size()) : "off"}});
-  gvd::VoronoiService service(&renderer, store->get(), flags.limits, auth ? &*auth : nullptr,
-                              &metrics);
+  auto registry =
+      std::make_unique<gvd::SceneRegistry>(store->get(), &renderer, flags.limits, &metrics);
+  gvd::VoronoiService service(registry.get(), auth ? &*auth : nullptr, &metrics);
   metrics.SetMemoryLimit(flags.limits.max_memory);
   gvd::Log(gvd::LogLevel::kInfo, "memory_budget",
            {{"max_memory", absl::StrCat(flags.limits.max_memory)},
             {"human", gvd::FormatBytes(flags.limits.max_memory)}, {"from", flags.memory_source}});
   if (!flags.metrics_listen.empty()) {
-    auto port = metrics.Serve(flags.metrics_listen, [&service] { return service.SampleScenes(); });
+    auto port = metrics.Serve(flags.metrics_listen, [&registry] { return registry->Sample(); });
     if (!port.ok()) {
       gvd::Log(gvd::LogLevel::kError, "metrics_failed", {{"error", port.status().ToString()}});
       return 1;
@@ -333,6 +339,16 @@ int main(int argc, char** argv) {
     gvd::Log(gvd::LogLevel::kInfo, "metrics", {{"address", flags.metrics_listen},
                                                {"port", absl::StrCat(*port)}});
   }
+  // What goes, in this order, once the server stops serving: the render threads (so that no
+  // frame is published into the core), the metrics' view of the scenes, the core (which
+  // finishes the work its lanes still hold: a write cut short by the grace period still
+  // commits), and last the store, closed cleanly.
+  auto stop = [&] {
+    renderer.Stop();
+    metrics.StopSampling();
+    registry.reset();
+    store->reset();
+  };
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
@@ -372,7 +388,7 @@ int main(int argc, char** argv) {
     if (!started.ok()) {
       gvd::Log(gvd::LogLevel::kError, "http_failed", {{"error", started.status().ToString()}});
       server->Shutdown();
-      renderer.Stop();
+      stop();
       return 1;
     }
     http = std::move(*started);
@@ -387,10 +403,10 @@ int main(int argc, char** argv) {
               {"tls", flags.tls_cert.empty() ? "off" : "on"},
               {"cors_origins", absl::StrJoin(flags.cors_origins, ",")}});
   }
-  if (auto s = service.Load(); !s.ok()) {
+  if (auto s = registry->Load(); !s.ok()) {
     gvd::Log(gvd::LogLevel::kError, "store_load_failed", {{"error", s.ToString()}});
     server->Shutdown();
-    renderer.Stop();  // before the service's pools go
+    stop();
     return 1;
   }
   server->GetHealthCheckService()->SetServingStatus(true);
@@ -414,8 +430,7 @@ int main(int argc, char** argv) {
   // HTTP connections finish the response under way, idle ones close.
   if (http) http->Shutdown(std::chrono::milliseconds(std::min<uint32_t>(flags.grace_ms, 1000)));
   server->Shutdown(std::chrono::system_clock::now());
-  renderer.Stop();
-  store->reset();  // closes the database cleanly
+  stop();
   gvd::Log(gvd::LogLevel::kInfo, "stopped", {{"cancelled_calls", absl::StrCat(left)}});
   return 0;
 }

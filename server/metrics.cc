@@ -150,6 +150,8 @@ absl::StatusOr<int> Metrics::Serve(const std::string& address, SceneSampler samp
   return ports.empty() ? 0 : ports[0];
 }
 
+void Metrics::StopSampling() { scenes_->Set(nullptr); }
+
 void Metrics::RpcStarted(const std::string& method) {
   rpc_in_flight_->Add({{"method", method}}).Increment();
 }

@@ -43,6 +43,9 @@ class Metrics {
 
   // Serves /metrics on `address` (HOST:PORT; port 0 picks one). Returns the bound port.
   absl::StatusOr<int> Serve(const std::string& address, SceneSampler sampler);
+  // The scenes are sampled no more (a scrape under way finishes first): call it before what
+  // the sampler reads goes.
+  void StopSampling();
 
   // A call of `method` began, or ended (gvd_rpc_in_flight).
   void RpcStarted(const std::string& method);

@@ -20,6 +20,7 @@ struct ServerLimits {
   int max_message_bytes = 256 << 20;         // gRPC receive and send
   size_t analysis_threads = 2;               // workers for boundaries, neighbours, planning...
   size_t max_queued_analyses = 64;           // calls waiting for a worker
+  size_t max_queued_writes = 1024;           // writes waiting for a commit thread
   uint64_t max_memory = UINT64_MAX;          // bytes the scenes may hold (gvd-server sets it)
 };
 

@@ -11,9 +11,10 @@
 #include "render/analysis/analysis.h"
 #include "render/analysis/planning.h"
 #include "render/analysis/refine.h"
+#include "server/app/jobs.h"
 #include "server/grpc/call_scope.h"
 #include "server/grpc/convert.h"
-#include "server/grpc/frame_job.h"
+#include "server/grpc/reactors.h"
 #include "server/grpc/service.h"
 
 namespace gvd {
@@ -32,22 +33,22 @@ const std::string& IdOf(const Frame& frame, uint32_t id) {
 // refinement of neighbours zooms in EXACT mode whatever the scene's: where four sites are
 // nearly equidistant, a mesh's error (even at the zoom's finer eps) blurs which is nearest
 // over a band much wider than the structure sought.
-ZoomFn Zoomer(RenderLoop* renderer, std::shared_ptr<const Frame> frame, RenderMode mode,
+ZoomFn Zoomer(SceneRegistry* registry, std::shared_ptr<const Frame> frame, RenderMode mode,
               grpc::CallbackServerContext* ctx) {
   return [=](const std::vector<Grid>& grids)
              -> absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> {
     if (ctx->IsCancelled()) return absl::CancelledError("the call was cancelled");
-    return renderer->Zoom(frame, mode, grids);
+    return registry->Zoom(frame, mode, grids);
   };
 }
 
 // The frame's neighbour pairs in `rect`, refined through zoom windows unless `coarse`.
-absl::StatusOr<RefinedNeighbors> Neighbours(RenderLoop* renderer,
+absl::StatusOr<RefinedNeighbors> Neighbours(SceneRegistry* registry,
                                             const std::shared_ptr<const Frame>& frame,
                                             PixelRect rect, bool coarse,
                                             grpc::CallbackServerContext* ctx) {
   ZoomFn zoom;
-  if (!coarse) zoom = Zoomer(renderer, frame, RenderMode::kExact, ctx);
+  if (!coarse) zoom = Zoomer(registry, frame, RenderMode::kExact, ctx);
   return RefineNeighbors(*frame, rect, zoom);
 }
 
@@ -86,9 +87,9 @@ Status ToZoomSpec(bool has_window, const v1::Window& window, uint32_t width, uin
 // The frame a ZoomSpec asks for, and the rect of it to answer with.
 absl::StatusOr<std::pair<std::shared_ptr<const Frame>, PixelRect>> Resolve(
     const ZoomSpec& spec, const std::shared_ptr<const Frame>& frame, RenderMode mode,
-    RenderLoop* renderer, grpc::CallbackServerContext* ctx) {
+    SceneRegistry* registry, grpc::CallbackServerContext* ctx) {
   if (!spec.render) return std::pair{frame, spec.rect};
-  auto zoomed = Zoomer(renderer, frame, mode, ctx)({spec.grid});
+  auto zoomed = Zoomer(registry, frame, mode, ctx)({spec.grid});
   if (!zoomed.ok()) return zoomed.status();
   return std::pair{(*zoomed)[0], spec.grid.all()};
 }
@@ -126,36 +127,25 @@ std::vector<std::pair<std::string, std::string>> NamedPairs(const Frame& frame,
 
 }  // namespace
 
-grpc::ServerUnaryReactor* VoronoiService::StartAnalysis(
-    const char* method, grpc::CallbackServerContext* ctx, const std::string& scene_id,
-    uint64_t min_version, std::function<Status(NearestQuery*)> validate,
-    std::function<Status(const std::shared_ptr<const Frame>&, const Scene&)> work) {
+grpc::ServerUnaryReactor* VoronoiService::StartAnalysis(const char* method,
+                                                        grpc::CallbackServerContext* ctx,
+                                                        const std::string& scene_id,
+                                                        uint64_t min_version, Validate validate,
+                                                        Work work) {
   Call call = Begin(ctx, method, Access::kRead, &scene_id);
   if (!call.ok()) return call.Finish(ctx);
-  NearestQuery query{call.scope, ctx, call.scene};
   if (validate) {
-    if (auto s = validate(&query); !s.ok()) return call.Finish(ctx, s);
+    if (auto s = validate(*call.scene); !s.ok()) return call.Finish(ctx, s);
   }
-  if (auto s = WaitFor(min_version, &query); !s.ok()) return call.Finish(ctx, s);
-  CpuPool::Lane* workers = &analyses_;
-  query.on_frame_async = [workers, ctx, scene = query.scene, work = std::move(work)](
-                             std::shared_ptr<const Frame> frame, NearestQuery::Done done) {
-    bool queued = workers->Submit([ctx, work, scene, frame, done] {
-      if (ctx->IsCancelled()) {
-        done(Status(StatusCode::CANCELLED, "the call was cancelled"));
-        return;
-      }
-      done(work(frame, *scene));
-    });
-    if (!queued) {
-      done(Status(StatusCode::RESOURCE_EXHAUSTED,
-                  absl::StrCat(workers->max_queued(),
-                               " analysis calls already wait for a worker (--max-queued-analyses)")));
-    }
-  };
-  auto* reactor = new FrameReactor(std::move(query));
-  reactor->Start();
-  return reactor;
+  auto version = registry_->ReadVersion(*call.scene, min_version);
+  if (!version.ok()) return call.Finish(ctx, ToGrpc(version.status()));
+  auto job = AnalysisJob::Make(
+      registry_, call.scene, *version,
+      [scene = call.scene, work = std::move(work)](const std::shared_ptr<const Frame>& frame) {
+        return work(frame, *scene);
+      },
+      [ctx] { return ctx->IsCancelled(); });
+  return JobReactor<AnalysisJob>::Start(call.scope, job, nullptr);
 }
 
 grpc::ServerUnaryReactor* VoronoiService::GetBoundaries(grpc::CallbackServerContext* ctx,
@@ -168,9 +158,9 @@ grpc::ServerUnaryReactor* VoronoiService::GetBoundaries(grpc::CallbackServerCont
   auto p = std::make_shared<Params>();
   return StartAnalysis(
       "GetBoundaries", ctx, request->scene_id(), request->min_version(),
-      [=](NearestQuery* q) {
+      [=](const Scene& scene) {
         if (auto s = ToBoundaryMethod(*request, &p->method); !s.ok()) return s;
-        return RectOf(request->has_window(), request->window(), q->scene->settings().grid,
+        return RectOf(request->has_window(), request->window(), scene.settings().grid,
                       &p->rect);
       },
       [=](const std::shared_ptr<const Frame>& frame, const Scene&) {
@@ -192,7 +182,7 @@ grpc::ServerUnaryReactor* VoronoiService::GetBoundaries(grpc::CallbackServerCont
         response->set_version(frame->version());
         response->set_boundary_pixel_pairs(edges.count);
         response->set_cells_visited(edges.cells_visited);
-        return Status::OK;
+        return absl::OkStatus();
       });
 }
 
@@ -200,11 +190,11 @@ grpc::ServerUnaryReactor* VoronoiService::GetNeighbors(grpc::CallbackServerConte
                                                        const v1::GetNeighborsRequest* request,
                                                        v1::GetNeighborsResponse* response) {
   auto rect = std::make_shared<PixelRect>();
-  RenderLoop* renderer = renderer_;
+  SceneRegistry* registry = registry_;
   return StartAnalysis(
       "GetNeighbors", ctx, request->scene_id(), request->min_version(),
-      [=](NearestQuery* q) {
-        return RectOf(request->has_window(), request->window(), q->scene->settings().grid,
+      [=](const Scene& scene) {
+        return RectOf(request->has_window(), request->window(), scene.settings().grid,
                       rect.get());
       },
       [=](const std::shared_ptr<const Frame>& frame, const Scene&) {
@@ -216,13 +206,13 @@ grpc::ServerUnaryReactor* VoronoiService::GetNeighbors(grpc::CallbackServerConte
             live = site && site->id == only;
           }
           if (!live) {
-            return Status(StatusCode::NOT_FOUND,
+            return absl::NotFoundError(
                           absl::StrCat("site_id \"", only, "\" is not in the scene at version ",
                                        frame->version()));
           }
         }
-        auto r = Neighbours(renderer, frame, *rect, request->coarse(), ctx);
-        if (!r.ok()) return ToGrpc(r.status());
+        auto r = Neighbours(registry, frame, *rect, request->coarse(), ctx);
+        if (!r.ok()) return r.status();
         for (const auto& [a, b] : NamedPairs(*frame, r->pairs)) {
           if (!only.empty() && a != only && b != only) continue;
           v1::NeighborPair* pair = response->add_pairs();
@@ -233,14 +223,14 @@ grpc::ServerUnaryReactor* VoronoiService::GetNeighbors(grpc::CallbackServerConte
         response->set_version(frame->version());
         response->set_zoom_windows(r->windows);
         response->set_zoom_depth(r->depth);
-        return Status::OK;
+        return absl::OkStatus();
       });
 }
 
 grpc::ServerUnaryReactor* VoronoiService::GetDelaunay(grpc::CallbackServerContext* ctx,
                                                       const v1::GetDelaunayRequest* request,
                                                       v1::GetDelaunayResponse* response) {
-  RenderLoop* renderer = renderer_;
+  SceneRegistry* registry = registry_;
   return StartAnalysis(
       "GetDelaunay", ctx, request->scene_id(), request->min_version(), nullptr,
       [=](const std::shared_ptr<const Frame>& frame, const Scene&) {
@@ -251,15 +241,15 @@ grpc::ServerUnaryReactor* VoronoiService::GetDelaunay(grpc::CallbackServerContex
           if (site == nullptr) continue;
           const auto* p = std::get_if<PointSite>(&site->geometry);
           if (p == nullptr) {
-            return Status(StatusCode::FAILED_PRECONDITION,
+            return absl::FailedPreconditionError(
                           absl::StrCat("site \"", site->id,
                                        "\" is not a point; a Delaunay triangulation needs point "
                                        "sites only (GetNeighbors works for every kind)"));
           }
           points[s] = p->p;
         }
-        auto r = Neighbours(renderer, frame, frame->grid().all(), request->coarse(), ctx);
-        if (!r.ok()) return ToGrpc(r.status());
+        auto r = Neighbours(registry, frame, frame->grid().all(), request->coarse(), ctx);
+        if (!r.ok()) return r.status();
         std::vector<std::pair<uint32_t, uint32_t>> edges;
         for (const auto& [p, n] : r->pairs) edges.push_back({p.first - 1, p.second - 1});
         for (const auto& [a, b] : NamedPairs(*frame, r->pairs)) {
@@ -276,7 +266,7 @@ grpc::ServerUnaryReactor* VoronoiService::GetDelaunay(grpc::CallbackServerContex
         AddHidden(*frame, *r, response->mutable_hidden());
         response->set_version(frame->version());
         response->set_zoom_windows(r->windows);
-        return Status::OK;
+        return absl::OkStatus();
       });
 }
 
@@ -284,17 +274,17 @@ grpc::ServerUnaryReactor* VoronoiService::RenderWindow(grpc::CallbackServerConte
                                                        const v1::RenderWindowRequest* request,
                                                        v1::RenderWindowResponse* response) {
   auto spec = std::make_shared<ZoomSpec>();
-  RenderLoop* renderer = renderer_;
+  SceneRegistry* registry = registry_;
   const ServerLimits limits = limits_;
   return StartAnalysis(
       "RenderWindow", ctx, request->scene_id(), request->min_version(),
-      [=](NearestQuery* q) {
+      [=](const Scene& scene) {
         return ToZoomSpec(request->has_window(), request->window(), request->width_px(),
-                          request->height_px(), q->scene->settings().grid, limits, spec.get());
+                          request->height_px(), scene.settings().grid, limits, spec.get());
       },
       [=](const std::shared_ptr<const Frame>& frame, const Scene& scene) {
-        auto resolved = Resolve(*spec, frame, scene.settings().mode, renderer, ctx);
-        if (!resolved.ok()) return ToGrpc(resolved.status());
+        auto resolved = Resolve(*spec, frame, scene.settings().mode, registry, ctx);
+        if (!resolved.ok()) return resolved.status();
         const auto& [f, rect] = *resolved;
         std::map<uint32_t, uint32_t> named;  // id -> index + 1 into site_ids
         auto* ids = response->mutable_ids();
@@ -320,7 +310,7 @@ grpc::ServerUnaryReactor* VoronoiService::RenderWindow(grpc::CallbackServerConte
         response->set_width_px(rect.width());
         response->set_height_px(rect.height());
         response->set_max_error(f->error().max_excess);
-        return Status::OK;
+        return absl::OkStatus();
       });
 }
 
@@ -328,22 +318,22 @@ grpc::ServerUnaryReactor* VoronoiService::GetClearanceField(
     grpc::CallbackServerContext* ctx, const v1::GetClearanceFieldRequest* request,
     v1::GetClearanceFieldResponse* response) {
   auto spec = std::make_shared<ZoomSpec>();
-  RenderLoop* renderer = renderer_;
+  SceneRegistry* registry = registry_;
   const ServerLimits limits = limits_;
   return StartAnalysis(
       "GetClearanceField", ctx, request->scene_id(), request->min_version(),
-      [=](NearestQuery* q) {
-        if (q->scene->settings().diagram != Diagram::kNearest) {
+      [=](const Scene& scene) {
+        if (scene.settings().diagram != Diagram::kNearest) {
           return Status(StatusCode::FAILED_PRECONDITION,
-                        absl::StrCat("scene \"", q->scene->id(),
+                        absl::StrCat("scene \"", scene.id(),
                                      "\" is a FARTHEST diagram; clearance needs NEAREST"));
         }
         return ToZoomSpec(request->has_window(), request->window(), request->width_px(),
-                          request->height_px(), q->scene->settings().grid, limits, spec.get());
+                          request->height_px(), scene.settings().grid, limits, spec.get());
       },
       [=](const std::shared_ptr<const Frame>& frame, const Scene& scene) {
-        auto resolved = Resolve(*spec, frame, scene.settings().mode, renderer, ctx);
-        if (!resolved.ok()) return ToGrpc(resolved.status());
+        auto resolved = Resolve(*spec, frame, scene.settings().mode, registry, ctx);
+        if (!resolved.ok()) return resolved.status();
         const auto& [f, rect] = *resolved;
         ClearanceField field = MakeClearanceField(*f);
         auto* out = response->mutable_clearance();
@@ -355,7 +345,7 @@ grpc::ServerUnaryReactor* VoronoiService::GetClearanceField(
         ToProto(EdgesOf(f->grid(), rect), response->mutable_window());
         response->set_width_px(rect.width());
         response->set_height_px(rect.height());
-        return Status::OK;
+        return absl::OkStatus();
       });
 }
 
@@ -365,10 +355,10 @@ grpc::ServerUnaryReactor* VoronoiService::PlanPath(grpc::CallbackServerContext* 
   auto plan_request = std::make_shared<PlanRequest>();
   return StartAnalysis(
       "PlanPath", ctx, request->scene_id(), request->min_version(),
-      [=](NearestQuery* q) {
-        if (q->scene->settings().diagram != Diagram::kNearest) {
+      [=](const Scene& scene) {
+        if (scene.settings().diagram != Diagram::kNearest) {
           return Status(StatusCode::FAILED_PRECONDITION,
-                        absl::StrCat("scene \"", q->scene->id(),
+                        absl::StrCat("scene \"", scene.id(),
                                      "\" is a FARTHEST diagram; planning needs NEAREST"));
         }
         if (!request->has_start()) return Status(StatusCode::INVALID_ARGUMENT, "start is not set");
@@ -382,7 +372,7 @@ grpc::ServerUnaryReactor* VoronoiService::PlanPath(grpc::CallbackServerContext* 
         // Repeated plans on one frame share its clearance field.
         auto field = scene.Derived<ClearanceField>(frame, MakeClearanceField);
         auto plan = gvd::PlanPath(*frame, *field, *plan_request);
-        if (!plan.ok()) return ToGrpc(plan.status());
+        if (!plan.ok()) return plan.status();
         for (Vec2 p : plan->path) {
           v1::Point* out = response->add_path();
           out->set_x(p.x);
@@ -392,7 +382,7 @@ grpc::ServerUnaryReactor* VoronoiService::PlanPath(grpc::CallbackServerContext* 
         response->set_best_clearance(plan->best_clearance);
         response->set_length(plan->length);
         response->set_version(frame->version());
-        return Status::OK;
+        return absl::OkStatus();
       });
 }
 

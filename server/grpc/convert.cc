@@ -44,14 +44,6 @@ std::string FieldPath::str() const {
   return s;
 }
 
-std::string FormatNumber(double v) {
-  if (std::isnan(v)) return "NaN";
-  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
-  char buf[32];  // the shortest form that reads back as v
-  auto end = std::to_chars(buf, buf + sizeof buf, v).ptr;
-  return std::string(buf, end);
-}
-
 Status ValidateSceneId(const std::string& id, const ServerLimits& limits, const char* field) {
   if (id.empty()) return Invalid(absl::StrCat(field, " is empty"));
   if (id.size() > limits.max_scene_id_chars) {

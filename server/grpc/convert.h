@@ -15,12 +15,10 @@
 #include "render/kernel/site2.h"
 #include "render/image/image.h"
 #include "server/app/limits.h"
+#include "server/log.h"
 #include "render/scene/scene.h"
 
 namespace gvd {
-
-// The proto coordinate as written in messages: up to 17 significant digits, nan, inf.
-std::string FormatNumber(double v);
 
 grpc::Status ValidateSceneId(const std::string& id, const ServerLimits& limits,
                              const char* field = "scene_id");

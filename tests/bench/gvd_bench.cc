@@ -15,6 +15,7 @@
 #include "render/gl/rasterizer.h"
 #include "render/gl/scene_raster.h"
 #include "render/gl/render_loop.h"
+#include "server/app/registry.h"
 #include "server/grpc/service.h"
 #include "server/store/sqlite_store.h"
 
@@ -286,6 +287,7 @@ BENCHMARK(BM_NanoflannNearest);
 struct LoopbackServer {
   RenderLoop renderer;
   std::unique_ptr<SqliteStore> store;
+  std::unique_ptr<SceneRegistry> registry;
   std::unique_ptr<VoronoiService> service;
   std::unique_ptr<grpc::Server> server;
   std::string address;
@@ -296,8 +298,9 @@ struct LoopbackServer {
       auto* ls = new LoopbackServer();
       if (!ls->renderer.Start(DevicePreference::kAuto).ok()) return (LoopbackServer*)nullptr;
       ls->store = std::move(*SqliteStore::Open(":memory:"));
-      ls->service = std::make_unique<VoronoiService>(&ls->renderer, ls->store.get(), ServerLimits{});
-      (void)ls->service->Load();
+      ls->registry = std::make_unique<SceneRegistry>(ls->store.get(), &ls->renderer, ServerLimits{});
+      (void)ls->registry->Load();
+      ls->service = std::make_unique<VoronoiService>(ls->registry.get());
       grpc::ServerBuilder builder;
       int port = 0;
       builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
@@ -393,8 +396,9 @@ void BM_GrpcUpsert(benchmark::State& state) {
   if (!renderer.Start(DevicePreference::kAuto).ok()) return state.SkipWithError("no EGL context");
   auto store = SqliteStore::Open(dir);
   if (!store.ok()) return state.SkipWithError("no store");
-  VoronoiService service(&renderer, store->get(), ServerLimits{});
-  (void)service.Load();
+  SceneRegistry registry(store->get(), &renderer, ServerLimits{});
+  (void)registry.Load();
+  VoronoiService service(&registry);
   grpc::ServerBuilder builder;
   int port = 0;
   builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);

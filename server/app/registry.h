@@ -1,0 +1,158 @@
+// The application core: every scene the server holds and every way they change, with no
+// transport. The gRPC handlers (and through them the HTTP transport) translate requests into
+// these calls and their statuses into codes; a replica's follower will call Apply with the
+// changes other servers commit.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "render/gl/render_loop.h"
+#include "render/scene/cpu_pool.h"
+#include "render/scene/scene.h"
+#include "render/scene/store.h"
+#include "server/app/limits.h"
+#include "server/app/memory.h"
+#include "server/metrics.h"
+
+namespace gvd {
+
+// A stored scene that did not fit --max-memory when the store was loaded: kept in the store,
+// listed, removable, and refused for anything else (FAILED_PRECONDITION with the reason).
+struct UnloadedScene {
+  SceneSettings settings;
+  uint64_t version = 0;
+  size_t sites = 0;
+  uint64_t bytes = 0;
+  std::string reason;
+};
+
+// A scene as listed: loaded (`scene` set) or stored but not loaded (`unloaded` set).
+struct SceneEntry {
+  std::shared_ptr<Scene> scene;
+  std::optional<UnloadedScene> unloaded;
+  const std::string& id() const { return scene ? scene->id() : unloaded->settings.id; }
+};
+
+// Thread-safe. Threading rules:
+//  - every call may come from any thread; none waits for a render;
+//  - the calls that change state (CreateScene, DeleteScene, UpsertSites, DeleteSites) wait
+//    for the store's durable commit, under no lock of this class (a scene's own writer lock
+//    serializes its writes): run them on commits(), not on a transport's threads;
+//  - mu_ guards only the scene map and the ids being created, never across a store call.
+//
+// The write path, the same for every change: the memory it adds is reserved (or the change
+// refused, RESOURCE_EXHAUSTED naming --max-memory), it is committed to the store (refused
+// as a whole if the store fails), then published: the scene's next snapshot is installed
+// (Scene::Install, the step Apply shares) and the render threads are told.
+class SceneRegistry {
+ public:
+  // `store` and `renderer` must outlive the registry; `renderer` may be null (nothing is
+  // rendered: frames never come), `metrics` too. Until Load() has run the registry is empty
+  // and loaded() is false.
+  SceneRegistry(SceneStore* store, RenderLoop* renderer, ServerLimits limits,
+                Metrics* metrics = nullptr);
+  ~SceneRegistry();
+  SceneRegistry(const SceneRegistry&) = delete;
+  SceneRegistry& operator=(const SceneRegistry&) = delete;
+
+  // Rebuilds every stored scene in id order while it fits --max-memory (the others stay
+  // unloaded) and queues its render; then loaded() is true. Call once.
+  absl::Status Load();
+  bool loaded() const;
+
+  // A new scene at version 1 with no sites. ALREADY_EXISTS for an id stored or being
+  // created; RESOURCE_EXHAUSTED past --max-scenes or --max-memory.
+  absl::StatusOr<std::shared_ptr<Scene>> CreateScene(SceneSettings settings);
+  // The loaded scene; NOT_FOUND naming it, or FAILED_PRECONDITION for an unloaded one.
+  absl::StatusOr<std::shared_ptr<Scene>> Find(const std::string& id) const;
+  // The scene, loaded or not; NOT_FOUND naming it.
+  absl::StatusOr<SceneEntry> Describe(const std::string& id) const;
+  // Every scene, loaded or not, in id order.
+  std::vector<SceneEntry> List() const;
+  // Deletes the scene, loaded or not, from the store and then from memory; its frame
+  // waiters fail with NOT_FOUND and its watchers are told. NOT_FOUND when there is none.
+  absl::Status DeleteScene(const std::string& id);
+
+  // Inserts or replaces sites, atomically; returns the scene's new version.
+  // CONTRACT: sites are valid and their ids distinct.
+  absl::StatusOr<uint64_t> UpsertSites(const std::string& scene_id, std::vector<Site> sites);
+  // Removes sites, atomically; NOT_FOUND naming the first unknown id.
+  // CONTRACT: ids are distinct.
+  absl::StatusOr<uint64_t> DeleteSites(const std::string& scene_id,
+                                       const std::vector<std::string>& ids);
+  // Publishes a change that is durable already, committed elsewhere (another server on the
+  // same store): the write path's last step. Scene::Apply says when it is refused.
+  absl::StatusOr<uint64_t> Apply(const ChangeSet& committed);
+
+  // The version a read of `scene` waits for: `requested` (OUT_OF_RANGE when the scene has
+  // not reached it), or the current one while the scene's first render is under way, so
+  // that a new scene's reader waits rather than hearing "no sites".
+  absl::StatusOr<uint64_t> ReadVersion(const Scene& scene, uint64_t requested) const;
+
+  // Where the work that must not run on a transport's threads runs:
+  //  - answers(): answers to queries, image encoding, and frames' waiters (the CPU pool);
+  //  - analyses(): structure and planning calls, at most --analysis-threads at once and
+  //    --max-queued-analyses waiting (the CPU pool, below answers);
+  //  - commits(): the calls that wait on the store (a pool of threads of its own, as they
+  //    mostly wait), at most --max-queued-writes waiting.
+  CpuPool::Lane& answers() { return answers_; }
+  CpuPool::Lane& analyses() { return analyses_; }
+  CpuPool::Lane& commits() { return commits_; }
+  // Runs `job` on answers() (frames' waiters resume there).
+  Executor executor();
+
+  // Renders zoom windows of a frame (render/gl/zoom.h); UNAVAILABLE without a renderer.
+  absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> Zoom(
+      std::shared_ptr<const Frame> base, RenderMode mode, std::vector<Grid> grids);
+
+  const ServerLimits& limits() const { return limits_; }
+  // Per-scene figures for the metrics.
+  std::vector<Metrics::SceneSample> Sample() const;
+  // What the scenes hold and reserve now, of --max-memory.
+  uint64_t memory_used() const { return memory_.used(); }
+
+ private:
+  // Runs one store call, timing it for the metrics.
+  template <class StoreCall>
+  absl::Status Durably(StoreCall store_call) const;
+  // The write path's end for a scene whose snapshot changed: renders it.
+  void Published(const std::shared_ptr<Scene>& scene);
+  // The bytes the loaded scenes hold (the budget's own figure). Takes mu_.
+  uint64_t ScenesMemory() const;
+
+  SceneStore* const store_;
+  RenderLoop* const renderer_;
+  const ServerLimits limits_;
+  Metrics* const metrics_;
+
+  // --max-memory over the scenes' own figures. Its lock is taken before mu_.
+  MemoryBudget memory_;
+  // Guards everything below; never held across a store call.
+  mutable std::mutex mu_;
+  bool loaded_ = false;
+  std::map<std::string, std::shared_ptr<Scene>> scenes_;
+  // Ids of scenes being created (reserved, not yet committed): they count against
+  // --max-scenes and refuse a second create, but are not found until committed.
+  std::set<std::string> creating_;
+  std::map<std::string, UnloadedScene> unloaded_;
+
+  // The threads that wait on the store. Declared before the lanes, which go first.
+  CpuPool commit_threads_;
+  // Declared last: answers_ goes first, finishing what is queued (which may still queue
+  // analyses), then analyses_, then commits_.
+  CpuPool::Lane commits_;
+  CpuPool::Lane analyses_;
+  CpuPool::Lane answers_;
+};
+
+}  // namespace gvd
