@@ -321,67 +321,80 @@ void TileCover::Cover(PixelRect tile, std::vector<uint32_t>* slots,
 
 double TileCover::Keep(PixelRect tile, std::span<const uint32_t> candidates,
                        std::vector<uint32_t>* slots, std::vector<double>* radii) const {
-  if (diagram_ == Diagram::kFarthest) return KeepFarthest(tile, candidates, slots, radii);
+  // The proof of coverage.h, for both diagrams. Over the cell C (the tile's centres, within
+  // h of c) a site's value lies between m max(0, d - h) + a and m (d + h) + a, d its distance
+  // from c. The bound B is the best, among the sites present on all of C, of the worst end
+  // (U, the least upper end, in kNearest; L, the greatest lower end, in kFarthest); a site
+  // whose best end loses to B is best nowhere on C.
+  const bool farthest = diagram_ == Diagram::kFarthest;
   const SlotTable& sites = sites_;
   const double margin = margin_;
   Vec2 lo = grid_.Center(tile.x0, tile.y0), hi = grid_.Center(tile.x1 - 1, tile.y1 - 1);
   Window cell{lo.x, lo.y, hi.x, hi.y};
   Vec2 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2};
   const double h = Distance(lo, hi) / 2 + Rounding(c);
-  // Distances from c, and U: the least upper bound on the drawn value over the cell among
-  // the candidates present on the whole of it (s1: the site that has it).
   thread_local std::vector<SiteView> views;
   thread_local std::vector<double> dist;
   views.resize(candidates.size());
   dist.resize(candidates.size());
-  double upper = INFINITY;
-  size_t s1 = SIZE_MAX;
+  auto low = [&](size_t k) {
+    return views[k].multiplicative() * std::max(0.0, dist[k] - h) + views[k].additive();
+  };
+  auto high = [&](size_t k) { return views[k].multiplicative() * (dist[k] + h) + views[k].additive(); };
+  double bound = farthest ? -INFINITY : INFINITY;
+  size_t s1 = SIZE_MAX;  // the site that gives the bound
   for (size_t k = 0; k < candidates.size(); ++k) {
-    const SiteView& s = views[k] = SiteView::Of(sites, candidates[k]);
-    dist[k] = s.DistanceFrom(c);
-    if (!PresentOnDisc(s, dist[k], h, margin)) continue;
-    double u = s.multiplicative() * (dist[k] + h) + s.additive();
-    if (u < upper) {
-      upper = u;
+    views[k] = SiteView::Of(sites, candidates[k]);
+    dist[k] = views[k].DistanceFrom(c);
+    if (!PresentOnDisc(views[k], dist[k], h, margin)) continue;
+    const double worst = farthest ? low(k) : high(k);
+    if (Beats(diagram_, worst, bound)) {
+      bound = worst;
       s1 = k;
     }
   }
-  // Plain points clipped by the bisectors of the plain points nearest to the cell's corners:
-  // a plain point farther than one of those from every corner is farther from all of C (the
-  // points nearer to w than to s form a half-plane, which is convex), and plain points are
-  // present everywhere, so it is best nowhere on C.
+  // Whether a site whose best end is v loses to the bound, with the tests' rounding slack.
+  auto loses = [&](double v) {
+    return farthest ? v * (1 + 1e-12) < bound - 1e-12 * std::abs(bound) : v > bound * (1 + 1e-12);
+  };
+  // Plain points clipped by the bisectors of the plain points best at the cell's corners
+  // (nearest to them, or farthest): a plain point that loses to one of those at every corner
+  // loses to it on all of C (the points nearer to one than to the other form a half-plane,
+  // which is convex), and plain points are present everywhere, so it is best nowhere on C.
   const Vec2 corners[4] = {lo, {hi.x, lo.y}, {lo.x, hi.y}, hi};
   thread_local std::vector<std::array<double, 4>> at;  // distances from the corners
   at.resize(candidates.size());
-  size_t nearest[4] = {SIZE_MAX, SIZE_MAX, SIZE_MAX, SIZE_MAX};
+  size_t best_at[4] = {SIZE_MAX, SIZE_MAX, SIZE_MAX, SIZE_MAX};
   for (size_t k = 0; k < candidates.size(); ++k) {
     if (!views[k].plain_point()) continue;
     for (int i = 0; i < 4; ++i) {
       at[k][i] = Distance(corners[i], views[k].point);
-      if (nearest[i] == SIZE_MAX || at[k][i] < at[nearest[i]][i]) nearest[i] = k;
+      if (best_at[i] == SIZE_MAX || Beats(diagram_, at[k][i], at[best_at[i]][i])) best_at[i] = k;
     }
   }
   const double slack = 2 * Rounding(c);
+  // Whether distance x exceeds y beyond rounding.
+  auto beyond = [&](double x, double y) { return x > y * (1 + 1e-12) + slack; };
   auto clipped = [&](size_t k) {
-    for (size_t w : nearest) {
+    for (size_t w : best_at) {
       if (w == SIZE_MAX || w == k) continue;
       bool beaten = true;
       for (int i = 0; i < 4 && beaten; ++i) {
-        beaten = at[k][i] > at[w][i] * (1 + 1e-12) + slack;
+        beaten = farthest ? beyond(at[w][i], at[k][i]) : beyond(at[k][i], at[w][i]);
       }
       if (beaten) return true;
     }
     return false;
   };
-  const bool plain_best = s1 != SIZE_MAX && views[s1].plain_point();
+  const bool plain_best = !farthest && s1 != SIZE_MAX && views[s1].plain_point();
   for (size_t k = 0; k < candidates.size(); ++k) {
     const SiteView& s = views[k];
     if (s.plain_point() && clipped(k)) continue;
-    double lower = s.multiplicative() * std::max(0.0, dist[k] - h) + s.additive();
-    if (lower > upper * (1 + 1e-12)) continue;
+    if (loses(farthest ? high(k) : low(k))) continue;
     if (dist[k] - h > (s.max_distance() + margin) * (1 + 1e-12)) continue;  // absent on C
     if (!InsideReach(s, cell, margin)) continue;
-    if (s.plain_point() && plain_best && k != s1 &&
+    // Nearest only: a plain point no nearer than s1 at any corner is nowhere nearer.
+    if (plain_best && s.plain_point() && k != s1 &&
         !BeatsSomewhere(s.point, views[s1].point, cell)) {
       continue;
     }
@@ -394,71 +407,7 @@ double TileCover::Keep(PixelRect tile, std::span<const uint32_t> candidates,
                                                   s.max_distance() + margin));
     }
   }
-  return upper;
-}
-
-double TileCover::KeepFarthest(PixelRect tile, std::span<const uint32_t> candidates,
-                               std::vector<uint32_t>* slots, std::vector<double>* radii) const {
-  const double margin = margin_;
-  Vec2 lo = grid_.Center(tile.x0, tile.y0), hi = grid_.Center(tile.x1 - 1, tile.y1 - 1);
-  Window cell{lo.x, lo.y, hi.x, hi.y};
-  Vec2 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2};
-  const double h = Distance(lo, hi) / 2 + Rounding(c);
-  // L: the greatest lower bound on the drawn value over the cell among the candidates
-  // present on the whole of it.
-  thread_local std::vector<SiteView> views;
-  thread_local std::vector<double> dist;
-  views.resize(candidates.size());
-  dist.resize(candidates.size());
-  double lower = -INFINITY;
-  for (size_t k = 0; k < candidates.size(); ++k) {
-    const SiteView& s = views[k] = SiteView::Of(sites_, candidates[k]);
-    dist[k] = s.DistanceFrom(c);
-    if (!PresentOnDisc(s, dist[k], h, margin)) continue;
-    lower = std::max(lower, s.multiplicative() * std::max(0.0, dist[k] - h) + s.additive());
-  }
-  // Plain points clipped by the bisectors of the plain points farthest from the cell's
-  // corners: a plain point nearer than one of those to every corner is nearer to all of C
-  // (the points nearer to s than to w form a half-plane, which is convex), so it is best
-  // nowhere on C.
-  const Vec2 corners[4] = {lo, {hi.x, lo.y}, {lo.x, hi.y}, hi};
-  thread_local std::vector<std::array<double, 4>> at;
-  at.resize(candidates.size());
-  size_t farthest[4] = {SIZE_MAX, SIZE_MAX, SIZE_MAX, SIZE_MAX};
-  for (size_t k = 0; k < candidates.size(); ++k) {
-    if (!views[k].plain_point()) continue;
-    for (int i = 0; i < 4; ++i) {
-      at[k][i] = Distance(corners[i], views[k].point);
-      if (farthest[i] == SIZE_MAX || at[k][i] > at[farthest[i]][i]) farthest[i] = k;
-    }
-  }
-  const double slack = 2 * Rounding(c);
-  auto clipped = [&](size_t k) {
-    for (size_t w : farthest) {
-      if (w == SIZE_MAX || w == k) continue;
-      bool beaten = true;
-      for (int i = 0; i < 4 && beaten; ++i) {
-        beaten = at[k][i] * (1 + 1e-12) + slack < at[w][i];
-      }
-      if (beaten) return true;
-    }
-    return false;
-  };
-  for (size_t k = 0; k < candidates.size(); ++k) {
-    const SiteView& s = views[k];
-    if (s.plain_point() && clipped(k)) continue;
-    const double upper = s.multiplicative() * (dist[k] + h) + s.additive();
-    if (upper * (1 + 1e-12) < lower - 1e-12 * std::abs(lower)) continue;
-    if (dist[k] - h > (s.max_distance() + margin) * (1 + 1e-12)) continue;  // absent on C
-    if (!InsideReach(s, cell, margin)) continue;
-    slots->push_back(candidates[k]);
-    if (radii) {
-      radii->push_back(s.plain_point() ? RadiusFor(s, cell)
-                                       : std::min((dist[k] + h) * (1 + 0x1p-40),
-                                                  s.max_distance() + margin));
-    }
-  }
-  return lower;
+  return bound;
 }
 
 void TileCover::NeededSegments(const Grid& grid, PixelRect tile, const Site& site,

@@ -181,8 +181,6 @@ class TileCover {
   void Candidates(PixelRect tile, std::vector<uint32_t>* out) const;
   void Descend(PixelRect tile, std::span<const uint32_t> parent, uint32_t leaf_px, size_t depth,
                const Leaf& leaf) const;
-  double KeepFarthest(PixelRect tile, std::span<const uint32_t> candidates,
-                      std::vector<uint32_t>* slots, std::vector<double>* radii) const;
 
   const Diagram diagram_;
   const LeastWeights least_;
