@@ -15,10 +15,12 @@
 #include <string>
 #include <string_view>
 
-#include "absl/strings/numbers.h"
+#include "absl/flags/flag.h"
+#include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
+#include "server/flags.h"
 #include "server/grpc/auth.h"
 #include "server/http/http.h"
 #include "server/log.h"
@@ -31,72 +33,92 @@
 #include "server/grpc/legacy_records.h"
 #include "server/store/sqlite_store.h"
 
+// The flags (--help lists them: gvd::flags::Describe).
+ABSL_FLAG(std::string, listen, "127.0.0.1:50051",
+          "<HOST:PORT> address to serve on (port 0 picks one)");
+ABSL_FLAG(std::string, port_file, "",
+          "<PATH> write the bound port to PATH once serving (for scripts and tests), and the "
+          "HTTP port on a second line when it serves one");
+ABSL_FLAG(std::string, data, "",
+          "<DIR> where scenes and sites are stored (SQLite, WAL, synchronous=FULL); by default "
+          "$XDG_STATE_HOME/gvd or ~/.local/state/gvd; \":memory:\" keeps nothing across "
+          "restarts");
+ABSL_FLAG(std::string, egl_device, "auto",
+          "<auto|hardware|software> which EGL device renders (by default auto: a GPU if there "
+          "is one, else Mesa's software rasterizer)");
+ABSL_FLAG(uint32_t, software_render_threads, 0,
+          "<N> rasterizer threads of Mesa's llvmpipe, 0 to 64 (by default 0: rasterize on the "
+          "render thread itself, which keeps query latency low and incremental updates fast; "
+          "more threads speed up full renders). Ignored on a GPU, and when LP_NUM_THREADS is "
+          "set.");
+ABSL_FLAG(int32_t, render_threads, 2,
+          "<N> render threads, each with a GL context of its own: a long render holds up only "
+          "its own scene while the others render on the other threads");
+ABSL_FLAG(uint32_t, shutdown_grace_ms, 5000,
+          "<N> on SIGTERM, how long calls in flight may take to finish");
+ABSL_FLAG(std::string, log_level, "info", "<debug|info|warn|error> the least level logged");
+ABSL_FLAG(uint64_t, max_scenes, gvd::ServerLimits{}.max_scenes, "<N> scenes the server holds");
+ABSL_FLAG(std::string, max_memory, "",
+          "<BYTES> what the scenes may hold together (\"4G\", \"512M\", bytes): their rasters, "
+          "24 bytes a pixel, and their sites; a change past it is refused with "
+          "RESOURCE_EXHAUSTED (by default 3/4 of the cgroup's memory limit, else of the "
+          "physical memory)");
+ABSL_FLAG(uint64_t, max_sites_per_scene, gvd::ServerLimits{}.max_sites_per_scene,
+          "<N> sites one scene holds");
+ABSL_FLAG(uint32_t, max_side_px, gvd::ServerLimits{}.max_side_px,
+          "<N> largest width_px or height_px");
+ABSL_FLAG(uint64_t, max_points_per_query, gvd::ServerLimits{}.max_points_per_query,
+          "<N> query points in one FindNearest");
+ABSL_FLAG(uint64_t, max_sites_per_request, gvd::ServerLimits{}.max_sites_per_request,
+          "<N> sites (or ids) in one UpsertSites or DeleteSites");
+ABSL_FLAG(uint64_t, max_vertices_per_site, gvd::ServerLimits{}.max_vertices_per_site,
+          "<N> points of one polyline or polygon");
+ABSL_FLAG(int32_t, max_message_bytes, gvd::ServerLimits{}.max_message_bytes,
+          "<N> gRPC message size limit, and HTTP request bodies'");
+ABSL_FLAG(uint64_t, analysis_threads, gvd::ServerLimits{}.analysis_threads,
+          "<N> boundaries, neighbours, Delaunay, zoom windows, clearance and planning calls run "
+          "at once on the CPU pool");
+ABSL_FLAG(uint64_t, max_queued_analyses, gvd::ServerLimits{}.max_queued_analyses,
+          "<N> such calls waiting for their turn before RESOURCE_EXHAUSTED");
+ABSL_FLAG(uint64_t, max_queued_writes, gvd::ServerLimits{}.max_queued_writes,
+          "<N> writes (CreateScene, DeleteScene, UpsertSites, DeleteSites) waiting for a commit "
+          "thread before RESOURCE_EXHAUSTED");
+ABSL_FLAG(std::string, metrics_listen, "",
+          "<HOST:PORT> serve Prometheus metrics at http://HOST:PORT/metrics (by default off)");
+ABSL_FLAG(std::string, http_listen, "",
+          "<HOST:PORT> also serve every call over HTTP/1.1 in the Connect protocol (JSON: POST "
+          "/gvd.v1.Voronoi/METHOD), and the web app at / (by default off; the same tokens, TLS, "
+          "limits and metrics)");
+ABSL_FLAG(std::vector<std::string>, http_cors_origins, {},
+          "<LIST> origins whose pages may call the HTTP port, comma-separated "
+          "(\"https://app.example.com\"; \"*\" for any); by default none");
+ABSL_FLAG(std::string, tokens, "",
+          "<FILE> require bearer tokens: one \"TOKEN read\" or \"TOKEN write\" per line");
+ABSL_FLAG(std::string, tls_cert, "",
+          "<FILE> serve TLS with this certificate chain (PEM), with --tls-key");
+ABSL_FLAG(std::string, tls_key, "", "<FILE> the private key of --tls-cert (PEM)");
+ABSL_FLAG(std::string, tls_client_ca, "",
+          "<FILE> also require client certificates signed by this CA (PEM)");
+ABSL_FLAG(std::string, config, "",
+          "<FILE> read flags from FILE, one \"--flag value\" per line (# comments); flags on "
+          "the command line after --config override it");
+
 namespace {
 
-constexpr const char* kUsage = R"(usage: gvd-server [flags]
-
-  --listen HOST:PORT          address to serve on (default 127.0.0.1:50051; port 0 picks one)
-  --port-file PATH            write the bound port to PATH once serving (for scripts and
-                              tests), and the HTTP port on a second line when it serves one
-  --data DIR                  where scenes and sites are stored (SQLite, WAL, synchronous=FULL);
-                              default $XDG_STATE_HOME/gvd or ~/.local/state/gvd; ":memory:"
-                              keeps nothing across restarts
-  --egl-device auto|hardware|software
-                              which EGL device renders (default auto: a GPU if there is one,
-                              else Mesa's software rasterizer)
-  --software-render-threads N rasterizer threads of Mesa's llvmpipe (default 0: rasterize on
-                              the render thread itself, which keeps query latency low and
-                              incremental updates fast; more threads speed up full renders).
-                              Ignored on a GPU, and when LP_NUM_THREADS is set.
-  --render-threads N          render threads, each with a GL context of its own (default 2):
-                              a long render holds up only its own scene while the others
-                              render on the other threads
-  --shutdown-grace-ms N       on SIGTERM, how long calls in flight may take to finish
-                              (default 5000)
-  --log-level debug|info|warn|error   (default info)
-  --max-scenes N              (default 1000)
-  --max-memory BYTES          what the scenes may hold together ("4G", "512M", bytes):
-                              their rasters, 24 bytes a pixel, and their sites; a change past
-                              it is refused with RESOURCE_EXHAUSTED (default: 3/4 of the
-                              cgroup's memory limit, else of the physical memory)
-  --max-sites-per-scene N     (default 1000000)
-  --max-side-px N             largest width_px or height_px (default 8192)
-  --max-points-per-query N    (default 1000000)
-  --max-sites-per-request N   sites (or ids) in one UpsertSites or DeleteSites (default 100000)
-  --max-vertices-per-site N   points of one polyline or polygon (default 100000)
-  --max-message-bytes N       gRPC message size limit (default 268435456)
-  --analysis-threads N        boundaries, neighbours, Delaunay, zoom windows, clearance
-                              and planning calls run at once on the CPU pool (default 2)
-  --max-queued-analyses N     such calls waiting for their turn before RESOURCE_EXHAUSTED
-                              (default 64)
-  --max-queued-writes N       writes (CreateScene, DeleteScene, UpsertSites, DeleteSites)
-                              waiting for a commit thread before RESOURCE_EXHAUSTED
-                              (default 1024)
-  --metrics-listen HOST:PORT  serve Prometheus metrics at http://HOST:PORT/metrics (default off)
-  --http-listen HOST:PORT     also serve every call over HTTP/1.1 in the Connect protocol
-                              (JSON: POST /gvd.v1.Voronoi/METHOD), and the web app at /
-                              (default off; the same tokens, TLS, limits and metrics)
-  --http-cors-origins LIST    origins whose pages may call the HTTP port, comma-separated
-                              ("https://app.example.com"; "*" for any); default none
-  --tokens FILE               require bearer tokens: one "TOKEN read" or "TOKEN write" per line
-  --tls-cert FILE, --tls-key FILE
-                              serve TLS with this certificate chain and private key (PEM)
-  --tls-client-ca FILE        also require client certificates signed by this CA (PEM)
-  --config FILE               read flags from FILE, one "--flag value" per line (# comments);
-                              flags on the command line after --config override it
-  --help
-
-By default the server listens on loopback only, without TLS and without authentication.
-)";
+std::string Usage() {
+  return absl::StrCat("usage: gvd-server [flags]\n\n", gvd::flags::Describe("server/main.cc"),
+                      "  --help\n\nBy default the server listens on loopback only, without TLS "
+                      "and without authentication.\n");
+}
 
 struct Flags {
-  std::string listen = "127.0.0.1:50051";
+  std::string listen;
   std::string port_file;
   std::string memory_source;  // where limits.max_memory came from
   int render_threads = 2;
   std::string data;
-  std::string egl_device = "auto";
-  std::string log_level = "info";
+  std::string egl_device;
+  std::string log_level;
   uint32_t software_render_threads = 0;
   uint32_t grace_ms = 5000;
   std::string tokens, tls_cert, tls_key, tls_client_ca, metrics_listen, http_listen;
@@ -105,46 +127,16 @@ struct Flags {
 };
 
 [[noreturn]] void Die(const std::string& message) {
-  std::fprintf(stderr, "gvd-server: %s\n%s", message.c_str(), kUsage);
+  std::fprintf(stderr, "gvd-server: %s\n%s", message.c_str(), Usage().c_str());
   std::exit(2);
 }
 
-template <class T>
-void ParseCount(const std::string& flag, const std::string& value, T* out) {
-  uint64_t v = 0;
-  if (!absl::SimpleAtoi(value, &v) || v == 0 || v > std::numeric_limits<T>::max()) {
-    Die(absl::StrCat(flag, " needs a positive integer, not \"", value, "\""));
-  }
-  *out = static_cast<T>(v);
-}
-
-// The arguments with each --config FILE replaced by the flags it holds.
-std::vector<std::string> ExpandConfig(int argc, char** argv) {
-  std::vector<std::string> out;
-  for (int i = 1; i < argc; ++i) {
-    std::string arg = argv[i];
-    std::string file;
-    if (arg == "--config" && i + 1 < argc) {
-      file = argv[++i];
-    } else if (arg.rfind("--config=", 0) == 0) {
-      file = arg.substr(9);
-    } else {
-      out.push_back(arg);
-      continue;
-    }
-    std::ifstream in(file);
-    if (!in) Die(absl::StrCat("cannot read --config file ", file));
-    std::string line;
-    for (int n = 1; std::getline(in, line); ++n) {
-      std::istringstream words(line);
-      std::string flag, value;
-      if (!(words >> flag) || flag[0] == '#') continue;
-      if (flag.rfind("--", 0) != 0) Die(absl::StrCat(file, ":", n, ": expected --flag value"));
-      out.push_back(flag);
-      if (flag.find('=') == std::string::npos && (words >> value)) out.push_back(value);
-    }
-  }
-  return out;
+// A count flag's value: positive.
+template <class T, class Flag>
+T Count(const char* name, const Flag& flag) {
+  const auto v = absl::GetFlag(flag);
+  if (v <= 0) Die(absl::StrCat("--", name, " needs a positive integer, not ", v));
+  return static_cast<T>(v);
 }
 
 std::string ReadFile(const std::string& flag, const std::string& path) {
@@ -156,64 +148,60 @@ std::string ReadFile(const std::string& flag, const std::string& path) {
 }
 
 Flags ParseFlags(int argc, char** argv) {
-  Flags f;
-  std::vector<std::string> args = ExpandConfig(argc, argv);
-  for (size_t i = 0; i < args.size(); ++i) {
-    std::string arg = args[i];
-    if (arg == "--help" || arg == "-h") {
-      std::fputs(kUsage, stdout);
-      std::exit(0);
-    }
-    std::string value;
-    if (auto eq = arg.find('='); eq != std::string::npos) {
-      value = arg.substr(eq + 1);
-      arg = arg.substr(0, eq);
-    } else if (i + 1 < args.size()) {
-      value = args[++i];
-    } else {
-      Die(absl::StrCat(arg, " needs a value"));
-    }
-    if (arg == "--listen") f.listen = value;
-    else if (arg == "--tokens") f.tokens = value;
-    else if (arg == "--metrics-listen") f.metrics_listen = value;
-    else if (arg == "--http-listen") f.http_listen = value;
-    else if (arg == "--http-cors-origins") {
-      f.cors_origins = absl::StrSplit(value, ',', absl::SkipWhitespace());
-    }
-    else if (arg == "--tls-cert") f.tls_cert = value;
-    else if (arg == "--tls-key") f.tls_key = value;
-    else if (arg == "--tls-client-ca") f.tls_client_ca = value;
-    else if (arg == "--port-file") f.port_file = value;
-    else if (arg == "--data") f.data = value;
-    else if (arg == "--shutdown-grace-ms") ParseCount(arg, value, &f.grace_ms);
-    else if (arg == "--egl-device") f.egl_device = value;
-    else if (arg == "--log-level") f.log_level = value;
-    else if (arg == "--software-render-threads") {
-      if (!absl::SimpleAtoi(value, &f.software_render_threads) || f.software_render_threads > 64) {
-        Die(absl::StrCat("--software-render-threads needs 0 to 64, not \"", value, "\""));
-      }
-    }
-    else if (arg == "--max-scenes") ParseCount(arg, value, &f.limits.max_scenes);
-    else if (arg == "--render-threads") ParseCount(arg, value, &f.render_threads);
-    else if (arg == "--max-memory") {
-      auto bytes = gvd::ParseBytes(value);
-      if (!bytes) Die(absl::StrCat("--max-memory needs a size such as 4G, 512M or 1073741824, not \"", value, "\""));
-      f.limits.max_memory = *bytes;
-      f.memory_source = "--max-memory";
-    }
-    else if (arg == "--max-sites-per-scene") ParseCount(arg, value, &f.limits.max_sites_per_scene);
-    else if (arg == "--max-side-px") ParseCount(arg, value, &f.limits.max_side_px);
-    else if (arg == "--max-points-per-query") ParseCount(arg, value, &f.limits.max_points_per_query);
-    else if (arg == "--max-sites-per-request") ParseCount(arg, value, &f.limits.max_sites_per_request);
-    else if (arg == "--max-vertices-per-site") ParseCount(arg, value, &f.limits.max_vertices_per_site);
-    else if (arg == "--max-message-bytes") ParseCount(arg, value, &f.limits.max_message_bytes);
-    else if (arg == "--analysis-threads") ParseCount(arg, value, &f.limits.analysis_threads);
-    else if (arg == "--max-queued-analyses") ParseCount(arg, value, &f.limits.max_queued_analyses);
-    else if (arg == "--max-queued-writes") ParseCount(arg, value, &f.limits.max_queued_writes);
-    else Die(absl::StrCat("unknown flag ", arg));
+  const std::vector<std::string> args(argv + 1, argv + argc);
+  if (gvd::flags::WantsHelp(args)) {
+    std::fputs(Usage().c_str(), stdout);
+    std::exit(0);
   }
-  f.limits.max_scene_pixels = uint64_t{f.limits.max_side_px} * f.limits.max_side_px;
-  if (f.memory_source.empty()) f.limits.max_memory = gvd::DefaultMaxMemory("/sys/fs/cgroup", &f.memory_source);
+  auto expanded = gvd::flags::ExpandConfig(args);
+  if (!expanded.ok()) Die(std::string(expanded.status().message()));
+  if (auto parsed = gvd::flags::Parse(*expanded, /*words=*/false); !parsed.ok()) {
+    Die(std::string(parsed.status().message()));
+  }
+  Flags f;
+  f.listen = absl::GetFlag(FLAGS_listen);
+  f.port_file = absl::GetFlag(FLAGS_port_file);
+  f.data = absl::GetFlag(FLAGS_data);
+  f.egl_device = absl::GetFlag(FLAGS_egl_device);
+  f.log_level = absl::GetFlag(FLAGS_log_level);
+  f.software_render_threads = absl::GetFlag(FLAGS_software_render_threads);
+  if (f.software_render_threads > 64) {
+    Die(absl::StrCat("--software-render-threads needs 0 to 64, not ", f.software_render_threads));
+  }
+  f.render_threads = Count<int>("render-threads", FLAGS_render_threads);
+  f.grace_ms = Count<uint32_t>("shutdown-grace-ms", FLAGS_shutdown_grace_ms);
+  f.tokens = absl::GetFlag(FLAGS_tokens);
+  f.tls_cert = absl::GetFlag(FLAGS_tls_cert);
+  f.tls_key = absl::GetFlag(FLAGS_tls_key);
+  f.tls_client_ca = absl::GetFlag(FLAGS_tls_client_ca);
+  f.metrics_listen = absl::GetFlag(FLAGS_metrics_listen);
+  f.http_listen = absl::GetFlag(FLAGS_http_listen);
+  for (const std::string& origin : absl::GetFlag(FLAGS_http_cors_origins)) {
+    if (const auto o = absl::StripAsciiWhitespace(origin); !o.empty()) f.cors_origins.emplace_back(o);
+  }
+  gvd::ServerLimits& l = f.limits;
+  l.max_scenes = Count<size_t>("max-scenes", FLAGS_max_scenes);
+  l.max_sites_per_scene = Count<size_t>("max-sites-per-scene", FLAGS_max_sites_per_scene);
+  l.max_side_px = Count<uint32_t>("max-side-px", FLAGS_max_side_px);
+  l.max_points_per_query = Count<size_t>("max-points-per-query", FLAGS_max_points_per_query);
+  l.max_sites_per_request = Count<size_t>("max-sites-per-request", FLAGS_max_sites_per_request);
+  l.max_vertices_per_site = Count<size_t>("max-vertices-per-site", FLAGS_max_vertices_per_site);
+  l.max_message_bytes = Count<int>("max-message-bytes", FLAGS_max_message_bytes);
+  l.analysis_threads = Count<size_t>("analysis-threads", FLAGS_analysis_threads);
+  l.max_queued_analyses = Count<size_t>("max-queued-analyses", FLAGS_max_queued_analyses);
+  l.max_queued_writes = Count<size_t>("max-queued-writes", FLAGS_max_queued_writes);
+  l.max_scene_pixels = uint64_t{l.max_side_px} * l.max_side_px;
+  if (const std::string memory = absl::GetFlag(FLAGS_max_memory); !memory.empty()) {
+    auto bytes = gvd::ParseBytes(memory);
+    if (!bytes) {
+      Die(absl::StrCat("--max-memory needs a size such as 4G, 512M or 1073741824, not \"",
+                       memory, "\""));
+    }
+    l.max_memory = *bytes;
+    f.memory_source = "--max-memory";
+  } else {
+    l.max_memory = gvd::DefaultMaxMemory("/sys/fs/cgroup", &f.memory_source);
+  }
   if (f.data.empty()) {
     const char* state = std::getenv("XDG_STATE_HOME");
     const char* home = std::getenv("HOME");

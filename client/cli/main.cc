@@ -14,73 +14,94 @@
 #include <string>
 #include <vector>
 
+#include "absl/flags/flag.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "client/cli/cli.h"
+#include "server/flags.h"
 #include "gvd/client.h"
+
+// The CLI's flags: where to connect, and the options of its commands (gvd --help says which
+// command takes which), read by gvd::flags.
+ABSL_FLAG(std::string, server, "127.0.0.1:50051", "<HOST:PORT> the server (or $GVD_SERVER)");
+ABSL_FLAG(std::string, scene, "default", "<ID> the scene of sites and analysis commands (or $GVD_SCENE)");
+ABSL_FLAG(std::string, token, "", "<TOKEN> a bearer token (or $GVD_TOKEN)");
+ABSL_FLAG(std::string, tls_ca, "", "<FILE> connect over TLS, trusting this CA (PEM)");
+ABSL_FLAG(std::string, tls_cert, "", "<FILE> a client certificate (PEM), with --tls-key");
+ABSL_FLAG(std::string, tls_key, "", "<FILE> the client certificate's key (PEM)");
+ABSL_FLAG(double, timeout, 30, "<SECONDS> each call's deadline");
+ABSL_FLAG(bool, json, false, "print the responses as JSON");
+ABSL_FLAG(bool, exact, false, "certify each answer (nearest)");
+ABSL_FLAG(std::string, window, "", "<MIN_X,MIN_Y,MAX_X,MAX_Y>");
+ABSL_FLAG(std::string, size, "", "<WIDTHxHEIGHT>");
+ABSL_FLAG(std::string, max_error, "", "<E>");
+ABSL_FLAG(std::string, file, "", "<PATH>");
+ABSL_FLAG(std::string, min_version, "", "<V>");
+ABSL_FLAG(std::string, after, "", "<VERSION>");
+ABSL_FLAG(std::string, render_mode, "", "<mesh|exact>");
+ABSL_FLAG(std::string, diagram, "", "<nearest|farthest>");
+ABSL_FLAG(std::string, side, "", "<outside|inside>");
+ABSL_FLAG(std::string, tolerance, "", "<T>");
+ABSL_FLAG(std::string, additive, "", "<A>");
+ABSL_FLAG(std::string, multiplicative, "", "<M>");
+ABSL_FLAG(std::string, max_distance, "", "<R>");
+ABSL_FLAG(std::string, output, "", "<OUT> (or -o)");
+ABSL_FLAG(std::string, layer, "", "<ids|features|distance>");
+ABSL_FLAG(std::string, format, "", "<png|exr>");
+ABSL_FLAG(std::string, method, "", "<full|continuation>");
+ABSL_FLAG(std::string, from, "", "<X,Y>");
+ABSL_FLAG(std::string, to, "", "<X,Y>");
+ABSL_FLAG(std::string, radius, "", "<R>");
+ABSL_FLAG(std::string, prefer, "", "<clearance|shortest>");
+ABSL_FLAG(std::string, tiles, "", "<N>");
+ABSL_FLAG(std::string, seed, "", "<S>");
+ABSL_FLAG(bool, draw_sites, false, "");
+ABSL_FLAG(bool, coarse, false, "");
+ABSL_FLAG(bool, adaptive, false, "");
+ABSL_FLAG(bool, mean, false, "");
+ABSL_FLAG(bool, embedded, false, "");
 
 namespace gvd::cli {
 namespace {
 
 Args ParseArgs(int argc, char** argv) {
-  Args a;
-  if (const char* s = std::getenv("GVD_SERVER")) a.server = s;
-  if (const char* s = std::getenv("GVD_SCENE")) a.scene = s;
-  if (const char* s = std::getenv("GVD_TOKEN")) a.token = s;
-  for (int i = 1; i < argc; ++i) {
-    std::string arg = argv[i];
-    if (arg == "--help" || arg == "-h") {
-      std::fputs(kUsage, stdout);
-      std::exit(0);
-    }
+  std::vector<std::string> args(argv + 1, argv + argc);
+  if (flags::WantsHelp(args)) {
+    std::fputs(kUsage, stdout);
+    std::exit(0);
+  }
+  for (std::string& arg : args) {
     if (arg == "-o") arg = "--output";
-    if (arg.rfind("--", 0) != 0) {  // "-3.5" is a number, not a flag
-      a.words.push_back(arg);
-      continue;
-    }
-    if (arg == "--json" || arg == "--exact") {
-      (arg == "--json" ? a.json : a.exact) = true;
-      continue;
-    }
-    static const std::set<std::string> kSwitches = {"--draw-sites", "--coarse", "--adaptive",
-                                                    "--mean", "--embedded"};
-    if (kSwitches.count(arg)) {
-      a.options.insert_or_assign(arg, std::string("1"));
-      continue;
-    }
-    std::string value;
-    if (auto eq = arg.find('='); eq != std::string::npos) {
-      value = arg.substr(eq + 1);
-      arg = arg.substr(0, eq);
-    } else if (i + 1 < argc) {
-      value = argv[++i];
-    } else {
-      Usage(absl::StrCat(arg, " needs a value"));
-    }
-    if (arg == "--server") a.server = value;
-    else if (arg == "--token") a.token = value;
-    else if (arg == "--tls-ca") a.tls_ca = value;
-    else if (arg == "--tls-cert") a.tls_cert = value;
-    else if (arg == "--tls-key") a.tls_key = value;
-    else if (arg == "--scene") a.scene = value;
-    else if (arg == "--timeout") {
-      if (!absl::SimpleAtod(value, &a.timeout) || !(a.timeout > 0)) {
-        Usage(absl::StrCat("--timeout needs a positive number of seconds, not \"", value, "\""));
-      }
-    } else if (arg == "--window" || arg == "--size" || arg == "--max-error" || arg == "--file" ||
-               arg == "--min-version" || arg == "--render-mode" || arg == "--diagram" ||
-               arg == "--side" || arg == "--tolerance" || arg == "--additive" ||
-               arg == "--multiplicative" || arg == "--max-distance" || arg == "--output" ||
-               arg == "--layer" || arg == "--format" || arg == "--method" || arg == "--from" ||
-               arg == "--to" || arg == "--radius" || arg == "--prefer" || arg == "--tiles" ||
-               arg == "--seed") {
-      a.options[arg] = value;
-    } else {
-      Usage(absl::StrCat("unknown flag ", arg));
-    }
+  }
+  auto parsed = flags::Parse(args, /*words=*/true);
+  if (!parsed.ok()) Usage(std::string(parsed.status().message()));
+  Args a;
+  a.words = std::move(parsed->words);
+  // Where to connect and how: the flag, else the environment, else the default.
+  auto setting = [&](const char* flag, const char* env, std::string value) {
+    const char* from_env = std::getenv(env);
+    return parsed->given.count(flag) || from_env == nullptr ? value : std::string(from_env);
+  };
+  a.server = setting("server", "GVD_SERVER", absl::GetFlag(FLAGS_server));
+  a.scene = setting("scene", "GVD_SCENE", absl::GetFlag(FLAGS_scene));
+  a.token = setting("token", "GVD_TOKEN", absl::GetFlag(FLAGS_token));
+  a.tls_ca = absl::GetFlag(FLAGS_tls_ca);
+  a.tls_cert = absl::GetFlag(FLAGS_tls_cert);
+  a.tls_key = absl::GetFlag(FLAGS_tls_key);
+  a.json = absl::GetFlag(FLAGS_json);
+  a.exact = absl::GetFlag(FLAGS_exact);
+  a.timeout = absl::GetFlag(FLAGS_timeout);
+  if (!(a.timeout > 0)) {
+    Usage(absl::StrCat("--timeout needs a positive number of seconds, not ", a.timeout));
+  }
+  // The commands' options, as given (each command checks its own).
+  static const std::set<std::string> kGlobal = {"server", "scene", "token", "tls-ca", "tls-cert",
+                                                "tls-key", "timeout", "json", "exact"};
+  for (const auto& [name, value] : parsed->given) {
+    if (!kGlobal.count(name)) a.options["--" + name] = value;
   }
   return a;
 }

@@ -7,11 +7,20 @@
 #include <string>
 #include <vector>
 
+#include "absl/flags/flag.h"
 #include "absl/strings/str_cat.h"
 #include "render/gl/context.h"
 #include "render/gl/rasterizer.h"
 #include "render/gl/scene_raster.h"
 #include "render/image/mosaic.h"
+#include "server/flags.h"
+
+// The flags, read by gvd::flags; the mosaic's own are checked by MosaicOptionsFromFlags.
+ABSL_FLAG(std::string, tiles, "", "<N> tiles at random (default 1000)");
+ABSL_FLAG(bool, adaptive, false, "more and smaller tiles where the image has detail");
+ABSL_FLAG(std::string, seed, "", "<S> the random sites' seed");
+ABSL_FLAG(bool, mean, false, "each tile the mean colour of its pixels");
+ABSL_FLAG(std::string, egl_device, "", "<auto|hardware|software> which EGL device renders");
 
 namespace gvd {
 namespace {
@@ -54,25 +63,16 @@ absl::StatusOr<std::vector<uint32_t>> EmbeddedDiagram(DevicePreference device, c
 }
 
 int Main(int argc, char** argv) {
-  std::vector<std::string> words;
-  std::map<std::string, std::string> flags;
-  for (int i = 1; i < argc; ++i) {
-    std::string arg = argv[i];
-    if (arg == "--help" || arg == "-h") {
-      std::fputs(kUsage, stdout);
-      return 0;
-    }
-    if (arg.rfind("--", 0) != 0) {
-      words.push_back(arg);
-    } else if (arg == "--adaptive" || arg == "--mean") {
-      flags[arg] = "1";
-    } else if (arg == "--tiles" || arg == "--seed" || arg == "--egl-device") {
-      if (i + 1 == argc) Usage(arg + " needs a value");
-      flags[arg] = argv[++i];
-    } else {
-      Usage("unknown flag " + arg);
-    }
+  const std::vector<std::string> args(argv + 1, argv + argc);
+  if (flags::WantsHelp(args)) {
+    std::fputs(kUsage, stdout);
+    return 0;
   }
+  auto parsed = flags::Parse(args, /*words=*/true);
+  if (!parsed.ok()) Usage(std::string(parsed.status().message()));
+  const std::vector<std::string>& words = parsed->words;
+  std::map<std::string, std::string> flags;  // as MosaicOptionsFromFlags reads them
+  for (const auto& [name, value] : parsed->given) flags["--" + name] = value;
   if (words.size() != 2) Usage("IN and OUT are needed");
   auto options = MosaicOptionsFromFlags(flags);
   if (!options.ok()) Usage(std::string(options.status().message()));
