@@ -16,6 +16,7 @@
 #include "render/kernel/site2.h"
 #include "render/scene/site_index.h"
 #include "render/scene/snapshot.h"
+#include "render/scene/site_view.h"
 #include "render/scene/slot_table.h"
 
 namespace gvd {

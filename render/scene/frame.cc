@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "render/kernel/exact2.h"
+#include "render/scene/site_view.h"
 
 namespace gvd {
 namespace {

@@ -1,6 +1,7 @@
 #include "render/scene/site_index.h"
 
 #include <algorithm>
+#include <utility>
 
 #include <boost/geometry.hpp>
 #include <boost/geometry/index/rtree.hpp>
@@ -11,72 +12,128 @@ namespace {
 
 namespace bg = boost::geometry;
 namespace bgi = boost::geometry::index;
-using BPoint = bg::model::point<double, 2, bg::cs::cartesian>;
-using BBox = bg::model::box<BPoint>;
 
-BBox BoxOf(const Geometry& g) {
-  Window b = BoundingBox(g);
-  return BBox(BPoint(b.min_x, b.min_y), BPoint(b.max_x, b.max_y));
-}
+// Boost.Geometry's view of kernel K: its points and boxes.
+template <class K>
+struct Boost {
+  using Point = bg::model::point<double, K::kDimension, bg::cs::cartesian>;
+  using Box = bg::model::box<Point>;
+  static Point Of(typename K::Point p) {
+    Point out;
+    Set(out, [&](int axis) { return K::At(p, axis); });
+    return out;
+  }
+  static Box Of(const typename K::Box& b) {
+    Box out;
+    Set(out.min_corner(), [&](int axis) { return K::Min(b, axis); });
+    Set(out.max_corner(), [&](int axis) { return K::Max(b, axis); });
+    return out;
+  }
+  // The box of the points within r of p, on every axis.
+  static Box Around(typename K::Point p, double r) {
+    Box out;
+    Set(out.min_corner(), [&](int axis) { return K::At(p, axis) - r; });
+    Set(out.max_corner(), [&](int axis) { return K::At(p, axis) + r; });
+    return out;
+  }
+  // The corner of a box as a kernel point.
+  static typename K::Point Corner(const Box& b) {
+    typename K::Point out;
+    Get(b.min_corner(), out, std::make_index_sequence<K::kDimension>());
+    return out;
+  }
+
+ private:
+  template <class F, size_t... I>
+  static void SetAll(Point& p, F&& f, std::index_sequence<I...>) {
+    (bg::set<I>(p, f(static_cast<int>(I))), ...);
+  }
+  template <class F>
+  static void Set(Point& p, F&& f) {
+    SetAll(p, f, std::make_index_sequence<K::kDimension>());
+  }
+  template <size_t... I>
+  static void Get(const Point& p, typename K::Point& out, std::index_sequence<I...>) {
+    ((out[I] = bg::get<I>(p)), ...);
+  }
+};
 
 }  // namespace
 
-struct SiteIndex::Entry {
-  BBox box;
+template <class K>
+struct BasicSiteIndex<K>::Entry {
+  typename Boost<K>::Box box;
   uint32_t slot;
   bool point;  // the site is a point: its distance is that to the box's corner
-  std::shared_ptr<const Site> site;
+  std::shared_ptr<const typename K::Site> site;
   bool operator==(const Entry& o) const { return slot == o.slot && site == o.site; }
 };
 
 namespace {
-SiteIndex::Entry EntryOf(uint32_t slot, const std::shared_ptr<const Site>& site) {
-  return {BoxOf(site->geometry), slot, std::holds_alternative<PointSite>(site->geometry), site};
+
+template <class K>
+typename BasicSiteIndex<K>::Entry EntryOf(uint32_t slot,
+                                          const std::shared_ptr<const typename K::Site>& site) {
+  return {Boost<K>::Of(K::BoxOf(*site)), slot, K::PointOf(*site).has_value(), site};
 }
 
-// The distance from q to the entry's site (ExactDistance), without reaching a point site.
-double EntryDistance(Vec2 q, const SiteIndex::Entry& e) {
-  if (e.point) return Distance(q, Vec2(e.box.min_corner().get<0>(), e.box.min_corner().get<1>()));
-  return ExactDistance(q, *e.site);
+// The distance from q to the entry's site, without reaching a point site.
+template <class K>
+double EntryDistance(typename K::Point q, const typename BasicSiteIndex<K>::Entry& e) {
+  if (e.point) return Distance(q, Boost<K>::Corner(e.box));
+  return K::Distance(q, *e.site);
 }
 
+template <class K>
 struct EntryBox {
-  using result_type = BBox;
-  const BBox& operator()(const SiteIndex::Entry& e) const { return e.box; }
+  using result_type = typename Boost<K>::Box;
+  const result_type& operator()(const typename BasicSiteIndex<K>::Entry& e) const { return e.box; }
 };
+
 }  // namespace
 
-struct SiteIndex::Level {
-  bgi::rtree<Entry, bgi::rstar<16>, EntryBox> tree;
+template <class K>
+struct BasicSiteIndex<K>::Level {
+  bgi::rtree<Entry, bgi::rstar<16>, EntryBox<K>> tree;
 };
 
-SiteIndex::SiteIndex() : tail_(std::make_shared<const std::vector<Entry>>()) {}
-SiteIndex::~SiteIndex() = default;
-SiteIndex::SiteIndex(const SiteIndex&) = default;
-SiteIndex& SiteIndex::operator=(const SiteIndex&) = default;
-SiteIndex::SiteIndex(SiteIndex&&) noexcept = default;
-SiteIndex& SiteIndex::operator=(SiteIndex&&) noexcept = default;
+template <class K>
+BasicSiteIndex<K>::BasicSiteIndex() : tail_(std::make_shared<const std::vector<Entry>>()) {}
+template <class K>
+BasicSiteIndex<K>::~BasicSiteIndex() = default;
+template <class K>
+BasicSiteIndex<K>::BasicSiteIndex(const BasicSiteIndex&) = default;
+template <class K>
+BasicSiteIndex<K>& BasicSiteIndex<K>::operator=(const BasicSiteIndex&) = default;
+template <class K>
+BasicSiteIndex<K>::BasicSiteIndex(BasicSiteIndex&&) noexcept = default;
+template <class K>
+BasicSiteIndex<K>& BasicSiteIndex<K>::operator=(BasicSiteIndex&&) noexcept = default;
 
 // Each live site has a live entry (Update adds one for every slot placed anew), so when
 // there are no more entries than live sites, no entry is dead.
-bool SiteIndex::AllLive() const { return entries_ == live_; }
+template <class K>
+bool BasicSiteIndex<K>::AllLive() const { return entries_ == live_; }
 
-bool SiteIndex::Live(const Entry& e) const {
+template <class K>
+bool BasicSiteIndex<K>::Live(const Entry& e) const {
   return e.slot < sites_.size() && sites_.ptr(e.slot) == e.site;
 }
 
-SiteIndex SiteIndex::Build(const SlotTable& sites) {
-  SiteIndex index;
+template <class K>
+BasicSiteIndex<K> BasicSiteIndex<K>::Build(const Table& sites) {
+  BasicSiteIndex index;
   index.sites_ = sites;
   index.Rebuild();
   return index;
 }
 
-void SiteIndex::Rebuild() {
+template <class K>
+void BasicSiteIndex<K>::Rebuild() {
   std::vector<Entry> entries;
   entries.reserve(sites_.size());
   for (uint32_t i = 0; i < sites_.size(); ++i) {
-    if (const auto& s = sites_.ptr(i)) entries.push_back(EntryOf(i, s));
+    if (const auto& s = sites_.ptr(i)) entries.push_back(EntryOf<K>(i, s));
   }
   live_ = entries_ = entries.size();
   levels_.clear();
@@ -94,22 +151,24 @@ void SiteIndex::Rebuild() {
   levels_[i] = std::move(level);
 }
 
-SiteIndex SiteIndex::Update(const SlotTable& sites, std::span<const uint32_t> changed) const {
-  SiteIndex next = *this;
+template <class K>
+BasicSiteIndex<K> BasicSiteIndex<K>::Update(const Table& sites,
+                                            std::span<const uint32_t> changed) const {
+  BasicSiteIndex next = *this;
   next.sites_ = sites;
   std::vector<uint32_t> slots(changed.begin(), changed.end());
   std::sort(slots.begin(), slots.end());
   slots.erase(std::unique(slots.begin(), slots.end()), slots.end());
   std::vector<Entry> added;
   for (uint32_t s : slots) {
-    const std::shared_ptr<const Site> none;
+    const std::shared_ptr<const typename K::Site> none;
     const auto& before = s < sites_.size() ? sites_.ptr(s) : none;
     const auto& after = s < sites.size() ? sites.ptr(s) : none;
     if (before == after) continue;
     if (before) --next.live_;
     if (after) {
       ++next.live_;
-      added.push_back(EntryOf(s, after));
+      added.push_back(EntryOf<K>(s, after));
     }
   }
   next.entries_ += added.size();
@@ -153,14 +212,15 @@ SiteIndex SiteIndex::Update(const SlotTable& sites, std::span<const uint32_t> ch
   return next;
 }
 
-ExactNearest SiteIndex::Nearest(Vec2 q) const {
-  const BPoint p(q.x, q.y);
+template <class K>
+ExactNearest BasicSiteIndex<K>::Nearest(Point q) const {
+  const auto p = Boost<K>::Of(q);
   ExactNearest best{ExactNearest::kNone, INFINITY};
   double box_distance = INFINITY;  // the least over every live entry
   auto consider = [&](const Entry& e) {
     double b = bg::distance(e.box, p);
     box_distance = std::min(box_distance, b);
-    double d = EntryDistance(q, e);
+    double d = EntryDistance<K>(q, e);
     if (d < best.distance || best.index == ExactNearest::kNone) best = {e.slot, d};
   };
   const bool all_live = AllLive();
@@ -184,15 +244,16 @@ ExactNearest SiteIndex::Nearest(Vec2 q) const {
   std::vector<uint32_t> nearer;
   Within(q, best.distance, &nearer);
   for (uint32_t s : nearer) {
-    double d = ExactDistance(q, *sites_.get(s));
+    double d = K::Distance(q, *sites_.get(s));
     if (d < best.distance) best = {s, d};
   }
   return best;
 }
 
-void SiteIndex::Within(Vec2 q, double r, std::vector<uint32_t>* out) const {
-  const BPoint p(q.x, q.y);
-  BBox query(BPoint(q.x - r, q.y - r), BPoint(q.x + r, q.y + r));
+template <class K>
+void BasicSiteIndex<K>::Within(Point q, double r, std::vector<uint32_t>* out) const {
+  const auto p = Boost<K>::Of(q);
+  const auto query = Boost<K>::Around(q, r);
   const double r2 = r * r;
   auto near = [&](const Entry& e) { return bg::comparable_distance(e.box, p) <= r2; };
   const bool all_live = AllLive();
@@ -208,5 +269,7 @@ void SiteIndex::Within(Vec2 q, double r, std::vector<uint32_t>* out) const {
                           [&](const Entry& e) { out->push_back(e.slot); }));
   }
 }
+
+template class BasicSiteIndex<Kernel2>;
 
 }  // namespace gvd

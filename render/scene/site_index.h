@@ -1,7 +1,9 @@
 // A spatial index of sites by bounding box, for finding the sites that can be nearest within
 // a region, and exact nearest sites. Persistent: an index is an immutable value, and the
 // index of the next version of a slot table is made from this one in time that follows the
-// change, not the table (Update), while both stay valid and share most of their storage.
+// change, not the table (Update), while both stay valid and share most of their storage. A
+// template on the kernel whose sites it indexes (render/kernel/kernel2.h); SiteIndex is the 2D
+// kernel's.
 #pragma once
 
 #include <cstdint>
@@ -10,9 +12,7 @@
 #include <span>
 #include <vector>
 
-#include "render/kernel/exact2.h"
-#include "render/kernel/grid2.h"
-#include "render/kernel/site2.h"
+#include "render/kernel/kernel2.h"
 #include "render/scene/slot_table.h"
 
 namespace gvd {
@@ -37,32 +37,35 @@ struct ExactNearest {
 // it; when dead entries outnumber live ones, everything is rebuilt. Each entry is rebuilt
 // O(log n) times between full rebuilds, so an update costs amortized O(log^2 n) per changed
 // slot, and a query visits O(log n) trees.
-class SiteIndex {
+template <class K>
+class BasicSiteIndex {
  public:
+  using Point = typename K::Point;
+  using Table = BasicSlotTable<K>;
   static constexpr size_t kTail = 64;
 
-  SiteIndex();  // empty
-  ~SiteIndex();
-  SiteIndex(const SiteIndex&);
-  SiteIndex& operator=(const SiteIndex&);
-  SiteIndex(SiteIndex&&) noexcept;
-  SiteIndex& operator=(SiteIndex&&) noexcept;
+  BasicSiteIndex();  // empty
+  ~BasicSiteIndex();
+  BasicSiteIndex(const BasicSiteIndex&);
+  BasicSiteIndex& operator=(const BasicSiteIndex&);
+  BasicSiteIndex(BasicSiteIndex&&) noexcept;
+  BasicSiteIndex& operator=(BasicSiteIndex&&) noexcept;
 
   // An index of every live slot of the table. O(n log n), bulk loaded.
-  static SiteIndex Build(const SlotTable& sites);
+  static BasicSiteIndex Build(const Table& sites);
   // The index of `sites`, a table that differs from this index's table only in the slots
   // `changed` (placed, replaced or freed; repeats allowed). This index is left as it was.
-  SiteIndex Update(const SlotTable& sites, std::span<const uint32_t> changed) const;
+  BasicSiteIndex Update(const Table& sites, std::span<const uint32_t> changed) const;
 
   size_t size() const { return live_; }  // live sites
-  const SlotTable& sites() const { return sites_; }
+  const Table& sites() const { return sites_; }
 
   // The exact nearest site to q (ties: either); `index` is its slot. CONTRACT: size() > 0.
-  ExactNearest Nearest(Vec2 q) const;
+  ExactNearest Nearest(Point q) const;
 
   // Appends the slots of the sites whose bounding boxes come within r of q: a superset of
   // the sites within r of q.
-  void Within(Vec2 q, double r, std::vector<uint32_t>* out) const;
+  void Within(Point q, double r, std::vector<uint32_t>* out) const;
 
   struct Entry;  // defined in the .cc
 
@@ -73,11 +76,15 @@ class SiteIndex {
   bool AllLive() const;
   void Rebuild();
 
-  SlotTable sites_;
+  Table sites_;
   std::shared_ptr<const std::vector<Entry>> tail_;
   std::vector<std::shared_ptr<const Level>> levels_;  // null: empty level
   size_t live_ = 0;
   size_t entries_ = 0;  // in the tail and the levels, dead ones included
 };
+
+// The 2D kernel's index, instantiated in site_index.cc.
+extern template class BasicSiteIndex<Kernel2>;
+using SiteIndex = BasicSiteIndex<Kernel2>;
 
 }  // namespace gvd

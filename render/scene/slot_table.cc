@@ -1,28 +1,32 @@
 #include "render/scene/slot_table.h"
 
-#include "render/kernel/segment_tree.h"
-
 namespace gvd {
 
-SlotTable::SlotTable(const SiteTable& sites) {
+template <class K>
+BasicSlotTable<K>::BasicSlotTable(const std::vector<Site>& sites) {
   for (uint32_t i = 0; i < sites.size(); ++i) Set(i, std::optional<Site>(sites[i]));
 }
 
-void SlotTable::Set(uint32_t slot, std::optional<Site> site) {
-  if (site) IndexSegments(*site);
+template <class K>
+void BasicSlotTable<K>::Set(uint32_t slot, std::optional<Site> site) {
+  if (site) K::Prepare(*site);
   Set(slot, site ? std::make_shared<const Site>(std::move(*site)) : nullptr);
 }
 
-SlotTable::Chunk::Chunk() { points.fill(Vec2(NAN, NAN)); }
+template <class K>
+BasicSlotTable<K>::Chunk::Chunk() { points.fill(K::None()); }
 
-SlotTable::Block::Block() { chunks.fill(EmptyChunk()); }
+template <class K>
+BasicSlotTable<K>::Block::Block() { chunks.fill(EmptyChunk()); }
 
-const std::shared_ptr<const SlotTable::Chunk>& SlotTable::EmptyChunk() {
+template <class K>
+const std::shared_ptr<const typename BasicSlotTable<K>::Chunk>& BasicSlotTable<K>::EmptyChunk() {
   static const auto* empty = new std::shared_ptr<const Chunk>(std::make_shared<const Chunk>());
   return *empty;
 }
 
-const std::shared_ptr<const SlotTable::Block>& SlotTable::EmptyBlock() {
+template <class K>
+const std::shared_ptr<const typename BasicSlotTable<K>::Block>& BasicSlotTable<K>::EmptyBlock() {
   static const auto* empty = new std::shared_ptr<const Block>(std::make_shared<const Block>());
   return *empty;
 }
@@ -42,7 +46,8 @@ LeastWeights Min(LeastWeights a, LeastWeights b) {
 
 }  // namespace
 
-void SlotTable::Set(uint32_t slot, std::shared_ptr<const Site> site) {
+template <class K>
+void BasicSlotTable<K>::Set(uint32_t slot, std::shared_ptr<const Site> site) {
   if (!root_) root_ = std::make_shared<const Root>();
   Root& root = Own(root_);
   while (root.blocks.size() * kBlockSlots <= slot) {
@@ -60,8 +65,8 @@ void SlotTable::Set(uint32_t slot, std::shared_ptr<const Site> site) {
     recount = !chunk.additive.Remove(entry->additive) || recount;
   }
   entry = std::move(site);
-  const auto* point = entry && entry->plain() ? std::get_if<PointSite>(&entry->geometry) : nullptr;
-  chunk.points[i] = point ? point->p : Vec2(NAN, NAN);
+  const auto point = entry && entry->plain() ? K::PointOf(*entry) : std::nullopt;
+  chunk.points[i] = point ? *point : K::None();
   if (recount) {
     chunk.Recount();
   } else if (entry) {
@@ -74,7 +79,8 @@ void SlotTable::Set(uint32_t slot, std::shared_ptr<const Site> site) {
   root.least[b] = least;
 }
 
-void SlotTable::Chunk::Recount() {
+template <class K>
+void BasicSlotTable<K>::Chunk::Recount() {
   multiplicative = additive = Least{};
   for (const auto& site : sites) {
     if (site) {
@@ -84,7 +90,8 @@ void SlotTable::Chunk::Recount() {
   }
 }
 
-LeastWeights SlotTable::least() const {
+template <class K>
+LeastWeights BasicSlotTable<K>::least() const {
   LeastWeights least;
   if (root_) {
     for (const LeastWeights& l : root_->least) least = Min(least, l);
@@ -92,32 +99,6 @@ LeastWeights SlotTable::least() const {
   return least;
 }
 
-size_t SiteBytes(const Site& site) {
-  // Per site: the shared Site and its control block, a slot's pointer and point, a spatial
-  // index entry, an id-map entry (with the id again) and the allocator's overhead on each.
-  // Measured: 200,000 points added about 430 bytes each to the server's resident memory.
-  // Per segment of a tree: its two ends, its pieces' indexes and its share of the nodes.
-  constexpr size_t kEntries = 288;
-  constexpr size_t kTreePerSegment = 112;
-  size_t bytes = sizeof(Site) + kEntries + 2 * site.id.size();
-  size_t segments = 0;
-  std::visit(
-      [&](const auto& g) {
-        using G = std::decay_t<decltype(g)>;
-        if constexpr (std::is_same_v<G, PolylineSite>) {
-          bytes += g.points.size() * sizeof(Vec2);
-          segments = g.points.size() - 1;
-        } else if constexpr (std::is_same_v<G, PolygonSite>) {
-          bytes += g.vertices.size() * sizeof(Vec2);
-          segments = g.vertices.size();
-        } else if constexpr (std::is_same_v<G, BezierSite>) {
-          bytes += (g.control.size() + g.flat.size()) * sizeof(Vec2);
-          segments = g.flat.empty() ? 0 : g.flat.size() - 1;
-        }
-      },
-      site.geometry);
-  if (segments >= SegmentTree::kMinSegments) bytes += sizeof(SegmentTree) + segments * kTreePerSegment;
-  return bytes;
-}
+template class BasicSlotTable<Kernel2>;
 
 }  // namespace gvd

@@ -1,5 +1,6 @@
-// A scene's sites by slot: the persistent table that snapshots of nearby versions share, and
-// the view of a slot that the hot paths (raster lookups, the coverage proof) read.
+// A scene's sites by slot: the persistent table that snapshots of nearby versions share. A
+// template on the kernel (render/kernel/kernel2.h) whose sites it holds; SlotTable is the 2D
+// kernel's.
 #pragma once
 
 #include <algorithm>
@@ -10,8 +11,7 @@
 #include <optional>
 #include <vector>
 
-#include "render/kernel/exact2.h"
-#include "render/kernel/site2.h"
+#include "render/kernel/kernel2.h"
 
 namespace gvd {
 
@@ -30,14 +30,17 @@ struct LeastWeights {
 // tables hold the same site in a slot exactly when they hold the same pointer, which is how a
 // renderer finds what changed between two versions (Diff). A copy is immutable to readers of
 // the original; not thread-safe for concurrent writers.
-class SlotTable {
+template <class K>
+class BasicSlotTable {
  public:
+  using Site = typename K::Site;
+  using Point = typename K::Point;
   static constexpr uint32_t kChunk = 64;
   static constexpr uint32_t kBlock = 32;
   static constexpr uint32_t kBlockSlots = kChunk * kBlock;
 
-  SlotTable() = default;
-  explicit SlotTable(const SiteTable& sites);  // slot i = sites[i]
+  BasicSlotTable() = default;
+  explicit BasicSlotTable(const std::vector<Site>& sites);  // slot i = sites[i]
 
   uint32_t size() const { return size_; }  // slots, free ones included
   // The site in `slot`, or null for a free slot. CONTRACT: slot < size().
@@ -46,12 +49,12 @@ class SlotTable {
     return chunk(slot).sites[slot % kChunk];
   }
   // Where the site in `slot` is, when it is a plain (Site::plain) point, and NaN otherwise:
-  // then its value at q is Distance(q, point), found without reaching the site itself.
+  // then its value at q is its distance from q, found without reaching the site itself.
   // CONTRACT: slot < size().
-  Vec2 point(uint32_t slot) const { return chunk(slot).points[slot % kChunk]; }
+  Point point(uint32_t slot) const { return chunk(slot).points[slot % kChunk]; }
   // Puts a site in (or frees, with null) a slot, growing the table as needed.
   void Set(uint32_t slot, std::shared_ptr<const Site> site);
-  // The same for a site not yet shared, which gets its segment tree (IndexSegments) first.
+  // The same for a site not yet shared, which the kernel readies first (K::Prepare).
   void Set(uint32_t slot, std::optional<Site> site);
 
   // The least weights over the sites, exactly: O(slots / kBlockSlots), as each chunk and
@@ -61,7 +64,7 @@ class SlotTable {
   // Calls f(slot, before, after) for every slot whose site differs between the two tables
   // (by identity; either may be null). Blocks and chunks the tables share are skipped.
   template <class F>
-  static void Diff(const SlotTable& before, const SlotTable& after, F&& f);
+  static void Diff(const BasicSlotTable& before, const BasicSlotTable& after, F&& f);
 
  private:
   // The least of some values and how many of them equal it, kept as values come and go; a
@@ -83,7 +86,7 @@ class SlotTable {
   struct Chunk {
     Chunk();  // all slots free
     std::array<std::shared_ptr<const Site>, kChunk> sites;
-    std::array<Vec2, kChunk> points;  // see point()
+    std::array<Point, kChunk> points;  // see point()
     Least multiplicative, additive;
     void Recount();
   };
@@ -110,8 +113,9 @@ class SlotTable {
   uint32_t size_ = 0;
 };
 
+template <class K>
 template <class F>
-void SlotTable::Diff(const SlotTable& before, const SlotTable& after, F&& f) {
+void BasicSlotTable<K>::Diff(const BasicSlotTable& before, const BasicSlotTable& after, F&& f) {
   if (before.root_ == after.root_) return;
   const uint32_t n = std::max(before.size_, after.size_);
   for (uint32_t b = 0; b * kBlockSlots < n; ++b) {
@@ -132,37 +136,8 @@ void SlotTable::Diff(const SlotTable& before, const SlotTable& after, F&& f) {
   }
 }
 
-// The site in a slot as the hot paths (raster lookups, the coverage proof) read it: a plain
-// point (Site::plain: weights 1 and 0, no max_distance, no side) from the slot table's own
-// record of it, without reaching the site object; any other site from the site.
-struct SiteView {
-  const Site* site;  // null for a plain point
-  Vec2 point;        // the plain point
-
-  // CONTRACT: the slot holds a site.
-  static SiteView Of(const SlotTable& sites, uint32_t slot) {
-    Vec2 p = sites.point(slot);
-    return std::isnan(p.x) ? SiteView{sites.get(slot), p} : SiteView{nullptr, p};
-  }
-  bool plain_point() const { return site == nullptr; }
-  double multiplicative() const { return site ? site->multiplicative : 1; }
-  double additive() const { return site ? site->additive : 0; }
-  double max_distance() const { return site ? site->max_distance : INFINITY; }
-  // ExactDistance, FarthestDistance and SiteValue of the site (a plain point's value is its
-  // distance).
-  double DistanceFrom(Vec2 q) const {
-    return site ? ExactDistance(q, *site) : Distance(q, point);
-  }
-  double FarthestFrom(const Window& box) const {
-    return site ? FarthestDistance(box, *site) : box.FarthestDistance(point);
-  }
-  double ValueAt(Vec2 q) const { return site ? SiteValue(q, *site) : Distance(q, point); }
-};
-
-// About how many bytes a site holds in a scene: the Site, its id and geometry, the segment
-// tree it has or will have (IndexSegments), and its entries in the slot table, spatial
-// index and id map. What the memory budget (--max-memory) charges for a site, the same
-// before and after the site enters a table.
-size_t SiteBytes(const Site& site);
+// The 2D kernel's table, instantiated in slot_table.cc.
+extern template class BasicSlotTable<Kernel2>;
+using SlotTable = BasicSlotTable<Kernel2>;
 
 }  // namespace gvd

@@ -203,4 +203,32 @@ std::shared_ptr<const SiteSnapshot> Advance(const std::shared_ptr<const SiteSnap
   return next;
 }
 
+size_t SiteBytes(const Site& site) {
+  // Per site: the shared Site and its control block, a slot's pointer and point, a spatial
+  // index entry, an id-map entry (with the id again) and the allocator's overhead on each.
+  // Measured: 200,000 points added about 430 bytes each to the server's resident memory.
+  // Per segment of a tree: its two ends, its pieces' indexes and its share of the nodes.
+  constexpr size_t kEntries = 288;
+  constexpr size_t kTreePerSegment = 112;
+  size_t bytes = sizeof(Site) + kEntries + 2 * site.id.size();
+  size_t segments = 0;
+  std::visit(
+      [&](const auto& g) {
+        using G = std::decay_t<decltype(g)>;
+        if constexpr (std::is_same_v<G, PolylineSite>) {
+          bytes += g.points.size() * sizeof(Vec2);
+          segments = g.points.size() - 1;
+        } else if constexpr (std::is_same_v<G, PolygonSite>) {
+          bytes += g.vertices.size() * sizeof(Vec2);
+          segments = g.vertices.size();
+        } else if constexpr (std::is_same_v<G, BezierSite>) {
+          bytes += (g.control.size() + g.flat.size()) * sizeof(Vec2);
+          segments = g.flat.empty() ? 0 : g.flat.size() - 1;
+        }
+      },
+      site.geometry);
+  if (segments >= SegmentTree::kMinSegments) bytes += sizeof(SegmentTree) + segments * kTreePerSegment;
+  return bytes;
+}
+
 }  // namespace gvd

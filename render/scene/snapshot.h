@@ -49,6 +49,13 @@ class IdMap {
   size_t size_ = 0;
 };
 
+// About how many bytes a site holds in a scene: the Site, its id and geometry, the segment
+// tree it has or will have (IndexSegments), and its entries in the slot table, spatial
+// index and id map. What the memory budget (--max-memory) charges for a site, the same
+// before and after the site enters a table.
+size_t SiteBytes(const Site& site);
+
+
 // Immutable; shared between threads by shared_ptr<const SiteSnapshot>. Made by
 // SnapshotBuilder.
 class SiteSnapshot {

@@ -1,0 +1,45 @@
+// The 2D kernel as the scene's data structures name it (render/scene/slot_table.h,
+// site_index.h): its point, box and site types, and the few things those structures ask of
+// a site. The structures are templates on a kernel, instantiated for this one; a 3D kernel
+// (Vec3 points, boxes of space, sites of space: Kernel3) goes beside it and gets the same
+// structures without a new alternative in any of the 2D code.
+#pragma once
+
+#include <optional>
+#include <variant>
+
+#include "render/kernel/exact2.h"
+#include "render/kernel/grid2.h"
+#include "render/kernel/segment_tree.h"
+#include "render/kernel/site2.h"
+
+namespace gvd {
+
+struct Kernel2 {
+  static constexpr int kDimension = 2;
+  using Point = Vec2;
+  using Box = Window;
+  using Site = gvd::Site;
+
+  // A box's bounds on an axis (0: x, 1: y).
+  static double Min(const Box& b, int axis) { return axis == 0 ? b.min_x : b.min_y; }
+  static double Max(const Box& b, int axis) { return axis == 0 ? b.max_x : b.max_y; }
+  // A point's coordinate on an axis.
+  static double At(Point p, int axis) { return p[axis]; }
+  // A point whose coordinates are all NaN: none.
+  static Point None() { return Point(NAN, NAN); }
+
+  // The smallest box holding the site's geometry.
+  static Box BoxOf(const Site& s) { return BoundingBox(s.geometry); }
+  // Where the site is, when its geometry is a point (whatever its weights); else nullopt.
+  static std::optional<Point> PointOf(const Site& s) {
+    const auto* p = std::get_if<PointSite>(&s.geometry);
+    return p ? std::optional<Point>(p->p) : std::nullopt;
+  }
+  // The Euclidean distance from q to the site's geometry.
+  static double Distance(Point q, const Site& s) { return ExactDistance(q, s); }
+  // Readies a site that enters a table: its segment tree, for sites of many segments.
+  static void Prepare(Site& s) { IndexSegments(s); }
+};
+
+}  // namespace gvd
