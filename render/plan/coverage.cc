@@ -321,12 +321,21 @@ void TileCover::Cover(PixelRect tile, std::vector<uint32_t>* slots,
 
 double TileCover::Keep(PixelRect tile, std::span<const uint32_t> candidates,
                        std::vector<uint32_t>* slots, std::vector<double>* radii) const {
-  // The proof of coverage.h, for both diagrams. Over the cell C (the tile's centres, within
-  // h of c) a site's value lies between m max(0, d - h) + a and m (d + h) + a, d its distance
-  // from c. The bound B is the best, among the sites present on all of C, of the worst end
-  // (U, the least upper end, in kNearest; L, the greatest lower end, in kFarthest); a site
-  // whose best end loses to B is best nowhere on C.
-  const bool farthest = diagram_ == Diagram::kFarthest;
+  return diagram_ == Diagram::kFarthest
+             ? KeepIn<Diagram::kFarthest>(tile, candidates, slots, radii)
+             : KeepIn<Diagram::kNearest>(tile, candidates, slots, radii);
+}
+
+template <Diagram kDiagram>
+double TileCover::KeepIn(PixelRect tile, std::span<const uint32_t> candidates,
+                         std::vector<uint32_t>* slots, std::vector<double>* radii) const {
+  // The proof of coverage.h, for both diagrams (one instance of this each, so that no loop
+  // asks which). Over the cell C (the tile's centres, within h of c) a site's value lies
+  // between m max(0, d - h) + a and m (d + h) + a, d its distance from c. The bound B is the
+  // best, among the sites present on all of C, of the worst end (U, the least upper end, in
+  // kNearest; L, the greatest lower end, in kFarthest); a site whose best end loses to B is
+  // best nowhere on C.
+  constexpr bool farthest = kDiagram == Diagram::kFarthest;
   const SlotTable& sites = sites_;
   const double margin = margin_;
   Vec2 lo = grid_.Center(tile.x0, tile.y0), hi = grid_.Center(tile.x1 - 1, tile.y1 - 1);
@@ -348,7 +357,7 @@ double TileCover::Keep(PixelRect tile, std::span<const uint32_t> candidates,
     dist[k] = views[k].DistanceFrom(c);
     if (!PresentOnDisc(views[k], dist[k], h, margin)) continue;
     const double worst = farthest ? low(k) : high(k);
-    if (Beats(diagram_, worst, bound)) {
+    if (Beats(kDiagram, worst, bound)) {
       bound = worst;
       s1 = k;
     }
@@ -369,7 +378,7 @@ double TileCover::Keep(PixelRect tile, std::span<const uint32_t> candidates,
     if (!views[k].plain_point()) continue;
     for (int i = 0; i < 4; ++i) {
       at[k][i] = Distance(corners[i], views[k].point);
-      if (best_at[i] == SIZE_MAX || Beats(diagram_, at[k][i], at[best_at[i]][i])) best_at[i] = k;
+      if (best_at[i] == SIZE_MAX || Beats(kDiagram, at[k][i], at[best_at[i]][i])) best_at[i] = k;
     }
   }
   const double slack = 2 * Rounding(c);

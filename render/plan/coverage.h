@@ -182,6 +182,10 @@ class TileCover {
   void Candidates(PixelRect tile, std::vector<uint32_t>* out) const;
   void Descend(PixelRect tile, std::span<const uint32_t> parent, uint32_t leaf_px, size_t depth,
                const Leaf& leaf) const;
+  // Keep, for one diagram.
+  template <Diagram kDiagram>
+  double KeepIn(PixelRect tile, std::span<const uint32_t> candidates,
+                std::vector<uint32_t>* slots, std::vector<double>* radii) const;
 
   const Diagram diagram_;
   const LeastWeights least_;

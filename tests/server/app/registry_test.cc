@@ -93,6 +93,13 @@ std::unique_ptr<RenderLoop> StartRenderer() {
   return nullptr;
 }
 
+// A registry on a store in memory with no renderer: no frame ever comes.
+struct InMemory {
+  std::unique_ptr<SqliteStore> store = std::move(*SqliteStore::Open(":memory:"));
+  SceneRegistry registry{store.get(), nullptr, ServerLimits{}};
+  InMemory() { EXPECT_TRUE(registry.Load().ok()); }
+};
+
 TEST(SceneRegistry, CreateWriteReadAtAVersionDelete) {
   auto renderer = StartRenderer();
   if (!renderer) GTEST_SKIP() << "no EGL context";
@@ -164,10 +171,8 @@ TEST(SceneRegistry, CreateWriteReadAtAVersionDelete) {
 
 TEST(SceneRegistry, AWaitingReadFailsWhenItsSceneIsDeleted) {
   // No renderer: no frame ever comes, so the read waits until the scene goes.
-  auto store = SqliteStore::Open(":memory:");
-  ASSERT_TRUE(store.ok());
-  SceneRegistry registry(store->get(), nullptr, ServerLimits{});
-  ASSERT_TRUE(registry.Load().ok());
+  InMemory in_memory;
+  SceneRegistry& registry = in_memory.registry;
   auto scene = registry.CreateScene(Settings("s"));
   ASSERT_TRUE(scene.ok());
   ASSERT_TRUE(registry.UpsertSites("s", {Point("a", 0.2, 0.2)}).ok());
@@ -184,10 +189,8 @@ TEST(SceneRegistry, AWaitingReadFailsWhenItsSceneIsDeleted) {
 
 TEST(SceneRegistry, ExactAnswersNeedNoFrame) {
   // Sites of several kinds, weighted, in a FARTHEST scene too; no renderer at all.
-  auto store = SqliteStore::Open(":memory:");
-  ASSERT_TRUE(store.ok());
-  SceneRegistry registry(store->get(), nullptr, ServerLimits{});
-  ASSERT_TRUE(registry.Load().ok());
+  InMemory in_memory;
+  SceneRegistry& registry = in_memory.registry;
   for (Diagram diagram : {Diagram::kNearest, Diagram::kFarthest}) {
     SceneSettings settings = Settings(diagram == Diagram::kNearest ? "near" : "far");
     settings.diagram = diagram;
@@ -318,10 +321,8 @@ TEST(SceneRegistry, LoadsWhatFitsAndKeepsTheRestStored) {
 }
 
 TEST(SceneRegistry, AChangeCommittedElsewhereEntersThroughApply) {
-  auto store = SqliteStore::Open(":memory:");
-  ASSERT_TRUE(store.ok());
-  SceneRegistry registry(store->get(), nullptr, ServerLimits{});
-  ASSERT_TRUE(registry.Load().ok());
+  InMemory in_memory;
+  SceneRegistry& registry = in_memory.registry;
   auto scene = registry.CreateScene(Settings("s"));
   ASSERT_TRUE(scene.ok());
   ASSERT_TRUE(registry.UpsertSites("s", {Point("a", 0.1, 0.1), Point("b", 0.2, 0.2)}).ok());
