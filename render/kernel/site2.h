@@ -54,8 +54,9 @@ struct BezierSite {
 // Every site kind; new kinds are added here, in exact.cc and in the rasterizer's primitives.
 using Geometry = std::variant<PointSite, SegmentSite, PolylineSite, PolygonSite, BezierSite>;
 
-// What a site's part nearest to a point is (NearestSite.feature_kind in the API).
-enum class FeatureKind : uint8_t { kVertex, kEdge, kCurve };
+// What a site's part nearest to a point is (NearestSite.feature_kind in the API); faces are
+// the 3D kernel's (site3.h).
+enum class FeatureKind : uint8_t { kVertex, kEdge, kCurve, kFace };
 
 class SegmentTree;  // geometry/segment_tree.h
 

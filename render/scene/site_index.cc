@@ -271,5 +271,6 @@ void BasicSiteIndex<K>::Within(Point q, double r, std::vector<uint32_t>* out) co
 }
 
 template class BasicSiteIndex<Kernel2>;
+template class BasicSiteIndex<Kernel3>;
 
 }  // namespace gvd

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "render/kernel/kernel2.h"
+#include "render/kernel/kernel3.h"
 #include "render/scene/slot_table.h"
 
 namespace gvd {
@@ -86,5 +87,8 @@ class BasicSiteIndex {
 // The 2D kernel's index, instantiated in site_index.cc.
 extern template class BasicSiteIndex<Kernel2>;
 using SiteIndex = BasicSiteIndex<Kernel2>;
+// The 3D kernel's, instantiated beside it.
+extern template class BasicSiteIndex<Kernel3>;
+using SiteIndex3 = BasicSiteIndex<Kernel3>;
 
 }  // namespace gvd

@@ -100,5 +100,6 @@ LeastWeights BasicSlotTable<K>::least() const {
 }
 
 template class BasicSlotTable<Kernel2>;
+template class BasicSlotTable<Kernel3>;
 
 }  // namespace gvd

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "render/kernel/kernel2.h"
+#include "render/kernel/kernel3.h"
 
 namespace gvd {
 
@@ -139,5 +140,8 @@ void BasicSlotTable<K>::Diff(const BasicSlotTable& before, const BasicSlotTable&
 // The 2D kernel's table, instantiated in slot_table.cc.
 extern template class BasicSlotTable<Kernel2>;
 using SlotTable = BasicSlotTable<Kernel2>;
+// The 3D kernel's, instantiated beside it.
+extern template class BasicSlotTable<Kernel3>;
+using SlotTable3 = BasicSlotTable<Kernel3>;
 
 }  // namespace gvd

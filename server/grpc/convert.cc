@@ -517,6 +517,7 @@ v1::FeatureKind ToProto(FeatureKind k) {
     case FeatureKind::kVertex: return v1::VERTEX;
     case FeatureKind::kEdge: return v1::EDGE;
     case FeatureKind::kCurve: return v1::CURVE;
+    case FeatureKind::kFace: return v1::FACE;
   }
   return v1::FEATURE_KIND_UNSPECIFIED;
 }

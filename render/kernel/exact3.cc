@@ -1,0 +1,225 @@
+#include "render/kernel/exact3.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+
+namespace gvd {
+
+namespace {
+
+// A power of two that brings the largest magnitude among the vectors near 1, so that the
+// products of four coordinates below neither overflow nor underflow (the regions and the
+// parameters they give do not change under scaling, and scaling by 2^k is exact).
+double Scale(std::initializer_list<Vec3> vs) {
+  double m = 0;
+  for (Vec3 v : vs) m = std::max({m, std::abs(v.x), std::abs(v.y), std::abs(v.z)});
+  if (m == 0 || !std::isfinite(m) || (m < 0x1p200 && m > 0x1p-200)) return 1;
+  return std::ldexp(1.0, -std::ilogb(m));
+}
+
+Hit3 Make(Vec3 q, Vec3 closest, FeatureKind kind, uint32_t index) {
+  const double d = Distance(q, closest);
+  return {d, closest, kind, index, d > 0 ? (q - closest) / d : Vec3(0)};
+}
+
+}  // namespace
+
+Hit3 NearestOnSegment(Vec3 q, Vec3 a, Vec3 b) {
+  const double s = Scale({b - a, q - a});
+  const Vec3 ab = (b - a) * s, aq = (q - a) * s;
+  const double len2 = glm::dot(ab, ab);
+  const double t = len2 > 0 ? std::clamp(glm::dot(aq, ab) / len2, 0.0, 1.0) : 0.0;
+  if (t == 0) return Make(q, a, FeatureKind::kVertex, 0);
+  if (t == 1) return Make(q, b, FeatureKind::kVertex, 1);
+  return Make(q, a + t * (b - a), FeatureKind::kEdge, 0);
+}
+
+// After Ericson, Real-Time Collision Detection, 5.1.5: the Voronoi regions of the corners,
+// then of the edges, then the face, each decided by dot products with the edge vectors.
+Hit3 NearestOnTriangle(Vec3 q, Vec3 a, Vec3 b, Vec3 c) {
+  const double s = Scale({b - a, c - a, q - a});
+  const Vec3 ab = (b - a) * s, ac = (c - a) * s, ap = (q - a) * s;
+  // A degenerate triangle, or one so thin that the face's parameters lose their precision,
+  // is the union of its edges.
+  const Vec3 n = glm::cross(ab, ac);
+  const double n2 = glm::dot(n, n);
+  if (!(n2 > 0x1p-80 * glm::dot(ab, ab) * glm::dot(ac, ac))) {
+    Hit3 best = NearestOnSegment(q, a, b);
+    const std::pair<Vec3, Vec3> edges[2] = {{b, c}, {c, a}};
+    for (uint32_t e = 0; e < 2; ++e) {
+      Hit3 h = NearestOnSegment(q, edges[e].first, edges[e].second);
+      if (h.distance < best.distance) {
+        // The edge's ends are the triangle's corners e + 1 and (e + 2) mod 3.
+        h.index = h.kind == FeatureKind::kEdge ? e + 1 : (e + 1 + h.index) % 3;
+        best = h;
+      }
+    }
+    return best;
+  }
+  const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
+  if (d1 <= 0 && d2 <= 0) return Make(q, a, FeatureKind::kVertex, 0);
+  const Vec3 bp = ap - ab;
+  const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
+  if (d3 >= 0 && d4 <= d3) return Make(q, b, FeatureKind::kVertex, 1);
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const double v = d1 / (d1 - d3);
+    return Make(q, a + v * (b - a), FeatureKind::kEdge, 0);
+  }
+  const Vec3 cp = ap - ac;
+  const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
+  if (d6 >= 0 && d5 <= d6) return Make(q, c, FeatureKind::kVertex, 2);
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const double w = d2 / (d2 - d6);
+    return Make(q, a + w * (c - a), FeatureKind::kEdge, 2);
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) {
+    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return Make(q, b + w * (c - b), FeatureKind::kEdge, 1);
+  }
+  const double denom = 1 / (va + vb + vc);
+  const double v = vb * denom, w = vc * denom;
+  return Make(q, a + v * (b - a) + w * (c - a), FeatureKind::kFace, 0);
+}
+
+Hit3 NearestFeature(Vec3 q, const Geometry3& g) {
+  if (const auto* p = std::get_if<PointSite3>(&g)) return Make(q, p->p, FeatureKind::kVertex, 0);
+  if (const auto* s = std::get_if<SegmentSite3>(&g)) return NearestOnSegment(q, s->a, s->b);
+  if (const auto* t = std::get_if<TriangleSite3>(&g)) return NearestOnTriangle(q, t->a, t->b, t->c);
+  const auto& mesh = std::get<MeshSite3>(g);
+  Hit3 best{INFINITY, Vec3(NAN), FeatureKind::kVertex, 0, Vec3(0)};
+  for (size_t i = 0; i < mesh.triangles.size(); ++i) {
+    const auto& tri = mesh.triangles[i];
+    Hit3 h = NearestOnTriangle(q, mesh.vertices[tri[0]], mesh.vertices[tri[1]],
+                               mesh.vertices[tri[2]]);
+    if (!(h.distance < best.distance)) continue;
+    // The triangle's own numbering, to the mesh's.
+    if (h.kind == FeatureKind::kFace) {
+      h.index = static_cast<uint32_t>(i);
+    } else if (h.kind == FeatureKind::kEdge) {
+      h.index = mesh.triangle_edges[i][h.index];
+    } else {
+      h.index = tri[h.index];
+    }
+    best = h;
+  }
+  return best;
+}
+
+double ExactDistance(Vec3 q, const Geometry3& g) {
+  if (const auto* p = std::get_if<PointSite3>(&g)) return Distance(q, p->p);
+  return NearestFeature(q, g).distance;
+}
+
+double SiteValue(Vec3 q, const Site3& site) {
+  const double d = ExactDistance(q, site.geometry);
+  if (d > site.max_distance) return INFINITY;
+  return site.multiplicative * d + site.additive;
+}
+
+namespace {
+
+// Calls f(v) for every point of the geometry that is a vertex of it.
+template <class F>
+void ForEachVertex(const Geometry3& g, F&& f) {
+  if (const auto* p = std::get_if<PointSite3>(&g)) {
+    f(p->p);
+  } else if (const auto* s = std::get_if<SegmentSite3>(&g)) {
+    f(s->a);
+    f(s->b);
+  } else if (const auto* t = std::get_if<TriangleSite3>(&g)) {
+    f(t->a);
+    f(t->b);
+    f(t->c);
+  } else {
+    const auto& mesh = std::get<MeshSite3>(g);
+    for (const auto& e : mesh.edges) {  // every vertex of a triangle ends an edge
+      f(mesh.vertices[e[0]]);
+      f(mesh.vertices[e[1]]);
+    }
+  }
+}
+
+}  // namespace
+
+Box3 BoundingBox(const Geometry3& g) {
+  Box3 box{INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY};
+  ForEachVertex(g, [&](Vec3 v) {
+    box.min_x = std::min(box.min_x, v.x);
+    box.min_y = std::min(box.min_y, v.y);
+    box.min_z = std::min(box.min_z, v.z);
+    box.max_x = std::max(box.max_x, v.x);
+    box.max_y = std::max(box.max_y, v.y);
+    box.max_z = std::max(box.max_z, v.z);
+  });
+  return box;
+}
+
+double FarthestDistance(const Box3& box, const Geometry3& g) {
+  double best = INFINITY;
+  ForEachVertex(g, [&](Vec3 v) {
+    // The farthest corner from v, axis by axis.
+    const Vec3 far(std::max(std::abs(v.x - box.min_x), std::abs(v.x - box.max_x)),
+                   std::max(std::abs(v.y - box.min_y), std::abs(v.y - box.max_y)),
+                   std::max(std::abs(v.z - box.min_z), std::abs(v.z - box.max_z)));
+    best = std::min(best, Length(far));
+  });
+  return best;
+}
+
+absl::StatusOr<MeshSite3> MakeMesh(const std::vector<double>& xyz,
+                                   const std::vector<uint32_t>& triangles, size_t max_triangles) {
+  if (xyz.size() % 3 != 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("xyz has ", xyz.size(), " values; it must hold three a vertex"));
+  }
+  if (triangles.empty() || triangles.size() % 3 != 0) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "triangles has ", triangles.size(), " indices; it must hold three a triangle, at least one"));
+  }
+  if (triangles.size() / 3 > max_triangles) {
+    return absl::InvalidArgumentError(absl::StrCat("triangles holds ", triangles.size() / 3,
+                                                   " triangles, over the limit of ",
+                                                   max_triangles));
+  }
+  for (size_t i = 0; i < xyz.size(); ++i) {
+    if (!std::isfinite(xyz[i])) {
+      return absl::InvalidArgumentError(absl::StrCat("xyz[", i, "] is ", xyz[i]));
+    }
+  }
+  const size_t n = xyz.size() / 3;
+  MeshSite3 mesh;
+  mesh.vertices.reserve(n);
+  for (size_t i = 0; i < n; ++i) mesh.vertices.emplace_back(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+  std::map<std::pair<uint32_t, uint32_t>, uint32_t> edge_of;
+  mesh.triangles.reserve(triangles.size() / 3);
+  mesh.triangle_edges.reserve(triangles.size() / 3);
+  for (size_t t = 0; t < triangles.size(); t += 3) {
+    std::array<uint32_t, 3> tri{triangles[t], triangles[t + 1], triangles[t + 2]};
+    for (size_t k = 0; k < 3; ++k) {
+      if (tri[k] >= n) {
+        return absl::InvalidArgumentError(absl::StrCat("triangles[", t + k, "] is ", tri[k],
+                                                       ", past the ", n, " vertices"));
+      }
+    }
+    std::array<uint32_t, 3> named{};
+    for (size_t k = 0; k < 3; ++k) {
+      const auto key = std::minmax(tri[k], tri[(k + 1) % 3]);
+      auto [it, added] = edge_of.emplace(std::make_pair(key.first, key.second),
+                                         static_cast<uint32_t>(mesh.edges.size()));
+      if (added) mesh.edges.push_back({key.first, key.second});
+      named[k] = it->second;
+    }
+    mesh.triangles.push_back(tri);
+    mesh.triangle_edges.push_back(named);
+  }
+  return mesh;
+}
+
+}  // namespace gvd
