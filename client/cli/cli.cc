@@ -77,9 +77,10 @@ Health:
   gvd health           the server's grpc.health.v1 status; exit 0 when SERVING
 
 Queries:
-  gvd nearest X Y [X Y ...] [--min-version V] [--exact]
+  gvd nearest X Y [X Y ...] [--min-version V] [--exact] [--closest]
       prints, per point, the nearest site, its exact distance, and the error bound: no
-      site is closer than distance - error_bound; --exact certifies each answer exact
+      site is closer than distance - error_bound; --exact certifies each answer exact;
+      --closest adds the site's point nearest to X Y and the distance's unit gradient
 
 Flags:
   --server HOST:PORT   default 127.0.0.1:50051, or $GVD_SERVER

@@ -35,6 +35,8 @@ ABSL_FLAG(std::string, tls_key, "", "<FILE> the client certificate's key (PEM)")
 ABSL_FLAG(double, timeout, 30, "<SECONDS> each call's deadline");
 ABSL_FLAG(bool, json, false, "print the responses as JSON");
 ABSL_FLAG(bool, exact, false, "certify each answer (nearest)");
+ABSL_FLAG(bool, closest, false,
+          "nearest: also each answer's closest point on its site and the distance's unit gradient");
 ABSL_FLAG(std::string, window, "", "<MIN_X,MIN_Y,MAX_X,MAX_Y>");
 ABSL_FLAG(std::string, size, "", "<WIDTHxHEIGHT>");
 ABSL_FLAG(std::string, max_error, "", "<E>");
@@ -510,18 +512,24 @@ int Run(const Args& a) {
       r.set_min_version(mv);
     }
     r.set_exact(a.exact);
+    const bool closest = absl::GetFlag(FLAGS_closest);
+    if (closest) {
+      r.add_fields(gvd::v1::FindNearestRequest::CLOSEST);
+      r.add_fields(gvd::v1::FindNearestRequest::GRADIENT);
+    }
     gvd::v1::FindNearestResponse response;
     if (auto s = client->FindNearest(r, &response); !s.ok()) return Fail(s);
     if (a.json) {
       PrintJson(response);
       return 0;
     }
-    std::cout << "x\ty\tsite\tdistance\terror_bound\texact\tfeature\n";
+    std::cout << "x\ty\tsite\tdistance\terror_bound\texact\tfeature"
+              << (closest ? "\tclosest\tgradient\n" : "\n");
     for (int i = 0; i < response.results_size(); ++i) {
       const auto& n = response.results(i);
       std::cout << Num(r.points(i).x()) << "\t" << Num(r.points(i).y()) << "\t";
       if (n.empty()) {
-        std::cout << "(none)\tinf\t0\tyes\t-\n";
+        std::cout << "(none)\tinf\t0\tyes\t-" << (closest ? "\t-\t-\n" : "\n");
         continue;
       }
       std::string kind = n.feature_kind() == gvd::v1::EDGE    ? "edge"
@@ -529,7 +537,12 @@ int Run(const Args& a) {
                                                               : "vertex";
       std::cout << n.site_id() << "\t" << Num(n.distance()) << "\t" << Num(n.error_bound())
                 << "\t" << (n.exact() ? "yes" : "no") << "\t" << kind << " "
-                << n.feature_index() << "\n";
+                << n.feature_index();
+      if (closest) {
+        std::cout << "\t" << Num(n.closest().x()) << "," << Num(n.closest().y()) << "\t"
+                  << Num(n.gradient().x()) << "," << Num(n.gradient().y());
+      }
+      std::cout << "\n";
     }
     return 0;
   }

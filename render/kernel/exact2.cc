@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <utility>
 
 #include "render/kernel/segment_tree.h"
 
@@ -27,11 +28,25 @@ double ExactDistance(Vec2 q, const Geometry& g) {
 
 namespace {
 
+// The ends of segment i of g, in ForEachSegment order.
+std::pair<Vec2, Vec2> SegmentAt(const Geometry& g, uint32_t i) {
+  if (const auto* p = std::get_if<PointSite>(&g)) return {p->p, p->p};
+  if (const auto* s = std::get_if<SegmentSite>(&g)) return {s->a, s->b};
+  if (const auto* l = std::get_if<PolylineSite>(&g)) return {l->points[i], l->points[i + 1]};
+  if (const auto* poly = std::get_if<PolygonSite>(&g)) {
+    const auto& v = poly->vertices;
+    return {v[i], v[(i + 1) % v.size()]};
+  }
+  const auto& flat = std::get<BezierSite>(g).flat;
+  return {flat[i], flat[i + 1]};
+}
+
 // The feature of g that segment i (in ForEachSegment order) at parameter t is, at distance d.
 FeatureHit FeatureOf(const Geometry& g, double d, uint32_t i, double t) {
-  FeatureHit best = t == 0   ? FeatureHit{d, FeatureKind::kVertex, i}
-                    : t == 1 ? FeatureHit{d, FeatureKind::kVertex, i + 1}
-                             : FeatureHit{d, FeatureKind::kEdge, i};
+  const auto [a, b] = SegmentAt(g, i);
+  FeatureHit best = t == 0   ? FeatureHit{d, FeatureKind::kVertex, i, a}
+                    : t == 1 ? FeatureHit{d, FeatureKind::kVertex, i + 1, b}
+                             : FeatureHit{d, FeatureKind::kEdge, i, a + t * (b - a)};
   if (const auto* poly = std::get_if<PolygonSite>(&g)) {
     if (best.kind == FeatureKind::kVertex) best.index %= poly->vertices.size();
   } else if (const auto* bez = std::get_if<BezierSite>(&g)) {

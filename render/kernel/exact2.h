@@ -36,6 +36,9 @@ struct FeatureHit {
   double distance = 0;
   FeatureKind kind = FeatureKind::kVertex;
   uint32_t index = 0;
+  // The point of the feature nearest to q, at `distance` from it (a Bezier's: its
+  // flattening's, as its distance is).
+  Vec2 closest;
 };
 FeatureHit NearestFeature(Vec2 q, const Geometry& g);
 

@@ -22,8 +22,7 @@ double Scale(std::initializer_list<Vec3> vs) {
 }
 
 Hit3 Make(Vec3 q, Vec3 closest, FeatureKind kind, uint32_t index) {
-  const double d = Distance(q, closest);
-  return {d, closest, kind, index, d > 0 ? (q - closest) / d : Vec3(0)};
+  return {Distance(q, closest), closest, kind, index, UnitGradient(q, closest)};
 }
 
 }  // namespace

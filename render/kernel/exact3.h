@@ -20,10 +20,7 @@ struct Hit3 {
   Vec3 closest;
   FeatureKind kind = FeatureKind::kVertex;
   uint32_t index = 0;
-  // The unit gradient of the distance at q, (q - closest) / distance; zero where the
-  // distance is 0 (a minimum, where zero is a subgradient). Where several points of the site
-  // are nearest, the distance is not differentiable, and this is the one-sided gradient
-  // towards the point found.
+  // The unit gradient of the distance at q: UnitGradient(q, closest) (vec.h).
   Vec3 gradient;
 };
 

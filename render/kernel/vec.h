@@ -35,4 +35,14 @@ inline double Length(Vec3 a) {
 inline double Distance(Vec2 a, Vec2 b) { return Length(a - b); }
 inline double Distance(Vec3 a, Vec3 b) { return Length(a - b); }
 
+// The unit gradient at q of the distance to a set whose nearest point to q is `closest`:
+// (q - closest) / |q - closest|, and zero where q is on the set (a minimum of the distance,
+// where zero is a subgradient). Where several points of the set are nearest, the distance
+// is not differentiable there, and this is its one-sided gradient towards `closest`.
+template <class V>
+V UnitGradient(V q, V closest) {
+  const double d = Length(q - closest);
+  return d > 0 ? (q - closest) / d : V(0);
+}
+
 }  // namespace gvd

@@ -188,6 +188,7 @@ Scene::Picked Scene::Pick(Vec2 q, double max_distance) const {
   p.distance = n.distance;
   p.feature_kind = f.kind;
   p.feature_index = f.index;
+  p.closest = f.closest;
   return p;
 }
 
@@ -210,7 +211,7 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
   auto answer = [&](Vec2 q, uint32_t slot, double value) {
     const Site* site = slots.get(slot);
     FeatureHit f = features ? NearestFeature(q, *site) : FeatureHit{};
-    return ExactAnswer{site->id, value, f.kind, f.index, true, slot};
+    return ExactAnswer{site->id, value, f.kind, f.index, f.closest, true, slot};
   };
   // Cancellation is checked about every million site evaluations: every 4,096 points when
   // the index answers, more often when each point scores every site.

@@ -106,12 +106,13 @@ class Scene {
     double distance = INFINITY;
     FeatureKind feature_kind = FeatureKind::kVertex;
     uint32_t feature_index = 0;
+    Vec2 closest;  // the site's point nearest to q (FeatureHit::closest)
     bool found = false;
     uint32_t slot = 0;  // the site's slot in the answering version's table
   };
   // `cancelled`, when given, is polled every few thousand points; once it says true the
   // answers are left incomplete and the call returns 0.
-  // Without `features`, feature_kind and feature_index are left at their defaults.
+  // Without `features`, feature_kind, feature_index and closest are left at their defaults.
   uint64_t NearestExact(const std::vector<Vec2>& points, std::vector<ExactAnswer>* answers,
                         const std::function<bool()>& cancelled = nullptr,
                         bool features = true) const;
@@ -126,6 +127,7 @@ class Scene {
     double distance = 0;
     FeatureKind feature_kind = FeatureKind::kVertex;
     uint32_t feature_index = 0;
+    Vec2 closest;  // the site's point nearest to q
     uint64_t version = 0;
   };
   Picked Pick(Vec2 q, double max_distance) const;

@@ -110,7 +110,7 @@ void NearestJob::AnswerExact() {
   rows_.reserve(exact_answers_.size());
   for (const auto& a : exact_answers_) {
     rows_.push_back({a.found ? &a.site_id : nullptr, a.slot, a.distance, 0, true,
-                     a.feature_kind, a.feature_index});
+                     a.feature_kind, a.feature_index, a.closest});
   }
   Finish(absl::OkStatus());
 }
@@ -139,15 +139,18 @@ void NearestJob::AnswerFrom(const std::shared_ptr<const Frame>& frame) {
         }
         if (!query_.skip_refinement && a->ambiguous()) a = frame_->Refine(q, *a);
         if (!a->found) {
-          rows_[i] = {nullptr, 0, INFINITY, 0, true, FeatureKind::kVertex, 0};
+          rows_[i] = {nullptr, 0, INFINITY, 0, true, FeatureKind::kVertex, 0, Vec2(NAN)};
           return true;
         }
         const Site& site = *frame_->sites().get(a->site_index);
-        FeatureHit f = std::holds_alternative<PointSite>(site.geometry) || !query_.features
-                           ? FeatureHit{}
-                           : NearestFeature(q, site);
+        FeatureHit f;
+        if (const auto* point = std::get_if<PointSite>(&site.geometry)) {
+          f.closest = point->p;  // vertex 0
+        } else if (query_.features) {
+          f = NearestFeature(q, site);
+        }
         rows_[i] = {&site.id, a->site_index, a->distance, a->error_bound,
-                    a->error_bound == 0, f.kind, f.index};
+                    a->error_bound == 0, f.kind, f.index, f.closest};
         return true;
       });
   if (missing) {

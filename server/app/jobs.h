@@ -81,7 +81,7 @@ struct NearestQuery {
   std::vector<Vec2> points;
   bool exact = false;            // certify every answer (no raster bound)
   bool skip_refinement = false;  // leave ambiguous raster answers as they are
-  bool features = true;          // find each answer's nearest feature
+  bool features = true;          // find each answer's nearest feature and nearest point
   uint64_t min_version = 0;      // SceneRegistry::ReadVersion's
 };
 
@@ -94,6 +94,9 @@ struct AnswerRow {
   bool exact;
   FeatureKind feature_kind;
   uint32_t feature_index;
+  // The site's point nearest to the query point, when the query asked for features (a
+  // point site's always).
+  Vec2 closest;
 };
 
 // Answers a query: raster answers from the frame (refined where ambiguous), or exact ones
@@ -108,6 +111,8 @@ class NearestJob final : public FrameJob {
                                           NearestQuery query, std::function<bool()> cancelled);
   // The answers in the order of the points; valid once `done` was called with OK.
   const std::vector<AnswerRow>& rows() const { return rows_; }
+  // The query points, in order.
+  const std::vector<Vec2>& points() const { return query_.points; }
 
  private:
   NearestJob(SceneRegistry* registry, std::shared_ptr<Scene> scene, NearestQuery query,

@@ -402,6 +402,8 @@ grpc::ServerUnaryReactor* VoronoiService::Pick(grpc::CallbackServerContext* ctx,
     response->set_distance(picked.distance);
     response->set_feature_kind(ToProto(picked.feature_kind));
     response->set_feature_index(picked.feature_index);
+    ToProto(picked.closest, response->mutable_closest());
+    ToProto(UnitGradient(point, picked.closest), response->mutable_gradient());
     ToProto(*picked.site, response->mutable_site());
   }
   return call.Finish(ctx, Status::OK);

@@ -309,26 +309,27 @@ Status ToQueryPoints(const v1::FindNearestRequest& r, const Window& w, const Ser
   return Status::OK;
 }
 
+void ToProto(Vec2 p, v1::Point* out) {
+  out->set_x(p.x);
+  out->set_y(p.y);
+}
+
 void ToProto(const Site& site, v1::Site* out) {
   out->set_id(site.id);
-  auto set = [](Vec2 p, v1::Point* q) {
-    q->set_x(p.x);
-    q->set_y(p.y);
-  };
   if (const auto* p = std::get_if<PointSite>(&site.geometry)) {
-    set(p->p, out->mutable_point());
+    ToProto(p->p, out->mutable_point());
   } else if (const auto* seg = std::get_if<SegmentSite>(&site.geometry)) {
-    set(seg->a, out->mutable_segment()->mutable_a());
-    set(seg->b, out->mutable_segment()->mutable_b());
+    ToProto(seg->a, out->mutable_segment()->mutable_a());
+    ToProto(seg->b, out->mutable_segment()->mutable_b());
   } else if (const auto* l = std::get_if<PolylineSite>(&site.geometry)) {
-    for (Vec2 q : l->points) set(q, out->mutable_polyline()->add_points());
+    for (Vec2 q : l->points) ToProto(q, out->mutable_polyline()->add_points());
   } else if (const auto* poly = std::get_if<PolygonSite>(&site.geometry)) {
-    for (Vec2 q : poly->vertices) set(q, out->mutable_polygon()->add_vertices());
+    for (Vec2 q : poly->vertices) ToProto(q, out->mutable_polygon()->add_vertices());
     out->mutable_polygon()->set_side(poly->side == Side::kOutside  ? v1::Polygon::OUTSIDE
                                      : poly->side == Side::kInside ? v1::Polygon::INSIDE
                                                                    : v1::Polygon::SIDE_UNSPECIFIED);
   } else if (const auto* b = std::get_if<BezierSite>(&site.geometry)) {
-    for (Vec2 q : b->control) set(q, out->mutable_bezier()->add_control_points());
+    for (Vec2 q : b->control) ToProto(q, out->mutable_bezier()->add_control_points());
     out->mutable_bezier()->set_tolerance(b->tolerance);
   }
   if (site.additive != 0) out->set_additive_weight(site.additive);

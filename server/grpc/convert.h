@@ -90,6 +90,7 @@ grpc::Status ToBoundaryMethod(const v1::GetBoundariesRequest& request, BoundaryM
 grpc::Status ToPathPreference(const v1::PlanPathRequest& request, PathPreference* prefer);
 
 v1::FeatureKind ToProto(FeatureKind k);
+void ToProto(Vec2 p, v1::Point* out);
 void ToProto(const Site& site, v1::Site* out);
 void ToProto(const Window& w, v1::Window* out);
 void ToProto(const SceneSettings& settings, v1::Scene* out);  // the settings' fields only

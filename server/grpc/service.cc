@@ -19,12 +19,19 @@ using grpc::Status;
 using grpc::StatusCode;
 
 // The packed columns a FindNearest request asks for: bit f for v1::FindNearestRequest::Field f.
-constexpr uint32_t kAllFields = 0x3e;  // SITE .. FEATURE
+constexpr uint32_t kDefaultFields = 0x3e;  // SITE .. FEATURE, when a request names none
+constexpr uint32_t Bit(v1::FindNearestRequest::Field f) { return 1u << f; }
+// The fields that a request with `points` may name: they add to whole NearestSite messages.
+constexpr uint32_t kPointFields =
+    Bit(v1::FindNearestRequest::CLOSEST) | Bit(v1::FindNearestRequest::GRADIENT);
 
-// Writes rows [begin, end) into the response: as NearestSite results, or packed (only the
-// columns in `fields`: bit f for v1::FindNearestRequest::Field f).
-void Fill(const std::vector<AnswerRow>& rows, size_t begin, size_t end, bool packed,
-          uint32_t fields, v1::FindNearestResponse* response) {
+// Writes rows [begin, end) into the response, the answers to points[begin, end): as
+// NearestSite results, or packed (only the columns in `fields`: bit f for
+// v1::FindNearestRequest::Field f).
+void Fill(const std::vector<AnswerRow>& rows, const std::vector<Vec2>& points, size_t begin,
+          size_t end, bool packed, uint32_t fields, v1::FindNearestResponse* response) {
+  const bool closest = (fields & Bit(v1::FindNearestRequest::CLOSEST)) != 0;
+  const bool gradient = (fields & Bit(v1::FindNearestRequest::GRADIENT)) != 0;
   if (!packed) {
     auto* results = response->mutable_results();
     results->Reserve(static_cast<int>(end - begin));
@@ -42,6 +49,8 @@ void Fill(const std::vector<AnswerRow>& rows, size_t begin, size_t end, bool pac
       r->set_exact(rows[i].exact);
       r->set_feature_index(rows[i].feature_index);
       r->set_feature_kind(ToProto(rows[i].feature_kind));
+      if (closest) ToProto(rows[i].closest, r->mutable_closest());
+      if (gradient) ToProto(UnitGradient(points[i], rows[i].closest), r->mutable_gradient());
     }
     return;
   }
@@ -63,6 +72,14 @@ void Fill(const std::vector<AnswerRow>& rows, size_t begin, size_t end, bool pac
   uint32_t* feature_index =
       column(p->mutable_feature_index(), wants(v1::FindNearestRequest::FEATURE));
   int* feature_kind = column(p->mutable_feature_kind(), wants(v1::FindNearestRequest::FEATURE));
+  // Two values an answer: x, y.
+  auto pairs = [n](auto* field, bool wanted) {
+    if (!wanted) return decltype(field->mutable_data())(nullptr);
+    field->Resize(2 * n, {});
+    return field->mutable_data();
+  };
+  double* closest_xy = pairs(p->mutable_closest(), closest);
+  double* gradient_xy = pairs(p->mutable_gradient(), gradient);
   if (site != nullptr) {
     // slot -> index in site_ids: a table over the slots when the rows are many for the slots
     // they span (a large batch), a hash map otherwise (small stream chunks of a large scene).
@@ -93,6 +110,19 @@ void Fill(const std::vector<AnswerRow>& rows, size_t begin, size_t end, bool pac
     if (feature_index) {
       feature_index[k] = row.feature_index;
       feature_kind[k] = ToProto(row.feature_kind);
+    }
+    if (closest_xy || gradient_xy) {
+      const bool empty = row.site_id == nullptr;
+      const Vec2 c = empty ? Vec2(NAN) : row.closest;
+      const Vec2 g = empty ? Vec2(NAN) : UnitGradient(points[i], c);
+      if (closest_xy) {
+        closest_xy[2 * k] = c.x;
+        closest_xy[2 * k + 1] = c.y;
+      }
+      if (gradient_xy) {
+        gradient_xy[2 * k] = g.x;
+        gradient_xy[2 * k + 1] = g.y;
+      }
     }
   }
 }
@@ -139,7 +169,7 @@ class NearestStreamReactor final : public grpc::ServerWriteReactor<v1::FindNeare
     message_.Clear();
     message_.set_version(job_->version());
     message_.set_offset(offset_);
-    Fill(rows, offset_, end, /*packed=*/true, fields_, &message_);
+    Fill(rows, job_->points(), offset_, end, /*packed=*/true, fields_, &message_);
     offset_ = end;
     StartWrite(&message_);
   }
@@ -339,7 +369,7 @@ grpc::ServerUnaryReactor* VoronoiService::ListSites(grpc::CallbackServerContext*
 }
 
 Status VoronoiService::ParseNearest(const v1::FindNearestRequest& request, const Scene& scene,
-                                    NearestQuery* query, uint32_t* fields) const {
+                                    bool packed, NearestQuery* query, uint32_t* fields) const {
   bool outside = false;
   if (auto s = ToQueryPoints(request, scene.settings().grid.window, limits_, &query->points,
                              &outside);
@@ -351,20 +381,31 @@ Status VoronoiService::ParseNearest(const v1::FindNearestRequest& request, const
   query->min_version = *version;
   query->exact = request.exact() || outside;
   query->skip_refinement = request.skip_refinement();
-  *fields = kAllFields;
+  *fields = packed ? kDefaultFields : 0;
   if (request.fields_size() > 0) {
     *fields = 0;
     for (int i = 0; i < request.fields_size(); ++i) {
       const int f = request.fields(i);
-      if (f < v1::FindNearestRequest::SITE || f > v1::FindNearestRequest::FEATURE) {
+      if (f < v1::FindNearestRequest::SITE || f > v1::FindNearestRequest::GRADIENT) {
         return Status(StatusCode::INVALID_ARGUMENT,
                       absl::StrCat("fields[", i, "] is ", f,
-                                   "; it must be SITE, DISTANCE, ERROR_BOUND, EXACT or FEATURE"));
+                                   "; it must be SITE, DISTANCE, ERROR_BOUND, EXACT, FEATURE, "
+                                   "CLOSEST or GRADIENT"));
+      }
+      if (!packed && (Bit(static_cast<v1::FindNearestRequest::Field>(f)) & kPointFields) == 0) {
+        return Status(StatusCode::INVALID_ARGUMENT,
+                      absl::StrCat("fields[", i, "] is ",
+                                   v1::FindNearestRequest::Field_Name(f),
+                                   "; with points, whose answers are whole NearestSite messages, "
+                                   "fields may name only CLOSEST and GRADIENT (send the points "
+                                   "as xy to choose the columns of packed answers)"));
       }
       *fields |= 1u << f;
     }
   }
-  query->features = (*fields & (1u << v1::FindNearestRequest::FEATURE)) != 0;
+  query->features = !packed || (*fields & (Bit(v1::FindNearestRequest::FEATURE) |
+                                           Bit(v1::FindNearestRequest::CLOSEST) |
+                                           Bit(v1::FindNearestRequest::GRADIENT))) != 0;
   return Status::OK;
 }
 
@@ -373,22 +414,17 @@ grpc::ServerUnaryReactor* VoronoiService::FindNearest(grpc::CallbackServerContex
                                                       v1::FindNearestResponse* response) {
   Call call = Begin(ctx, "FindNearest", Access::kRead, &request->scene_id());
   if (!call.ok()) return call.Finish(ctx);
-  if (request->fields_size() > 0 && request->points_size() > 0) {
-    return call.Finish(ctx, Status(StatusCode::INVALID_ARGUMENT,
-                                   "fields selects the columns of packed answers; send the "
-                                   "points as xy, or leave fields empty"));
-  }
   NearestQuery query;
   uint32_t fields = 0;
-  if (auto s = ParseNearest(*request, *call.scene, &query, &fields); !s.ok()) {
+  const bool packed = request->points_size() == 0;
+  if (auto s = ParseNearest(*request, *call.scene, packed, &query, &fields); !s.ok()) {
     return call.Finish(ctx, s);
   }
-  const bool packed = request->xy_size() > 0;
   auto job = NearestJob::Make(registry_, call.scene, std::move(query),
                               [ctx] { return ctx->IsCancelled(); });
   return JobReactor<NearestJob>::Start(call.scope, job, [=](const NearestJob& job) {
     response->set_version(job.version());
-    Fill(job.rows(), 0, job.rows().size(), packed, fields, response);
+    Fill(job.rows(), job.points(), 0, job.rows().size(), packed, fields, response);
   });
 }
 
@@ -398,7 +434,7 @@ grpc::ServerWriteReactor<v1::FindNearestResponse>* VoronoiService::FindNearestSt
   NearestQuery query;
   uint32_t fields = 0;
   Status s = call.status;
-  if (s.ok()) s = ParseNearest(*request, *call.scene, &query, &fields);
+  if (s.ok()) s = ParseNearest(*request, *call.scene, /*packed=*/true, &query, &fields);
   size_t chunk = request->chunk_size() == 0 ? 65536 : request->chunk_size();
   std::shared_ptr<NearestJob> job;
   if (s.ok()) {

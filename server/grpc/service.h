@@ -95,8 +95,9 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
  private:
   // Validates a FindNearest request on its scene and resolves its points and mode, and the
   // packed columns it asks for (bit f for v1::FindNearestRequest::Field f).
+  // `packed`: whether the answers go out packed (a request with `xy`, and every stream).
   grpc::Status ParseNearest(const v1::FindNearestRequest& request, const Scene& scene,
-                            NearestQuery* query, uint32_t* fields) const;
+                            bool packed, NearestQuery* query, uint32_t* fields) const;
 
   // How every handler starts: the call is counted (scope) and admitted (ready, token;
   // kWrite for calls that change state), and a call on one scene (scene_id given) has its

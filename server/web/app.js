@@ -24,7 +24,7 @@ const state = {
   view: null,           // the scene window the canvas shows: {minX, minY, maxX, maxY}
   image: null,          // the layer shown: {bitmap, window, version}
   index: null,          // SITE_INDEX: {ids, width, height, window, siteIds, slotOf, boxes, version}
-  hover: null,          // the last Pick answered: {x, y, found, siteId, distance, feature, site}
+  hover: null,          // the last Pick answered: {x, y, found, siteId, distance, feature, site, closest}
   selected: null,       // {siteId, site}
   tool: 'select',
   draft: [],            // the points of a site being added
@@ -466,6 +466,23 @@ function drawOverlay() {
       drawImageOver(context, tint.canvas, window, width, height, tint.c0, tint.r0);
     }
     if (hover.site) outline(context, hover.site, '#ffd21f');
+    if (hover.closest) {
+      // The site's point nearest to the cursor, and the line to it: the distance shown.
+      const [ax, ay] = toCanvas(hover.x, hover.y);
+      const [bx, by] = toCanvas(hover.closest[0], hover.closest[1]);
+      context.strokeStyle = '#ffd21f';
+      context.lineWidth = 1;
+      context.setLineDash([3, 3]);
+      context.beginPath();
+      context.moveTo(ax, ay);
+      context.lineTo(bx, by);
+      context.stroke();
+      context.setLineDash([]);
+      context.fillStyle = '#ffd21f';
+      context.beginPath();
+      context.arc(bx, by, 3, 0, 2 * Math.PI);
+      context.fill();
+    }
   }
   if (state.selected?.site) outline(context, state.selected.site, '#3ee0ff');
   const drag = state.press?.drag;
@@ -533,6 +550,7 @@ async function pick(at) {
     state.hover = {
       x: at.x, y: at.y, found: !!r.found, siteId: r.siteId ?? '', distance: r.distance ?? 0,
       feature: r.featureKind ?? '', featureIndex: r.featureIndex ?? 0, site: r.site ?? null,
+      closest: r.closest ? [r.closest.x ?? 0, r.closest.y ?? 0] : null,
     };
     const answered = performance.now();
     drawOverlay();

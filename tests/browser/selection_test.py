@@ -233,6 +233,11 @@ class SelectionTest(unittest.TestCase):
         site = sites[shown_id]
         self.assertLessEqual(abs(shown_distance - truth[shown_id]), slack(site),
                              f"at {q}: {shown_id} shown at {shown_distance}, exactly {truth[shown_id]}")
+        # The point the page draws the line to: on the site, and as near q as the site is.
+        closest = answer["closest"]
+        self.assertLessEqual(distance(tuple(closest), site), slack(site), f"at {q}: {closest} is off {shown_id}")
+        self.assertLessEqual(abs(math.dist(q, closest) - truth[shown_id]), slack(site),
+                             f"at {q}: {closest} is {math.dist(q, closest)} away, {shown_id} {truth[shown_id]}")
         # No site is nearer: each is at most its slack farther, as the server measures it.
         nearest = min(truth[id] + slack(s) for id, s in sites.items())
         self.assertLessEqual(shown_distance, nearest,

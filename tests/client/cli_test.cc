@@ -92,6 +92,11 @@ TEST_F(CliTest, TourFromTheReadme) {
   r = Gvd("--scene demo nearest 45 80 --exact");
   EXPECT_NE(r.out.find("45\t80\tc\t" ), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("\t0\tyes\tvertex 0\n"), std::string::npos) << r.out;
+  // a at (10, 10) is 5 from (13, 14): the closest point is a, the gradient (3, 4) / 5.
+  r = Gvd("--scene demo nearest 13 14 --exact --closest");
+  EXPECT_NE(r.out.find("\tfeature\tclosest\tgradient\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("13\t14\ta\t5\t0\tyes\tvertex 0\t10,10\t0.6,0.8\n"), std::string::npos)
+      << r.out;
   r = Gvd("scene ls");
   EXPECT_NE(r.out.find("scene demo:"), std::string::npos) << r.out;
   r = Gvd("--scene demo sites ls");

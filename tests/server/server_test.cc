@@ -16,6 +16,7 @@
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "gvd/client.h"
 #include "render/kernel/exact2.h"
+#include "tests/support/pixel_oracle.h"
 #include "tests/support/server_process.h"
 #include "tests/support/test_scenes.h"
 
@@ -790,13 +791,118 @@ TEST_F(ServerTest, PackedAnswersCarryTheFieldsAskedFor) {
   EXPECT_NE(s.error_message().find("fields[1] is 9"), std::string::npos) << s.error_message();
   bad.clear_xy();
   bad.clear_fields();
+  bad.add_fields(F::CLOSEST);
   bad.add_fields(F::SITE);
   bad.add_points()->set_x(0.5);
   s = client_->FindNearest(bad, &r);
   EXPECT_EQ(s.error_code(), StatusCode::INVALID_ARGUMENT);
-  EXPECT_NE(s.error_message().find("fields selects the columns of packed answers"),
-            std::string::npos)
+  EXPECT_NE(s.error_message().find("fields[1] is SITE; with points"), std::string::npos)
       << s.error_message();
+}
+
+// Every answer can carry the answering site's nearest point and the unit gradient of its
+// distance: packed or per point, raster or exact, in a scene of every kind with weights, and
+// Pick's too. Judged by the oracle: the point lies on the feature the answer names and is as
+// near the query point as the site is; the gradient runs from it to the query point.
+TEST_F(ServerTest, ClosestPointsAndGradients) {
+  Create("closest", {0, 0, 1, 1}, 128, 128);
+  Generator gen(2611);
+  std::vector<Site> sites;
+  for (int k = 0; k < 140; ++k) {
+    Site site{"k" + std::to_string(k), gen.Kind(k % 7)};
+    if (k % 5 == 1) site.additive = gen.U(0, 0.05);
+    if (k % 5 == 2) site.multiplicative = gen.U(0.8, 2);
+    sites.push_back(site);
+  }
+  const uint64_t v = Upsert("closest", sites);
+  std::map<std::string, const Site*> by_id;
+  for (const Site& site : sites) by_id[site.id] = &site;
+  // Random points, some outside the window, and points on the sites (a zero gradient).
+  std::vector<Vec2> queries;
+  for (int i = 0; i < 1500; ++i) queries.push_back(gen.P());
+  for (int k = 0; k < 140; k += 3) queries.push_back(oracle::Segments(sites[k].geometry)[0].first);
+  using F = v1::FindNearestRequest;
+  int checked = 0;
+  auto check = [&](Vec2 q, const std::string& id, v1::FeatureKind kind, uint32_t index,
+                   const v1::Point& closest, const v1::Point& gradient) {
+    ASSERT_TRUE(by_id.count(id)) << id;
+    ASSERT_TRUE(testing::IsClosestPoint(q, by_id[id]->geometry, kind, index, closest, gradient))
+        << "q (" << q.x << ", " << q.y << ") site " << id << " feature " << kind << " "
+        << index << " closest (" << closest.x() << ", " << closest.y() << ") gradient ("
+        << gradient.x() << ", " << gradient.y() << ")";
+    ++checked;
+  };
+  for (bool exact : {false, true}) {
+    // Per point: the whole NearestSite, with closest and gradient added.
+    v1::FindNearestRequest each;
+    each.set_scene_id("closest");
+    each.set_min_version(v);
+    each.set_exact(exact);
+    for (Vec2 q : queries) testing::SetPoint(q, each.add_points());
+    each.add_fields(F::GRADIENT);
+    each.add_fields(F::CLOSEST);
+    v1::FindNearestResponse r;
+    grpc::Status s = client_->FindNearest(each, &r);
+    ASSERT_TRUE(s.ok()) << s.error_message();
+    ASSERT_EQ(r.results_size(), static_cast<int>(queries.size()));
+    for (size_t i = 0; i < queries.size(); ++i) {
+      const v1::NearestSite& n = r.results(static_cast<int>(i));
+      if (n.empty()) continue;
+      const Site& site = *by_id.at(n.site_id());
+      const double value = oracle::Value(queries[i], site);
+      EXPECT_NEAR(n.distance(), value, oracle::Tolerance(queries[i], value, site.multiplicative));
+      ASSERT_TRUE(n.has_closest() && n.has_gradient());
+      check(queries[i], n.site_id(), n.feature_kind(), n.feature_index(), n.closest(), n.gradient());
+    }
+    // Packed: the columns asked for, x and y an answer.
+    v1::FindNearestRequest packed;
+    packed.set_scene_id("closest");
+    packed.set_min_version(v);
+    packed.set_exact(exact);
+    for (Vec2 q : queries) {
+      packed.add_xy(q.x);
+      packed.add_xy(q.y);
+    }
+    for (F::Field f : {F::SITE, F::FEATURE, F::CLOSEST, F::GRADIENT}) packed.add_fields(f);
+    s = client_->FindNearest(packed, &r);
+    ASSERT_TRUE(s.ok()) << s.error_message();
+    const auto& p = r.packed();
+    ASSERT_EQ(p.closest_size(), static_cast<int>(2 * queries.size()));
+    ASSERT_EQ(p.gradient_size(), static_cast<int>(2 * queries.size()));
+    EXPECT_EQ(p.distance_size(), 0);
+    for (size_t i = 0; i < queries.size(); ++i) {
+      const int k = static_cast<int>(i);
+      if (p.site(k) == UINT32_MAX) {
+        EXPECT_TRUE(std::isnan(p.closest(2 * k)) && std::isnan(p.gradient(2 * k)));
+        continue;
+      }
+      v1::Point closest, gradient;
+      testing::SetPoint({p.closest(2 * k), p.closest(2 * k + 1)}, &closest);
+      testing::SetPoint({p.gradient(2 * k), p.gradient(2 * k + 1)}, &gradient);
+      check(queries[i], p.site_ids(p.site(k)), p.feature_kind(k), p.feature_index(k), closest,
+            gradient);
+    }
+    // Left out unless asked for: a packed answer's default columns stay as they were.
+    packed.clear_fields();
+    s = client_->FindNearest(packed, &r);
+    ASSERT_TRUE(s.ok()) << s.error_message();
+    EXPECT_EQ(r.packed().closest_size(), 0);
+    EXPECT_EQ(r.packed().gradient_size(), 0);
+    EXPECT_EQ(r.packed().distance_size(), static_cast<int>(queries.size()));
+  }
+  // Pick: the nearest site by distance, with its nearest point and gradient.
+  for (size_t i = 0; i < queries.size(); i += 7) {
+    v1::PickRequest pick;
+    pick.set_scene_id("closest");
+    testing::SetPoint(queries[i], pick.mutable_point());
+    v1::PickResponse picked;
+    grpc::Status s = client_->Pick(pick, &picked);
+    ASSERT_TRUE(s.ok()) << s.error_message();
+    ASSERT_TRUE(picked.found());
+    check(queries[i], picked.site_id(), picked.feature_kind(), picked.feature_index(),
+          picked.closest(), picked.gradient());
+  }
+  EXPECT_GT(checked, 6000);
 }
 
 // Each limit, set small on a server of its own, refuses with its code and names its flag.

@@ -139,6 +139,16 @@ inline double FeatureDistance(Vec2 q, const Geometry& g, FeatureKind kind, uint3
   return kind == FeatureKind::kCurve && index == 0 ? Distance(q, g) : nan;
 }
 
+// Whether `closest` is a point of the geometry nearest to q, on the feature (kind, index):
+// it lies on that feature, and is as near q as the whole geometry is.
+inline bool IsClosestPoint(Vec2 q, const Geometry& g, FeatureKind kind, uint32_t index,
+                           Vec2 closest) {
+  const double on = FeatureDistance(closest, g, kind, index);
+  if (std::isnan(on) || on > Tolerance(closest, 0)) return false;
+  const double d = Distance(q, g);
+  return std::abs(static_cast<double>(ToSegment(q, closest, closest)) - d) <= Tolerance(q, d);
+}
+
 // Whether (kind, index) names a part of the geometry nearest to q: it exists, and it is as
 // near as the whole geometry (ties between features: any of them).
 inline bool IsNearestFeature(Vec2 q, const Geometry& g, FeatureKind kind, uint32_t index) {

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cmath>
+#include <optional>
 #include <string>
 
 #include "gvd/v1/voronoi.pb.h"
@@ -11,15 +12,35 @@
 
 namespace gvd::testing {
 
+// The plane's feature kinds as the API names them; nullopt for any other value.
+inline std::optional<FeatureKind> KindOf(v1::FeatureKind kind) {
+  switch (kind) {
+    case v1::VERTEX: return FeatureKind::kVertex;
+    case v1::EDGE: return FeatureKind::kEdge;
+    case v1::CURVE: return FeatureKind::kCurve;
+    default: return std::nullopt;
+  }
+}
+
 // Whether an answer's feature (as the API numbers it) is a part of the geometry nearest to
 // q, by the tests' oracle.
 inline bool IsNearestFeature(Vec2 q, const Geometry& g, v1::FeatureKind kind, uint32_t index) {
-  switch (kind) {
-    case v1::VERTEX: return oracle::IsNearestFeature(q, g, FeatureKind::kVertex, index);
-    case v1::EDGE: return oracle::IsNearestFeature(q, g, FeatureKind::kEdge, index);
-    case v1::CURVE: return oracle::IsNearestFeature(q, g, FeatureKind::kCurve, index);
-    default: return false;
-  }
+  const auto k = KindOf(kind);
+  return k && oracle::IsNearestFeature(q, g, *k, index);
+}
+
+// Whether an answer's closest point lies on its feature and is a nearest point of the
+// geometry to q, and its gradient is the unit vector from that point to q (zero on the
+// site), by the tests' oracle.
+inline bool IsClosestPoint(Vec2 q, const Geometry& g, v1::FeatureKind kind, uint32_t index,
+                           const v1::Point& closest, const v1::Point& gradient) {
+  const auto k = KindOf(kind);
+  const Vec2 c{closest.x(), closest.y()};
+  if (!k || !oracle::IsClosestPoint(q, g, *k, index, c)) return false;
+  const long double dx = (long double)q.x - c.x, dy = (long double)q.y - c.y;
+  const long double d = std::hypot(dx, dy);
+  const long double gx = d > 0 ? dx / d : 0, gy = d > 0 ? dy / d : 0;
+  return std::abs(gx - gradient.x()) <= 1e-12 && std::abs(gy - gradient.y()) <= 1e-12;
 }
 
 inline void SetPoint(Vec2 p, v1::Point* out) {

@@ -39,6 +39,8 @@ TEST(ExactVsOracle, DistancesFeaturesSidesAndValues) {
       ASSERT_NEAR(f.distance, d, oracle::Tolerance(q, d));
       ASSERT_TRUE(oracle::IsNearestFeature(q, site.geometry, f.kind, f.index))
           << "feature " << int(f.kind) << " " << f.index;
+      ASSERT_TRUE(oracle::IsClosestPoint(q, site.geometry, f.kind, f.index, f.closest))
+          << "closest (" << f.closest.x << ", " << f.closest.y << ")";
       const double v = oracle::Value(q, site);
       const double got = SiteValue(q, site);
       // Within rounding of max_distance or of a polygon's boundary, either answer is right.
@@ -124,7 +126,9 @@ TEST(SegmentTree, SameAnswersAsTheLoopAndTheOracle) {
       ASSERT_EQ(f.distance, loop.distance);
       ASSERT_EQ(f.kind, loop.kind);
       ASSERT_EQ(f.index, loop.index);
+      ASSERT_EQ(f.closest, loop.closest);
       ASSERT_TRUE(oracle::IsNearestFeature(q, site.geometry, f.kind, f.index));
+      ASSERT_TRUE(oracle::IsClosestPoint(q, site.geometry, f.kind, f.index, f.closest));
       // Within: every segment within r of q, for r at the distance and beyond it.
       for (double r : {d, 1.5 * d + 0.01}) {
         std::vector<bool> seen(segments.size(), false);
