@@ -102,7 +102,8 @@ void NearestJob::Begin() {
 }
 
 void NearestJob::AnswerExact() {
-  version_ = scene_->NearestExact(query_.points, &exact_answers_, cancelled_fn_, query_.features);
+  version_ = scene_->NearestExact(query_.points, &exact_answers_, cancelled_fn_,
+                                  query_.features || query_.closest);
   if (version_ == 0) {
     Finish(absl::CancelledError("the call was cancelled"));
     return;
@@ -110,7 +111,8 @@ void NearestJob::AnswerExact() {
   rows_.reserve(exact_answers_.size());
   for (const auto& a : exact_answers_) {
     rows_.push_back({a.found ? &a.site_id : nullptr, a.slot, a.distance, 0, true,
-                     a.feature_kind, a.feature_index, a.closest});
+                     a.feature_kind, a.feature_index});
+    if (query_.closest) closest_.push_back(a.found ? a.closest : Vec2(NAN));
   }
   Finish(absl::OkStatus());
 }
@@ -127,6 +129,7 @@ void NearestJob::Run(std::shared_ptr<const Frame> frame, bool on_caller) {
 void NearestJob::AnswerFrom(const std::shared_ptr<const Frame>& frame) {
   frame_ = frame;
   rows_.resize(query_.points.size());
+  if (query_.closest) closest_.resize(query_.points.size());
   std::atomic<bool> missing{false};
   const bool answered = AnswerBatch(
       frame_->grid(), query_.points, 4096, cancelled_fn_,
@@ -139,18 +142,20 @@ void NearestJob::AnswerFrom(const std::shared_ptr<const Frame>& frame) {
         }
         if (!query_.skip_refinement && a->ambiguous()) a = frame_->Refine(q, *a);
         if (!a->found) {
-          rows_[i] = {nullptr, 0, INFINITY, 0, true, FeatureKind::kVertex, 0, Vec2(NAN)};
+          rows_[i] = {nullptr, 0, INFINITY, 0, true, FeatureKind::kVertex, 0};
+          if (query_.closest) closest_[i] = Vec2(NAN);
           return true;
         }
         const Site& site = *frame_->sites().get(a->site_index);
         FeatureHit f;
         if (const auto* point = std::get_if<PointSite>(&site.geometry)) {
           f.closest = point->p;  // vertex 0
-        } else if (query_.features) {
+        } else if (query_.features || query_.closest) {
           f = NearestFeature(q, site);
         }
         rows_[i] = {&site.id, a->site_index, a->distance, a->error_bound,
-                    a->error_bound == 0, f.kind, f.index, f.closest};
+                    a->error_bound == 0, f.kind, f.index};
+        if (query_.closest) closest_[i] = f.closest;
         return true;
       });
   if (missing) {

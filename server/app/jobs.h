@@ -81,8 +81,9 @@ struct NearestQuery {
   std::vector<Vec2> points;
   bool exact = false;            // certify every answer (no raster bound)
   bool skip_refinement = false;  // leave ambiguous raster answers as they are
-  bool features = true;          // find each answer's nearest feature and nearest point
+  bool features = true;          // find each answer's nearest feature
   uint64_t min_version = 0;      // SceneRegistry::ReadVersion's
+  bool closest = false;          // find each answer's nearest point (NearestJob::closest)
 };
 
 // One answer, pointing into storage its NearestJob keeps alive.
@@ -94,9 +95,6 @@ struct AnswerRow {
   bool exact;
   FeatureKind feature_kind;
   uint32_t feature_index;
-  // The site's point nearest to the query point, when the query asked for features (a
-  // point site's always).
-  Vec2 closest;
 };
 
 // Answers a query: raster answers from the frame (refined where ambiguous), or exact ones
@@ -113,6 +111,9 @@ class NearestJob final : public FrameJob {
   const std::vector<AnswerRow>& rows() const { return rows_; }
   // The query points, in order.
   const std::vector<Vec2>& points() const { return query_.points; }
+  // Each answer's site's point nearest to its query point, when the query asked for them
+  // (NearestQuery::closest; else empty); NaN for an empty answer.
+  const std::vector<Vec2>& closest() const { return closest_; }
 
  private:
   NearestJob(SceneRegistry* registry, std::shared_ptr<Scene> scene, NearestQuery query,
@@ -126,6 +127,7 @@ class NearestJob final : public FrameJob {
   std::shared_ptr<const Frame> frame_;  // owns the ids the rows point to
   std::vector<Scene::ExactAnswer> exact_answers_;
   std::vector<AnswerRow> rows_;
+  std::vector<Vec2> closest_;
 };
 
 // A layer of the frame as an image.

@@ -25,11 +25,13 @@ constexpr uint32_t Bit(v1::FindNearestRequest::Field f) { return 1u << f; }
 constexpr uint32_t kPointFields =
     Bit(v1::FindNearestRequest::CLOSEST) | Bit(v1::FindNearestRequest::GRADIENT);
 
-// Writes rows [begin, end) into the response, the answers to points[begin, end): as
-// NearestSite results, or packed (only the columns in `fields`: bit f for
-// v1::FindNearestRequest::Field f).
-void Fill(const std::vector<AnswerRow>& rows, const std::vector<Vec2>& points, size_t begin,
-          size_t end, bool packed, uint32_t fields, v1::FindNearestResponse* response) {
+// Writes the job's answers [begin, end) into the response: as NearestSite results, or packed
+// (only the columns in `fields`: bit f for v1::FindNearestRequest::Field f).
+void Fill(const NearestJob& job, size_t begin, size_t end, bool packed, uint32_t fields,
+          v1::FindNearestResponse* response) {
+  const std::vector<AnswerRow>& rows = job.rows();
+  const std::vector<Vec2>& points = job.points();
+  const std::vector<Vec2>& nearest_points = job.closest();  // filled when asked for
   const bool closest = (fields & Bit(v1::FindNearestRequest::CLOSEST)) != 0;
   const bool gradient = (fields & Bit(v1::FindNearestRequest::GRADIENT)) != 0;
   if (!packed) {
@@ -49,8 +51,8 @@ void Fill(const std::vector<AnswerRow>& rows, const std::vector<Vec2>& points, s
       r->set_exact(rows[i].exact);
       r->set_feature_index(rows[i].feature_index);
       r->set_feature_kind(ToProto(rows[i].feature_kind));
-      if (closest) ToProto(rows[i].closest, r->mutable_closest());
-      if (gradient) ToProto(UnitGradient(points[i], rows[i].closest), r->mutable_gradient());
+      if (closest) ToProto(nearest_points[i], r->mutable_closest());
+      if (gradient) ToProto(UnitGradient(points[i], nearest_points[i]), r->mutable_gradient());
     }
     return;
   }
@@ -112,9 +114,8 @@ void Fill(const std::vector<AnswerRow>& rows, const std::vector<Vec2>& points, s
       feature_kind[k] = ToProto(row.feature_kind);
     }
     if (closest_xy || gradient_xy) {
-      const bool empty = row.site_id == nullptr;
-      const Vec2 c = empty ? Vec2(NAN) : row.closest;
-      const Vec2 g = empty ? Vec2(NAN) : UnitGradient(points[i], c);
+      const Vec2 c = nearest_points[i];  // NaN for an empty answer
+      const Vec2 g = row.site_id == nullptr ? Vec2(NAN) : UnitGradient(points[i], c);
       if (closest_xy) {
         closest_xy[2 * k] = c.x;
         closest_xy[2 * k + 1] = c.y;
@@ -169,7 +170,7 @@ class NearestStreamReactor final : public grpc::ServerWriteReactor<v1::FindNeare
     message_.Clear();
     message_.set_version(job_->version());
     message_.set_offset(offset_);
-    Fill(rows, job_->points(), offset_, end, /*packed=*/true, fields_, &message_);
+    Fill(*job_, offset_, end, /*packed=*/true, fields_, &message_);
     offset_ = end;
     StartWrite(&message_);
   }
@@ -403,9 +404,9 @@ Status VoronoiService::ParseNearest(const v1::FindNearestRequest& request, const
       *fields |= 1u << f;
     }
   }
-  query->features = !packed || (*fields & (Bit(v1::FindNearestRequest::FEATURE) |
-                                           Bit(v1::FindNearestRequest::CLOSEST) |
-                                           Bit(v1::FindNearestRequest::GRADIENT))) != 0;
+  query->features = !packed || (*fields & Bit(v1::FindNearestRequest::FEATURE)) != 0;
+  query->closest = (*fields & (Bit(v1::FindNearestRequest::CLOSEST) |
+                               Bit(v1::FindNearestRequest::GRADIENT))) != 0;
   return Status::OK;
 }
 
@@ -424,7 +425,7 @@ grpc::ServerUnaryReactor* VoronoiService::FindNearest(grpc::CallbackServerContex
                               [ctx] { return ctx->IsCancelled(); });
   return JobReactor<NearestJob>::Start(call.scope, job, [=](const NearestJob& job) {
     response->set_version(job.version());
-    Fill(job.rows(), job.points(), 0, job.rows().size(), packed, fields, response);
+    Fill(job, 0, job.rows().size(), packed, fields, response);
   });
 }
 

@@ -13,7 +13,8 @@ committed), then measures:
     position (the round trip to a published frame), repeated;
   - one-site upserts from 1 and from 8 concurrent writers, each on a scene of its own;
   - one packed FindNearest (`xy`) of Q random points, raster answers and exact answers, with
-    every column and with the site and distance alone (`fields`).
+    the default columns, with the site and distance alone (`fields`), and with the closest
+    point and the gradient added to them.
 References: OpenCV's distanceTransformWithLabels (DIST_L2, DIST_MASK_PRECISE, labels per
 pixel) on the points snapped to the grid, scipy's cKDTree build and query (one worker and
 all cores).
@@ -205,8 +206,9 @@ def main():
         # One packed batch of queries, raster then exact answers; cKDTree beside them.
         batch = pb.FindNearestRequest(scene_id="load")
         batch.xy.extend(queries.ravel().tolist())
+        closest = ["SITE", "DISTANCE", "CLOSEST", "GRADIENT"]
         for exact, fields in ((False, []), (True, []), (False, ["SITE", "DISTANCE"]),
-                              (True, ["SITE", "DISTANCE"])):
+                              (True, ["SITE", "DISTANCE"]), (False, closest), (True, closest)):
             batch.exact = exact
             del batch.fields[:]
             batch.fields.extend(pb.FindNearestRequest.Field.Value(f) for f in fields)
