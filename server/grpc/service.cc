@@ -61,9 +61,10 @@ void Fill(const NearestJob& job, size_t begin, size_t end, bool packed, uint32_t
   v1::PackedNearest* p = response->mutable_packed();
   const int n = static_cast<int>(end - begin);
   auto wants = [fields](v1::FindNearestRequest::Field f) { return (fields & (1u << f)) != 0; };
-  auto column = [n](auto* field, bool wanted) {
+  // A column of `width` values an answer (x and y: 2), sized once, or null when not wanted.
+  auto column = [n](auto* field, bool wanted, int width = 1) {
     if (!wanted) return decltype(field->mutable_data())(nullptr);
-    field->Resize(n, {});
+    field->Resize(width * n, {});
     return field->mutable_data();
   };
   uint32_t* site = column(p->mutable_site(), wants(v1::FindNearestRequest::SITE));
@@ -74,14 +75,8 @@ void Fill(const NearestJob& job, size_t begin, size_t end, bool packed, uint32_t
   uint32_t* feature_index =
       column(p->mutable_feature_index(), wants(v1::FindNearestRequest::FEATURE));
   int* feature_kind = column(p->mutable_feature_kind(), wants(v1::FindNearestRequest::FEATURE));
-  // Two values an answer: x, y.
-  auto pairs = [n](auto* field, bool wanted) {
-    if (!wanted) return decltype(field->mutable_data())(nullptr);
-    field->Resize(2 * n, {});
-    return field->mutable_data();
-  };
-  double* closest_xy = pairs(p->mutable_closest(), closest);
-  double* gradient_xy = pairs(p->mutable_gradient(), gradient);
+  double* closest_xy = column(p->mutable_closest(), closest, 2);
+  double* gradient_xy = column(p->mutable_gradient(), gradient, 2);
   if (site != nullptr) {
     // slot -> index in site_ids: a table over the slots when the rows are many for the slots
     // they span (a large batch), a hash map otherwise (small stream chunks of a large scene).
