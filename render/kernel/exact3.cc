@@ -87,33 +87,40 @@ Hit3 NearestOnTriangle(Vec3 q, Vec3 a, Vec3 b, Vec3 c) {
   return Make(q, a + v * (b - a) + w * (c - a), FeatureKind::kFace, 0);
 }
 
-Hit3 NearestFeature(Vec3 q, const Geometry3& g) {
+Hit3 NearestFeature(Vec3 q, const Geometry3& g, double within) {
   if (const auto* p = std::get_if<PointSite3>(&g)) return Make(q, p->p, FeatureKind::kVertex, 0);
   if (const auto* s = std::get_if<SegmentSite3>(&g)) return NearestOnSegment(q, s->a, s->b);
   if (const auto* t = std::get_if<TriangleSite3>(&g)) return NearestOnTriangle(q, t->a, t->b, t->c);
   const auto& mesh = std::get<MeshSite3>(g);
   Hit3 best{INFINITY, Vec3(NAN), FeatureKind::kVertex, 0, Vec3(0)};
-  for (size_t i = 0; i < mesh.triangles.size(); ++i) {
+  uint32_t best_triangle = UINT32_MAX;
+  double bound = within;
+  mesh.tree->Nearest(q, &bound, [&](uint32_t i) {
     const auto& tri = mesh.triangles[i];
     Hit3 h = NearestOnTriangle(q, mesh.vertices[tri[0]], mesh.vertices[tri[1]],
                                mesh.vertices[tri[2]]);
-    if (!(h.distance < best.distance)) continue;
+    if (h.distance > within) return h.distance;
+    if (h.distance > best.distance || (h.distance == best.distance && i > best_triangle)) {
+      return h.distance;
+    }
     // The triangle's own numbering, to the mesh's.
     if (h.kind == FeatureKind::kFace) {
-      h.index = static_cast<uint32_t>(i);
+      h.index = i;
     } else if (h.kind == FeatureKind::kEdge) {
       h.index = mesh.triangle_edges[i][h.index];
     } else {
       h.index = tri[h.index];
     }
     best = h;
-  }
+    best_triangle = i;
+    return h.distance;
+  });
   return best;
 }
 
-double ExactDistance(Vec3 q, const Geometry3& g) {
+double ExactDistance(Vec3 q, const Geometry3& g, double within) {
   if (const auto* p = std::get_if<PointSite3>(&g)) return Distance(q, p->p);
-  return NearestFeature(q, g).distance;
+  return NearestFeature(q, g, within).distance;
 }
 
 double SiteValue(Vec3 q, const Site3& site) {
@@ -218,6 +225,7 @@ absl::StatusOr<MeshSite3> MakeMesh(const std::vector<double>& xyz,
     mesh.triangles.push_back(tri);
     mesh.triangle_edges.push_back(named);
   }
+  mesh.tree = std::make_shared<const TriangleTree>(mesh.vertices, mesh.triangles);
   return mesh;
 }
 

@@ -2,6 +2,7 @@
 // gradients and nearest features of the sites of site3.h, and the boxes around them.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -29,10 +30,12 @@ Hit3 NearestOnSegment(Vec3 q, Vec3 a, Vec3 b);
 // The nearest point of the closed triangle abc (degenerate ones allowed) to q.
 Hit3 NearestOnTriangle(Vec3 q, Vec3 a, Vec3 b, Vec3 c);
 
-// The nearest point of the geometry to q, and its feature (ties: the first found, a mesh's
-// triangles in order). A mesh is scanned whole: O(triangles).
-Hit3 NearestFeature(Vec3 q, const Geometry3& g);
-double ExactDistance(Vec3 q, const Geometry3& g);
+// The nearest point of the geometry to q, and its feature (ties: the least feature, a mesh's
+// triangles in order). A mesh's is found through its tree: O(log triangles) for a mesh of
+// triangles of even size. `within`: only a mesh's features within that distance of q are
+// looked for; when none is, the hit's distance is +inf (other sites' hits are exact).
+Hit3 NearestFeature(Vec3 q, const Geometry3& g, double within = INFINITY);
+double ExactDistance(Vec3 q, const Geometry3& g, double within = INFINITY);
 inline double ExactDistance(Vec3 q, const Site3& site) { return ExactDistance(q, site.geometry); }
 
 // The site's value at q: multiplicative * d + additive, or +infinity beyond its max_distance.

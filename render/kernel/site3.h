@@ -7,11 +7,13 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <variant>
 #include <vector>
 
 #include "render/kernel/site2.h"
+#include "render/kernel/triangle_tree.h"
 #include "render/kernel/vec.h"
 
 namespace gvd {
@@ -56,6 +58,8 @@ struct MeshSite3 {
   // edges it names, in the order above.
   std::vector<std::array<uint32_t, 2>> edges;
   std::vector<std::array<uint32_t, 3>> triangle_edges;
+  // Filled by MakeMesh: the triangles' hierarchy of boxes, shared by the mesh's copies.
+  std::shared_ptr<const TriangleTree> tree;
 };
 
 // Every 3D site kind.

@@ -13,6 +13,7 @@
 
 #include "render/kernel/exact3.h"
 #include "render/scene/site_index.h"
+#include "tests/support/meshes3.h"
 #include "tests/support/oracle3.h"
 
 namespace gvd {
@@ -162,42 +163,6 @@ TEST(Exact3, DegenerateTrianglesAndSegments) {
   }
 }
 
-// An icosahedron, subdivided `levels` times onto the unit sphere: a closed mesh.
-MeshSite3 Icosphere(int levels) {
-  const double p = (1 + std::sqrt(5.0)) / 2;
-  std::vector<double> xyz = {-1, p, 0, 1, p, 0, -1, -p, 0, 1, -p, 0, 0, -1, p, 0, 1, p,
-                             0, -1, -p, 0, 1, -p, p, 0, -1, p, 0, 1, -p, 0, -1, -p, 0, 1};
-  std::vector<uint32_t> tri = {0, 11, 5, 0, 5, 1, 0, 1, 7, 0, 7, 10, 0, 10, 11, 1, 5, 9, 5, 11,
-                               4, 11, 10, 2, 10, 7, 6, 7, 1, 8, 3, 9, 4, 3, 4, 2, 3, 2, 6, 3, 6,
-                               8, 3, 8, 9, 4, 9, 5, 2, 4, 11, 6, 2, 10, 8, 6, 7, 9, 8, 1};
-  for (int l = 0; l < levels; ++l) {
-    std::vector<uint32_t> next;
-    std::map<std::pair<uint32_t, uint32_t>, uint32_t> mid;
-    auto middle = [&](uint32_t u, uint32_t v) {
-      auto key = std::minmax(u, v);
-      auto it = mid.find({key.first, key.second});
-      if (it != mid.end()) return it->second;
-      const uint32_t m = static_cast<uint32_t>(xyz.size() / 3);
-      for (int k = 0; k < 3; ++k) xyz.push_back((xyz[3 * u + k] + xyz[3 * v + k]) / 2);
-      mid[{key.first, key.second}] = m;
-      return m;
-    };
-    for (size_t t = 0; t < tri.size(); t += 3) {
-      const uint32_t a = tri[t], b = tri[t + 1], c = tri[t + 2];
-      const uint32_t ab = middle(a, b), bc = middle(b, c), ca = middle(c, a);
-      next.insert(next.end(), {a, ab, ca, b, bc, ab, c, ca, bc, ab, bc, ca});
-    }
-    tri = std::move(next);
-  }
-  for (size_t v = 0; v < xyz.size(); v += 3) {
-    const double n = std::sqrt(xyz[v] * xyz[v] + xyz[v + 1] * xyz[v + 1] + xyz[v + 2] * xyz[v + 2]);
-    for (int k = 0; k < 3; ++k) xyz[v + k] /= n;
-  }
-  auto mesh = MakeMesh(xyz, tri, 1 << 20);
-  EXPECT_TRUE(mesh.ok()) << mesh.status();
-  return *mesh;
-}
-
 TEST(Exact3, MeshesClosedAndOpen) {
   for (int levels : {0, 1, 2}) {
     const MeshSite3 sphere = Icosphere(levels);
@@ -310,9 +275,7 @@ TEST(SiteIndex3, NearestAgainstAScanThroughChanges) {
       case 1: s.geometry = SegmentSite3{a, a + Random(rng, -1, 1)}; break;
       case 2: s.geometry = TriangleSite3{a, a + Random(rng, -1, 1), a + Random(rng, -1, 1)}; break;
       default: {
-        MeshSite3 m = sphere;
-        for (Vec3& v : m.vertices) v = a + v * 0.5;
-        s.geometry = m;
+        s.geometry = Placed(sphere, a, 0.5);
       }
     }
     return s;

@@ -1,0 +1,85 @@
+// A bounding-volume hierarchy over a mesh's triangles, for nearest points in O(log n) rather
+// than a scan of every triangle: what makes a mesh of 10,000 triangles as cheap to query as a
+// handful of sites. Built once with the mesh (MakeMesh, exact3.h) and shared by every copy
+// of it.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "render/kernel/vec.h"
+
+namespace gvd {
+
+// Immutable once built; concurrent queries are safe.
+class TriangleTree {
+ public:
+  // At most this many triangles a leaf.
+  static constexpr uint32_t kLeaf = 4;
+
+  // The tree of triangles[i] (three indices into `vertices`, all valid). O(n log n).
+  TriangleTree(const std::vector<Vec3>& vertices,
+               const std::vector<std::array<uint32_t, 3>>& triangles);
+
+  // Calls `score(i)` for triangle i, which returns its distance from q, for every triangle
+  // whose box lies within `*best` of q, nearest boxes first, lowering *best as it goes; the
+  // boxes farther than *best are skipped. So with *best = +inf it finds the nearest triangle,
+  // and with a finite start only those nearer than it (or as near: a box exactly at *best is
+  // visited, so that ties are seen).
+  template <class Score>
+  void Nearest(Vec3 q, double* best, Score&& score) const;
+
+  size_t bytes() const {
+    return sizeof(*this) + nodes_.size() * sizeof(Node) + order_.size() * sizeof(uint32_t);
+  }
+
+ private:
+  struct Node {
+    Vec3 lo, hi;          // the box of the node's triangles
+    uint32_t first = 0;   // leaf: order_[first, first + count); inner: left child (right = first + 1)
+    uint32_t count = 0;   // 0: an inner node
+  };
+  // The squared distance from q to the box (0 inside), rounded as a triangle's distance is
+  // not: a box is skipped only when it lies farther than *best by more than `slack` (a few
+  // units in the last place of the coordinates involved), so rounding never drops a triangle
+  // as near as the best.
+  static double BoxDistance2(const Node& n, Vec3 q) {
+    const Vec3 d = glm::max(glm::max(n.lo - q, q - n.hi), Vec3(0));
+    return glm::dot(d, d);
+  }
+  std::vector<Node> nodes_;      // nodes_[0] is the root
+  std::vector<uint32_t> order_;  // triangle indices, leaf by leaf
+};
+
+template <class Score>
+void TriangleTree::Nearest(Vec3 q, double* best, Score&& score) const {
+  if (nodes_.empty()) return;
+  const Vec3 m = glm::max(glm::abs(q), glm::max(glm::abs(nodes_[0].lo), glm::abs(nodes_[0].hi)));
+  const double slack = 0x1p-45 * std::max({m.x, m.y, m.z});
+  uint32_t stack[64];
+  uint32_t top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const Node& n = nodes_[stack[--top]];
+    // Box distances are squared without scaling: past 1e150 they are infinite, which only
+    // visits more (an infinite *best prunes nothing).
+    const double b = *best + slack;
+    if (BoxDistance2(n, q) > b * b) continue;
+    if (n.count > 0) {
+      for (uint32_t k = n.first; k < n.first + n.count; ++k) {
+        const double d = score(order_[k]);
+        if (d < *best) *best = d;
+      }
+      continue;
+    }
+    // The nearer child is visited first: pushed last.
+    const uint32_t l = n.first, r = n.first + 1;
+    const bool left_first = BoxDistance2(nodes_[l], q) <= BoxDistance2(nodes_[r], q);
+    stack[top++] = left_first ? r : l;
+    stack[top++] = left_first ? l : r;
+  }
+}
+
+}  // namespace gvd
