@@ -20,6 +20,7 @@ struct Kernel2 {
   using Point = Vec2;
   using Box = Window;
   using Site = gvd::Site;
+  using Geometry = gvd::Geometry;
 
   // A box's bounds on an axis (0: x, 1: y).
   static double Min(const Box& b, int axis) { return axis == 0 ? b.min_x : b.min_y; }
@@ -38,6 +39,10 @@ struct Kernel2 {
   }
   // The Euclidean distance from q to the site's geometry.
   static double Distance(Point q, const Site& s) { return ExactDistance(q, s); }
+  // The site's value at q: its weighted distance, +inf where it has no influence.
+  static double Value(Point q, const Site& s) { return SiteValue(q, s); }
+  // The length of line the site draws (TotalLength), summed over a scene as its ink.
+  static double Ink(const Site& s) { return TotalLength(s.geometry); }
   // Readies a site that enters a table: its segment tree, for sites of many segments.
   static void Prepare(Site& s) { IndexSegments(s); }
 };

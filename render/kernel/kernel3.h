@@ -18,6 +18,7 @@ struct Kernel3 {
   using Point = Vec3;
   using Box = Box3;
   using Site = Site3;
+  using Geometry = Geometry3;
 
   // A box's bounds on an axis (0: x, 1: y, 2: z).
   static double Min(const Box& b, int axis) {
@@ -35,6 +36,9 @@ struct Kernel3 {
     return p ? std::optional<Point>(p->p) : std::nullopt;
   }
   static double Distance(Point q, const Site& s) { return ExactDistance(q, s.geometry); }
+  static double Value(Point q, const Site& s) { return SiteValue(q, s); }
+  // No 3D structure is sized by the length of its sites' lines.
+  static double Ink(const Site&) { return 0; }
   // A mesh comes ready from MakeMesh; nothing else needs readying.
   static void Prepare(Site&) {}
 };

@@ -73,18 +73,20 @@ IdMap IdMap::With(const std::vector<Change>& changes) const {
 
 // ---- SiteSnapshot ----
 
-std::shared_ptr<const SiteSnapshot> SiteSnapshot::Empty(uint64_t version) {
-  std::shared_ptr<SiteSnapshot> s(new SiteSnapshot);
+template <class K>
+std::shared_ptr<const BasicSiteSnapshot<K>> BasicSiteSnapshot<K>::Empty(uint64_t version) {
+  std::shared_ptr<BasicSiteSnapshot> s(new BasicSiteSnapshot);
   s->version_ = version;
   return s;
 }
 
-void SiteSnapshot::Improve(Vec2 q, uint32_t* best, double* value,
-                           std::vector<uint32_t>* scratch) const {
+template <class K>
+void BasicSiteSnapshot<K>::Improve(Point q, uint32_t* best, double* value,
+                                   std::vector<uint32_t>* scratch) const {
   scratch->clear();
   index_.Within(q, (*value - least_.additive) / least_.multiplicative * (1 + 1e-12), scratch);
   for (uint32_t s : *scratch) {
-    const double v = SiteValue(q, *sites().get(s));
+    const double v = K::Value(q, *sites().get(s));
     if (v < *value || (v == *value && s < *best)) {
       *best = s;
       *value = v;
@@ -92,17 +94,20 @@ void SiteSnapshot::Improve(Vec2 q, uint32_t* best, double* value,
   }
 }
 
-std::shared_ptr<const SiteSnapshot> SiteSnapshot::Of(uint64_t version, std::vector<Site> sites) {
+template <class K>
+std::shared_ptr<const BasicSiteSnapshot<K>> BasicSiteSnapshot<K>::Of(uint64_t version,
+                                                                   std::vector<Site> sites) {
   std::vector<uint32_t> free_slots;
-  SnapshotBuilder b(Empty(0), &free_slots);
+  BasicSnapshotBuilder<K> b(Empty(0), &free_slots);
   for (Site& s : sites) b.Put(std::move(s));
   return b.Build(version);
 }
 
 // ---- SnapshotBuilder ----
 
-SnapshotBuilder::SnapshotBuilder(std::shared_ptr<const SiteSnapshot> base,
-                                 std::vector<uint32_t>* free_slots)
+template <class K>
+BasicSnapshotBuilder<K>::BasicSnapshotBuilder(std::shared_ptr<const Snapshot> base,
+                                              std::vector<uint32_t>* free_slots)
     : base_(std::move(base)),
       free_slots_(free_slots),
       table_(base_->sites()),
@@ -112,12 +117,13 @@ SnapshotBuilder::SnapshotBuilder(std::shared_ptr<const SiteSnapshot> base,
       ink_(base_->ink_),
       bytes_(base_->bytes_) {}
 
-void SnapshotBuilder::Put(Site site) {
+template <class K>
+void BasicSnapshotBuilder<K>::Put(Site site) {
   uint32_t slot;
   if (auto found = base_->Find(site.id)) {
     slot = *found;
     non_plain_ -= !base_->sites().get(slot)->plain();
-    ink_ -= TotalLength(base_->sites().get(slot)->geometry);
+    ink_ -= K::Ink(*base_->sites().get(slot));
     bytes_ -= SiteBytes(*base_->sites().get(slot));
   } else {
     if (!free_slots_->empty()) {
@@ -131,18 +137,19 @@ void SnapshotBuilder::Put(Site site) {
     ++size_;
   }
   non_plain_ += !site.plain();
-  ink_ += TotalLength(site.geometry);
+  ink_ += K::Ink(site);
   bytes_ += SiteBytes(site);
   changed_.push_back(slot);
   table_.Set(slot, std::optional<Site>(std::move(site)));
   put_.push_back(table_.ptr(slot));
 }
 
-bool SnapshotBuilder::Remove(std::string_view id) {
+template <class K>
+bool BasicSnapshotBuilder<K>::Remove(std::string_view id) {
   auto found = base_->Find(id);
   if (!found || table_.get(*found) == nullptr) return false;
   non_plain_ -= !table_.get(*found)->plain();
-  ink_ -= TotalLength(table_.get(*found)->geometry);
+  ink_ -= K::Ink(*table_.get(*found));
   bytes_ -= SiteBytes(*table_.get(*found));
   table_.Set(*found, std::shared_ptr<const Site>());
   changed_.push_back(*found);
@@ -153,7 +160,8 @@ bool SnapshotBuilder::Remove(std::string_view id) {
   return true;
 }
 
-void SnapshotBuilder::Apply(SiteChange change) {
+template <class K>
+void BasicSnapshotBuilder<K>::Apply(BasicSiteChange<K> change) {
   if (change.site) {
     change.site->id = std::move(change.id);
     Put(std::move(*change.site));
@@ -162,8 +170,9 @@ void SnapshotBuilder::Apply(SiteChange change) {
   }
 }
 
-std::shared_ptr<const SiteSnapshot> SnapshotBuilder::Build(uint64_t version) {
-  std::shared_ptr<SiteSnapshot> s(new SiteSnapshot);
+template <class K>
+std::shared_ptr<const BasicSiteSnapshot<K>> BasicSnapshotBuilder<K>::Build(uint64_t version) {
+  std::shared_ptr<Snapshot> s(new Snapshot);
   s->version_ = version;
   s->non_plain_ = non_plain_;
   // Rounding of the sums must not leave a little ink in an emptied scene.
@@ -186,17 +195,19 @@ std::shared_ptr<const SiteSnapshot> SnapshotBuilder::Build(uint64_t version) {
   return s;
 }
 
-void SnapshotBuilder::Abandon() {
+template <class K>
+void BasicSnapshotBuilder<K>::Abandon() {
   free_slots_->insert(free_slots_->end(), taken_.rbegin(), taken_.rend());
   taken_.clear();
 }
 
-std::shared_ptr<const SiteSnapshot> Advance(const std::shared_ptr<const SiteSnapshot>& base,
-                                            std::vector<SiteChange> changes,
-                                            std::vector<uint32_t>* free_slots) {
-  std::map<std::string, std::optional<Site>> last;
-  for (SiteChange& c : changes) last[c.id] = std::move(c.site);
-  SnapshotBuilder builder(base, free_slots);
+template <class K>
+std::shared_ptr<const BasicSiteSnapshot<K>> Advance(
+    const std::shared_ptr<const BasicSiteSnapshot<K>>& base,
+    std::vector<BasicSiteChange<K>> changes, std::vector<uint32_t>* free_slots) {
+  std::map<std::string, std::optional<typename K::Site>> last;
+  for (BasicSiteChange<K>& c : changes) last[c.id] = std::move(c.site);
+  BasicSnapshotBuilder<K> builder(base, free_slots);
   for (auto& [id, site] : last) builder.Apply({id, std::move(site)});
   auto next = builder.Build(base->version() + 1);
   free_slots->insert(free_slots->end(), builder.freed().rbegin(), builder.freed().rend());
@@ -230,5 +241,30 @@ size_t SiteBytes(const Site& site) {
   if (segments >= SegmentTree::kMinSegments) bytes += sizeof(SegmentTree) + segments * kTreePerSegment;
   return bytes;
 }
+
+size_t SiteBytes(const Site3& site) {
+  // As a 2D site's entries; a mesh adds its vertices, triangles, edge tables and triangle
+  // tree (TriangleTree::bytes).
+  constexpr size_t kEntries = 320;
+  size_t bytes = sizeof(Site3) + kEntries + 2 * site.id.size();
+  if (const auto* mesh = std::get_if<MeshSite3>(&site.geometry)) {
+    bytes += mesh->vertices.size() * sizeof(Vec3) +
+             mesh->triangles.size() * (2 * sizeof(mesh->triangles[0])) +
+             mesh->edges.size() * sizeof(mesh->edges[0]) +
+             (mesh->tree ? mesh->tree->bytes() : 0);
+  }
+  return bytes;
+}
+
+template class BasicSiteSnapshot<Kernel2>;
+template class BasicSnapshotBuilder<Kernel2>;
+template std::shared_ptr<const SiteSnapshot> Advance(const std::shared_ptr<const SiteSnapshot>&,
+                                                     std::vector<SiteChange>,
+                                                     std::vector<uint32_t>*);
+template class BasicSiteSnapshot<Kernel3>;
+template class BasicSnapshotBuilder<Kernel3>;
+template std::shared_ptr<const SiteSnapshot3> Advance(const std::shared_ptr<const SiteSnapshot3>&,
+                                                      std::vector<SiteChange3>,
+                                                      std::vector<uint32_t>*);
 
 }  // namespace gvd

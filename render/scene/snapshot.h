@@ -13,6 +13,8 @@
 #include <utility>
 #include <vector>
 
+#include "render/kernel/kernel2.h"
+#include "render/kernel/kernel3.h"
 #include "render/kernel/site2.h"
 #include "render/scene/site_index.h"
 #include "render/scene/slot_table.h"
@@ -49,27 +51,34 @@ class IdMap {
   size_t size_ = 0;
 };
 
-// About how many bytes a site holds in a scene: the Site, its id and geometry, the segment
-// tree it has or will have (IndexSegments), and its entries in the slot table, spatial
-// index and id map. What the memory budget (--max-memory) charges for a site, the same
-// before and after the site enters a table.
+// About how many bytes a site holds in a scene: the site, its id and geometry, the segment
+// tree it has or will have (IndexSegments) or a mesh's triangle tree, and its entries in the
+// slot table, spatial index and id map. What the memory budget (--max-memory) charges for a
+// site, the same before and after the site enters a table.
 size_t SiteBytes(const Site& site);
-
+size_t SiteBytes(const Site3& site);
 
 // Immutable; shared between threads by shared_ptr<const SiteSnapshot>. Made by
-// SnapshotBuilder.
-class SiteSnapshot {
+// SnapshotBuilder. A template on the kernel (render/kernel/kernel2.h) whose sites it holds:
+// SiteSnapshot is the plane's, SiteSnapshot3 space's.
+template <class K>
+class BasicSiteSnapshot {
  public:
+  using Site = typename K::Site;
+  using Point = typename K::Point;
+  using Table = BasicSlotTable<K>;
+  using Index = BasicSiteIndex<K>;
+
   // No sites.
-  static std::shared_ptr<const SiteSnapshot> Empty(uint64_t version);
+  static std::shared_ptr<const BasicSiteSnapshot> Empty(uint64_t version);
   // The sites in slots 0..n-1, in order. CONTRACT: ids distinct.
-  static std::shared_ptr<const SiteSnapshot> Of(uint64_t version, std::vector<Site> sites);
+  static std::shared_ptr<const BasicSiteSnapshot> Of(uint64_t version, std::vector<Site> sites);
 
   uint64_t version() const { return version_; }
   size_t size() const { return index_.size(); }  // live sites
   bool empty() const { return size() == 0; }
-  const SlotTable& sites() const { return index_.sites(); }
-  const SiteIndex& index() const { return index_; }
+  const Table& sites() const { return index_.sites(); }
+  const Index& index() const { return index_; }
   const IdMap& ids() const { return ids_; }
   // The slot of a site id, if it is a site of this version.
   std::optional<uint32_t> Find(std::string_view id) const { return ids_.Find(id); }
@@ -88,14 +97,15 @@ class SiteSnapshot {
   // them the best site at q and its value, exactly (least slot on ties). Only a site within
   // (value - least additive) / least multiplicative of q can beat the value (m d + a < V
   // needs d < (V - a) / m), and the index finds those. `scratch` is reused between calls.
-  void Improve(Vec2 q, uint32_t* best, double* value, std::vector<uint32_t>* scratch) const;
+  void Improve(Point q, uint32_t* best, double* value, std::vector<uint32_t>* scratch) const;
 
  private:
-  friend class SnapshotBuilder;
-  SiteSnapshot() = default;
+  template <class>
+  friend class BasicSnapshotBuilder;
+  BasicSiteSnapshot() = default;
 
   uint64_t version_ = 0;
-  SiteIndex index_;
+  Index index_;
   IdMap ids_;
   size_t non_plain_ = 0;
   double ink_ = 0;
@@ -104,10 +114,13 @@ class SiteSnapshot {
 };
 
 // An upsert (site set) or a deletion (site empty) of the site `id`.
-struct SiteChange {
-  SiteChange(std::string id, std::optional<Site> site) : id(std::move(id)), site(std::move(site)) {}
+template <class K>
+struct BasicSiteChange {
+  using Site = typename K::Site;
+  BasicSiteChange(std::string id, std::optional<Site> site)
+      : id(std::move(id)), site(std::move(site)) {}
   // An upsert of a plain site.
-  SiteChange(std::string id, Geometry geometry)
+  BasicSiteChange(std::string id, typename K::Geometry geometry)
       : id(std::move(id)), site(Site{this->id, std::move(geometry)}) {}
   std::string id;
   std::optional<Site> site;
@@ -120,15 +133,18 @@ struct SiteChange {
 // kept by its single writer) or the next slot past the base's table. Slots freed by Remove are
 // listed by freed() and are the caller's to return to its list once the snapshot is
 // published; Abandon() returns the slots taken, for a change that is not published.
-class SnapshotBuilder {
+template <class K>
+class BasicSnapshotBuilder {
  public:
-  SnapshotBuilder(std::shared_ptr<const SiteSnapshot> base, std::vector<uint32_t>* free_slots);
+  using Site = typename K::Site;
+  using Snapshot = BasicSiteSnapshot<K>;
+  BasicSnapshotBuilder(std::shared_ptr<const Snapshot> base, std::vector<uint32_t>* free_slots);
 
   // Inserts or replaces the site with this id. CONTRACT: each id at most once per builder.
   void Put(Site site);
   // Removes the site; false (and nothing changes) when the id is not a site of the base.
   bool Remove(std::string_view id);
-  void Apply(SiteChange change);
+  void Apply(BasicSiteChange<K> change);
 
   // Live sites once the changes are made.
   size_t size() const { return size_; }
@@ -139,15 +155,15 @@ class SnapshotBuilder {
 
   // The snapshot at `version`. Call once. It leaves put() and removed() as they are: another
   // thread may read them meanwhile.
-  std::shared_ptr<const SiteSnapshot> Build(uint64_t version);
+  std::shared_ptr<const Snapshot> Build(uint64_t version);
   // Gives the slots taken from `free_slots` back, when the change is not published (after
   // Build too, if its snapshot is dropped).
   void Abandon();
 
  private:
-  std::shared_ptr<const SiteSnapshot> base_;
+  std::shared_ptr<const Snapshot> base_;
   std::vector<uint32_t>* free_slots_;
-  SlotTable table_;
+  BasicSlotTable<K> table_;
   uint32_t next_slot_;
   size_t size_;
   size_t non_plain_;
@@ -163,9 +179,23 @@ class SnapshotBuilder {
 // one; deleting an unknown id does nothing), at base's version + 1: for callers with no
 // writer of their own (tests, benchmarks, one-off renders). `free_slots` is the list of
 // slots free in base, updated for the result.
-std::shared_ptr<const SiteSnapshot> Advance(const std::shared_ptr<const SiteSnapshot>& base,
-                                            std::vector<SiteChange> changes,
-                                            std::vector<uint32_t>* free_slots);
+template <class K>
+std::shared_ptr<const BasicSiteSnapshot<K>> Advance(
+    const std::shared_ptr<const BasicSiteSnapshot<K>>& base,
+    std::vector<BasicSiteChange<K>> changes, std::vector<uint32_t>* free_slots);
+
+// The plane's, instantiated in snapshot.cc.
+extern template class BasicSiteSnapshot<Kernel2>;
+extern template class BasicSnapshotBuilder<Kernel2>;
+using SiteSnapshot = BasicSiteSnapshot<Kernel2>;
+using SnapshotBuilder = BasicSnapshotBuilder<Kernel2>;
+using SiteChange = BasicSiteChange<Kernel2>;
+// Space's, beside them.
+extern template class BasicSiteSnapshot<Kernel3>;
+extern template class BasicSnapshotBuilder<Kernel3>;
+using SiteSnapshot3 = BasicSiteSnapshot<Kernel3>;
+using SnapshotBuilder3 = BasicSnapshotBuilder<Kernel3>;
+using SiteChange3 = BasicSiteChange<Kernel3>;
 
 // ---- implementation ----
 
