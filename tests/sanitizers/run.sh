@@ -18,11 +18,11 @@ cmake --build build/asan --target gvd_unit_tests gvd_core_tests gvd_render_gl_te
   gvd_server_unit_tests gvd_app_tests gvd-server gvd gvd_fuzz_requests_replay gvd_fuzz_geometry_replay \
   gvd_fuzz_store_replay gvd_fuzz_http_replay
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
-(cd build/asan && ASAN_OPTIONS=detect_leaks=1 ctest --output-on-failure -j "$jobs" -R '^(Cone|Build|Frame|Exact|Nearest|Coverage|SiteIndex|Snapshot|SceneCore|Codec|Store\.|CpuPool|BoundaryEdges|TraceBoundaries|NeighborPairs|HiddenSites|GeometryMeetsBox|TrianglesFromEdges|fuzz_)')
+(cd build/asan && ASAN_OPTIONS=detect_leaks=1 ctest --output-on-failure -j "$jobs" -R '^(Cone|Build|Frame|Exact|Nearest|Coverage|SiteIndex|Snapshot|SceneCore|Codec|Store\.|CpuPool|BoundaryEdges|TraceBoundaries|NeighborPairs|HiddenSites|GeometryMeetsBox|TrianglesFromEdges|Volume|fuzz_)')
 # The browser tests (browser_*) and the image test (container_*) run in the plain build only:
 # the first drive the HTTP transport that HttpTest checks here, the second runs no code of this build.
 (cd build/asan && ASAN_OPTIONS=detect_leaks=0 ctest --output-on-failure -j "$jobs" --timeout 900 \
-  -E '^(Cone|Build|Frame|Exact|Nearest|Coverage|SiteIndex|Snapshot|SceneCore|Codec|Store\.|CpuPool|BoundaryEdges|TraceBoundaries|NeighborPairs|HiddenSites|GeometryMeetsBox|TrianglesFromEdges|fuzz_|deploy_lint|browser_|container_)')
+  -E '^(Cone|Build|Frame|Exact|Nearest|Coverage|SiteIndex|Snapshot|SceneCore|Codec|Store\.|CpuPool|BoundaryEdges|TraceBoundaries|NeighborPairs|HiddenSites|GeometryMeetsBox|TrianglesFromEdges|Volume|fuzz_|deploy_lint|browser_|container_)')
 
 cmake -S . -B build/tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGVD_WERROR=OFF \
   -DCMAKE_CXX_FLAGS="-O1 -fsanitize=thread" -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=thread" >/dev/null
