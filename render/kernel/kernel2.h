@@ -22,6 +22,9 @@ struct Kernel2 {
   using Site = gvd::Site;
   using Geometry = gvd::Geometry;
 
+  // The site's nearest point to q and the feature it lies on.
+  using Hit = FeatureHit;
+  static Hit Feature(Point q, const Site& s) { return NearestFeature(q, s); }
   // A box's bounds on an axis (0: x, 1: y).
   static double Min(const Box& b, int axis) { return axis == 0 ? b.min_x : b.min_y; }
   static double Max(const Box& b, int axis) { return axis == 0 ? b.max_x : b.max_y; }

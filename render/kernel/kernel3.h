@@ -20,6 +20,8 @@ struct Kernel3 {
   using Site = Site3;
   using Geometry = Geometry3;
 
+  using Hit = Hit3;
+  static Hit Feature(Point q, const Site& s) { return NearestFeature(q, s.geometry); }
   // A box's bounds on an axis (0: x, 1: y, 2: z).
   static double Min(const Box& b, int axis) {
     return axis == 0 ? b.min_x : axis == 1 ? b.min_y : b.min_z;

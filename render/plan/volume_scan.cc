@@ -222,6 +222,15 @@ std::shared_ptr<const Volume> UpdateVolume(const Volume& base,
                                            VolumeScanStats* stats) {
   const Grid3& grid = base.grid();
   const Diagram diagram = base.diagram();
+  // A change of many sites is rendered whole: finding its bricks site by site would cost
+  // more than the render.
+  size_t changes = 0;
+  BasicSlotTable<Kernel3>::Diff(base.sites(), sites->sites(),
+                                [&](uint32_t, const Site3*, const Site3*) { ++changes; });
+  if (changes > std::max<size_t>(64, sites->size() / 8)) {
+    auto volume = ScanVolume(grid, diagram, std::move(sites), stats);
+    return volume;
+  }
   const uint32_t bx = base.bricks_x(), by = base.bricks_y(), bz = base.bricks_z();
   const size_t count = size_t{bx} * by * bz;
   std::vector<uint8_t> dirty(count, 0);

@@ -55,7 +55,7 @@ std::shared_ptr<const Volume> ScanVolume(const Grid3& grid, Diagram diagram,
 // The volume of `sites`, a later snapshot of the same scene as base's (slots mean the same
 // sites), equal voxel for voxel to ScanVolume(base.grid(), base.diagram(), sites): only the
 // bricks the change between the two snapshots can alter are rendered, and the slices they
-// miss are base's own.
+// miss are base's own. A change of more than max(64, sites / 8) slots is rendered whole.
 std::shared_ptr<const Volume> UpdateVolume(const Volume& base,
                                            std::shared_ptr<const SiteSnapshot3> sites,
                                            VolumeScanStats* stats = nullptr);

@@ -5,9 +5,11 @@
 #include <cstdint>
 #include <cstring>
 #include <type_traits>
+#include <array>
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
+#include "render/kernel/exact3.h"
 
 namespace gvd {
 namespace {
@@ -18,9 +20,14 @@ static_assert(std::endian::native == std::endian::little,
 // Format bytes: a change of layout takes a new one, and decoders keep reading the old ones.
 constexpr uint8_t kSiteFormat = 1;
 constexpr uint8_t kSettingsFormat = 1;
+// A 3D scene's settings: format 1's fields, then its depth and z range. 2D scenes keep
+// format 1, which every release reads.
+constexpr uint8_t kSettingsFormat3 = 2;
 
 // Geometry tags, one per alternative of Geometry; never reused.
 enum Tag : uint8_t { kPoint = 1, kSegment = 2, kPolyline = 3, kPolygon = 4, kBezier = 5 };
+// And one per alternative of Geometry3.
+enum Tag3 : uint8_t { kPoint3 = 6, kSegment3 = 7, kTriangle3 = 8, kMesh3 = 9 };
 
 class Writer {
  public:
@@ -32,6 +39,16 @@ class Writer {
   void Put(Vec2 p) {
     Put(p.x);
     Put(p.y);
+  }
+  void Put(Vec3 p) {
+    Put(p.x);
+    Put(p.y);
+    Put(p.z);
+  }
+  template <class T>
+  void PutArray(const std::vector<T>& values) {
+    Put(static_cast<uint32_t>(values.size()));
+    out_.append(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(T));
   }
   void Put(std::string_view s) {
     Put(static_cast<uint32_t>(s.size()));
@@ -62,6 +79,19 @@ class Reader {
   Vec2 GetVec2() {
     double x = Get<double>();
     return {x, Get<double>()};
+  }
+  Vec3 GetVec3() {
+    const double x = Get<double>(), y = Get<double>();
+    return {x, y, Get<double>()};
+  }
+  template <class T>
+  std::vector<T> GetArray() {
+    const uint32_t n = Get<uint32_t>();
+    if (!Need(uint64_t{n} * sizeof(T))) return {};
+    std::vector<T> values(n);
+    std::memcpy(static_cast<void*>(values.data()), in_.data(), n * sizeof(T));
+    in_.remove_prefix(n * sizeof(T));
+    return values;
   }
   std::string GetString() {
     uint32_t n = Get<uint32_t>();
@@ -125,7 +155,111 @@ bool KeepsContract(const Site& site) {
       site.geometry);
 }
 
+bool Finite(Vec3 p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
+
+// The weights every accepted site had.
+template <class S>
+bool WeightsKeepContract(const S& site) {
+  return !site.id.empty() && std::isfinite(site.additive) && site.additive >= 0 &&
+         std::isfinite(site.multiplicative) && site.multiplicative > 0 && site.max_distance > 0;
+}
+
 }  // namespace
+
+std::string EncodeSite(const Site3& site) {
+  Writer w;
+  w.Put(kSiteFormat);
+  w.Put(std::string_view(site.id));
+  w.Put(site.additive);
+  w.Put(site.multiplicative);
+  w.Put(site.max_distance);
+  std::visit(
+      [&w](const auto& g) {
+        using T = std::decay_t<decltype(g)>;
+        if constexpr (std::is_same_v<T, PointSite3>) {
+          w.Put(kPoint3);
+          w.Put(g.p);
+        } else if constexpr (std::is_same_v<T, SegmentSite3>) {
+          w.Put(kSegment3);
+          w.Put(g.a);
+          w.Put(g.b);
+        } else if constexpr (std::is_same_v<T, TriangleSite3>) {
+          w.Put(kTriangle3);
+          w.Put(g.a);
+          w.Put(g.b);
+          w.Put(g.c);
+        } else {
+          static_assert(std::is_same_v<T, MeshSite3>);
+          // The vertices and triangles as given; the edge tables and the tree are made again.
+          w.Put(kMesh3);
+          w.PutArray(g.vertices);
+          w.PutArray(g.triangles);
+        }
+      },
+      site.geometry);
+  return w.Take();
+}
+
+absl::StatusOr<Site3> DecodeSite3(std::string_view bytes) {
+  Reader r(bytes);
+  if (r.Get<uint8_t>() != kSiteFormat) r.Fail();
+  Site3 site;
+  site.id = r.GetString();
+  site.additive = r.Get<double>();
+  site.multiplicative = r.Get<double>();
+  site.max_distance = r.Get<double>();
+  std::vector<Vec3> vertices;
+  std::vector<std::array<uint32_t, 3>> triangles;
+  bool mesh = false;
+  switch (r.Get<uint8_t>()) {
+    case kPoint3:
+      site.geometry = PointSite3{r.GetVec3()};
+      break;
+    case kSegment3: {
+      const Vec3 a = r.GetVec3();
+      site.geometry = SegmentSite3{a, r.GetVec3()};
+      break;
+    }
+    case kTriangle3: {
+      const Vec3 a = r.GetVec3(), b = r.GetVec3();
+      site.geometry = TriangleSite3{a, b, r.GetVec3()};
+      break;
+    }
+    case kMesh3:
+      vertices = r.GetArray<Vec3>();
+      triangles = r.GetArray<std::array<uint32_t, 3>>();
+      mesh = true;
+      break;
+    default:
+      r.Fail();
+  }
+  if (auto s = r.Done("site"); !s.ok()) return s;
+  const absl::Status damaged = absl::DataLossError("a stored site is damaged");
+  if (!WeightsKeepContract(site)) return damaged;
+  if (mesh) {
+    std::vector<double> xyz;
+    xyz.reserve(vertices.size() * 3);
+    for (Vec3 v : vertices) xyz.insert(xyz.end(), {v.x, v.y, v.z});
+    std::vector<uint32_t> indices;
+    indices.reserve(triangles.size() * 3);
+    for (const auto& t : triangles) indices.insert(indices.end(), t.begin(), t.end());
+    auto made = MakeMesh(xyz, indices, triangles.size());
+    if (!made.ok()) return damaged;
+    site.geometry = *std::move(made);
+    return site;
+  }
+  const bool finite = std::visit(
+      [](const auto& g) {
+        using T = std::decay_t<decltype(g)>;
+        if constexpr (std::is_same_v<T, PointSite3>) return Finite(g.p);
+        if constexpr (std::is_same_v<T, SegmentSite3>) return Finite(g.a) && Finite(g.b);
+        if constexpr (std::is_same_v<T, TriangleSite3>) return Finite(g.a) && Finite(g.b) && Finite(g.c);
+        return true;
+      },
+      site.geometry);
+  if (!finite) return damaged;
+  return site;
+}
 
 std::string EncodeSite(const Site& site) {
   Writer w;
@@ -207,7 +341,7 @@ absl::StatusOr<Site> DecodeSite(std::string_view bytes) {
 
 std::string EncodeSettings(const SceneSettings& s) {
   Writer w;
-  w.Put(kSettingsFormat);
+  w.Put(s.three_d() ? kSettingsFormat3 : kSettingsFormat);
   w.Put(std::string_view(s.id));
   w.Put(s.grid.window.min_x);
   w.Put(s.grid.window.min_y);
@@ -219,12 +353,18 @@ std::string EncodeSettings(const SceneSettings& s) {
   w.Put(s.cone_triangles);
   w.Put(static_cast<uint8_t>(s.mode));
   w.Put(static_cast<uint8_t>(s.diagram));
+  if (s.three_d()) {
+    w.Put(s.depth);
+    w.Put(s.min_z);
+    w.Put(s.max_z);
+  }
   return w.Take();
 }
 
 absl::StatusOr<SceneSettings> DecodeSettings(std::string_view bytes) {
   Reader r(bytes);
-  if (r.Get<uint8_t>() != kSettingsFormat) r.Fail();
+  const uint8_t format = r.Get<uint8_t>();
+  if (format != kSettingsFormat && format != kSettingsFormat3) r.Fail();
   SceneSettings s;
   s.id = r.GetString();
   s.grid.window.min_x = r.Get<double>();
@@ -243,6 +383,12 @@ absl::StatusOr<SceneSettings> DecodeSettings(std::string_view bytes) {
   }
   s.mode = static_cast<RenderMode>(mode);
   s.diagram = static_cast<Diagram>(diagram);
+  if (format == kSettingsFormat3) {
+    s.depth = r.Get<uint32_t>();
+    s.min_z = r.Get<double>();
+    s.max_z = r.Get<double>();
+    if (s.depth == 0 || !(s.max_z - s.min_z > 0) || !std::isfinite(s.max_z - s.min_z)) r.Fail();
+  }
   if (auto st = r.Done("scene"); !st.ok()) return st;
   // What every accepted scene had: an id, a window of positive finite size, pixels, an error
   // bound and enough triangles to make a cone.

@@ -10,11 +10,16 @@
 #include "absl/status/statusor.h"
 #include "render/scene/settings.h"
 #include "render/kernel/site2.h"
+#include "render/kernel/site3.h"
 
 namespace gvd {
 
 std::string EncodeSite(const Site& site);
 absl::StatusOr<Site> DecodeSite(std::string_view bytes);
+// A 3D site (site3.h); a mesh is stored as its vertices and triangles, and its edge tables
+// and tree are made again when it is read.
+std::string EncodeSite(const Site3& site);
+absl::StatusOr<Site3> DecodeSite3(std::string_view bytes);
 
 std::string EncodeSettings(const SceneSettings& settings);
 absl::StatusOr<SceneSettings> DecodeSettings(std::string_view bytes);

@@ -20,38 +20,48 @@ int64_t NowNs() {
 }
 }  // namespace
 
-Scene::Scene(SceneSettings settings, Executor executor)
+template <class K>
+BasicScene<K>::BasicScene(SceneSettings settings, Executor executor)
     : settings_(std::move(settings)), executor_(std::move(executor)) {
-  snapshot_.store(SiteSnapshot::Empty(1));
-  frame_.store(Frame::Empty(settings_.grid, settings_.eps, snapshot_.load()));
+  snapshot_.store(Snapshot::Empty(1));
+  frame_.store(SceneFrames<K>::Empty(settings_, snapshot_.load()));
   published_ns_ = NowNs();
 }
 
-double Scene::frame_age_seconds() const { return (NowNs() - published_ns_.load()) * 1e-9; }
+template <class K>
+double BasicScene<K>::frame_age_seconds() const { return (NowNs() - published_ns_.load()) * 1e-9; }
 
-Scene::Scene(SceneSettings settings, uint64_t version, std::vector<Site> sites, Executor executor)
-    : Scene(std::move(settings), std::move(executor)) {
-  SnapshotBuilder builder(snapshot_.load(), &free_slots_);
+template <class K>
+BasicScene<K>::BasicScene(SceneSettings settings, uint64_t version, std::vector<Site> sites,
+                          Executor executor)
+    : BasicScene(std::move(settings), std::move(executor)) {
+  Builder builder(snapshot_.load(), &free_slots_);
   for (Site& site : sites) builder.Put(std::move(site));
   snapshot_.store(builder.Build(version));
 }
 
-absl::StatusOr<uint64_t> Scene::Write(const std::function<absl::Status(SnapshotBuilder&)>& edit,
+template <class K>
+absl::StatusOr<uint64_t> BasicScene<K>::Write(const std::function<absl::Status(Builder&)>& edit,
                                       const Persist& persist) {
   std::lock_guard<std::mutex> lock(writer_mu_);
   if (deleted_) return Gone();
   auto base = snapshot_.load();
-  SnapshotBuilder builder(base, &free_slots_);
+  Builder builder(base, &free_slots_);
   absl::Status status = edit(builder);
   if (!status.ok()) {
     builder.Abandon();
     return status;
   }
-  const ChangeSet change{id(), base->version() + 1, builder.put(), builder.removed()};
+  ChangeSet change{id(), base->version() + 1, {}, builder.removed()};
+  if constexpr (std::is_same_v<Site, Site3>) {
+    change.put3 = builder.put();
+  } else {
+    change.put = builder.put();
+  }
   // A bulk change builds the next snapshot while the store makes it durable (the snapshot
   // is dropped if the store refuses); a small one builds only what the store took.
   constexpr size_t kBulk = 4096;
-  std::shared_ptr<const SiteSnapshot> next;
+  std::shared_ptr<const Snapshot> next;
   if (persist && builder.put().size() + builder.removed().size() >= kBulk) {
     ParallelFor(2, 1, [&](size_t begin, size_t end) {
       for (size_t k = begin; k < end; ++k) {
@@ -72,7 +82,8 @@ absl::StatusOr<uint64_t> Scene::Write(const std::function<absl::Status(SnapshotB
   return Install(builder, std::move(next), change.version);
 }
 
-absl::StatusOr<uint64_t> Scene::Apply(const ChangeSet& committed) {
+template <class K>
+absl::StatusOr<uint64_t> BasicScene<K>::Apply(const ChangeSet& committed) {
   std::lock_guard<std::mutex> lock(writer_mu_);
   if (deleted_) return Gone();
   auto base = snapshot_.load();
@@ -81,7 +92,7 @@ absl::StatusOr<uint64_t> Scene::Apply(const ChangeSet& committed) {
         absl::StrCat("scene \"", id(), "\" is at version ", base->version(),
                      "; a change to version ", committed.version, " cannot follow it"));
   }
-  SnapshotBuilder builder(base, &free_slots_);
+  Builder builder(base, &free_slots_);
   for (const std::string& removed : committed.removed) {
     if (!builder.Remove(removed)) {
       builder.Abandon();
@@ -89,11 +100,12 @@ absl::StatusOr<uint64_t> Scene::Apply(const ChangeSet& committed) {
                                               id(), "\" at version ", base->version()));
     }
   }
-  for (const std::shared_ptr<const Site>& site : committed.put) builder.Put(*site);
+  for (const std::shared_ptr<const Site>& site : committed.template Put<Site>()) builder.Put(*site);
   return Install(builder, nullptr, committed.version);
 }
 
-uint64_t Scene::Install(SnapshotBuilder& builder, std::shared_ptr<const SiteSnapshot> next,
+template <class K>
+uint64_t BasicScene<K>::Install(Builder& builder, std::shared_ptr<const Snapshot> next,
                         uint64_t version) {
   if (next == nullptr) next = builder.Build(version);
   // Freed slots are taken again only by later snapshots: this one's frames may still show
@@ -103,11 +115,13 @@ uint64_t Scene::Install(SnapshotBuilder& builder, std::shared_ptr<const SiteSnap
   return version;
 }
 
-absl::Status Scene::Gone() const {
+template <class K>
+absl::Status BasicScene<K>::Gone() const {
   return absl::NotFoundError(absl::StrCat("scene \"", id(), "\" was deleted"));
 }
 
-absl::Status Scene::Retire(const std::function<absl::Status()>& persist) {
+template <class K>
+absl::Status BasicScene<K>::Retire(const std::function<absl::Status()>& persist) {
   std::lock_guard<std::mutex> lock(writer_mu_);
   if (deleted_) return Gone();
   if (persist) {
@@ -118,20 +132,23 @@ absl::Status Scene::Retire(const std::function<absl::Status()>& persist) {
   return absl::OkStatus();
 }
 
-uint64_t Scene::Watch(FrameListener listener) {
+template <class K>
+uint64_t BasicScene<K>::Watch(FrameListener listener) {
   std::lock_guard<std::mutex> lock(listeners_mu_);
   const uint64_t token = next_listener_++;
   listeners_.emplace(token, std::make_shared<const FrameListener>(std::move(listener)));
   return token;
 }
 
-void Scene::Unwatch(uint64_t token) {
+template <class K>
+void BasicScene<K>::Unwatch(uint64_t token) {
   std::lock_guard<std::mutex> calling(listeners_call_mu_);
   std::lock_guard<std::mutex> lock(listeners_mu_);
   listeners_.erase(token);
 }
 
-void Scene::Notify(const std::shared_ptr<const Frame>& frame, bool last) {
+template <class K>
+void BasicScene<K>::Notify(const std::shared_ptr<const Frame>& frame, bool last) {
   std::lock_guard<std::mutex> calling(listeners_call_mu_);
   std::vector<std::shared_ptr<const FrameListener>> listeners;
   {
@@ -143,10 +160,11 @@ void Scene::Notify(const std::shared_ptr<const Frame>& frame, bool last) {
   for (const auto& l : listeners) (*l)(frame);
 }
 
-absl::StatusOr<uint64_t> Scene::Upsert(std::vector<Site> sites, size_t max_sites,
+template <class K>
+absl::StatusOr<uint64_t> BasicScene<K>::Upsert(std::vector<Site> sites, size_t max_sites,
                                        const Persist& persist) {
   return Write(
-      [&](SnapshotBuilder& builder) {
+      [&](Builder& builder) {
         for (Site& s : sites) builder.Put(std::move(s));
         if (builder.size() > max_sites) {
           return absl::ResourceExhaustedError(
@@ -159,10 +177,11 @@ absl::StatusOr<uint64_t> Scene::Upsert(std::vector<Site> sites, size_t max_sites
       persist);
 }
 
-absl::StatusOr<uint64_t> Scene::Delete(const std::vector<std::string>& ids,
+template <class K>
+absl::StatusOr<uint64_t> BasicScene<K>::Delete(const std::vector<std::string>& ids,
                                        const Persist& persist) {
   return Write(
-      [&](SnapshotBuilder& builder) {
+      [&](Builder& builder) {
         for (size_t i = 0; i < ids.size(); ++i) {
           if (!builder.Remove(ids[i])) {
             return absl::NotFoundError(absl::StrCat("ids[", i, "] \"", ids[i],
@@ -174,7 +193,8 @@ absl::StatusOr<uint64_t> Scene::Delete(const std::vector<std::string>& ids,
       persist);
 }
 
-Scene::Picked Scene::Pick(Vec2 q, double max_distance) const {
+template <class K>
+typename BasicScene<K>::Picked BasicScene<K>::Pick(Point q, double max_distance) const {
   auto snapshot = snapshot_.load();
   Picked p;
   p.version = snapshot->version();
@@ -183,7 +203,7 @@ Scene::Picked Scene::Pick(Vec2 q, double max_distance) const {
   if (!n.found() || n.distance > max_distance) return p;
   p.site = snapshot->sites().ptr(static_cast<uint32_t>(n.index));
   const Site& site = *p.site;
-  FeatureHit f = NearestFeature(q, site);
+  const auto f = K::Feature(q, site);
   p.found = true;
   p.distance = n.distance;
   p.feature_kind = f.kind;
@@ -192,25 +212,25 @@ Scene::Picked Scene::Pick(Vec2 q, double max_distance) const {
   return p;
 }
 
-uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactAnswer>* answers,
+template <class K>
+uint64_t BasicScene<K>::NearestExact(const std::vector<Point>& points, std::vector<ExactAnswer>* answers,
                              const std::function<bool()>& cancelled, bool features) const {
   const auto snapshot = snapshot_.load();
   const auto frame = frame_.load();
   // The frame bounds the search only when it shows this very snapshot: then its ids are this
   // snapshot's slots.
   const bool fresh = frame->snapshot_ptr() == snapshot && !frame->empty();
-  const SlotTable& slots = snapshot->sites();
-  const SiteIndex& index = snapshot->index();
-  const Window& window = settings_.grid.window;
+  const auto& slots = snapshot->sites();
+  const auto& index = snapshot->index();
   // With only plain sites, the nearest site is the nearest by distance: the frame and the
   // spatial index find it. With weights, max_distance or sides, the index finds the sites
   // that can beat a value found at the point. A FARTHEST diagram scores every site.
   const bool nearest = settings_.diagram == Diagram::kNearest;
   const bool plain = snapshot->plain() && nearest;
   answers->resize(points.size());
-  auto answer = [&](Vec2 q, uint32_t slot, double value) {
+  auto answer = [&](Point q, uint32_t slot, double value) {
     const Site* site = slots.get(slot);
-    FeatureHit f = features ? NearestFeature(q, *site) : FeatureHit{};
+    const auto f = features ? K::Feature(q, *site) : typename K::Hit{};
     return ExactAnswer{site->id, value, f.kind, f.index, f.closest, true, slot};
   };
   // Cancellation is checked about every million site evaluations: every 4,096 points when
@@ -219,8 +239,9 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
       nearest ? 4096 : std::max<size_t>(1, (size_t{1} << 20) / std::max<uint32_t>(1, slots.size()));
   // Large batches are split across cores, all on this one snapshot.
   const bool done = AnswerBatch(
-      settings_.grid, points, check_every, cancelled, [&](size_t i, std::vector<uint32_t>& nearer) {
-        const Vec2 q = points[i];
+      points.size(), SceneFrames<K>::Order(settings_, points), check_every, cancelled,
+      [&](size_t i, std::vector<uint32_t>& nearer) {
+        const Point q = points[i];
         if (!plain && nearest) {
           // Weights, max_distance or sides: a value V found at q bounds the search, as a site
           // s beats it only where m_s d + a_s < V, so d < (V - least a) / least m. V comes from
@@ -230,7 +251,7 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
           uint32_t best = 0;
           double value = INFINITY;
           std::optional<NearestAnswer> raster;
-          if (fresh && window.Contains(q)) raster = frame->Nearest(q);
+          if (fresh && SceneFrames<K>::Covers(settings_, q)) raster = frame->Nearest(q);
           if (raster && !raster->found) {
             (*answers)[i] = ExactAnswer{};
             return true;
@@ -240,7 +261,7 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
             value = raster->distance;
           } else if (ExactNearest n = index.Nearest(q); n.found()) {
             best = static_cast<uint32_t>(n.index);
-            value = SiteValue(q, *slots.get(best));
+            value = K::Value(q, *slots.get(best));
           }
           if (std::isfinite(value)) {
             snapshot->Improve(q, &best, &value, &nearer);
@@ -255,7 +276,7 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
           for (uint32_t s = 0; s < slots.size(); ++s) {
             const Site* site = slots.get(s);
             if (site == nullptr) continue;
-            double v = SiteValue(q, *site);
+            double v = K::Value(q, *site);
             if (std::isfinite(v) && (!found || Beats(settings_.diagram, v, value))) {
               best = s;
               value = v;
@@ -266,7 +287,7 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
           return true;
         }
         std::optional<NearestAnswer> raster;
-        if (fresh && window.Contains(q)) raster = frame->Nearest(q);
+        if (fresh && SceneFrames<K>::Covers(settings_, q)) raster = frame->Nearest(q);
         if (!raster) {
           ExactNearest best = index.Nearest(q);
           (*answers)[i] = answer(q, static_cast<uint32_t>(best.index), best.distance);
@@ -279,7 +300,7 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
         nearer.clear();
         index.Within(q, distance, &nearer);
         for (uint32_t s : nearer) {
-          double d = ExactDistance(q, *slots.get(s));
+          double d = K::Distance(q, *slots.get(s));
           if (d < distance) {
             best = s;
             distance = d;
@@ -292,7 +313,8 @@ uint64_t Scene::NearestExact(const std::vector<Vec2>& points, std::vector<ExactA
   return snapshot->version();
 }
 
-Scene::SitePage Scene::ListSites(std::string_view after, size_t limit) const {
+template <class K>
+typename BasicScene<K>::SitePage BasicScene<K>::ListSites(std::string_view after, size_t limit) const {
   auto snapshot = snapshot_.load();
   SitePage page;
   page.version = snapshot->version();
@@ -309,7 +331,8 @@ Scene::SitePage Scene::ListSites(std::string_view after, size_t limit) const {
   return page;
 }
 
-void Scene::Publish(std::shared_ptr<const Frame> frame) {
+template <class K>
+void BasicScene<K>::Publish(std::shared_ptr<const Frame> frame) {
   std::vector<FrameCallback> ready;
   {
     std::lock_guard<std::mutex> lock(waiters_mu_);
@@ -334,7 +357,8 @@ void Scene::Publish(std::shared_ptr<const Frame> frame) {
   if (!deleted_) Notify(frame, /*last=*/false);
 }
 
-void Scene::FailWaiters(const absl::Status& status) {
+template <class K>
+void BasicScene<K>::FailWaiters(const absl::Status& status) {
   std::map<uint64_t, Waiter> failed;
   {
     std::lock_guard<std::mutex> lock(waiters_mu_);
@@ -343,7 +367,8 @@ void Scene::FailWaiters(const absl::Status& status) {
   for (auto& [token, w] : failed) w.done(status);
 }
 
-uint64_t Scene::WhenRendered(uint64_t min_version, FrameCallback done) {
+template <class K>
+uint64_t BasicScene<K>::WhenRendered(uint64_t min_version, FrameCallback done) {
   // Fast path, without the lock: frames only get newer.
   if (auto current = frame_.load(); current->version() >= min_version) {
     done(std::move(current));
@@ -365,7 +390,8 @@ uint64_t Scene::WhenRendered(uint64_t min_version, FrameCallback done) {
   return token;
 }
 
-void Scene::Cancel(uint64_t token, const absl::Status& why) {
+template <class K>
+void BasicScene<K>::Cancel(uint64_t token, const absl::Status& why) {
   FrameCallback done;
   {
     std::lock_guard<std::mutex> lock(waiters_mu_);
@@ -376,5 +402,8 @@ void Scene::Cancel(uint64_t token, const absl::Status& why) {
   }
   done(why);
 }
+
+template class BasicScene<Kernel2>;
+template class BasicScene<Kernel3>;
 
 }  // namespace gvd

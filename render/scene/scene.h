@@ -18,18 +18,59 @@
 #include "render/scene/shared_cell.h"
 #include "render/scene/settings.h"
 #include "render/scene/snapshot.h"
+#include "render/scene/volume.h"
 #include "render/scene/store.h"
 #include "render/kernel/grid2.h"
+#include "render/kernel/kernel2.h"
+#include "render/kernel/kernel3.h"
 #include "render/kernel/site2.h"
 
 namespace gvd {
 
-// Called exactly once: with a frame of at least the awaited version, or with the reason
-// there will be none (scene deleted, render failed, call cancelled).
-using FrameCallback = std::function<void(absl::StatusOr<std::shared_ptr<const Frame>>)>;
-
 // Runs a job on a thread that is not the caller's (the process's CPU pool).
 using Executor = std::function<void(std::function<void()>)>;
+
+// What a scene of a kernel's sites renders into, and what that asks of its settings: the
+// plane's frames (frame.h) and space's volumes (volume.h).
+template <class K>
+struct SceneFrames;
+template <>
+struct SceneFrames<Kernel2> {
+  using Frame = gvd::Frame;
+  static std::shared_ptr<const Frame> Empty(const SceneSettings& s,
+                                            std::shared_ptr<const SiteSnapshot> sites) {
+    return Frame::Empty(s.grid, s.eps, std::move(sites));
+  }
+  // Whether the frame holds values around q (its window).
+  static bool Covers(const SceneSettings& s, Vec2 q) { return s.grid.window.Contains(q); }
+  // The order a batch is best answered in (OrderByTile).
+  static std::vector<uint32_t> Order(const SceneSettings& s, const std::vector<Vec2>& points) {
+    return OrderByTile(s.grid, points);
+  }
+  // What a scene's raster costs per pixel: the GL id and depth targets (8 bytes), their
+  // read-back (8) and the published frame's ids and distances (8). Measured: a 4096x4096
+  // scene of one site added 16 to 25 bytes per pixel to the server's resident memory.
+  static constexpr uint64_t kBytesPerPixel = 24;
+  static uint64_t RasterBytes(const SceneSettings& s) {
+    return uint64_t{s.grid.width} * s.grid.height * kBytesPerPixel;
+  }
+};
+template <>
+struct SceneFrames<Kernel3> {
+  using Frame = Volume;
+  static std::shared_ptr<const Frame> Empty(const SceneSettings& s,
+                                            std::shared_ptr<const SiteSnapshot3> sites) {
+    return Volume::Empty(s.grid3(), s.diagram, std::move(sites));
+  }
+  static bool Covers(const SceneSettings& s, Vec3 q) { return s.grid3().box.Contains(q); }
+  static std::vector<uint32_t> Order(const SceneSettings&, const std::vector<Vec3>&) { return {}; }
+  // A volume's ids and values (8 bytes a voxel), and the copies of the slices a render
+  // writes while the published volume is read (8 more).
+  static constexpr uint64_t kBytesPerVoxel = 16;
+  static uint64_t RasterBytes(const SceneSettings& s) {
+    return s.grid3().voxel_count() * kBytesPerVoxel;
+  }
+};
 
 // Thread-safe. Threading rules:
 //  - the sites are an immutable SiteSnapshot, published in a SharedCell: readers (queries, the
@@ -40,14 +81,28 @@ using Executor = std::function<void(std::function<void()>)>;
 //  - the render thread publishes frames, each holding the snapshot it was rendered from;
 //    readers of frame() never wait for a render;
 //  - waiters for a frame are resumed through the executor, never on the render thread.
-class Scene {
+//
+// A template on the kernel (render/kernel/kernel2.h): Scene is the plane's, whose frames are
+// Frames; Scene3 is space's, whose frames are Volumes (SceneFrames).
+template <class K>
+class BasicScene {
  public:
+  using Kernel = K;
+  using Site = typename K::Site;
+  using Point = typename K::Point;
+  using Snapshot = BasicSiteSnapshot<K>;
+  using Builder = BasicSnapshotBuilder<K>;
+  using Frame = typename SceneFrames<K>::Frame;
+  // Called exactly once: with a frame of at least the awaited version, or with the reason
+  // there will be none (scene deleted, render failed, call cancelled).
+  using FrameCallback = std::function<void(absl::StatusOr<std::shared_ptr<const Frame>>)>;
+
   // A new scene at version 1 with no sites and an empty frame. Frame waiters are resumed
   // through `executor` (null: on the publishing thread).
-  explicit Scene(SceneSettings settings, Executor executor = nullptr);
+  explicit BasicScene(SceneSettings settings, Executor executor = nullptr);
   // A scene restored from the store, at its stored version.
-  Scene(SceneSettings settings, uint64_t version, std::vector<Site> sites,
-        Executor executor = nullptr);
+  BasicScene(SceneSettings settings, uint64_t version, std::vector<Site> sites,
+             Executor executor = nullptr);
 
   // Makes a change durable before it is published (SceneStore::Commit): called under the
   // writer lock only, with the change and the version it brings the scene to; an error
@@ -74,17 +129,13 @@ class Scene {
   absl::StatusOr<uint64_t> Apply(const ChangeSet& committed);
 
   // The latest snapshot of the sites. Never waits for a writer.
-  std::shared_ptr<const SiteSnapshot> snapshot() const { return snapshot_.load(); }
+  std::shared_ptr<const Snapshot> snapshot() const { return snapshot_.load(); }
   uint64_t version() const { return snapshot()->version(); }
   size_t site_count() const { return snapshot()->size(); }
 
-  // What a scene's raster costs per pixel: the GL id and depth targets (8 bytes), their
-  // read-back (8) and the published frame's ids and distances (8). Measured: a 4096x4096
-  // scene of one site added 16 to 25 bytes per pixel to the server's resident memory.
-  static constexpr uint64_t kBytesPerPixel = 24;
-  // The bytes of a scene of these settings with no sites.
+  // The bytes of a scene of these settings with no sites (SceneFrames::RasterBytes).
   static uint64_t RasterBytes(const SceneSettings& settings) {
-    return uint64_t{settings.grid.width} * settings.grid.height * kBytesPerPixel;
+    return SceneFrames<K>::RasterBytes(settings);
   }
   // The bytes the scene holds now: its raster and its latest sites (SiteSnapshot::bytes).
   // What the memory budget (--max-memory) charges it.
@@ -106,14 +157,14 @@ class Scene {
     double distance = INFINITY;
     FeatureKind feature_kind = FeatureKind::kVertex;
     uint32_t feature_index = 0;
-    Vec2 closest;  // the site's point nearest to q (FeatureHit::closest)
+    Point closest;  // the site's point nearest to q (FeatureHit::closest)
     bool found = false;
     uint32_t slot = 0;  // the site's slot in the answering version's table
   };
   // `cancelled`, when given, is polled every few thousand points; once it says true the
   // answers are left incomplete and the call returns 0.
   // Without `features`, feature_kind, feature_index and closest are left at their defaults.
-  uint64_t NearestExact(const std::vector<Vec2>& points, std::vector<ExactAnswer>* answers,
+  uint64_t NearestExact(const std::vector<Point>& points, std::vector<ExactAnswer>* answers,
                         const std::function<bool()>& cancelled = nullptr,
                         bool features = true) const;
 
@@ -127,10 +178,10 @@ class Scene {
     double distance = 0;
     FeatureKind feature_kind = FeatureKind::kVertex;
     uint32_t feature_index = 0;
-    Vec2 closest;  // the site's point nearest to q
+    Point closest;  // the site's point nearest to q
     uint64_t version = 0;
   };
-  Picked Pick(Vec2 q, double max_distance) const;
+  Picked Pick(Point q, double max_distance) const;
 
   // A value computed from `frame` by `make` (a pure function of the frame), kept for the
   // latest frame asked about, one per type T: repeated questions about one frame (its hidden
@@ -204,18 +255,17 @@ class Scene {
 
   // Builds, persists and publishes the next snapshot; `edit` fills the builder and may
   // refuse. Takes the writer lock.
-  absl::StatusOr<uint64_t> Write(const std::function<absl::Status(SnapshotBuilder&)>& edit,
+  absl::StatusOr<uint64_t> Write(const std::function<absl::Status(Builder&)>& edit,
                                  const Persist& persist);
   // Publishes the builder's snapshot at `version` (built already when `next` is given) and
   // takes back the slots it freed: where every write ends. Under the writer lock.
-  uint64_t Install(SnapshotBuilder& builder, std::shared_ptr<const SiteSnapshot> next,
-                   uint64_t version);
+  uint64_t Install(Builder& builder, std::shared_ptr<const Snapshot> next, uint64_t version);
   absl::Status Gone() const;  // NOT_FOUND: the scene was deleted
 
   const SceneSettings settings_;
   const Executor executor_;
   std::atomic<bool> deleted_{false};
-  SharedCell<const SiteSnapshot> snapshot_;
+  SharedCell<const Snapshot> snapshot_;
   SharedCell<const Frame> frame_;
   std::atomic<int64_t> published_ns_{0};  // steady_clock
   std::atomic<double> render_seconds_{0};
@@ -243,5 +293,12 @@ class Scene {
   mutable std::mutex derived_mu_;  // guards derived_
   mutable std::map<std::type_index, DerivedValue> derived_;
 };
+
+// The plane's scenes and space's, instantiated in scene.cc.
+extern template class BasicScene<Kernel2>;
+using Scene = BasicScene<Kernel2>;
+using FrameCallback = Scene::FrameCallback;
+extern template class BasicScene<Kernel3>;
+using Scene3 = BasicScene<Kernel3>;
 
 }  // namespace gvd

@@ -11,20 +11,23 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "render/scene/settings.h"
 #include "render/kernel/site2.h"
+#include "render/kernel/site3.h"
 
 namespace gvd {
 
-// A scene as stored: its settings, its version and its sites.
+// A scene as stored: its settings, its version and its sites (a 3D scene's in sites3).
 struct StoredScene {
   SceneSettings settings;
   uint64_t version = 0;
   std::vector<Site> sites;
+  std::vector<Site3> sites3;
 };
 
 // One accepted write of one scene: the sites it puts (inserted or replaced) and the ids it
@@ -35,6 +38,18 @@ struct ChangeSet {
   uint64_t version = 0;
   std::span<const std::shared_ptr<const Site>> put;
   std::span<const std::string> removed;
+  // A 3D scene's sites put (a 2D scene's change has none; a 3D scene's, no `put`).
+  std::span<const std::shared_ptr<const Site3>> put3 = {};
+
+  // The sites put, of the kind a scene of K's sites holds.
+  template <class S>
+  std::span<const std::shared_ptr<const S>> Put() const {
+    if constexpr (std::is_same_v<S, Site3>) {
+      return put3;
+    } else {
+      return put;
+    }
+  }
 };
 
 // Every call is atomic and durable when it returns OK: after a crash, a reload sees all of it

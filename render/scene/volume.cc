@@ -52,6 +52,19 @@ Volume::Volume(Grid3 grid, Diagram diagram, std::vector<std::shared_ptr<const Sl
       slices_(std::move(slices)),
       brick_extreme_(std::move(brick_extreme)) {}
 
+std::shared_ptr<const Volume> Volume::Empty(Grid3 grid, Diagram diagram,
+                                            std::shared_ptr<const SiteSnapshot3> sites) {
+  auto slice = std::make_shared<Slice>();
+  const float none = diagram == Diagram::kNearest ? INFINITY : -INFINITY;
+  slice->ids.assign(grid.slice_size(), 0);
+  slice->distances.assign(grid.slice_size(), none);
+  const size_t bricks = size_t{(grid.width + kBrick - 1) / kBrick} *
+                        ((grid.height + kBrick - 1) / kBrick) * ((grid.depth + kBrick - 1) / kBrick);
+  return std::make_shared<const Volume>(
+      grid, diagram, std::vector<std::shared_ptr<const Slice>>(grid.depth, slice),
+      std::vector<float>(bricks, none), std::move(sites));
+}
+
 std::optional<NearestAnswer> Volume::Nearest(Vec3 q) const {
   if (empty()) return std::nullopt;
   const bool nearest = error_.diagram == Diagram::kNearest;

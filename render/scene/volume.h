@@ -41,6 +41,10 @@ class Volume {
   Volume(Grid3 grid, Diagram diagram, std::vector<std::shared_ptr<const Slice>> slices,
          std::vector<float> brick_extreme, std::shared_ptr<const SiteSnapshot3> sites);
 
+  // A volume of no sites: every voxel empty, one slice's storage shared by every slice.
+  static std::shared_ptr<const Volume> Empty(Grid3 grid, Diagram diagram,
+                                             std::shared_ptr<const SiteSnapshot3> sites);
+
   const Grid3& grid() const { return grid_; }
   Diagram diagram() const { return error_.diagram; }
   uint64_t version() const { return snapshot_->version(); }

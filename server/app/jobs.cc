@@ -12,19 +12,22 @@
 
 namespace gvd {
 
-FrameJob::FrameJob(SceneRegistry* registry, std::shared_ptr<Scene> scene, uint64_t min_version,
-                   std::function<bool()> cancelled)
+template <class S>
+BasicFrameJob<S>::BasicFrameJob(SceneRegistry* registry, std::shared_ptr<S> scene,
+                                uint64_t min_version, std::function<bool()> cancelled)
     : registry_(registry), scene_(std::move(scene)), min_version_(min_version),
       cancelled_fn_(std::move(cancelled)) {}
 
-void FrameJob::Start(Done done) {
-  auto self = shared_from_this();  // Finish may release the job's last other owner
+template <class S>
+void BasicFrameJob<S>::Start(Done done) {
+  auto self = this->shared_from_this();  // Finish may release the job's last other owner
   done_ = std::move(done);
   Begin();
 }
 
-void FrameJob::WaitForFrame() {
-  auto self = shared_from_this();
+template <class S>
+void BasicFrameJob<S>::WaitForFrame() {
+  auto self = this->shared_from_this();
   const std::thread::id caller = std::this_thread::get_id();
   uint64_t token = scene_->WhenRendered(min_version_, [self, caller](auto frame) {
     self->OnFrame(frame, std::this_thread::get_id() == caller);
@@ -34,7 +37,8 @@ void FrameJob::WaitForFrame() {
   if (cancelled_) scene_->Cancel(token, absl::CancelledError("the call was cancelled"));
 }
 
-void FrameJob::Cancel() {
+template <class S>
+void BasicFrameJob<S>::Cancel() {
   std::lock_guard<std::mutex> lock(mu_);
   cancelled_ = true;
   if (token_ != 0) {
@@ -44,7 +48,8 @@ void FrameJob::Cancel() {
   }
 }
 
-void FrameJob::OnFrame(const absl::StatusOr<std::shared_ptr<const Frame>>& frame,
+template <class S>
+void BasicFrameJob<S>::OnFrame(const absl::StatusOr<std::shared_ptr<const Frame>>& frame,
                        bool on_caller) {
   if (!frame.ok()) {
     Finish(frame.status());
@@ -59,82 +64,91 @@ void FrameJob::OnFrame(const absl::StatusOr<std::shared_ptr<const Frame>>& frame
   Run(*frame, on_caller);
 }
 
-void FrameJob::Finish(const absl::Status& status) {
-  auto self = shared_from_this();
+template <class S>
+void BasicFrameJob<S>::Finish(const absl::Status& status) {
+  auto self = this->shared_from_this();
   Done done = std::move(done_);
   done(status);
 }
 
 // ---- NearestJob ----
 
-NearestJob::NearestJob(SceneRegistry* registry, std::shared_ptr<Scene> scene, NearestQuery query,
-                       std::function<bool()> cancelled)
-    : FrameJob(registry, std::move(scene), query.min_version, std::move(cancelled)),
+template <class S>
+BasicNearestJob<S>::BasicNearestJob(SceneRegistry* registry, std::shared_ptr<S> scene,
+                                    Query query, std::function<bool()> cancelled)
+    : BasicFrameJob<S>(registry, std::move(scene), query.min_version, std::move(cancelled)),
       query_(std::move(query)) {}
 
-std::shared_ptr<NearestJob> NearestJob::Make(SceneRegistry* registry, std::shared_ptr<Scene> scene,
-                                             NearestQuery query, std::function<bool()> cancelled) {
-  return std::shared_ptr<NearestJob>(
-      new NearestJob(registry, std::move(scene), std::move(query), std::move(cancelled)));
+template <class S>
+std::shared_ptr<BasicNearestJob<S>> BasicNearestJob<S>::Make(SceneRegistry* registry,
+                                                             std::shared_ptr<S> scene, Query query,
+                                                             std::function<bool()> cancelled) {
+  return std::shared_ptr<BasicNearestJob>(
+      new BasicNearestJob(registry, std::move(scene), std::move(query), std::move(cancelled)));
 }
 
-void NearestJob::Begin() {
+template <class S>
+void BasicNearestJob<S>::Begin() {
   if (!query_.exact) {
-    WaitForFrame();
+    this->WaitForFrame();
     return;
   }
-  const auto snapshot = scene_->snapshot();
+  const auto snapshot = this->scene_->snapshot();
   if (snapshot->empty()) {
-    Finish(absl::FailedPreconditionError(absl::StrCat(
-        "scene \"", scene_->id(), "\" has no sites at version ", snapshot->version())));
+    this->Finish(absl::FailedPreconditionError(absl::StrCat(
+        "scene \"", this->scene_->id(), "\" has no sites at version ", snapshot->version())));
     return;
   }
   // Exact answers cost O(log n) each in a NEAREST scene of plain sites; with weights, sides
   // or max_distance, or in a FARTHEST scene, one may score every site.
   const bool cheap =
-      snapshot->plain() && scene_->settings().diagram == Diagram::kNearest;
+      snapshot->plain() && this->scene_->settings().diagram == Diagram::kNearest;
   if (cheap && query_.points.size() <= kInlineExactPoints) {
     AnswerExact();
     return;
   }
-  auto self = std::static_pointer_cast<NearestJob>(shared_from_this());
-  registry_->answers().Submit([self] { self->AnswerExact(); });
+  auto self = std::static_pointer_cast<BasicNearestJob>(this->shared_from_this());
+  this->registry_->answers().Submit([self] { self->AnswerExact(); });
 }
 
-void NearestJob::AnswerExact() {
-  version_ = scene_->NearestExact(query_.points, &exact_answers_, cancelled_fn_,
+template <class S>
+void BasicNearestJob<S>::AnswerExact() {
+  this->version_ = this->scene_->NearestExact(query_.points, &exact_answers_, this->cancelled_fn_,
                                   query_.features || query_.closest);
-  if (version_ == 0) {
-    Finish(absl::CancelledError("the call was cancelled"));
+  if (this->version_ == 0) {
+    this->Finish(absl::CancelledError("the call was cancelled"));
     return;
   }
   rows_.reserve(exact_answers_.size());
   for (const auto& a : exact_answers_) {
     rows_.push_back({a.found ? &a.site_id : nullptr, a.slot, a.distance, 0, true,
                      a.feature_kind, a.feature_index});
-    if (query_.closest) closest_.push_back(a.found ? a.closest : Vec2(NAN));
+    if (query_.closest) closest_.push_back(a.found ? a.closest : Point(NAN));
   }
-  Finish(absl::OkStatus());
+  this->Finish(absl::OkStatus());
 }
 
-void NearestJob::Run(std::shared_ptr<const Frame> frame, bool on_caller) {
+template <class S>
+void BasicNearestJob<S>::Run(std::shared_ptr<const Frame> frame, bool on_caller) {
   if (on_caller && query_.points.size() > kInlinePoints) {
-    auto self = std::static_pointer_cast<NearestJob>(shared_from_this());
-    registry_->answers().Submit([self, frame] { self->AnswerFrom(frame); });
+    auto self = std::static_pointer_cast<BasicNearestJob>(this->shared_from_this());
+    this->registry_->answers().Submit([self, frame] { self->AnswerFrom(frame); });
     return;
   }
   AnswerFrom(frame);
 }
 
-void NearestJob::AnswerFrom(const std::shared_ptr<const Frame>& frame) {
+template <class S>
+void BasicNearestJob<S>::AnswerFrom(const std::shared_ptr<const Frame>& frame) {
   frame_ = frame;
   rows_.resize(query_.points.size());
   if (query_.closest) closest_.resize(query_.points.size());
   std::atomic<bool> missing{false};
   const bool answered = AnswerBatch(
-      frame_->grid(), query_.points, 4096, cancelled_fn_,
+      query_.points.size(), SceneFrames<typename S::Kernel>::Order(this->scene_->settings(), query_.points),
+      4096, this->cancelled_fn_,
       [&](size_t i, std::vector<uint32_t>&) {
-        const Vec2 q = query_.points[i];
+        const Point q = query_.points[i];
         auto a = frame_->Nearest(q);
         if (!a) {
           missing = true;
@@ -143,15 +157,16 @@ void NearestJob::AnswerFrom(const std::shared_ptr<const Frame>& frame) {
         if (!query_.skip_refinement && a->ambiguous()) a = frame_->Refine(q, *a);
         if (!a->found) {
           rows_[i] = {nullptr, 0, INFINITY, 0, true, FeatureKind::kVertex, 0};
-          if (query_.closest) closest_[i] = Vec2(NAN);
+          if (query_.closest) closest_[i] = Point(NAN);
           return true;
         }
-        const Site& site = *frame_->sites().get(a->site_index);
-        FeatureHit f;
-        if (const auto* point = std::get_if<PointSite>(&site.geometry)) {
-          f.closest = point->p;  // vertex 0
+        using K = typename S::Kernel;
+        const typename S::Site& site = *frame_->sites().get(a->site_index);
+        typename K::Hit f;
+        if (const auto point = K::PointOf(site)) {
+          f.closest = *point;  // vertex 0
         } else if (query_.features || query_.closest) {
-          f = NearestFeature(q, site);
+          f = K::Feature(q, site);
         }
         rows_[i] = {&site.id, a->site_index, a->distance, a->error_bound,
                     a->error_bound == 0, f.kind, f.index};
@@ -159,11 +174,11 @@ void NearestJob::AnswerFrom(const std::shared_ptr<const Frame>& frame) {
         return true;
       });
   if (missing) {
-    Finish(absl::InternalError("frame has no site at a query point"));
+    this->Finish(absl::InternalError("frame has no site at a query point"));
   } else if (!answered) {
-    Finish(absl::CancelledError("the call was cancelled"));
+    this->Finish(absl::CancelledError("the call was cancelled"));
   } else {
-    Finish(absl::OkStatus());
+    this->Finish(absl::OkStatus());
   }
 }
 
@@ -235,5 +250,10 @@ void AnalysisJob::Run(std::shared_ptr<const Frame> frame, bool) {
                      " analysis calls already wait for a worker (--max-queued-analyses)")));
   }
 }
+
+template class BasicFrameJob<Scene>;
+template class BasicFrameJob<Scene3>;
+template class BasicNearestJob<Scene>;
+template class BasicNearestJob<Scene3>;
 
 }  // namespace gvd

@@ -31,12 +31,15 @@ namespace gvd {
 // What every job does: waits for its frame, runs its work, and calls `done` exactly once.
 // Cancel() and the frame's arrival race safely: whichever removes the job's waiter from the
 // scene finishes it. Thread-safe. The job keeps itself alive until `done` has been called.
-class FrameJob : public std::enable_shared_from_this<FrameJob> {
+// A template on the scene (Scene or Scene3), whose frames (Frames or Volumes) it waits for.
+template <class S>
+class BasicFrameJob : public std::enable_shared_from_this<BasicFrameJob<S>> {
  public:
+  using Frame = typename S::Frame;
   using Done = std::function<void(const absl::Status&)>;
-  virtual ~FrameJob() = default;
-  FrameJob(const FrameJob&) = delete;
-  FrameJob& operator=(const FrameJob&) = delete;
+  virtual ~BasicFrameJob() = default;
+  BasicFrameJob(const BasicFrameJob&) = delete;
+  BasicFrameJob& operator=(const BasicFrameJob&) = delete;
 
   // Starts the job. CONTRACT: called once.
   void Start(Done done);
@@ -48,8 +51,8 @@ class FrameJob : public std::enable_shared_from_this<FrameJob> {
 
  protected:
   // `cancelled` (may be empty) says whether the caller has gone.
-  FrameJob(SceneRegistry* registry, std::shared_ptr<Scene> scene, uint64_t min_version,
-           std::function<bool()> cancelled);
+  BasicFrameJob(SceneRegistry* registry, std::shared_ptr<S> scene, uint64_t min_version,
+                std::function<bool()> cancelled);
 
   // How the job begins: by default it waits for its frame (WaitForFrame).
   virtual void Begin() { WaitForFrame(); }
@@ -62,7 +65,7 @@ class FrameJob : public std::enable_shared_from_this<FrameJob> {
   bool cancelled() const { return cancelled_fn_ && cancelled_fn_(); }
 
   SceneRegistry* const registry_;
-  const std::shared_ptr<Scene> scene_;
+  const std::shared_ptr<S> scene_;
   const uint64_t min_version_;
   const std::function<bool()> cancelled_fn_;
   uint64_t version_ = 0;
@@ -76,15 +79,19 @@ class FrameJob : public std::enable_shared_from_this<FrameJob> {
   bool cancelled_ = false;
 };
 
-// A nearest-site query of a batch of points.
-struct NearestQuery {
-  std::vector<Vec2> points;
+using FrameJob = BasicFrameJob<Scene>;
+
+// A nearest-site query of a batch of points (Vec2 or Vec3).
+template <class P>
+struct BasicNearestQuery {
+  std::vector<P> points;
   bool exact = false;            // certify every answer (no raster bound)
   bool skip_refinement = false;  // leave ambiguous raster answers as they are
   bool features = true;          // find each answer's nearest feature
   uint64_t min_version = 0;      // SceneRegistry::ReadVersion's
   bool closest = false;          // find each answer's nearest point (NearestJob::closest)
 };
+using NearestQuery = BasicNearestQuery<Vec2>;
 
 // One answer, pointing into storage its NearestJob keeps alive.
 struct AnswerRow {
@@ -98,37 +105,44 @@ struct AnswerRow {
 };
 
 // Answers a query: raster answers from the frame (refined where ambiguous), or exact ones
-// from the scene's latest snapshot, whose first render it need not wait for.
-class NearestJob final : public FrameJob {
+// from the scene's latest snapshot, whose first render it need not wait for. NearestJob is a
+// 2D scene's, NearestJob3 a 3D scene's (its frames are volumes).
+template <class S>
+class BasicNearestJob final : public BasicFrameJob<S> {
  public:
+  using Point = typename S::Point;
+  using Frame = typename S::Frame;
+  using Query = BasicNearestQuery<Point>;
   // Batches up to these sizes are answered on the thread that has them (see above).
   static constexpr size_t kInlinePoints = 1024;
   static constexpr size_t kInlineExactPoints = 64;
 
-  static std::shared_ptr<NearestJob> Make(SceneRegistry* registry, std::shared_ptr<Scene> scene,
-                                          NearestQuery query, std::function<bool()> cancelled);
+  static std::shared_ptr<BasicNearestJob> Make(SceneRegistry* registry, std::shared_ptr<S> scene,
+                                               Query query, std::function<bool()> cancelled);
   // The answers in the order of the points; valid once `done` was called with OK.
   const std::vector<AnswerRow>& rows() const { return rows_; }
   // The query points, in order.
-  const std::vector<Vec2>& points() const { return query_.points; }
+  const std::vector<Point>& points() const { return query_.points; }
   // Each answer's site's point nearest to its query point, when the query asked for them
   // (NearestQuery::closest; else empty); NaN for an empty answer.
-  const std::vector<Vec2>& closest() const { return closest_; }
+  const std::vector<Point>& closest() const { return closest_; }
 
  private:
-  NearestJob(SceneRegistry* registry, std::shared_ptr<Scene> scene, NearestQuery query,
-             std::function<bool()> cancelled);
+  BasicNearestJob(SceneRegistry* registry, std::shared_ptr<S> scene, Query query,
+                  std::function<bool()> cancelled);
   void Begin() override;
   void Run(std::shared_ptr<const Frame> frame, bool on_caller) override;
   void AnswerExact();
   void AnswerFrom(const std::shared_ptr<const Frame>& frame);
 
-  const NearestQuery query_;
+  const Query query_;
   std::shared_ptr<const Frame> frame_;  // owns the ids the rows point to
-  std::vector<Scene::ExactAnswer> exact_answers_;
+  std::vector<typename S::ExactAnswer> exact_answers_;
   std::vector<AnswerRow> rows_;
-  std::vector<Vec2> closest_;
+  std::vector<Point> closest_;
 };
+using NearestJob = BasicNearestJob<Scene>;
+using NearestJob3 = BasicNearestJob<Scene3>;
 
 // A layer of the frame as an image.
 class ImageJob final : public FrameJob {
@@ -167,5 +181,10 @@ class AnalysisJob final : public FrameJob {
 
   const Work work_;
 };
+
+extern template class BasicFrameJob<Scene>;
+extern template class BasicFrameJob<Scene3>;
+extern template class BasicNearestJob<Scene>;
+extern template class BasicNearestJob<Scene3>;
 
 }  // namespace gvd

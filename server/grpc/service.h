@@ -19,7 +19,9 @@
 
 namespace gvd {
 
-struct NearestQuery;
+template <class P>
+struct BasicNearestQuery;
+using NearestQuery = BasicNearestQuery<Vec2>;
 
 // Threads: gRPC's threads run the handlers, which admit, validate and answer what needs
 // neither a wait nor much work (a lookup, a small batch from a published frame, a page of

@@ -284,12 +284,19 @@ absl::StatusOr<std::vector<StoredScene>> SqliteStore::Load() {
   for (StoredScene& scene : scenes) {
     sites.Text(1, scene.settings.id);
     while ((rc = sqlite3_step(sites.get())) == SQLITE_ROW) {
-      auto site = DecodeSite(ColumnBlob(sites.get(), 0));
-      if (!site.ok()) {
+      auto fail = [&](const absl::Status& status) {
         return absl::DataLossError(absl::StrCat("store: a site of scene \"", scene.settings.id,
-                                                "\": ", site.status().message()));
+                                                "\": ", status.message()));
+      };
+      if (scene.settings.three_d()) {
+        auto site = DecodeSite3(ColumnBlob(sites.get(), 0));
+        if (!site.ok()) return fail(site.status());
+        scene.sites3.push_back(std::move(*site));
+      } else {
+        auto site = DecodeSite(ColumnBlob(sites.get(), 0));
+        if (!site.ok()) return fail(site.status());
+        scene.sites.push_back(std::move(*site));
       }
-      scene.sites.push_back(std::move(*site));
     }
     sqlite3_reset(sites.get());
     if (rc != SQLITE_DONE) return SqliteError(db_, "reading sites");
@@ -376,11 +383,17 @@ absl::Status SqliteStore::Write(const ChangeSet& changes) {
     return absl::NotFoundError(
         absl::StrCat("store: scene \"", std::string(changes.scene_id), "\" is not stored"));
   }
-  for (const auto& site : changes.put) {
+  auto store = [&](const auto& site) {
     put.Text(1, changes.scene_id);
-    put.Text(2, site->id);
-    put.Blob(3, EncodeSite(*site));
-    if (!put.Run()) return SqliteError(db_, "storing a site");
+    put.Text(2, site.id);
+    put.Blob(3, EncodeSite(site));
+    return put.Run();
+  };
+  for (const auto& site : changes.put) {
+    if (!store(*site)) return SqliteError(db_, "storing a site");
+  }
+  for (const auto& site : changes.put3) {
+    if (!store(*site)) return SqliteError(db_, "storing a site");
   }
   for (const std::string& id : changes.removed) {
     del.Text(1, changes.scene_id);

@@ -26,6 +26,7 @@
 #include "render/scene/codec.h"
 #include "render/scene/scene.h"
 #include "server/store/sqlite_store.h"
+#include "tests/support/meshes3.h"
 
 namespace gvd {
 namespace {
@@ -565,6 +566,127 @@ TEST(Store, ChangeSetsNameWhatAWriteDid) {
                           })
                   .ok());
   EXPECT_EQ(removed, (std::vector<std::string>{"a", "c"}));
+}
+
+// ---- 3D scenes ----
+
+bool SameVec3(Vec3 a, Vec3 b) { return SameBits(a.x, b.x) && SameBits(a.y, b.y) && SameBits(a.z, b.z); }
+
+std::vector<Site3> Sites3() {
+  Site3 weighted{"w", SegmentSite3{{-0.0, 1e300, 5e-324}, {1, 2, 3}}};
+  weighted.additive = 1.0 / 3;
+  weighted.multiplicative = 7;
+  weighted.max_distance = 2.5;
+  return {{"p", PointSite3{{0.1, -0.2, 0.3}}},
+          weighted,
+          {"t", TriangleSite3{{0, 0, 0}, {1, 0, 0}, {0, 1, 1e-9}}},
+          {"m", Placed(Torus(1, 0.25, 8, 6), {0.5, 0.5, 0.5}, 1.0 / 3)}};
+}
+
+TEST(Codec, Sites3RoundTripBitForBit) {
+  for (const Site3& s : Sites3()) {
+    auto back = DecodeSite3(EncodeSite(s));
+    ASSERT_TRUE(back.ok()) << s.id << ": " << back.status();
+    EXPECT_EQ(back->id, s.id);
+    EXPECT_TRUE(SameBits(back->additive, s.additive) && SameBits(back->multiplicative, s.multiplicative) &&
+                SameBits(back->max_distance, s.max_distance));
+    EXPECT_EQ(back->geometry.index(), s.geometry.index());
+    if (const auto* m = std::get_if<MeshSite3>(&s.geometry)) {
+      const auto& b = std::get<MeshSite3>(back->geometry);
+      ASSERT_EQ(b.vertices.size(), m->vertices.size());
+      for (size_t i = 0; i < m->vertices.size(); ++i) EXPECT_TRUE(SameVec3(b.vertices[i], m->vertices[i]));
+      EXPECT_EQ(b.triangles, m->triangles);
+      // Its tables and tree are made again, and answer as the original's do.
+      EXPECT_EQ(b.edges, m->edges);
+      const Hit3 x = NearestFeature({0.5, 0.5, 2}, s.geometry), y = NearestFeature({0.5, 0.5, 2}, back->geometry);
+      EXPECT_EQ(x.distance, y.distance);
+      EXPECT_EQ(x.index, y.index);
+    } else if (const auto* t = std::get_if<TriangleSite3>(&s.geometry)) {
+      const auto& b = std::get<TriangleSite3>(back->geometry);
+      EXPECT_TRUE(SameVec3(b.a, t->a) && SameVec3(b.b, t->b) && SameVec3(b.c, t->c));
+    } else if (const auto* g = std::get_if<SegmentSite3>(&s.geometry)) {
+      const auto& b = std::get<SegmentSite3>(back->geometry);
+      EXPECT_TRUE(SameVec3(b.a, g->a) && SameVec3(b.b, g->b));
+    } else {
+      EXPECT_TRUE(SameVec3(std::get<PointSite3>(back->geometry).p, std::get<PointSite3>(s.geometry).p));
+    }
+  }
+}
+
+TEST(Codec, Damaged3DBytesAreDataLoss) {
+  for (const Site3& s : Sites3()) {
+    const std::string bytes = EncodeSite(s);
+    for (size_t n = 0; n < bytes.size(); ++n) {
+      ASSERT_EQ(DecodeSite3(std::string_view(bytes).substr(0, n)).status().code(),
+                absl::StatusCode::kDataLoss)
+          << s.id << " prefix " << n;
+    }
+    EXPECT_EQ(DecodeSite3(bytes + "x").status().code(), absl::StatusCode::kDataLoss);
+    // A 2D site's bytes are no 3D site, and the other way round.
+    EXPECT_EQ(DecodeSite(bytes).status().code(), absl::StatusCode::kDataLoss) << s.id;
+  }
+  EXPECT_EQ(DecodeSite3(EncodeSite(Site{"p", PointSite{{1, 2}}})).status().code(),
+            absl::StatusCode::kDataLoss);
+  // A mesh whose triangle names a vertex past the end, or a NaN coordinate.
+  Site3 mesh = Sites3()[3];
+  std::string bad = EncodeSite(mesh);
+  bad[bad.size() - 1] = '\x7f';  // the last index's high byte
+  EXPECT_EQ(DecodeSite3(bad).status().code(), absl::StatusCode::kDataLoss);
+  Site3 nan{"n", PointSite3{{NAN, 0, 0}}};
+  EXPECT_EQ(DecodeSite3(EncodeSite(nan)).status().code(), absl::StatusCode::kDataLoss);
+}
+
+TEST(Codec, Settings3RoundTripAnd2DKeepsItsFormat) {
+  SceneSettings s = ValidSettings();
+  EXPECT_EQ(EncodeSettings(s)[0], 1);  // a 2D scene's settings read by every release
+  s.depth = 48;
+  s.min_z = -1e-300;
+  s.max_z = 1.0 / 3;
+  const std::string bytes = EncodeSettings(s);
+  EXPECT_EQ(bytes[0], 2);
+  auto back = DecodeSettings(bytes);
+  ASSERT_TRUE(back.ok()) << back.status();
+  EXPECT_EQ(back->depth, 48u);
+  EXPECT_TRUE(SameBits(back->min_z, -1e-300));
+  EXPECT_TRUE(SameBits(back->max_z, 1.0 / 3));
+  for (size_t n = 0; n < bytes.size(); ++n) {
+    EXPECT_EQ(DecodeSettings(bytes.substr(0, n)).status().code(), absl::StatusCode::kDataLoss);
+  }
+  s.max_z = s.min_z;  // an empty z range no accepted scene had
+  EXPECT_EQ(DecodeSettings(EncodeSettings(s)).status().code(), absl::StatusCode::kDataLoss);
+}
+
+TEST(Store, Keeps3DScenesAcrossReopens) {
+  TempDir dir;
+  SceneSettings settings = ValidSettings();
+  settings.id = "space";
+  settings.depth = 16;
+  settings.max_z = 1;
+  {
+    auto store = SqliteStore::Open(dir.path() + "/data");
+    ASSERT_TRUE(store.ok()) << store.status();
+    ASSERT_TRUE((*store)->CreateScene(settings, 1).ok());
+    Scene3 scene(settings);
+    auto commit = [&](const ChangeSet& c) {
+      EXPECT_TRUE(c.put.empty());
+      return (*store)->Commit(c);
+    };
+    ASSERT_TRUE(scene.Upsert(Sites3(), 10, commit).ok());
+    ASSERT_TRUE(scene.Delete({"p"}, commit).ok());
+  }
+  auto store = SqliteStore::Open(dir.path() + "/data");
+  ASSERT_TRUE(store.ok());
+  auto loaded = (*store)->Load();
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  ASSERT_EQ(loaded->size(), 1u);
+  const StoredScene& back = (*loaded)[0];
+  EXPECT_EQ(back.settings.depth, 16u);
+  EXPECT_EQ(back.version, 3u);
+  EXPECT_TRUE(back.sites.empty());
+  std::vector<std::string> ids;
+  for (const Site3& s : back.sites3) ids.push_back(s.id);
+  std::sort(ids.begin(), ids.end());
+  EXPECT_EQ(ids, (std::vector<std::string>{"m", "t", "w"}));
 }
 
 }  // namespace
