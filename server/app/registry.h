@@ -16,7 +16,9 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/str_cat.h"
 #include "render/gl/render_loop.h"
+#include "render/plan/volume_renderer.h"
 #include "render/scene/cpu_pool.h"
 #include "render/scene/scene.h"
 #include "render/scene/store.h"
@@ -36,11 +38,15 @@ struct UnloadedScene {
   std::string reason;
 };
 
-// A scene as listed: loaded (`scene` set) or stored but not loaded (`unloaded` set).
+// A scene as listed: loaded (`scene` set, or `scene3` for a 3D one) or stored but not loaded
+// (`unloaded` set).
 struct SceneEntry {
   std::shared_ptr<Scene> scene;
   std::optional<UnloadedScene> unloaded;
-  const std::string& id() const { return scene ? scene->id() : unloaded->settings.id; }
+  std::shared_ptr<Scene3> scene3 = nullptr;
+  const std::string& id() const {
+    return scene ? scene->id() : scene3 ? scene3->id() : unloaded->settings.id;
+  }
 };
 
 // Thread-safe. Threading rules:
@@ -71,10 +77,14 @@ class SceneRegistry {
   bool loaded() const;
 
   // A new scene at version 1 with no sites. ALREADY_EXISTS for an id stored or being
-  // created; RESOURCE_EXHAUSTED past --max-scenes or --max-memory.
+  // created; RESOURCE_EXHAUSTED past --max-scenes or --max-memory. CreateScene makes 2D
+  // scenes, CreateScene3 3D ones (settings.three_d()).
   absl::StatusOr<std::shared_ptr<Scene>> CreateScene(SceneSettings settings);
-  // The loaded scene; NOT_FOUND naming it, or FAILED_PRECONDITION for an unloaded one.
+  absl::StatusOr<std::shared_ptr<Scene3>> CreateScene3(SceneSettings settings);
+  // The loaded scene; NOT_FOUND naming it, FAILED_PRECONDITION for an unloaded one, or for a
+  // scene of the other dimension (naming what it is).
   absl::StatusOr<std::shared_ptr<Scene>> Find(const std::string& id) const;
+  absl::StatusOr<std::shared_ptr<Scene3>> Find3(const std::string& id) const;
   // The scene, loaded or not; NOT_FOUND naming it.
   absl::StatusOr<SceneEntry> Describe(const std::string& id) const;
   // Every scene, loaded or not, in id order.
@@ -86,7 +96,10 @@ class SceneRegistry {
   // Inserts or replaces sites, atomically; returns the scene's new version.
   // CONTRACT: sites are valid and their ids distinct.
   absl::StatusOr<uint64_t> UpsertSites(const std::string& scene_id, std::vector<Site> sites);
-  // Removes sites, atomically; NOT_FOUND naming the first unknown id.
+  // The same for a 3D scene's sites.
+  absl::StatusOr<uint64_t> UpsertSites3(const std::string& scene_id, std::vector<Site3> sites);
+  // Removes sites of a scene of either dimension, atomically; NOT_FOUND naming the first
+  // unknown id.
   // CONTRACT: ids are distinct.
   absl::StatusOr<uint64_t> DeleteSites(const std::string& scene_id,
                                        const std::vector<std::string>& ids);
@@ -97,7 +110,8 @@ class SceneRegistry {
   // The version a read of `scene` waits for: `requested` (OUT_OF_RANGE when the scene has
   // not reached it), or the current one while the scene's first render is under way, so
   // that a new scene's reader waits rather than hearing "no sites".
-  absl::StatusOr<uint64_t> ReadVersion(const Scene& scene, uint64_t requested) const;
+  template <class S>
+  absl::StatusOr<uint64_t> ReadVersion(const S& scene, uint64_t requested) const;
 
   // Where the work that must not run on a transport's threads runs:
   //  - answers(): answers to queries, image encoding, and frames' waiters (the CPU pool);
@@ -127,6 +141,22 @@ class SceneRegistry {
   absl::Status Durably(StoreCall store_call) const;
   // The write path's end for a scene whose snapshot changed: renders it.
   void Published(const std::shared_ptr<Scene>& scene);
+  void Published(const std::shared_ptr<Scene3>& scene);
+  // The scenes of one dimension (guarded by mu_).
+  template <class S>
+  std::map<std::string, std::shared_ptr<S>>& Scenes();
+  template <class S>
+  const std::map<std::string, std::shared_ptr<S>>& Scenes() const;
+  // The shared steps of CreateScene, Find, UpsertSites and Apply, for either dimension.
+  template <class S>
+  absl::StatusOr<std::shared_ptr<S>> Create(SceneSettings settings);
+  template <class S>
+  absl::StatusOr<std::shared_ptr<S>> FindOf(const std::string& id) const;
+  template <class S>
+  absl::StatusOr<uint64_t> Upsert(const std::string& scene_id,
+                                  std::vector<typename S::Site> sites);
+  template <class S>
+  absl::StatusOr<uint64_t> ApplyTo(const std::shared_ptr<S>& scene, const ChangeSet& committed);
   // The bytes the loaded scenes hold (the budget's own figure). Takes mu_.
   uint64_t ScenesMemory() const;
 
@@ -141,6 +171,7 @@ class SceneRegistry {
   mutable std::mutex mu_;
   bool loaded_ = false;
   std::map<std::string, std::shared_ptr<Scene>> scenes_;
+  std::map<std::string, std::shared_ptr<Scene3>> scenes3_;
   // Ids of scenes being created (reserved, not yet committed): they count against
   // --max-scenes and refuse a second create, but are not found until committed.
   std::set<std::string> creating_;
@@ -153,6 +184,21 @@ class SceneRegistry {
   CpuPool::Lane commits_;
   CpuPool::Lane analyses_;
   CpuPool::Lane answers_;
+  // The render thread of 3D scenes (on the CPU). Declared after the lanes: it stops first,
+  // while the lanes can still take the waiters its last render resumes.
+  VolumeRenderer volumes_;
 };
+
+template <class S>
+absl::StatusOr<uint64_t> SceneRegistry::ReadVersion(const S& scene, uint64_t requested) const {
+  const uint64_t version = scene.version();
+  if (requested > version) {
+    return absl::OutOfRangeError(absl::StrCat("min_version ", requested, " is ahead of scene \"",
+                                              scene.id(), "\", which is at version ", version));
+  }
+  // A scene whose first render is under way waits for it rather than answering "no sites".
+  if (scene.frame()->empty() && scene.site_count() > 0) return version;
+  return requested;
+}
 
 }  // namespace gvd
