@@ -73,6 +73,10 @@ ABSL_FLAG(uint64_t, max_sites_per_request, gvd::ServerLimits{}.max_sites_per_req
           "<N> sites (or ids) in one UpsertSites or DeleteSites");
 ABSL_FLAG(uint64_t, max_vertices_per_site, gvd::ServerLimits{}.max_vertices_per_site,
           "<N> points of one polyline or polygon");
+ABSL_FLAG(uint64_t, max_voxels_per_scene, gvd::ServerLimits{}.max_voxels_per_scene,
+          "<N> voxels (width_px x height_px x depth_px) of one 3D scene");
+ABSL_FLAG(uint64_t, max_triangles_per_mesh, gvd::ServerLimits{}.max_triangles_per_mesh,
+          "<N> triangles of one mesh site");
 ABSL_FLAG(int32_t, max_message_bytes, gvd::ServerLimits{}.max_message_bytes,
           "<N> gRPC message size limit, and HTTP request bodies'");
 ABSL_FLAG(uint64_t, analysis_threads, gvd::ServerLimits{}.analysis_threads,
@@ -186,6 +190,9 @@ Flags ParseFlags(int argc, char** argv) {
   l.max_points_per_query = Count<size_t>("max-points-per-query", FLAGS_max_points_per_query);
   l.max_sites_per_request = Count<size_t>("max-sites-per-request", FLAGS_max_sites_per_request);
   l.max_vertices_per_site = Count<size_t>("max-vertices-per-site", FLAGS_max_vertices_per_site);
+  l.max_voxels_per_scene = Count<uint64_t>("max-voxels-per-scene", FLAGS_max_voxels_per_scene);
+  l.max_triangles_per_mesh =
+      Count<size_t>("max-triangles-per-mesh", FLAGS_max_triangles_per_mesh);
   l.max_message_bytes = Count<int>("max-message-bytes", FLAGS_max_message_bytes);
   l.analysis_threads = Count<size_t>("analysis-threads", FLAGS_analysis_threads);
   l.max_queued_analyses = Count<size_t>("max-queued-analyses", FLAGS_max_queued_analyses);

@@ -14,6 +14,8 @@ struct ServerLimits {
   size_t max_sites_per_request = 100'000;
   size_t max_points_per_query = 1'000'000;
   size_t max_vertices_per_site = 100'000;    // polyline points, polygon vertices
+  uint64_t max_voxels_per_scene = 1ull << 26; // width_px * height_px * depth_px of a 3D scene
+  size_t max_triangles_per_mesh = 1'000'000;
   size_t max_site_id_bytes = 256;
   size_t max_scene_id_chars = 128;
   uint32_t max_page_size = 10'000;

@@ -7,6 +7,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "render/kernel/exact2.h"
+#include "render/kernel/exact3.h"
 #include "render/plan/distance_mesh.h"
 
 namespace gvd {
@@ -17,20 +18,94 @@ using grpc::StatusCode;
 
 Status Invalid(std::string message) { return Status(StatusCode::INVALID_ARGUMENT, message); }
 
+std::string Quoted(const std::string& s, size_t max = 64) {
+  return absl::StrCat("\"", s.size() > max ? s.substr(0, max) + "..." : s, "\"");
+}
+
 Status CheckFinite(double v, const FieldPath& field) {
   if (std::isfinite(v)) return Status::OK;
   return Invalid(
       absl::StrCat(field.str(), " is ", FormatNumber(v), "; coordinates must be finite"));
 }
 
+// A point of a 2D scene: finite, and no z.
 Status CheckPoint(const v1::Point& p, const FieldPath& field) {
   if (auto s = CheckFinite(p.x(), field.Member("x")); !s.ok()) return s;
-  return CheckFinite(p.y(), field.Member("y"));
+  if (auto s = CheckFinite(p.y(), field.Member("y")); !s.ok()) return s;
+  if (p.z() != 0) {
+    return Invalid(absl::StrCat(field.Member("z").str(), " is ", FormatNumber(p.z()),
+                                "; points of a 2D scene have no z"));
+  }
+  return Status::OK;
 }
 
-std::string Quoted(const std::string& s, size_t max = 64) {
-  return absl::StrCat("\"", s.size() > max ? s.substr(0, max) + "..." : s, "\"");
+// A point of a 3D scene, checked finite.
+Status ToPoint3(const v1::Point& p, const FieldPath& field, Vec3* out) {
+  if (auto s = CheckFinite(p.x(), field.Member("x")); !s.ok()) return s;
+  if (auto s = CheckFinite(p.y(), field.Member("y")); !s.ok()) return s;
+  if (auto s = CheckFinite(p.z(), field.Member("z")); !s.ok()) return s;
+  *out = {p.x(), p.y(), p.z()};
+  return Status::OK;
 }
+
+// The weights and reach of a site of either dimension, checked, into `site`.
+template <class S>
+Status ToWeights(const v1::Site& s, const FieldPath& field, S* site) {
+  double a = s.additive_weight(), m = s.multiplicative_weight(), r = s.max_distance();
+  if (!std::isfinite(a) || a < 0 || a > 1e15) {
+    return Invalid(absl::StrCat(field.str(), ".additive_weight is ", FormatNumber(a),
+                                "; it must be 0 to 1e15"));
+  }
+  if (!std::isfinite(m) || m < 0 || m > 1e6 || (m != 0 && m < 1e-6)) {
+    return Invalid(absl::StrCat(field.str(), ".multiplicative_weight is ", FormatNumber(m),
+                                "; it must be 0 (meaning 1) or 1e-6 to 1e6"));
+  }
+  if (!std::isfinite(r) || r < 0) {
+    return Invalid(absl::StrCat(field.str(), ".max_distance is ", FormatNumber(r),
+                                "; it must be finite and positive, or 0 for none"));
+  }
+  site->additive = a;
+  site->multiplicative = m == 0 ? 1 : m;
+  site->max_distance = r == 0 ? INFINITY : r;
+  return Status::OK;
+}
+
+// The sites of an UpsertSitesRequest, ids checked (non-empty, short, distinct), each
+// converted by `convert` (ToSite or ToSite3).
+template <class S, class Convert>
+Status ToSitesWith(const v1::UpsertSitesRequest& r, const ServerLimits& limits,
+                   std::vector<S>* sites, Convert&& convert) {
+  if (r.sites_size() == 0) return Invalid("sites is empty");
+  if (size_t(r.sites_size()) > limits.max_sites_per_request) {
+    return Status(StatusCode::RESOURCE_EXHAUSTED,
+                  absl::StrCat("sites has ", r.sites_size(), " entries; the limit per request is ",
+                               limits.max_sites_per_request, " (--max-sites-per-request)"));
+  }
+  std::unordered_map<std::string_view, size_t> seen;
+  seen.reserve(r.sites_size());
+  sites->clear();
+  sites->reserve(r.sites_size());
+  const FieldPath all("sites");
+  for (int i = 0; i < r.sites_size(); ++i) {
+    const v1::Site& s = r.sites(i);
+    const FieldPath field = all[i];
+    if (s.id().empty()) return Invalid(absl::StrCat(field.str(), ".id is empty"));
+    if (s.id().size() > limits.max_site_id_bytes) {
+      return Invalid(absl::StrCat(field.str(), ".id ", Quoted(s.id()), " is ", s.id().size(),
+                                  " bytes; the limit is ", limits.max_site_id_bytes));
+    }
+    auto [it, fresh] = seen.emplace(s.id(), i);
+    if (!fresh) {
+      return Invalid(absl::StrCat(field.str(), ".id ", Quoted(s.id()), " repeats sites[",
+                                  it->second, "].id; ids in one request must be distinct"));
+    }
+    S site;
+    if (auto st = convert(s, field, limits, &site); !st.ok()) return st;
+    sites->push_back(std::move(site));
+  }
+  return Status::OK;
+}
+
 
 }  // namespace
 
@@ -81,6 +156,37 @@ Status ToSceneSettings(const v1::CreateSceneRequest& r, const ServerLimits& limi
                                 " scene units), which would need too many triangles per cone"));
   }
   if (!(eps > 0)) return Invalid("max_error underflows to 0 for this window");
+  const v1::Window& w = r.window();
+  if (r.depth_px() > 0) {
+    // A 3D scene: a z range, slices within --max-side-px, voxels within their limit.
+    if (auto s = CheckFinite(w.min_z(), FieldPath("window.min_z")); !s.ok()) return s;
+    if (auto s = CheckFinite(w.max_z(), FieldPath("window.max_z")); !s.ok()) return s;
+    if (!(w.min_z() < w.max_z()) || !std::isfinite(w.max_z() - w.min_z())) {
+      return Invalid(absl::StrCat("window.min_z ", FormatNumber(w.min_z()),
+                                  " must be less than window.max_z ", FormatNumber(w.max_z()),
+                                  " (a 3D scene's box), with a finite difference"));
+    }
+    if (r.depth_px() > limits.max_side_px) {
+      return Invalid(absl::StrCat("depth_px is ", r.depth_px(), "; it must be 1 to ",
+                                  limits.max_side_px, " (--max-side-px)"));
+    }
+    const uint64_t voxels = uint64_t{grid.width} * grid.height * r.depth_px();
+    if (voxels > limits.max_voxels_per_scene) {
+      return Status(StatusCode::RESOURCE_EXHAUSTED,
+                    absl::StrCat("width_px x height_px x depth_px is ", voxels,
+                                 " voxels; the limit is ", limits.max_voxels_per_scene,
+                                 " (--max-voxels-per-scene)"));
+    }
+    settings->depth = r.depth_px();
+    settings->min_z = w.min_z();
+    settings->max_z = w.max_z();
+    const double voxel_z = (w.max_z() - w.min_z()) / r.depth_px();
+    if (r.max_error() == 0) eps = std::max(eps, voxel_z);
+  } else if (w.min_z() != 0 || w.max_z() != 0) {
+    return Invalid(absl::StrCat("window.min_z and max_z are ", FormatNumber(w.min_z()), " and ",
+                                FormatNumber(w.max_z()),
+                                "; a z range is for 3D scenes, which set depth_px"));
+  }
   settings->id = r.scene_id();
   settings->grid = grid;
   settings->eps = eps;
@@ -96,6 +202,8 @@ Status ToSceneSettings(const v1::CreateSceneRequest& r, const ServerLimits& limi
     default:
       return Invalid(absl::StrCat("render_mode is ", r.render_mode(), "; it must be MESH or EXACT"));
   }
+  // A 3D scene is rendered exactly per voxel, whatever the mode asked.
+  if (settings->three_d()) settings->mode = RenderMode::kExact;
   switch (r.diagram()) {
     case v1::DIAGRAM_UNSPECIFIED:
     case v1::NEAREST:
@@ -192,6 +300,11 @@ Status ToSite(const v1::Site& s, const FieldPath& field, const ServerLimits& lim
       site->geometry = MakeBezier(std::move(control), tol);
       break;
     }
+    case v1::Site::kTriangle:
+    case v1::Site::kMesh:
+      return Invalid(absl::StrCat(field.str(), ".", s.has_triangle() ? "triangle" : "mesh",
+                                  " is a site of 3D scenes; this scene is 2D (site ",
+                                  Quoted(s.id()), ")"));
     case v1::Site::GEOMETRY_NOT_SET:
       return Invalid(absl::StrCat(field.str(), ".geometry is not set (site ", Quoted(s.id()), ")"));
   }
@@ -202,56 +315,83 @@ Status ToSite(const v1::Site& s, const FieldPath& field, const ServerLimits& lim
                                 FormatNumber(box.height()),
                                 ", which overflows a double (site ", Quoted(s.id()), ")"));
   }
-  double a = s.additive_weight(), m = s.multiplicative_weight(), r = s.max_distance();
-  if (!std::isfinite(a) || a < 0 || a > 1e15) {
-    return Invalid(absl::StrCat(field.str(), ".additive_weight is ", FormatNumber(a),
-                                "; it must be 0 to 1e15"));
-  }
-  if (!std::isfinite(m) || m < 0 || m > 1e6 || (m != 0 && m < 1e-6)) {
-    return Invalid(absl::StrCat(field.str(), ".multiplicative_weight is ", FormatNumber(m),
-                                "; it must be 0 (meaning 1) or 1e-6 to 1e6"));
-  }
-  if (!std::isfinite(r) || r < 0) {
-    return Invalid(absl::StrCat(field.str(), ".max_distance is ", FormatNumber(r),
-                                "; it must be finite and positive, or 0 for none"));
-  }
-  site->additive = a;
-  site->multiplicative = m == 0 ? 1 : m;
-  site->max_distance = r == 0 ? INFINITY : r;
-  return Status::OK;
+  return ToWeights(s, field, site);
 }
 
 Status ToSites(const v1::UpsertSitesRequest& r, const ServerLimits& limits,
                std::vector<Site>* sites) {
-  if (r.sites_size() == 0) return Invalid("sites is empty");
-  if (size_t(r.sites_size()) > limits.max_sites_per_request) {
-    return Status(StatusCode::RESOURCE_EXHAUSTED,
-                  absl::StrCat("sites has ", r.sites_size(), " entries; the limit per request is ",
-                               limits.max_sites_per_request, " (--max-sites-per-request)"));
-  }
-  std::unordered_map<std::string_view, size_t> seen;
-  seen.reserve(r.sites_size());
-  sites->clear();
-  sites->reserve(r.sites_size());
-  const FieldPath all("sites");
-  for (int i = 0; i < r.sites_size(); ++i) {
-    const v1::Site& s = r.sites(i);
-    const FieldPath field = all[i];
-    if (s.id().empty()) return Invalid(absl::StrCat(field.str(), ".id is empty"));
-    if (s.id().size() > limits.max_site_id_bytes) {
-      return Invalid(absl::StrCat(field.str(), ".id ", Quoted(s.id()), " is ", s.id().size(),
-                                  " bytes; the limit is ", limits.max_site_id_bytes));
+  return ToSitesWith(r, limits, sites,
+                     [](const v1::Site& s, const FieldPath& field, const ServerLimits& limits,
+                        Site* out) { return ToSite(s, field, limits, out); });
+}
+
+Status ToSite3(const v1::Site& s, const FieldPath& field, const ServerLimits& limits,
+               Site3* site) {
+  site->id = s.id();
+  switch (s.geometry_case()) {
+    case v1::Site::kPoint: {
+      Vec3 p;
+      if (auto st = ToPoint3(s.point(), field.Member("point"), &p); !st.ok()) return st;
+      site->geometry = PointSite3{p};
+      break;
     }
-    auto [it, fresh] = seen.emplace(s.id(), i);
-    if (!fresh) {
-      return Invalid(absl::StrCat(field.str(), ".id ", Quoted(s.id()), " repeats sites[",
-                                  it->second, "].id; ids in one request must be distinct"));
+    case v1::Site::kSegment: {
+      const FieldPath segment = field.Member("segment");
+      SegmentSite3 g;
+      if (auto st = ToPoint3(s.segment().a(), segment.Member("a"), &g.a); !st.ok()) return st;
+      if (auto st = ToPoint3(s.segment().b(), segment.Member("b"), &g.b); !st.ok()) return st;
+      site->geometry = g;
+      break;
     }
-    Site site;
-    if (auto st = ToSite(s, field, limits, &site); !st.ok()) return st;
-    sites->push_back(std::move(site));
+    case v1::Site::kTriangle: {
+      const FieldPath triangle = field.Member("triangle");
+      TriangleSite3 g;
+      if (auto st = ToPoint3(s.triangle().a(), triangle.Member("a"), &g.a); !st.ok()) return st;
+      if (auto st = ToPoint3(s.triangle().b(), triangle.Member("b"), &g.b); !st.ok()) return st;
+      if (auto st = ToPoint3(s.triangle().c(), triangle.Member("c"), &g.c); !st.ok()) return st;
+      site->geometry = g;
+      break;
+    }
+    case v1::Site::kMesh: {
+      const v1::Mesh& m = s.mesh();
+      if (size_t(m.triangles_size()) / 3 > limits.max_triangles_per_mesh) {
+        return Status(StatusCode::RESOURCE_EXHAUSTED,
+                      absl::StrCat(field.str(), ".mesh.triangles holds ", m.triangles_size() / 3,
+                                   " triangles; the limit is ", limits.max_triangles_per_mesh,
+                                   " (--max-triangles-per-mesh)"));
+      }
+      auto mesh = MakeMesh(std::vector<double>(m.xyz().begin(), m.xyz().end()),
+                           std::vector<uint32_t>(m.triangles().begin(), m.triangles().end()),
+                           limits.max_triangles_per_mesh);
+      if (!mesh.ok()) {
+        return Invalid(absl::StrCat(field.str(), ".mesh.", mesh.status().message(), " (site ",
+                                    Quoted(s.id()), ")"));
+      }
+      site->geometry = *std::move(mesh);
+      break;
+    }
+    case v1::Site::kPolyline:
+    case v1::Site::kPolygon:
+    case v1::Site::kBezier:
+      return Invalid(absl::StrCat(field.str(), " is a ",
+                                  s.has_polyline() ? "polyline" : s.has_polygon() ? "polygon" : "bezier",
+                                  "; a 3D scene takes point, segment, triangle and mesh sites (site ",
+                                  Quoted(s.id()), ")"));
+    case v1::Site::GEOMETRY_NOT_SET:
+      return Invalid(absl::StrCat(field.str(), ".geometry is not set (site ", Quoted(s.id()), ")"));
   }
-  return Status::OK;
+  const Box3 box = BoundingBox(site->geometry);
+  if (!std::isfinite(box.max_x - box.min_x) || !std::isfinite(box.max_y - box.min_y) ||
+      !std::isfinite(box.max_z - box.min_z)) {
+    return Invalid(absl::StrCat(field.str(), " spans more than a double holds (site ",
+                                Quoted(s.id()), ")"));
+  }
+  return ToWeights(s, field, site);
+}
+
+Status ToSites3(const v1::UpsertSitesRequest& r, const ServerLimits& limits,
+                std::vector<Site3>* sites) {
+  return ToSitesWith(r, limits, sites, ToSite3);
 }
 
 Status ToSiteIds(const v1::DeleteSitesRequest& r, const ServerLimits& limits,
@@ -309,6 +449,74 @@ Status ToQueryPoints(const v1::FindNearestRequest& r, const Window& w, const Ser
   return Status::OK;
 }
 
+Status ToQueryPoints3(const v1::FindNearestRequest& r, const Box3& box,
+                      const ServerLimits& limits, std::vector<Vec3>* points, bool* outside) {
+  if (r.xy_size() > 0) return Invalid("xy is for 2D scenes; a 3D scene's packed points are xyz");
+  if (r.points_size() > 0 && r.xyz_size() > 0) {
+    return Invalid("points and xyz are both set; use one form");
+  }
+  if (r.xyz_size() % 3 != 0) {
+    return Invalid(absl::StrCat("xyz has ", r.xyz_size(), " values; it needs x, y, z triples"));
+  }
+  const size_t n = r.xyz_size() > 0 ? r.xyz_size() / 3 : r.points_size();
+  if (n == 0) return Invalid("points is empty");
+  if (n > limits.max_points_per_query) {
+    return Status(StatusCode::RESOURCE_EXHAUSTED,
+                  absl::StrCat(r.xyz_size() > 0 ? "xyz" : "points", " has ", n,
+                               " points; the limit per query is ", limits.max_points_per_query,
+                               " (--max-points-per-query)"));
+  }
+  points->resize(n);
+  if (r.xyz_size() > 0) {
+    for (int i = 0; i < r.xyz_size(); ++i) {
+      if (auto s = CheckFinite(r.xyz(i), FieldPath("xyz")[i]); !s.ok()) return s;
+    }
+    for (size_t i = 0; i < n; ++i) (*points)[i] = {r.xyz(3 * i), r.xyz(3 * i + 1), r.xyz(3 * i + 2)};
+  } else {
+    for (int i = 0; i < r.points_size(); ++i) {
+      if (auto s = ToPoint3(r.points(i), FieldPath("points")[i], &(*points)[i]); !s.ok()) return s;
+    }
+  }
+  *outside = false;
+  for (const Vec3& p : *points) *outside = *outside || !box.Contains(p);
+  return Status::OK;
+}
+
+void ToProto(Vec3 p, v1::Point* out) {
+  out->set_x(p.x);
+  out->set_y(p.y);
+  out->set_z(p.z);
+}
+
+void ToProto(const Site3& site, v1::Site* out) {
+  out->set_id(site.id);
+  if (const auto* p = std::get_if<PointSite3>(&site.geometry)) {
+    ToProto(p->p, out->mutable_point());
+  } else if (const auto* seg = std::get_if<SegmentSite3>(&site.geometry)) {
+    ToProto(seg->a, out->mutable_segment()->mutable_a());
+    ToProto(seg->b, out->mutable_segment()->mutable_b());
+  } else if (const auto* t = std::get_if<TriangleSite3>(&site.geometry)) {
+    ToProto(t->a, out->mutable_triangle()->mutable_a());
+    ToProto(t->b, out->mutable_triangle()->mutable_b());
+    ToProto(t->c, out->mutable_triangle()->mutable_c());
+  } else {
+    const auto& m = std::get<MeshSite3>(site.geometry);
+    auto* mesh = out->mutable_mesh();
+    mesh->mutable_xyz()->Reserve(static_cast<int>(3 * m.vertices.size()));
+    for (Vec3 v : m.vertices) {
+      mesh->add_xyz(v.x);
+      mesh->add_xyz(v.y);
+      mesh->add_xyz(v.z);
+    }
+    for (const auto& tri : m.triangles) {
+      for (uint32_t k : tri) mesh->add_triangles(k);
+    }
+  }
+  if (site.additive != 0) out->set_additive_weight(site.additive);
+  if (site.multiplicative != 1) out->set_multiplicative_weight(site.multiplicative);
+  if (std::isfinite(site.max_distance)) out->set_max_distance(site.max_distance);
+}
+
 void ToProto(Vec2 p, v1::Point* out) {
   out->set_x(p.x);
   out->set_y(p.y);
@@ -346,15 +554,23 @@ void ToProto(const SceneSettings& s, v1::Scene* out) {
   out->set_cone_triangles(s.cone_triangles);
   out->set_render_mode(s.mode == RenderMode::kExact ? v1::EXACT : v1::MESH);
   out->set_diagram(s.diagram == Diagram::kFarthest ? v1::FARTHEST : v1::NEAREST);
+  if (s.three_d()) {
+    out->set_depth_px(s.depth);
+    out->mutable_window()->set_min_z(s.min_z);
+    out->mutable_window()->set_max_z(s.max_z);
+  }
 }
 
-void ToProto(const Scene& scene, v1::Scene* out) {
+template <class S>
+void SceneToProto(const S& scene, v1::Scene* out) {
   ToProto(scene.settings(), out);
   out->set_version(scene.version());
   out->set_site_count(scene.site_count());
   out->set_rendered_version(scene.frame()->version());
   out->set_memory_bytes(scene.memory_bytes());
 }
+void ToProto(const Scene& scene, v1::Scene* out) { SceneToProto(scene, out); }
+void ToProto(const Scene3& scene, v1::Scene* out) { SceneToProto(scene, out); }
 
 grpc::Status ToGrpc(const absl::Status& status) {
   if (status.ok()) return Status::OK;

@@ -55,6 +55,12 @@ grpc::Status ToSite(const v1::Site& site, const FieldPath& field, const ServerLi
 // Checks every site (ids non-empty, short, distinct; each as ToSite).
 grpc::Status ToSites(const v1::UpsertSitesRequest& request, const ServerLimits& limits,
                      std::vector<Site>* sites);
+// The same for a 3D scene's sites: points and segments with z, triangles and meshes (checked
+// by MakeMesh against --max-triangles-per-mesh), weights as in 2D.
+grpc::Status ToSite3(const v1::Site& site, const FieldPath& field, const ServerLimits& limits,
+                     Site3* out);
+grpc::Status ToSites3(const v1::UpsertSitesRequest& request, const ServerLimits& limits,
+                      std::vector<Site3>* sites);
 
 // Checks ids non-empty and distinct.
 grpc::Status ToSiteIds(const v1::DeleteSitesRequest& request, const ServerLimits& limits,
@@ -64,6 +70,11 @@ grpc::Status ToSiteIds(const v1::DeleteSitesRequest& request, const ServerLimits
 // *outside when some point lies outside the window.
 grpc::Status ToQueryPoints(const v1::FindNearestRequest& request, const Window& window,
                            const ServerLimits& limits, std::vector<Vec2>* points, bool* outside);
+
+// The same for a 3D scene (`points` with z, or packed `xyz`); *outside when some point lies
+// outside the box.
+grpc::Status ToQueryPoints3(const v1::FindNearestRequest& request, const Box3& box,
+                            const ServerLimits& limits, std::vector<Vec3>* points, bool* outside);
 
 // The pixels of `grid` whose centres lie in the window `w` (a request's field "window"):
 // INVALID_ARGUMENT when w is not finite or holds no pixel centre.
@@ -91,10 +102,13 @@ grpc::Status ToPathPreference(const v1::PlanPathRequest& request, PathPreference
 
 v1::FeatureKind ToProto(FeatureKind k);
 void ToProto(Vec2 p, v1::Point* out);
+void ToProto(Vec3 p, v1::Point* out);
 void ToProto(const Site& site, v1::Site* out);
+void ToProto(const Site3& site, v1::Site* out);
 void ToProto(const Window& w, v1::Window* out);
 void ToProto(const SceneSettings& settings, v1::Scene* out);  // the settings' fields only
 void ToProto(const Scene& scene, v1::Scene* out);
+void ToProto(const Scene3& scene, v1::Scene* out);
 
 // absl::Status from the render and scene layers to a gRPC status with the same code.
 grpc::Status ToGrpc(const absl::Status& status);

@@ -27,11 +27,16 @@ constexpr uint32_t kPointFields =
 
 // Writes the job's answers [begin, end) into the response: as NearestSite results, or packed
 // (only the columns in `fields`: bit f for v1::FindNearestRequest::Field f).
-void Fill(const NearestJob& job, size_t begin, size_t end, bool packed, uint32_t fields,
+// A template on the job (NearestJob, NearestJob3): closest points and gradients have 2 or 3
+// coordinates.
+template <class J>
+void Fill(const J& job, size_t begin, size_t end, bool packed, uint32_t fields,
           v1::FindNearestResponse* response) {
+  using Point = typename J::Point;
+  constexpr int kWidth = Point::length();
   const std::vector<AnswerRow>& rows = job.rows();
-  const std::vector<Vec2>& points = job.points();
-  const std::vector<Vec2>& nearest_points = job.closest();  // filled when asked for
+  const std::vector<Point>& points = job.points();
+  const std::vector<Point>& nearest_points = job.closest();  // filled when asked for
   const bool closest = (fields & Bit(v1::FindNearestRequest::CLOSEST)) != 0;
   const bool gradient = (fields & Bit(v1::FindNearestRequest::GRADIENT)) != 0;
   if (!packed) {
@@ -75,8 +80,8 @@ void Fill(const NearestJob& job, size_t begin, size_t end, bool packed, uint32_t
   uint32_t* feature_index =
       column(p->mutable_feature_index(), wants(v1::FindNearestRequest::FEATURE));
   int* feature_kind = column(p->mutable_feature_kind(), wants(v1::FindNearestRequest::FEATURE));
-  double* closest_xy = column(p->mutable_closest(), closest, 2);
-  double* gradient_xy = column(p->mutable_gradient(), gradient, 2);
+  double* closest_xy = column(p->mutable_closest(), closest, kWidth);
+  double* gradient_xy = column(p->mutable_gradient(), gradient, kWidth);
   if (site != nullptr) {
     // slot -> index in site_ids: a table over the slots when the rows are many for the slots
     // they span (a large batch), a hash map otherwise (small stream chunks of a large scene).
@@ -109,23 +114,20 @@ void Fill(const NearestJob& job, size_t begin, size_t end, bool packed, uint32_t
       feature_kind[k] = ToProto(row.feature_kind);
     }
     if (closest_xy || gradient_xy) {
-      const Vec2 c = nearest_points[i];  // NaN for an empty answer
-      const Vec2 g = row.site_id == nullptr ? Vec2(NAN) : UnitGradient(points[i], c);
-      if (closest_xy) {
-        closest_xy[2 * k] = c.x;
-        closest_xy[2 * k + 1] = c.y;
-      }
-      if (gradient_xy) {
-        gradient_xy[2 * k] = g.x;
-        gradient_xy[2 * k + 1] = g.y;
+      const Point c = nearest_points[i];  // NaN for an empty answer
+      const Point g = row.site_id == nullptr ? Point(NAN) : UnitGradient(points[i], c);
+      for (int a = 0; a < kWidth; ++a) {
+        if (closest_xy) closest_xy[kWidth * k + a] = c[a];
+        if (gradient_xy) gradient_xy[kWidth * k + a] = g[a];
       }
     }
   }
 }
 
+template <class J>
 class NearestStreamReactor final : public grpc::ServerWriteReactor<v1::FindNearestResponse> {
  public:
-  NearestStreamReactor(std::shared_ptr<CallScope> scope, std::shared_ptr<NearestJob> job,
+  NearestStreamReactor(std::shared_ptr<CallScope> scope, std::shared_ptr<J> job,
                        uint32_t fields, size_t chunk)
       : scope_(std::move(scope)), job_(std::move(job)), fields_(fields), chunk_(chunk) {}
 
@@ -171,7 +173,7 @@ class NearestStreamReactor final : public grpc::ServerWriteReactor<v1::FindNeare
   }
 
   std::shared_ptr<CallScope> scope_;
-  std::shared_ptr<NearestJob> job_;
+  std::shared_ptr<J> job_;
   uint32_t fields_;
   size_t chunk_;
   size_t offset_ = 0;
@@ -212,12 +214,19 @@ int VoronoiService::Drain(std::chrono::milliseconds grace) {
 }
 
 VoronoiService::Call VoronoiService::Begin(grpc::CallbackServerContext* ctx, const char* method,
-                                           Access access, const std::string* scene_id) const {
+                                           Access access, const std::string* scene_id,
+                                           bool three_d) const {
   Call call;
   call.scope = std::make_shared<CallScope>(&calls_, method);
   call.status = Admit(ctx, access == Access::kWrite);
   if (call.ok() && scene_id != nullptr) {
     call.status = ValidateSceneId(*scene_id, limits_);
+    if (call.ok() && three_d) {
+      if (auto scene3 = registry_->Find3(*scene_id); scene3.ok()) {
+        call.scene3 = *scene3;
+        return call;
+      }
+    }
     if (call.ok()) {
       auto scene = registry_->Find(*scene_id);
       if (scene.ok()) {
@@ -239,6 +248,12 @@ grpc::ServerUnaryReactor* VoronoiService::CreateScene(grpc::CallbackServerContex
   if (auto s = ToSceneSettings(*request, limits_, &settings); !s.ok()) return call.Finish(ctx, s);
   return LaneReactor::Start(call.scope, registry_->commits(), "--max-queued-writes",
                             [this, settings = std::move(settings), response]() mutable {
+                              if (settings.three_d()) {
+                                auto scene = registry_->CreateScene3(std::move(settings));
+                                if (!scene.ok()) return ToGrpc(scene.status());
+                                ToProto(**scene, response);
+                                return Status::OK;
+                              }
                               auto scene = registry_->CreateScene(std::move(settings));
                               if (!scene.ok()) return ToGrpc(scene.status());
                               ToProto(**scene, response);
@@ -256,6 +271,10 @@ grpc::ServerUnaryReactor* VoronoiService::GetScene(grpc::CallbackServerContext* 
   if (!entry.ok()) return call.Finish(ctx, ToGrpc(entry.status()));
   if (entry->unloaded) {
     Describe(*entry->unloaded, response);
+    return call.Finish(ctx, Status::OK);
+  }
+  if (entry->scene3) {
+    ToProto(*entry->scene3, response);
     return call.Finish(ctx, Status::OK);
   }
   // Sites that meet the window but hold no pixel of the latest frame (paper sec. 6.2): their
@@ -286,6 +305,8 @@ grpc::ServerUnaryReactor* VoronoiService::ListScenes(grpc::CallbackServerContext
   for (const SceneEntry& entry : registry_->List()) {
     if (entry.unloaded) {
       Describe(*entry.unloaded, response->add_scenes());
+    } else if (entry.scene3) {
+      ToProto(*entry.scene3, response->add_scenes());
     } else {
       ToProto(*entry.scene, response->add_scenes());
     }
@@ -315,8 +336,20 @@ grpc::ServerWriteReactor<v1::SceneEvent>* VoronoiService::WatchScene(
 grpc::ServerUnaryReactor* VoronoiService::UpsertSites(grpc::CallbackServerContext* ctx,
                                                       const v1::UpsertSitesRequest* request,
                                                       v1::UpsertSitesResponse* response) {
-  Call call = Begin(ctx, "UpsertSites", Access::kWrite, &request->scene_id());
+  Call call = Begin(ctx, "UpsertSites", Access::kWrite, &request->scene_id(), /*three_d=*/true);
   if (!call.ok()) return call.Finish(ctx);
+  if (call.scene3) {
+    std::vector<Site3> sites;
+    if (auto s = ToSites3(*request, limits_, &sites); !s.ok()) return call.Finish(ctx, s);
+    return LaneReactor::Start(call.scope, registry_->commits(), "--max-queued-writes",
+                              [this, id = request->scene_id(), sites = std::move(sites),
+                               response]() mutable {
+                                auto version = registry_->UpsertSites3(id, std::move(sites));
+                                if (!version.ok()) return ToGrpc(version.status());
+                                response->set_version(*version);
+                                return Status::OK;
+                              });
+  }
   std::vector<Site> sites;
   if (auto s = ToSites(*request, limits_, &sites); !s.ok()) return call.Finish(ctx, s);
   return LaneReactor::Start(call.scope, registry_->commits(), "--max-queued-writes",
@@ -332,7 +365,7 @@ grpc::ServerUnaryReactor* VoronoiService::UpsertSites(grpc::CallbackServerContex
 grpc::ServerUnaryReactor* VoronoiService::DeleteSites(grpc::CallbackServerContext* ctx,
                                                       const v1::DeleteSitesRequest* request,
                                                       v1::DeleteSitesResponse* response) {
-  Call call = Begin(ctx, "DeleteSites", Access::kWrite, &request->scene_id());
+  Call call = Begin(ctx, "DeleteSites", Access::kWrite, &request->scene_id(), /*three_d=*/true);
   if (!call.ok()) return call.Finish(ctx);
   std::vector<std::string> ids;
   if (auto s = ToSiteIds(*request, limits_, &ids); !s.ok()) return call.Finish(ctx, s);
@@ -348,7 +381,7 @@ grpc::ServerUnaryReactor* VoronoiService::DeleteSites(grpc::CallbackServerContex
 grpc::ServerUnaryReactor* VoronoiService::ListSites(grpc::CallbackServerContext* ctx,
                                                     const v1::ListSitesRequest* request,
                                                     v1::ListSitesResponse* response) {
-  Call call = Begin(ctx, "ListSites", Access::kRead, &request->scene_id());
+  Call call = Begin(ctx, "ListSites", Access::kRead, &request->scene_id(), /*three_d=*/true);
   if (!call.ok()) return call.Finish(ctx);
   uint32_t size = request->page_size() == 0 ? 1000 : request->page_size();
   if (size > limits_.max_page_size) {
@@ -357,19 +390,36 @@ grpc::ServerUnaryReactor* VoronoiService::ListSites(grpc::CallbackServerContext*
                                          limits_.max_page_size)));
   }
   // The page token is the last id of the previous page; ids are ordered bytewise.
-  Scene::SitePage page = call.scene->ListSites(request->page_token(), size);
-  for (const Site& site : page.sites) ToProto(site, response->add_sites());
-  response->set_next_page_token(page.last_id);
-  response->set_version(page.version);
+  auto list = [&](const auto& scene) {
+    auto page = scene.ListSites(request->page_token(), size);
+    for (const auto& site : page.sites) ToProto(site, response->add_sites());
+    response->set_next_page_token(page.last_id);
+    response->set_version(page.version);
+  };
+  if (call.scene3) {
+    list(*call.scene3);
+  } else {
+    list(*call.scene);
+  }
   return call.Finish(ctx, Status::OK);
 }
 
-Status VoronoiService::ParseNearest(const v1::FindNearestRequest& request, const Scene& scene,
-                                    bool packed, NearestQuery* query, uint32_t* fields) const {
+// A request's query points for a scene of either dimension.
+Status QueryPointsFor(const v1::FindNearestRequest& request, const Scene& scene,
+                      const ServerLimits& limits, std::vector<Vec2>* points, bool* outside) {
+  return ToQueryPoints(request, scene.settings().grid.window, limits, points, outside);
+}
+Status QueryPointsFor(const v1::FindNearestRequest& request, const Scene3& scene,
+                      const ServerLimits& limits, std::vector<Vec3>* points, bool* outside) {
+  return ToQueryPoints3(request, scene.settings().grid3().box, limits, points, outside);
+}
+
+template <class S>
+Status VoronoiService::ParseNearest(const v1::FindNearestRequest& request, const S& scene,
+                                    bool packed, BasicNearestQuery<typename S::Point>* query,
+                                    uint32_t* fields) const {
   bool outside = false;
-  if (auto s = ToQueryPoints(request, scene.settings().grid.window, limits_, &query->points,
-                             &outside);
-      !s.ok()) {
+  if (auto s = QueryPointsFor(request, scene, limits_, &query->points, &outside); !s.ok()) {
     return s;
   }
   auto version = registry_->ReadVersion(scene, request.min_version());
@@ -394,7 +444,7 @@ Status VoronoiService::ParseNearest(const v1::FindNearestRequest& request, const
                                    v1::FindNearestRequest::Field_Name(f),
                                    "; with points, whose answers are whole NearestSite messages, "
                                    "fields may name only CLOSEST and GRADIENT (send the points "
-                                   "as xy to choose the columns of packed answers)"));
+                                   "as xy, or xyz, to choose the columns of packed answers)"));
       }
       *fields |= 1u << f;
     }
@@ -405,46 +455,67 @@ Status VoronoiService::ParseNearest(const v1::FindNearestRequest& request, const
   return Status::OK;
 }
 
-grpc::ServerUnaryReactor* VoronoiService::FindNearest(grpc::CallbackServerContext* ctx,
-                                                      const v1::FindNearestRequest* request,
-                                                      v1::FindNearestResponse* response) {
-  Call call = Begin(ctx, "FindNearest", Access::kRead, &request->scene_id());
-  if (!call.ok()) return call.Finish(ctx);
-  NearestQuery query;
+template <class S>
+grpc::ServerUnaryReactor* VoronoiService::StartNearest(grpc::CallbackServerContext* ctx,
+                                                       const std::shared_ptr<CallScope>& scope,
+                                                       const std::shared_ptr<S>& scene,
+                                                       const v1::FindNearestRequest* request,
+                                                       v1::FindNearestResponse* response) {
+  using Job = BasicNearestJob<S>;
+  typename Job::Query query;
   uint32_t fields = 0;
   const bool packed = request->points_size() == 0;
-  if (auto s = ParseNearest(*request, *call.scene, packed, &query, &fields); !s.ok()) {
-    return call.Finish(ctx, s);
+  if (auto s = ParseNearest(*request, *scene, packed, &query, &fields); !s.ok()) {
+    return scope->Done(ctx, s);
   }
-  auto job = NearestJob::Make(registry_, call.scene, std::move(query),
-                              [ctx] { return ctx->IsCancelled(); });
-  return JobReactor<NearestJob>::Start(call.scope, job, [=](const NearestJob& job) {
+  auto job = Job::Make(registry_, scene, std::move(query), [ctx] { return ctx->IsCancelled(); });
+  return JobReactor<Job>::Start(scope, job, [=](const Job& job) {
     response->set_version(job.version());
     Fill(job, 0, job.rows().size(), packed, fields, response);
   });
 }
 
-grpc::ServerWriteReactor<v1::FindNearestResponse>* VoronoiService::FindNearestStream(
-    grpc::CallbackServerContext* ctx, const v1::FindNearestRequest* request) {
-  Call call = Begin(ctx, "FindNearestStream", Access::kRead, &request->scene_id());
-  NearestQuery query;
+grpc::ServerUnaryReactor* VoronoiService::FindNearest(grpc::CallbackServerContext* ctx,
+                                                      const v1::FindNearestRequest* request,
+                                                      v1::FindNearestResponse* response) {
+  Call call = Begin(ctx, "FindNearest", Access::kRead, &request->scene_id(), /*three_d=*/true);
+  if (!call.ok()) return call.Finish(ctx);
+  if (call.scene3) return StartNearest(ctx, call.scope, call.scene3, request, response);
+  return StartNearest(ctx, call.scope, call.scene, request, response);
+}
+
+template <class S>
+grpc::ServerWriteReactor<v1::FindNearestResponse>* VoronoiService::StartNearestStream(
+    grpc::CallbackServerContext* ctx, const std::shared_ptr<CallScope>& scope,
+    const std::shared_ptr<S>& scene, const v1::FindNearestRequest* request) {
+  using Job = BasicNearestJob<S>;
+  typename Job::Query query;
   uint32_t fields = 0;
-  Status s = call.status;
-  if (s.ok()) s = ParseNearest(*request, *call.scene, /*packed=*/true, &query, &fields);
+  Status s = ParseNearest(*request, *scene, /*packed=*/true, &query, &fields);
   size_t chunk = request->chunk_size() == 0 ? 65536 : request->chunk_size();
-  std::shared_ptr<NearestJob> job;
-  if (s.ok()) {
-    job = NearestJob::Make(registry_, call.scene, std::move(query),
-                           [ctx] { return ctx->IsCancelled(); });
-  }
-  auto* reactor = new NearestStreamReactor(call.scope, job, fields, chunk);
+  std::shared_ptr<Job> job;
+  if (s.ok()) job = Job::Make(registry_, scene, std::move(query), [ctx] { return ctx->IsCancelled(); });
+  auto* reactor = new NearestStreamReactor<Job>(scope, job, fields, chunk);
   if (!s.ok()) {
-    call.scope->Record(s);
+    scope->Record(s);
     reactor->Finish(s);
   } else {
     reactor->Start();
   }
   return reactor;
+}
+
+grpc::ServerWriteReactor<v1::FindNearestResponse>* VoronoiService::FindNearestStream(
+    grpc::CallbackServerContext* ctx, const v1::FindNearestRequest* request) {
+  Call call = Begin(ctx, "FindNearestStream", Access::kRead, &request->scene_id(), /*three_d=*/true);
+  if (!call.ok()) {
+    auto* reactor = new NearestStreamReactor<NearestJob>(call.scope, nullptr, 0, 1);
+    call.scope->Record(call.status);
+    reactor->Finish(call.status);
+    return reactor;
+  }
+  if (call.scene3) return StartNearestStream(ctx, call.scope, call.scene3, request);
+  return StartNearestStream(ctx, call.scope, call.scene, request);
 }
 
 grpc::ServerUnaryReactor* VoronoiService::RenderImage(grpc::CallbackServerContext* ctx,

@@ -98,16 +98,31 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   // Validates a FindNearest request on its scene and resolves its points and mode, and the
   // packed columns it asks for (bit f for v1::FindNearestRequest::Field f).
   // `packed`: whether the answers go out packed (a request with `xy`, and every stream).
-  grpc::Status ParseNearest(const v1::FindNearestRequest& request, const Scene& scene,
-                            bool packed, NearestQuery* query, uint32_t* fields) const;
+  // A template on the scene (Scene or Scene3), whose points the query takes.
+  template <class S>
+  grpc::Status ParseNearest(const v1::FindNearestRequest& request, const S& scene, bool packed,
+                            BasicNearestQuery<typename S::Point>* query, uint32_t* fields) const;
+  // FindNearest on a scene of either dimension, parsed and started.
+  template <class S>
+  grpc::ServerUnaryReactor* StartNearest(grpc::CallbackServerContext* ctx,
+                                         const std::shared_ptr<CallScope>& scope,
+                                         const std::shared_ptr<S>& scene,
+                                         const v1::FindNearestRequest* request,
+                                         v1::FindNearestResponse* response);
+  template <class S>
+  grpc::ServerWriteReactor<v1::FindNearestResponse>* StartNearestStream(
+      grpc::CallbackServerContext* ctx, const std::shared_ptr<CallScope>& scope,
+      const std::shared_ptr<S>& scene, const v1::FindNearestRequest* request);
 
   // How every handler starts: the call is counted (scope) and admitted (ready, token;
   // kWrite for calls that change state), and a call on one scene (scene_id given) has its
-  // id validated and its scene found. When status is not OK the handler finishes with it.
+  // id validated and its scene found: a 2D one in `scene`, or, for the calls that take them
+  // (three_d), a 3D one in `scene3`. When status is not OK the handler finishes with it.
   enum class Access { kRead, kWrite };
   struct Call {
     std::shared_ptr<CallScope> scope;
     std::shared_ptr<Scene> scene;
+    std::shared_ptr<Scene3> scene3;
     grpc::Status status;
     bool ok() const { return status.ok(); }
     // Finishes a unary call with `s` (by default, the preamble's refusal).
@@ -119,7 +134,7 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
     }
   };
   Call Begin(grpc::CallbackServerContext* ctx, const char* method, Access access,
-             const std::string* scene_id = nullptr) const;
+             const std::string* scene_id = nullptr, bool three_d = false) const;
 
   // Starts an analysis call: validates and resolves its scene, waits for the frame, then
   // runs `work` on the analyses lane (server/app/jobs.h's AnalysisJob).

@@ -1,0 +1,252 @@
+// 3D scenes through the real gvd-server: created with a depth, written with 3D sites
+// (points and segments with z, triangles, meshes), queried with 3D points (raster answers
+// within their bounds, exact ones equal to the tests' own oracle, closest points and
+// gradients), and bad 3D input refused by name with nothing applied.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "gvd/client.h"
+#include "tests/support/meshes3.h"
+#include "tests/support/oracle3.h"
+#include "tests/support/server_process.h"
+
+namespace gvd {
+namespace {
+
+using grpc::StatusCode;
+
+void Set(v1::Point* p, Vec3 v) {
+  p->set_x(v.x);
+  p->set_y(v.y);
+  p->set_z(v.z);
+}
+
+v1::Site ToProto3(const Site3& s) {
+  v1::Site out;
+  out.set_id(s.id);
+  if (const auto* p = std::get_if<PointSite3>(&s.geometry)) {
+    Set(out.mutable_point(), p->p);
+  } else if (const auto* g = std::get_if<SegmentSite3>(&s.geometry)) {
+    Set(out.mutable_segment()->mutable_a(), g->a);
+    Set(out.mutable_segment()->mutable_b(), g->b);
+  } else if (const auto* t = std::get_if<TriangleSite3>(&s.geometry)) {
+    Set(out.mutable_triangle()->mutable_a(), t->a);
+    Set(out.mutable_triangle()->mutable_b(), t->b);
+    Set(out.mutable_triangle()->mutable_c(), t->c);
+  } else {
+    const auto& m = std::get<MeshSite3>(s.geometry);
+    for (Vec3 v : m.vertices) {
+      for (int k = 0; k < 3; ++k) out.mutable_mesh()->add_xyz(v[k]);
+    }
+    for (const auto& t : m.triangles) {
+      for (uint32_t k : t) out.mutable_mesh()->add_triangles(k);
+    }
+  }
+  if (s.additive != 0) out.set_additive_weight(s.additive);
+  return out;
+}
+
+class SpaceServerTest : public testing::SharedServerTest {
+ protected:
+  static v1::CreateSceneRequest Request(const std::string& id, uint32_t side, uint32_t depth) {
+    v1::CreateSceneRequest r;
+    r.set_scene_id(id);
+    auto* w = r.mutable_window();
+    w->set_min_x(0);
+    w->set_min_y(0);
+    w->set_max_x(4);
+    w->set_max_y(4);
+    w->set_min_z(-1);
+    w->set_max_z(2);
+    r.set_width_px(side);
+    r.set_height_px(side);
+    r.set_depth_px(depth);
+    return r;
+  }
+  static grpc::Status Put(const std::string& scene, const std::vector<v1::Site>& sites,
+                          uint64_t* version) {
+    v1::UpsertSitesRequest r;
+    r.set_scene_id(scene);
+    for (const v1::Site& s : sites) *r.add_sites() = s;
+    return client_->UpsertSites(r, version);
+  }
+};
+
+std::vector<Site3> Sites() {
+  Site3 heavy{"heavy", PointSite3{{2, 2, 0.5}}};
+  heavy.additive = 0.25;
+  return {{"p", PointSite3{{0.5, 0.5, 0}}},
+          heavy,
+          {"s", SegmentSite3{{3.5, 0, -3}, {3.5, 4, 3}}},  // through the box and out of it
+          {"t", TriangleSite3{{0, 3, 1}, {2, 4, 1}, {0, 4, 1.5}}},
+          {"ball", Placed(Icosphere(2), {1, 2.5, 0}, 0.6)},
+          {"ring", Placed(Torus(1, 0.2, 24, 8), {2.5, 1.5, 1}, 0.8)}};
+}
+
+double OracleValue(Vec3 q, const Site3& s) {
+  return double(oracle3::ToGeometry(q, s.geometry)) * s.multiplicative + s.additive;
+}
+
+TEST_F(SpaceServerTest, TenThousandQueriesWithinTheirBoundsAndExact) {
+  v1::Scene scene;
+  ASSERT_TRUE(client_->CreateScene(Request("space", 24, 18), &scene).ok());
+  EXPECT_EQ(scene.depth_px(), 18u);
+  EXPECT_EQ(scene.window().max_z(), 2);
+  const std::vector<Site3> sites = Sites();
+  std::vector<v1::Site> protos;
+  for (const Site3& s : sites) protos.push_back(ToProto3(s));
+  uint64_t version = 0;
+  ASSERT_TRUE(Put("space", protos, &version).ok());
+
+  std::mt19937_64 rng(41);
+  std::uniform_real_distribution<double> u(-0.5, 4.5), uz(-1.5, 2.5);
+  v1::FindNearestRequest r;
+  r.set_scene_id("space");
+  r.set_min_version(version);
+  std::vector<Vec3> points;
+  for (int i = 0; i < 10000; ++i) {
+    points.push_back({u(rng), u(rng), uz(rng)});
+    for (int k = 0; k < 3; ++k) r.add_xyz(points.back()[k]);
+  }
+  for (auto f : {v1::FindNearestRequest::SITE, v1::FindNearestRequest::DISTANCE,
+                 v1::FindNearestRequest::ERROR_BOUND, v1::FindNearestRequest::CLOSEST,
+                 v1::FindNearestRequest::GRADIENT}) {
+    r.add_fields(f);
+  }
+  for (bool exact : {false, true}) {
+    r.set_exact(exact);
+    v1::FindNearestResponse response;
+    grpc::Status st = client_->FindNearest(r, &response);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+    const v1::PackedNearest& p = response.packed();
+    ASSERT_EQ(p.distance_size(), 10000);
+    ASSERT_EQ(p.closest_size(), 30000);
+    int failures = 0;
+    for (int i = 0; i < 10000 && failures < 10; ++i) {
+      const Vec3 q = points[i];
+      double best = INFINITY;
+      for (const Site3& s : sites) best = std::min(best, OracleValue(q, s));
+      const std::string& id = p.site_ids(p.site(i));
+      const Site3& site = *std::find_if(sites.begin(), sites.end(), [&](const Site3& s) { return s.id == id; });
+      const double tol = 1e-9 * (1 + best);
+      const Vec3 c(p.closest(3 * i), p.closest(3 * i + 1), p.closest(3 * i + 2));
+      const Vec3 g(p.gradient(3 * i), p.gradient(3 * i + 1), p.gradient(3 * i + 2));
+      bool ok = std::abs(p.distance(i) - OracleValue(q, site)) <= tol &&
+                p.distance(i) - best <= p.error_bound(i) + tol && p.distance(i) >= best - tol &&
+                (!exact || p.error_bound(i) == 0) &&
+                std::abs(Distance(q, c) - double(oracle3::ToGeometry(q, site.geometry))) <= tol &&
+                // the closest point lies on the site, and the gradient points from it to q
+                double(oracle3::ToGeometry(c, site.geometry)) <= 1e-9 &&
+                Length(g - (q - c) / Distance(q, c)) <= 1e-9;
+      if (!ok) {
+        ++failures;
+        ADD_FAILURE() << (exact ? "exact " : "") << "q " << q.x << "," << q.y << "," << q.z << ": "
+                      << id << " at " << p.distance(i) << " bound " << p.error_bound(i)
+                      << ", best " << best;
+      }
+    }
+  }
+  // A point as a message: its closest point has a z.
+  v1::FindNearestRequest one;
+  one.set_scene_id("space");
+  Set(one.add_points(), {0.5, 0.5, 0.75});
+  one.add_fields(v1::FindNearestRequest::CLOSEST);
+  v1::FindNearestResponse answer;
+  ASSERT_TRUE(client_->FindNearest(one, &answer).ok());
+  ASSERT_EQ(answer.results_size(), 1);
+  EXPECT_EQ(answer.results(0).site_id(), "p");
+  EXPECT_NEAR(answer.results(0).closest().z(), 0, 1e-12);
+  EXPECT_NEAR(answer.results(0).distance(), 0.75, 1e-12);
+  ASSERT_TRUE(client_->DeleteScene("space").ok());
+}
+
+TEST_F(SpaceServerTest, Bad3DInputIsRefusedByNameAndChangesNothing) {
+  v1::Scene scene;
+  ASSERT_TRUE(client_->CreateScene(Request("bad3", 8, 8), &scene).ok());
+  uint64_t version = 0;
+  ASSERT_TRUE(Put("bad3", {ToProto3({"ok", PointSite3{{1, 1, 1}}})}, &version).ok());
+  auto refused = [&](std::vector<v1::Site> sites, StatusCode code, const std::string& says) {
+    uint64_t v = 0;
+    grpc::Status st = Put("bad3", sites, &v);
+    EXPECT_EQ(st.error_code(), code) << st.error_message();
+    EXPECT_NE(st.error_message().find(says), std::string::npos) << st.error_message();
+  };
+  v1::Site mesh = ToProto3({"m", Placed(Icosphere(0), {1, 1, 1}, 0.5)});
+  v1::Site past = mesh;
+  past.mutable_mesh()->set_triangles(5, 99);
+  refused({ToProto3({"fine", PointSite3{{2, 2, 2}}}), past}, StatusCode::INVALID_ARGUMENT,
+          "sites[1].mesh.triangles[5] is 99, past the 12 vertices");
+  v1::Site nan = mesh;
+  nan.mutable_mesh()->set_xyz(4, NAN);
+  refused({nan}, StatusCode::INVALID_ARGUMENT, "sites[0].mesh.xyz[4] is nan");
+  v1::Site ragged = mesh;
+  ragged.mutable_mesh()->add_triangles(0);
+  refused({ragged}, StatusCode::INVALID_ARGUMENT, "sites[0].mesh.triangles has 61 indices");
+  v1::Site line;
+  line.set_id("line");
+  line.mutable_polyline()->add_points();
+  line.mutable_polyline()->add_points();
+  refused({line}, StatusCode::INVALID_ARGUMENT, "sites[0] is a polyline; a 3D scene takes");
+  v1::Site inf = ToProto3({"inf", PointSite3{{1, 1, 1}}});
+  inf.mutable_point()->set_z(INFINITY);
+  refused({inf}, StatusCode::INVALID_ARGUMENT, "sites[0].point.z is inf");
+  // Nothing of the refused requests was applied.
+  v1::Scene now;
+  ASSERT_TRUE(client_->GetScene("bad3", &now).ok());
+  EXPECT_EQ(now.version(), version);
+  EXPECT_EQ(now.site_count(), 1u);
+
+  // Scenes: a z range that is empty, more voxels than the limit, z in a 2D scene.
+  v1::CreateSceneRequest flat_z = Request("z", 8, 8);
+  flat_z.mutable_window()->set_max_z(-1);
+  grpc::Status st = client_->CreateScene(flat_z, &scene);
+  EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("window.min_z -1 must be less than window.max_z -1"), std::string::npos)
+      << st.error_message();
+  st = client_->CreateScene(Request("huge", 8192, 8192), &scene);
+  EXPECT_EQ(st.error_code(), StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_NE(st.error_message().find("--max-voxels-per-scene"), std::string::npos) << st.error_message();
+  v1::CreateSceneRequest flat = Request("flat2", 8, 8);
+  flat.set_depth_px(0);
+  st = client_->CreateScene(flat, &scene);
+  EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("a z range is for 3D scenes"), std::string::npos) << st.error_message();
+  flat.mutable_window()->clear_min_z();
+  flat.mutable_window()->clear_max_z();
+  ASSERT_TRUE(client_->CreateScene(flat, &scene).ok());
+  v1::Site up = ToProto3({"up", PointSite3{{1, 1, 1}}});
+  uint64_t v = 0;
+  st = Put("flat2", {up}, &v);
+  EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("sites[0].point.z is 1; points of a 2D scene have no z"),
+            std::string::npos) << st.error_message();
+  st = Put("flat2", {mesh}, &v);
+  EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("sites[0].mesh is a site of 3D scenes"), std::string::npos)
+      << st.error_message();
+  // 2D calls on a 3D scene say what it is.
+  v1::RenderImageRequest image;
+  image.set_scene_id("bad3");
+  v1::RenderImageResponse image_response;
+  st = client_->RenderImage(image, &image_response);
+  EXPECT_EQ(st.error_code(), StatusCode::FAILED_PRECONDITION);
+  EXPECT_NE(st.error_message().find("is a 3D scene"), std::string::npos) << st.error_message();
+  // Packed 2D points on a 3D scene.
+  v1::FindNearestRequest xy;
+  xy.set_scene_id("bad3");
+  xy.add_xy(1);
+  xy.add_xy(1);
+  v1::FindNearestResponse r;
+  st = client_->FindNearest(xy, &r);
+  EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("xy is for 2D scenes"), std::string::npos) << st.error_message();
+  ASSERT_TRUE(client_->DeleteScene("bad3").ok());
+  ASSERT_TRUE(client_->DeleteScene("flat2").ok());
+}
+
+}  // namespace
+}  // namespace gvd
