@@ -389,23 +389,32 @@ grpc::ServerUnaryReactor* VoronoiService::PlanPath(grpc::CallbackServerContext* 
 grpc::ServerUnaryReactor* VoronoiService::Pick(grpc::CallbackServerContext* ctx,
                                                const v1::PickRequest* request,
                                                v1::PickResponse* response) {
-  Call call = Begin(ctx, "Pick", Access::kRead, &request->scene_id());
+  Call call = Begin(ctx, "Pick", Access::kRead, &request->scene_id(), /*three_d=*/true);
   if (!call.ok()) return call.Finish(ctx);
+  auto respond = [response](const auto& picked, auto point) {
+    response->set_found(picked.found);
+    response->set_version(picked.version);
+    if (picked.found) {
+      response->set_site_id(picked.site->id);
+      response->set_distance(picked.distance);
+      response->set_feature_kind(ToProto(picked.feature_kind));
+      response->set_feature_index(picked.feature_index);
+      ToProto(picked.closest, response->mutable_closest());
+      ToProto(UnitGradient(point, picked.closest), response->mutable_gradient());
+      ToProto(*picked.site, response->mutable_site());
+    }
+  };
+  if (call.scene3) {
+    Vec3 point;
+    double max_distance;
+    if (auto s = ToPick3(*request, &point, &max_distance); !s.ok()) return call.Finish(ctx, s);
+    respond(call.scene3->Pick(point, max_distance), point);
+    return call.Finish(ctx, Status::OK);
+  }
   Vec2 point;
   double max_distance;
   if (auto s = ToPick(*request, &point, &max_distance); !s.ok()) return call.Finish(ctx, s);
-  Scene::Picked picked = call.scene->Pick(point, max_distance);
-  response->set_found(picked.found);
-  response->set_version(picked.version);
-  if (picked.found) {
-    response->set_site_id(picked.site->id);
-    response->set_distance(picked.distance);
-    response->set_feature_kind(ToProto(picked.feature_kind));
-    response->set_feature_index(picked.feature_index);
-    ToProto(picked.closest, response->mutable_closest());
-    ToProto(UnitGradient(point, picked.closest), response->mutable_gradient());
-    ToProto(*picked.site, response->mutable_site());
-  }
+  respond(call.scene->Pick(point, max_distance), point);
   return call.Finish(ctx, Status::OK);
 }
 

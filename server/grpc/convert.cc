@@ -689,13 +689,16 @@ grpc::Status ToPoint(const v1::Point& p, const FieldPath& field, Vec2* out) {
     return Invalid(absl::StrCat(field.str(), " is (", FormatNumber(p.x()), ", ", FormatNumber(p.y()),
                                 "); coordinates must be finite"));
   }
+  if (p.z() != 0) {
+    return Invalid(absl::StrCat(field.Member("z").str(), " is ", FormatNumber(p.z()),
+                                "; points of a 2D scene have no z"));
+  }
   *out = {p.x(), p.y()};
   return Status::OK;
 }
 
-grpc::Status ToPick(const v1::PickRequest& request, Vec2* point, double* max_distance) {
-  if (!request.has_point()) return Invalid("point is not set");
-  if (auto s = ToPoint(request.point(), "point", point); !s.ok()) return s;
+namespace {
+Status ToPickLimit(const v1::PickRequest& request, double* max_distance) {
   const double limit = request.max_distance();
   if (!std::isfinite(limit) || limit < 0) {
     return Invalid(absl::StrCat("max_distance is ", FormatNumber(limit),
@@ -703,6 +706,19 @@ grpc::Status ToPick(const v1::PickRequest& request, Vec2* point, double* max_dis
   }
   *max_distance = limit == 0 ? INFINITY : limit;
   return Status::OK;
+}
+}  // namespace
+
+grpc::Status ToPick(const v1::PickRequest& request, Vec2* point, double* max_distance) {
+  if (!request.has_point()) return Invalid("point is not set");
+  if (auto s = ToPoint(request.point(), "point", point); !s.ok()) return s;
+  return ToPickLimit(request, max_distance);
+}
+
+grpc::Status ToPick3(const v1::PickRequest& request, Vec3* point, double* max_distance) {
+  if (!request.has_point()) return Invalid("point is not set");
+  if (auto s = ToPoint3(request.point(), "point", point); !s.ok()) return s;
+  return ToPickLimit(request, max_distance);
 }
 
 grpc::Status ToBoundaryMethod(const v1::GetBoundariesRequest& request, BoundaryMethod* method) {

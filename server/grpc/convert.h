@@ -96,6 +96,8 @@ grpc::Status ToImageOptions(const v1::RenderImageRequest& request, const Grid& g
 
 // PickRequest's point and max_distance (0: no limit, returned as +infinity).
 grpc::Status ToPick(const v1::PickRequest& request, Vec2* point, double* max_distance);
+// The same for a 3D scene (point with z).
+grpc::Status ToPick3(const v1::PickRequest& request, Vec3* point, double* max_distance);
 
 grpc::Status ToBoundaryMethod(const v1::GetBoundariesRequest& request, BoundaryMethod* method);
 grpc::Status ToPathPreference(const v1::PlanPathRequest& request, PathPreference* prefer);

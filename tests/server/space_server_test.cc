@@ -161,6 +161,16 @@ TEST_F(SpaceServerTest, TenThousandQueriesWithinTheirBoundsAndExact) {
   EXPECT_EQ(answer.results(0).site_id(), "p");
   EXPECT_NEAR(answer.results(0).closest().z(), 0, 1e-12);
   EXPECT_NEAR(answer.results(0).distance(), 0.75, 1e-12);
+  // Picking is by distance alone, weights aside: the heavy point is the nearest object.
+  v1::PickRequest pick;
+  pick.set_scene_id("space");
+  Set(pick.mutable_point(), {2, 2, 0.1});
+  v1::PickResponse picked;
+  ASSERT_TRUE(client_->Pick(pick, &picked).ok());
+  EXPECT_EQ(picked.site_id(), "heavy");
+  EXPECT_NEAR(picked.distance(), 0.4, 1e-12);
+  EXPECT_NEAR(picked.closest().z(), 0.5, 1e-12);
+  EXPECT_NEAR(picked.gradient().z(), -1, 1e-12);
   ASSERT_TRUE(client_->DeleteScene("space").ok());
 }
 
