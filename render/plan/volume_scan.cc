@@ -242,13 +242,16 @@ std::shared_ptr<const Volume> UpdateVolume(const Volume& base,
   // No brick's greatest stored value exceeds this: it bounds how far a site can reach.
   float greatest = -INFINITY;
   for (float e : base.brick_extremes()) greatest = std::max(greatest, e);
+  // A stored value is a float rounded to nearest from the exact one, which may be up to half
+  // an ulp greater: the comparisons take the next float up.
+  auto above = [](float f) { return double{std::nextafter(f, INFINITY)}; };
   // The bricks where a site's least possible value is at most the greatest stored value:
   // those within min(max_distance, (greatest - a) / m) of its box, searched among the bricks
   // that meet the box grown by that much.
   auto reach = [&](const Site3& site, auto&& f) {
     const Box3 box = BoundingBox(site.geometry);
     const double r = std::min(site.max_distance,
-                              (double{greatest} - site.additive) / site.multiplicative);
+                              (above(greatest) - site.additive) / site.multiplicative);
     if (!(r >= 0)) return;  // also NaN: no brick holds a finite value
     uint32_t lo[3] = {0, 0, 0}, hi[3] = {bx, by, bz};
     if (std::isfinite(r)) {
@@ -268,7 +271,7 @@ std::shared_ptr<const Volume> UpdateVolume(const Volume& base,
         for (uint32_t x = lo[0]; x < hi[0]; ++x) {
           const double gap = BoxDistance(brick_box(x, y, z), box);
           if (gap > site.max_distance) continue;
-          if (site.multiplicative * gap + site.additive <= base.brick_extreme(x, y, z)) {
+          if (site.multiplicative * gap + site.additive <= above(base.brick_extreme(x, y, z))) {
             f(x, y, z);
           }
         }

@@ -100,7 +100,7 @@ std::optional<NearestAnswer> Volume::Nearest(Vec3 q) const {
         const double step = error_.lipschitz * Distance(q, grid_.Center(i, j, k));
         limit = std::max(limit, error_.LowerBound(stored) - step);
         const uint32_t s = id - 1;
-        if (id == 0 || (best.found && s == best.site_index)) continue;
+        if (id == 0 || (best.found && s == best.site_index) || sites().get(s) == nullptr) continue;
         const double value = SiteValue(q, *sites().get(s));
         if (!best.found || value < best.distance || (value == best.distance && s < best.site_index)) {
           if (best.found) runner_up = std::min(runner_up, best.distance);

@@ -34,7 +34,7 @@ SceneRegistry::SceneRegistry(SceneStore* store, RenderLoop* renderer, ServerLimi
                 limits.max_queued_analyses),
       answers_(CpuPool::Process(), /*priority=*/1, SIZE_MAX, SIZE_MAX) {}
 
-SceneRegistry::~SceneRegistry() = default;
+SceneRegistry::~SceneRegistry() { volumes_.Stop(); }
 
 Executor SceneRegistry::executor() {
   return [this](std::function<void()> job) { answers_.Submit(std::move(job)); };
@@ -344,6 +344,12 @@ absl::StatusOr<uint64_t> SceneRegistry::Apply(const ChangeSet& committed) {
 template <class S>
 absl::StatusOr<uint64_t> SceneRegistry::ApplyTo(const std::shared_ptr<S>& scene,
                                                 const ChangeSet& committed) {
+  constexpr bool kThreeD = std::is_same_v<S, Scene3>;
+  if (kThreeD ? !committed.put.empty() : !committed.put3.empty()) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "a change to scene \"", scene->id(), "\" puts ", kThreeD ? "2D" : "3D",
+        " sites; it is a ", kThreeD ? "3D" : "2D", " scene"));
+  }
   uint64_t added = 0;
   for (const auto& site : committed.template Put<typename S::Site>()) added += SiteBytes(*site);
   // Committed elsewhere, so it is not refused for memory: the reservation only keeps the

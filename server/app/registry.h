@@ -177,6 +177,11 @@ class SceneRegistry {
   std::set<std::string> creating_;
   std::map<std::string, UnloadedScene> unloaded_;
 
+  // The render thread of 3D scenes (on the CPU). It outlives the lanes, as writes that
+  // commits_ drains at destruction still mark their scenes dirty; the destructor stops it
+  // first, while answers_ can still take the waiters its last render resumes (after Stop,
+  // MarkDirty fails the waiters on the calling thread).
+  VolumeRenderer volumes_;
   // The threads that wait on the store. Declared before the lanes, which go first.
   CpuPool commit_threads_;
   // Declared last: answers_ goes first, finishing what is queued (which may still queue
@@ -184,9 +189,6 @@ class SceneRegistry {
   CpuPool::Lane commits_;
   CpuPool::Lane analyses_;
   CpuPool::Lane answers_;
-  // The render thread of 3D scenes (on the CPU). Declared after the lanes: it stops first,
-  // while the lanes can still take the waiters its last render resumes.
-  VolumeRenderer volumes_;
 };
 
 template <class S>

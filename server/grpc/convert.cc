@@ -418,6 +418,7 @@ Status ToSiteIds(const v1::DeleteSitesRequest& r, const ServerLimits& limits,
 
 Status ToQueryPoints(const v1::FindNearestRequest& r, const Window& w, const ServerLimits& limits,
                      std::vector<Vec2>* points, bool* outside) {
+  if (r.xyz_size() > 0) return Invalid("xyz is for 3D scenes; a 2D scene's packed points are xy");
   if (r.points_size() > 0 && r.xy_size() > 0) {
     return Invalid("points and xy are both set; use one form");
   }

@@ -254,6 +254,13 @@ TEST_F(SpaceServerTest, Bad3DInputIsRefusedByNameAndChangesNothing) {
   st = client_->FindNearest(xy, &r);
   EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT);
   EXPECT_NE(st.error_message().find("xy is for 2D scenes"), std::string::npos) << st.error_message();
+  // Packed 3D points on a 2D scene.
+  v1::FindNearestRequest xyz;
+  xyz.set_scene_id("flat2");
+  for (int k = 0; k < 3; ++k) xyz.add_xyz(1);
+  st = client_->FindNearest(xyz, &r);
+  EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("xyz is for 3D scenes"), std::string::npos) << st.error_message();
   ASSERT_TRUE(client_->DeleteScene("bad3").ok());
   ASSERT_TRUE(client_->DeleteScene("flat2").ok());
 }

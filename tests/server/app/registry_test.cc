@@ -505,6 +505,13 @@ TEST(SceneRegistry, A3DSceneFromCreateToReload) {
       EXPECT_NEAR(exact->rows()[i].distance, oracle(points[i]), 1e-9);
       EXPECT_TRUE(exact->rows()[i].exact);
     }
+    // A committed change of the other dimension's sites is refused whole.
+    const std::vector<std::shared_ptr<const Site>> flat = {std::make_shared<const Site>(Point("q", 1, 1))};
+    const std::vector<std::string> gone = {"p"};
+    ChangeSet wrong{"space", *version + 1, flat, gone};
+    EXPECT_EQ(registry.Apply(wrong).status().code(), absl::StatusCode::kFailedPrecondition);
+    EXPECT_EQ((*scene)->version(), *version);
+    EXPECT_TRUE((*scene)->snapshot()->Find("p").has_value());
     ASSERT_TRUE(registry.DeleteSites("space", {"p"}).ok());
     sites.erase(sites.begin());
     EXPECT_EQ(registry.List().size(), 2u);
