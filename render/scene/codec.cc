@@ -131,14 +131,36 @@ bool Finite(const std::vector<Vec2>& points) {
   return true;
 }
 
+// What every site's bytes begin with, in either dimension: the format, the id, the weights
+// and the reach.
+template <class S>
+void PutHeader(Writer& w, const S& site) {
+  w.Put(kSiteFormat);
+  w.Put(std::string_view(site.id));
+  w.Put(site.additive);
+  w.Put(site.multiplicative);
+  w.Put(site.max_distance);
+}
+template <class S>
+void GetHeader(Reader& r, S* site) {
+  if (r.Get<uint8_t>() != kSiteFormat) r.Fail();
+  site->id = r.GetString();
+  site->additive = r.Get<double>();
+  site->multiplicative = r.Get<double>();
+  site->max_distance = r.Get<double>();
+}
+
+// The id and weights every accepted site had.
+template <class S>
+bool WeightsKeepContract(const S& site) {
+  return !site.id.empty() && std::isfinite(site.additive) && site.additive >= 0 &&
+         std::isfinite(site.multiplicative) && site.multiplicative > 0 && site.max_distance > 0;
+}
+
 // Whether a decoded site keeps the contracts of Site and its geometry (geometry/site.h), as
 // every accepted site did: a stored one that does not was damaged after it was written.
 bool KeepsContract(const Site& site) {
-  if (site.id.empty() || !std::isfinite(site.additive) || site.additive < 0 ||
-      !std::isfinite(site.multiplicative) || site.multiplicative <= 0 ||
-      !(site.max_distance > 0)) {
-    return false;
-  }
+  if (!WeightsKeepContract(site)) return false;
   return std::visit(
       [](const auto& g) {
         using T = std::decay_t<decltype(g)>;
@@ -157,22 +179,11 @@ bool KeepsContract(const Site& site) {
 
 bool Finite(Vec3 p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
 
-// The weights every accepted site had.
-template <class S>
-bool WeightsKeepContract(const S& site) {
-  return !site.id.empty() && std::isfinite(site.additive) && site.additive >= 0 &&
-         std::isfinite(site.multiplicative) && site.multiplicative > 0 && site.max_distance > 0;
-}
-
 }  // namespace
 
 std::string EncodeSite(const Site3& site) {
   Writer w;
-  w.Put(kSiteFormat);
-  w.Put(std::string_view(site.id));
-  w.Put(site.additive);
-  w.Put(site.multiplicative);
-  w.Put(site.max_distance);
+  PutHeader(w, site);
   std::visit(
       [&w](const auto& g) {
         using T = std::decay_t<decltype(g)>;
@@ -202,12 +213,8 @@ std::string EncodeSite(const Site3& site) {
 
 absl::StatusOr<Site3> DecodeSite3(std::string_view bytes) {
   Reader r(bytes);
-  if (r.Get<uint8_t>() != kSiteFormat) r.Fail();
   Site3 site;
-  site.id = r.GetString();
-  site.additive = r.Get<double>();
-  site.multiplicative = r.Get<double>();
-  site.max_distance = r.Get<double>();
+  GetHeader(r, &site);
   std::vector<Vec3> vertices;
   std::vector<std::array<uint32_t, 3>> triangles;
   bool mesh = false;
@@ -263,11 +270,7 @@ absl::StatusOr<Site3> DecodeSite3(std::string_view bytes) {
 
 std::string EncodeSite(const Site& site) {
   Writer w;
-  w.Put(kSiteFormat);
-  w.Put(std::string_view(site.id));
-  w.Put(site.additive);
-  w.Put(site.multiplicative);
-  w.Put(site.max_distance);
+  PutHeader(w, site);
   std::visit(
       [&w](const auto& g) {
         using T = std::decay_t<decltype(g)>;
@@ -299,12 +302,8 @@ std::string EncodeSite(const Site& site) {
 
 absl::StatusOr<Site> DecodeSite(std::string_view bytes) {
   Reader r(bytes);
-  if (r.Get<uint8_t>() != kSiteFormat) r.Fail();
   Site site;
-  site.id = r.GetString();
-  site.additive = r.Get<double>();
-  site.multiplicative = r.Get<double>();
-  site.max_distance = r.Get<double>();
+  GetHeader(r, &site);
   switch (r.Get<uint8_t>()) {
     case kPoint:
       site.geometry = PointSite{r.GetVec2()};
