@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -30,6 +31,10 @@ class TriangleTree {
   // visited, so that ties are seen).
   template <class Score>
   void Nearest(Vec3 q, double* best, Score&& score) const;
+
+  // The box of all the triangles (of the mesh's used vertices); empty: +inf to -inf.
+  Vec3 lo() const { return nodes_.empty() ? Vec3(INFINITY) : nodes_[0].lo; }
+  Vec3 hi() const { return nodes_.empty() ? Vec3(-INFINITY) : nodes_[0].hi; }
 
   size_t bytes() const {
     return sizeof(*this) + nodes_.size() * sizeof(Node) + order_.size() * sizeof(uint32_t);
