@@ -6,6 +6,7 @@
 #include <cmath>
 #include <map>
 #include <set>
+#include <unordered_map>
 
 #include "absl/strings/str_cat.h"
 #include "render/analysis/analysis.h"
@@ -134,6 +135,13 @@ grpc::ServerUnaryReactor* VoronoiService::StartAnalysis(const char* method,
                                                         Work work) {
   Call call = Begin(ctx, method, Access::kRead, &scene_id);
   if (!call.ok()) return call.Finish(ctx);
+  return StartAnalysis(call, ctx, min_version, std::move(validate), std::move(work));
+}
+
+grpc::ServerUnaryReactor* VoronoiService::StartAnalysis(const Call& call,
+                                                        grpc::CallbackServerContext* ctx,
+                                                        uint64_t min_version, Validate validate,
+                                                        Work work) {
   if (validate) {
     if (auto s = validate(*call.scene); !s.ok()) return call.Finish(ctx, s);
   }
@@ -317,11 +325,22 @@ grpc::ServerUnaryReactor* VoronoiService::RenderWindow(grpc::CallbackServerConte
 grpc::ServerUnaryReactor* VoronoiService::GetClearanceField(
     grpc::CallbackServerContext* ctx, const v1::GetClearanceFieldRequest* request,
     v1::GetClearanceFieldResponse* response) {
+  Call call = Begin(ctx, "GetClearanceField", Access::kRead, &request->scene_id(),
+                    /*three_d=*/true);
+  if (!call.ok()) return call.Finish(ctx);
+  if (call.scene3) return ClearanceField3(call, ctx, request, response);
+  if (request->depth_px() != 0 || request->gradients() || request->site_indices() ||
+      request->window().min_z() != 0 || request->window().max_z() != 0) {
+    return call.Finish(ctx, Status(StatusCode::INVALID_ARGUMENT,
+                                   "depth_px, window.min_z/max_z, gradients and site_indices "
+                                   "are for 3D scenes; scene \"" + request->scene_id() +
+                                       "\" is 2D"));
+  }
   auto spec = std::make_shared<ZoomSpec>();
   SceneRegistry* registry = registry_;
   const ServerLimits limits = limits_;
   return StartAnalysis(
-      "GetClearanceField", ctx, request->scene_id(), request->min_version(),
+      call, ctx, request->min_version(),
       [=](const Scene& scene) {
         if (scene.settings().diagram != Diagram::kNearest) {
           return Status(StatusCode::FAILED_PRECONDITION,
@@ -347,6 +366,76 @@ grpc::ServerUnaryReactor* VoronoiService::GetClearanceField(
         response->set_height_px(rect.height());
         return absl::OkStatus();
       });
+}
+
+grpc::ServerUnaryReactor* VoronoiService::ClearanceField3(
+    const Call& call, grpc::CallbackServerContext* ctx, const v1::GetClearanceFieldRequest* request,
+    v1::GetClearanceFieldResponse* response) {
+  if (call.scene3->settings().diagram != Diagram::kNearest) {
+    return call.Finish(ctx, Status(StatusCode::FAILED_PRECONDITION,
+                                   absl::StrCat("scene \"", call.scene3->id(),
+                                                "\" is a FARTHEST diagram; clearance needs NEAREST")));
+  }
+  ClearanceSamples3 samples;
+  if (auto s = ToClearanceSamples3(*request, call.scene3->settings().grid3(), limits_, &samples);
+      !s.ok()) {
+    return call.Finish(ctx, s);
+  }
+  auto version = registry_->ReadVersion(*call.scene3, request->min_version());
+  if (!version.ok()) return call.Finish(ctx, ToGrpc(version.status()));
+  // Each sample is a nearest-site query: answered from the volume with its bound (exactly
+  // outside the scene's box), its closest point when gradients are asked for.
+  NearestJob3::Query query;
+  query.points = std::move(samples.points);
+  query.features = false;
+  query.min_version = *version;
+  query.closest = request->gradients();
+  auto job = NearestJob3::Make(registry_, call.scene3, std::move(query),
+                               [ctx] { return ctx->IsCancelled(); });
+  const Box3 box = samples.box;
+  const uint32_t width = samples.width, height = samples.height, depth = samples.depth;
+  const bool gradients = request->gradients(), indices = request->site_indices();
+  return JobReactor<NearestJob3>::Start(call.scope, job, [=](const NearestJob3& job) {
+    response->set_version(job.version());
+    v1::Window* w = response->mutable_window();
+    w->set_min_x(box.min_x);
+    w->set_min_y(box.min_y);
+    w->set_min_z(box.min_z);
+    w->set_max_x(box.max_x);
+    w->set_max_y(box.max_y);
+    w->set_max_z(box.max_z);
+    response->set_width_px(width);
+    response->set_height_px(height);
+    response->set_depth_px(depth);
+    const auto& rows = job.rows();
+    const int n = static_cast<int>(rows.size());
+    auto* clearance = response->mutable_clearance();
+    clearance->Resize(n, 0);
+    if (gradients) response->mutable_gradient()->Resize(3 * n, 0);
+    if (indices) response->mutable_ids()->Resize(n, 0);
+    std::unordered_map<uint32_t, uint32_t> named;  // slot -> 1 + index in site_ids
+    for (int i = 0; i < n; ++i) {
+      const AnswerRow& row = rows[i];
+      if (row.site_id == nullptr) {
+        clearance->Set(i, INFINITY);
+        continue;
+      }
+      // A lower bound in float: rounded down from the double one.
+      const double lower = std::max(0.0, row.distance - row.error_bound);
+      float f = static_cast<float>(lower);
+      if (double{f} > lower) f = std::nextafter(f, -INFINITY);
+      clearance->Set(i, f);
+      if (gradients) {
+        const Vec3 g = UnitGradient(job.points()[i], job.closest()[i]);
+        for (int a = 0; a < 3; ++a) response->mutable_gradient()->Set(3 * i + a, static_cast<float>(g[a]));
+      }
+      if (indices) {
+        auto [it, fresh] = named.try_emplace(row.slot, static_cast<uint32_t>(named.size() + 1));
+        if (fresh) response->add_site_ids(*row.site_id);
+        response->mutable_ids()->Set(i, it->second);
+      }
+    }
+  });
 }
 
 grpc::ServerUnaryReactor* VoronoiService::PlanPath(grpc::CallbackServerContext* ctx,

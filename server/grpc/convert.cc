@@ -597,6 +597,91 @@ grpc::Status ToPixelRect(const v1::Window& w, const Grid& grid, PixelRect* rect)
   return grpc::Status::OK;
 }
 
+grpc::Status ToClearanceSamples3(const v1::GetClearanceFieldRequest& r, const Grid3& grid,
+                                 const ServerLimits& limits, ClearanceSamples3* out) {
+  Box3 box = grid.box;
+  if (r.has_window()) {
+    Window plane;
+    if (auto s = ToWindow(r.window(), "window", &plane); !s.ok()) return s;
+    const v1::Window& w = r.window();
+    for (auto [v, name] : {std::pair{w.min_z(), "window.min_z"}, {w.max_z(), "window.max_z"}}) {
+      if (auto s = CheckFinite(v, FieldPath(name)); !s.ok()) return s;
+    }
+    if (!(w.min_z() < w.max_z()) || !std::isfinite(w.max_z() - w.min_z())) {
+      return Invalid(absl::StrCat("window.min_z ", FormatNumber(w.min_z()),
+                                  " must be less than window.max_z ", FormatNumber(w.max_z()),
+                                  ", with a finite difference"));
+    }
+    box = {plane.min_x, plane.min_y, w.min_z(), plane.max_x, plane.max_y, w.max_z()};
+  }
+  const uint32_t sizes[3] = {r.width_px(), r.height_px(), r.depth_px()};
+  const bool own = sizes[0] == 0 && sizes[1] == 0 && sizes[2] == 0;
+  uint32_t first[3] = {0, 0, 0}, count[3] = {grid.width, grid.height, grid.depth};
+  if (own) {
+    // The scene's voxels whose centres lie in the box: centre i + 0.5 in [lo, hi].
+    const Vec3 lo = grid.ToVoxel({box.min_x, box.min_y, box.min_z});
+    const Vec3 hi = grid.ToVoxel({box.max_x, box.max_y, box.max_z});
+    for (int a = 0; a < 3; ++a) {
+      const double n = a == 0 ? grid.width : a == 1 ? grid.height : grid.depth;
+      const double f = std::max(0.0, std::ceil(lo[a] - 0.5));
+      const double l = std::min(n - 1, std::floor(hi[a] - 0.5));
+      if (!(f <= l)) return Invalid("window holds no voxel centre of the scene");
+      first[a] = static_cast<uint32_t>(f);
+      count[a] = static_cast<uint32_t>(l - f + 1);
+    }
+    const Vec3 a = grid.Center(first[0], first[1], first[2]);
+    const Vec3 b = grid.Center(first[0] + count[0] - 1, first[1] + count[1] - 1,
+                               first[2] + count[2] - 1);
+    const Vec3 half = grid.voxel_size() * 0.5;
+    box = {a.x - half.x, a.y - half.y, a.z - half.z, b.x + half.x, b.y + half.y, b.z + half.z};
+  } else {
+    for (auto [v, name] : {std::pair{sizes[0], "width_px"}, {sizes[1], "height_px"},
+                           {sizes[2], "depth_px"}}) {
+      if (v == 0 || v > limits.max_side_px) {
+        return Invalid(absl::StrCat(name, " is ", v, "; it must be 1 to ", limits.max_side_px,
+                                    " (--max-side-px), or all three 0"));
+      }
+    }
+    for (int a = 0; a < 3; ++a) count[a] = sizes[a];
+  }
+  const uint64_t n = uint64_t{count[0]} * count[1] * count[2];
+  if (n > limits.max_voxels_per_scene) {
+    return Status(StatusCode::RESOURCE_EXHAUSTED,
+                  absl::StrCat("the field has ", n, " samples; the limit is ",
+                               limits.max_voxels_per_scene, " (--max-voxels-per-scene)"));
+  }
+  const uint64_t bytes = n * (5 + (r.gradients() ? 15 : 0) + (r.site_indices() ? 5 : 0));
+  if (bytes > uint64_t(limits.max_message_bytes)) {
+    return Status(StatusCode::RESOURCE_EXHAUSTED,
+                  absl::StrCat("the field's ", n, " samples take about ", bytes,
+                               " bytes, over a message's ", limits.max_message_bytes,
+                               " (--max-message-bytes)"));
+  }
+  out->box = box;
+  out->width = count[0];
+  out->height = count[1];
+  out->depth = count[2];
+  out->points.clear();
+  out->points.reserve(n);
+  if (own) {
+    for (uint32_t k = 0; k < count[2]; ++k) {
+      for (uint32_t j = 0; j < count[1]; ++j) {
+        for (uint32_t i = 0; i < count[0]; ++i) {
+          out->points.push_back(grid.Center(first[0] + i, first[1] + j, first[2] + k));
+        }
+      }
+    }
+  } else {
+    const Grid3 cells{box, count[0], count[1], count[2]};
+    for (uint32_t k = 0; k < count[2]; ++k) {
+      for (uint32_t j = 0; j < count[1]; ++j) {
+        for (uint32_t i = 0; i < count[0]; ++i) out->points.push_back(cells.Center(i, j, k));
+      }
+    }
+  }
+  return Status::OK;
+}
+
 grpc::Status ToWindow(const v1::Window& w, const std::string& field, Window* out) {
   const FieldPath window(field.c_str());
   for (auto [v, name] : {std::pair{w.min_x(), "min_x"}, {w.min_y(), "min_y"},

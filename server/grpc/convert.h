@@ -76,6 +76,19 @@ grpc::Status ToQueryPoints(const v1::FindNearestRequest& request, const Window& 
 grpc::Status ToQueryPoints3(const v1::FindNearestRequest& request, const Box3& box,
                             const ServerLimits& limits, std::vector<Vec3>* points, bool* outside);
 
+// The samples of a 3D scene's clearance field that a request asks for (see
+// GetClearanceFieldRequest): their points, slice by slice from min z, each slice row by row
+// from min y; the box they are the cell centres of; and the counts along x, y, z.
+// INVALID_ARGUMENT naming the field; RESOURCE_EXHAUSTED when the samples exceed
+// --max-voxels-per-scene or, with what each answers, --max-message-bytes.
+struct ClearanceSamples3 {
+  std::vector<Vec3> points;
+  Box3 box;
+  uint32_t width = 0, height = 0, depth = 0;
+};
+grpc::Status ToClearanceSamples3(const v1::GetClearanceFieldRequest& request, const Grid3& grid,
+                                 const ServerLimits& limits, ClearanceSamples3* out);
+
 // The pixels of `grid` whose centres lie in the window `w` (a request's field "window"):
 // INVALID_ARGUMENT when w is not finite or holds no pixel centre.
 grpc::Status ToPixelRect(const v1::Window& w, const Grid& grid, PixelRect* rect);

@@ -143,6 +143,13 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   grpc::ServerUnaryReactor* StartAnalysis(const char* method, grpc::CallbackServerContext* ctx,
                                           const std::string& scene_id, uint64_t min_version,
                                           Validate validate, Work work);
+  // GetClearanceField of a 3D scene.
+  grpc::ServerUnaryReactor* ClearanceField3(const Call& call, grpc::CallbackServerContext* ctx,
+                                            const v1::GetClearanceFieldRequest* request,
+                                            v1::GetClearanceFieldResponse* response);
+  // The same for a call already begun on a 2D scene.
+  grpc::ServerUnaryReactor* StartAnalysis(const Call& call, grpc::CallbackServerContext* ctx,
+                                          uint64_t min_version, Validate validate, Work work);
 
   // UNAVAILABLE until the registry is loaded (and once draining); then the token check.
   grpc::Status Admit(grpc::CallbackServerContext* ctx, bool write) const;

@@ -174,6 +174,113 @@ TEST_F(SpaceServerTest, TenThousandQueriesWithinTheirBoundsAndExact) {
   ASSERT_TRUE(client_->DeleteScene("space").ok());
 }
 
+// The clearance field of a 3D scene: its own voxels, and a sub-box at a resolution of the
+// caller's (reaching outside the scene's box), each sample a lower bound on the oracle's
+// distance and within the voxel diagonal of it, its site the nearest within that, and its
+// gradient the unit vector from the site's nearest point to the sample.
+TEST_F(SpaceServerTest, ClearanceFieldsAreLowerBoundsWithGradientsAndSites) {
+  v1::Scene scene;
+  ASSERT_TRUE(client_->CreateScene(Request("field", 16, 12), &scene).ok());
+  const std::vector<Site3> sites = Sites();
+  std::vector<v1::Site> protos;
+  for (const Site3& s : sites) protos.push_back(ToProto3(s));
+  uint64_t version = 0;
+  ASSERT_TRUE(Put("field", protos, &version).ok());
+  const double diagonal = Length(Vec3(4.0 / 16, 4.0 / 16, 3.0 / 12));
+
+  v1::GetClearanceFieldRequest own;
+  own.set_scene_id("field");
+  own.set_min_version(version);
+  own.set_gradients(true);
+  own.set_site_indices(true);
+  v1::GetClearanceFieldRequest sub = own;
+  auto* w = sub.mutable_window();
+  w->set_min_x(-1);
+  w->set_min_y(1);
+  w->set_min_z(0.25);
+  w->set_max_x(3);
+  w->set_max_y(3.5);
+  w->set_max_z(2.75);  // past the scene's box
+  sub.set_width_px(9);
+  sub.set_height_px(7);
+  sub.set_depth_px(5);
+  for (const auto* r : {&own, &sub}) {
+    v1::GetClearanceFieldResponse f;
+    grpc::Status st = client_->GetClearanceField(*r, &f);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+    const bool is_own = r == &own;
+    const uint32_t nx = is_own ? 16 : 9, ny = is_own ? 16 : 7, nz = is_own ? 12 : 5;
+    ASSERT_EQ(f.width_px(), nx);
+    ASSERT_EQ(f.height_px(), ny);
+    ASSERT_EQ(f.depth_px(), nz);
+    const size_t n = size_t{nx} * ny * nz;
+    ASSERT_EQ(size_t(f.clearance_size()), n);
+    ASSERT_EQ(size_t(f.gradient_size()), 3 * n);
+    ASSERT_EQ(size_t(f.ids_size()), n);
+    const v1::Window& b = f.window();
+    if (is_own) {
+      EXPECT_EQ(b.min_z(), -1);
+      EXPECT_EQ(b.max_z(), 2);
+    } else {
+      EXPECT_EQ(b.max_z(), 2.75);
+    }
+    int failures = 0;
+    for (uint32_t k = 0; k < nz; ++k) {
+      for (uint32_t j = 0; j < ny; ++j) {
+        for (uint32_t i = 0; i < nx && failures < 10; ++i) {
+          const size_t at = (size_t{k} * ny + j) * nx + i;
+          const Vec3 q(b.min_x() + (i + 0.5) * (b.max_x() - b.min_x()) / nx,
+                       b.min_y() + (j + 0.5) * (b.max_y() - b.min_y()) / ny,
+                       b.min_z() + (k + 0.5) * (b.max_z() - b.min_z()) / nz);
+          double best = INFINITY;
+          for (const Site3& s : sites) best = std::min(best, OracleValue(q, s));
+          ASSERT_GT(f.ids(at), 0u);
+          const std::string& id = f.site_ids(f.ids(at) - 1);
+          const Site3& site =
+              *std::find_if(sites.begin(), sites.end(), [&](const Site3& s) { return s.id == id; });
+          const double value = OracleValue(q, site);
+          const Vec3 g(f.gradient(3 * at), f.gradient(3 * at + 1), f.gradient(3 * at + 2));
+          // The unit gradient of the named site's distance points to q from its nearest
+          // point: d back along it lands on the site (a float's precision aside).
+          const double d = double(oracle3::ToGeometry(q, site.geometry));
+          const double off = double(oracle3::ToGeometry(q - d * g, site.geometry));
+          const double c = f.clearance(at);
+          const bool ok = c <= best && c >= best - diagonal && value - best <= diagonal &&
+                          std::abs(Length(g) - 1) <= 1e-6 && off <= 1e-6 * (1 + d);
+          if (!ok) {
+            ++failures;
+            ADD_FAILURE() << (is_own ? "own" : "sub") << " sample " << i << "," << j << "," << k
+                          << " q " << q.x << "," << q.y << "," << q.z << ": clearance " << c
+                          << ", oracle " << best << ", site " << id << " at " << value
+                          << ", gradient " << g.x << "," << g.y << "," << g.z << " off " << off;
+          }
+        }
+      }
+    }
+  }
+  // Bad requests, by name.
+  v1::GetClearanceFieldRequest bad = sub;
+  bad.set_depth_px(0);
+  v1::GetClearanceFieldResponse f;
+  grpc::Status st = client_->GetClearanceField(bad, &f);
+  EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("depth_px is 0"), std::string::npos) << st.error_message();
+  bad = sub;
+  bad.mutable_window()->set_max_z(NAN);
+  st = client_->GetClearanceField(bad, &f);
+  EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("window.max_z"), std::string::npos) << st.error_message();
+  bad = sub;
+  bad.set_width_px(8192);
+  bad.set_height_px(8192);
+  bad.set_depth_px(8192);
+  st = client_->GetClearanceField(bad, &f);
+  EXPECT_EQ(st.error_code(), StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_NE(st.error_message().find("--max-voxels-per-scene"), std::string::npos)
+      << st.error_message();
+  ASSERT_TRUE(client_->DeleteScene("field").ok());
+}
+
 TEST_F(SpaceServerTest, Bad3DInputIsRefusedByNameAndChangesNothing) {
   v1::Scene scene;
   ASSERT_TRUE(client_->CreateScene(Request("bad3", 8, 8), &scene).ok());
