@@ -8,11 +8,13 @@ gvd_packages() {
       echo cmake ninja-build g++ pkgconf ccache \
         libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler libabsl-dev \
         libboost-dev libssl-dev libglm-dev libsqlite3-dev prometheus-cpp-dev libopenimageio-dev \
-        libegl-dev libopengl-dev libegl1 libopengl0 libegl-mesa0 libgl1-mesa-dri
+        libegl-dev libopengl-dev libegl1 libopengl0 libegl-mesa0 libgl1-mesa-dri libassimp-dev \
+        libopenvdb-dev libboost-iostreams-dev
       ;;
     test)
       echo libgtest-dev libgmock-dev libbenchmark-dev libnanoflann-dev libqhull-dev openssl curl \
-        shellcheck yamllint python3-yaml chromium chromium-driver python3-selenium
+        shellcheck yamllint python3-yaml chromium chromium-driver python3-selenium \
+        python3-openvdb assimp-testmodels
       ;;
     bench)  # the reference libraries of tests/bench/run.sh beyond the test group's, and the
       # stock Python gRPC client of tests/bench/serve.py

@@ -17,6 +17,8 @@ const char* const kUsage = R"(usage: gvd [--server HOST:PORT] [--scene ID] [--js
 Scenes:
   gvd scene create ID --window MIN_X,MIN_Y,MAX_X,MAX_Y --size WIDTHxHEIGHT [--max-error E]
                      [--render-mode mesh|exact] [--diagram nearest|farthest]
+  gvd scene create ID --window MIN_X,MIN_Y,MIN_Z,MAX_X,MAX_Y,MAX_Z --size WxHxD
+      a 3D scene: a box sampled at the centres of W x H x D voxels
   gvd scene get ID
   gvd scene ls
   gvd scene rm ID
@@ -31,6 +33,12 @@ Sites (of the scene named by --scene, default "default"):
   gvd sites add polygon ID X,Y X,Y X,Y [X,Y ...] [--side outside|inside]
   gvd sites add bezier ID X,Y X,Y X,Y [X,Y] [--tolerance T]
       any of them with [--additive A] [--multiplicative M] [--max-distance R]
+  gvd sites add point ID X,Y,Z                   3D sites, of a 3D scene
+  gvd sites add segment ID X,Y,Z X,Y,Z
+  gvd sites add triangle ID X,Y,Z X,Y,Z X,Y,Z
+  gvd sites add mesh ID --file MODEL   the triangles of a model file (OBJ, STL, PLY, glTF,
+                                       COLLADA, ...: what Assimp reads), instances and
+                                       transforms applied
   gvd sites add --file PATH   JSON: [{"id": "a", "point": {"x": 1, "y": 2}}, ...] or
                               {"sites": [...]} (every kind: "segment", "polyline",
                               "polygon", "bezier", as in the API); GeoJSON: a
@@ -46,6 +54,11 @@ Images:
              [--window MIN_X,MIN_Y,MAX_X,MAX_Y] [--draw-sites] [--min-version V]
       writes the scene's frame once its current version is rendered (or from
       --min-version V on); the format follows OUT's extension unless given
+  gvd volume SCENE -o OUT.vdb [--window MIN_X,MIN_Y,MIN_Z,MAX_X,MAX_Y,MAX_Z --size WxHxD]
+      a 3D scene's distances as an OpenVDB file: a float grid "distance" with every
+      sample active (a lower bound on the distance to the nearest site) and an int grid
+      "site" (its index in the file's metadata gvd_site_ids, one id a line; -1 none); the
+      scene's voxels, or W x H x D samples at the centres of the box's cells
 Structure (paper sec. 5, 6), of the scene named by --scene:
   gvd boundaries [--window W] [--method full|continuation]
       the Voronoi boundaries as polylines, one per line: SITE_A SITE_B X,Y X,Y ...
@@ -80,7 +93,8 @@ Queries:
   gvd nearest X Y [X Y ...] [--min-version V] [--exact] [--closest]
       prints, per point, the nearest site, its exact distance, and the error bound: no
       site is closer than distance - error_bound; --exact certifies each answer exact;
-      --closest adds the site's point nearest to X Y and the distance's unit gradient
+      --closest adds the site's point nearest to X Y and the distance's unit gradient;
+      a 3D scene's points are X Y Z
 
 Flags:
   --server HOST:PORT   default 127.0.0.1:50051, or $GVD_SERVER
@@ -106,7 +120,19 @@ double Number(const std::string& word, const std::string& what) {
 // --window MIN_X,MIN_Y,MAX_X,MAX_Y.
 void ParseWindow(const std::string& text, gvd::v1::Window* w) {
   std::vector<std::string> c = absl::StrSplit(text, ',');
-  if (c.size() != 4) Usage(absl::StrCat("--window needs MIN_X,MIN_Y,MAX_X,MAX_Y, not ", text));
+  if (c.size() == 6) {  // a 3D box
+    w->set_min_x(Number(c[0], "--window MIN_X"));
+    w->set_min_y(Number(c[1], "--window MIN_Y"));
+    w->set_min_z(Number(c[2], "--window MIN_Z"));
+    w->set_max_x(Number(c[3], "--window MAX_X"));
+    w->set_max_y(Number(c[4], "--window MAX_Y"));
+    w->set_max_z(Number(c[5], "--window MAX_Z"));
+    return;
+  }
+  if (c.size() != 4) {
+    Usage(absl::StrCat("--window needs MIN_X,MIN_Y,MAX_X,MAX_Y (or MIN_X,MIN_Y,MIN_Z,MAX_X,MAX_Y,"
+                       "MAX_Z for a 3D box), not ", text));
+  }
   w->set_min_x(Number(c[0], "--window MIN_X"));
   w->set_min_y(Number(c[1], "--window MIN_Y"));
   w->set_max_x(Number(c[2], "--window MAX_X"));
@@ -147,10 +173,14 @@ void ParsePoint(const std::string& text, const std::string& flag, v1::Point* p) 
   p->set_y(Number(c[1], flag + " Y"));
 }
 
-void ParseSize(const std::string& text, uint32_t* width, uint32_t* height) {
-  std::vector<std::string> wh = absl::StrSplit(text, 'x');
-  if (wh.size() != 2 || !absl::SimpleAtoi(wh[0], width) || !absl::SimpleAtoi(wh[1], height)) {
-    Usage(absl::StrCat("--size needs WIDTHxHEIGHT in pixels, not ", text));
+void ParseSize(const std::string& text, uint32_t* width, uint32_t* height, uint32_t* depth) {
+  std::vector<std::string> n = absl::StrSplit(text, 'x');
+  const bool three = depth != nullptr && n.size() == 3;
+  if (depth != nullptr) *depth = 0;
+  if ((n.size() != 2 && !three) || !absl::SimpleAtoi(n[0], width) ||
+      !absl::SimpleAtoi(n[1], height) || (three && !absl::SimpleAtoi(n[2], depth))) {
+    Usage(absl::StrCat("--size needs WIDTHxHEIGHT in pixels", depth ? " (or WxHxD voxels)" : "",
+                       ", not ", text));
   }
 }
 

@@ -33,12 +33,14 @@ extern const char* const kUsage;
 
 // The number in `word`, or Usage naming `what`.
 double Number(const std::string& word, const std::string& what);
-// MIN_X,MIN_Y,MAX_X,MAX_Y (of --window).
+// MIN_X,MIN_Y,MAX_X,MAX_Y (of --window), or MIN_X,MIN_Y,MIN_Z,MAX_X,MAX_Y,MAX_Z (a 3D box).
 void ParseWindow(const std::string& text, v1::Window* w);
 // X,Y (of a flag such as --from).
 void ParsePoint(const std::string& text, const std::string& flag, v1::Point* p);
-// WIDTHxHEIGHT in pixels (of --size).
-void ParseSize(const std::string& text, uint32_t* width, uint32_t* height);
+// WIDTHxHEIGHT in pixels (of --size); with `depth`, also WIDTHxHEIGHTxDEPTH voxels (*depth
+// is 0 when there are two numbers).
+void ParseSize(const std::string& text, uint32_t* width, uint32_t* height,
+               uint32_t* depth = nullptr);
 // The value of a command flag, or null.
 const std::string* Option(const Args& a, const char* name);
 // --min-version V, or 0.
@@ -54,5 +56,16 @@ std::string Num(double v);
 // neighbors, delaunay, zoom, clearance, plan, pick, mosaic. Returns the exit code, or -1 when
 // the command is none of them.
 int RunAnalysis(const Args& a, Client& client);
+
+// The commands of 3D scenes (cli_space.cc): volume (a scene's distances as an OpenVDB file).
+// Returns the exit code, or -1 when the command is none of them.
+int RunSpace(const Args& a, Client& client);
+
+// The triangles of a model file (OBJ, STL, PLY, glTF, COLLADA, ... : what Assimp reads), its
+// scene graph flattened with its transforms, as a mesh; false with *error naming the file.
+bool ReadModel(const std::string& path, v1::Mesh* mesh, std::string* error);
+
+// "X,Y,Z" (a 3D point of a command's words).
+void ParsePoint3(const std::string& text, v1::Point* p);
 
 }  // namespace gvd::cli

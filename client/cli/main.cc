@@ -110,11 +110,16 @@ Args ParseArgs(int argc, char** argv) {
 
 void PrintScene(const gvd::v1::Scene& s) {
   const auto& w = s.window();
-  std::cout << "scene " << s.scene_id() << ": window [" << Num(w.min_x()) << ", " << Num(w.max_x())
-            << "] x [" << Num(w.min_y()) << ", " << Num(w.max_y()) << "], " << s.width_px() << "x"
-            << s.height_px() << " px, max_error " << Num(s.max_error()) << ", "
-            << (s.render_mode() == gvd::v1::EXACT ? std::string("exact render")
-                                                  : absl::StrCat(s.cone_triangles(), " triangles per cone"))
+  const bool space = s.depth_px() > 0;
+  std::cout << "scene " << s.scene_id() << ": " << (space ? "box [" : "window [") << Num(w.min_x())
+            << ", " << Num(w.max_x()) << "] x [" << Num(w.min_y()) << ", " << Num(w.max_y()) << "]"
+            << (space ? absl::StrCat(" x [", Num(w.min_z()), ", ", Num(w.max_z()), "]") : "")
+            << ", " << s.width_px() << "x" << s.height_px()
+            << (space ? absl::StrCat("x", s.depth_px(), " voxels") : std::string(" px"))
+            << ", max_error " << Num(s.max_error()) << ", "
+            << (s.render_mode() == gvd::v1::EXACT || space
+                    ? std::string("exact render")
+                    : absl::StrCat(s.cone_triangles(), " triangles per cone"))
             << ", version " << s.version() << ", "
             << s.site_count() << " sites, rendered version " << s.rendered_version() << "\n";
 }
@@ -269,6 +274,7 @@ int Run(const Args& a) {
   if (!a.tls_key.empty()) options.tls_key = read("--tls-key", a.tls_key);
   auto client = gvd::Client::Connect(a.server, options);
   if (int rc = RunAnalysis(a, *client); rc >= 0) return rc;
+  if (int rc = RunSpace(a, *client); rc >= 0) return rc;
   auto need = [&](size_t n, const char* form) {
     if (w.size() != n) Usage(absl::StrCat("usage: gvd ", form));
   };
@@ -287,13 +293,11 @@ int Run(const Args& a) {
       const std::string* size = option("--size");
       if (!window || !size) Usage("scene create needs --window and --size");
       ParseWindow(*window, r.mutable_window());
-      std::vector<std::string> wh = absl::StrSplit(*size, 'x');
-      uint32_t width, height;
-      if (wh.size() != 2 || !absl::SimpleAtoi(wh[0], &width) || !absl::SimpleAtoi(wh[1], &height)) {
-        Usage(absl::StrCat("--size needs WIDTHxHEIGHT in pixels, not ", *size));
-      }
+      uint32_t width, height, depth;
+      ParseSize(*size, &width, &height, &depth);
       r.set_width_px(width);
       r.set_height_px(height);
+      r.set_depth_px(depth);
       if (const std::string* e = option("--max-error")) r.set_max_error(Number(*e, "--max-error"));
       if (const std::string* m = option("--render-mode")) {
         if (*m != "mesh" && *m != "exact") Usage("--render-mode must be mesh or exact");
@@ -369,7 +373,37 @@ int Run(const Args& a) {
     const std::string& verb = w[1];
     if (verb == "add") {
       gvd::v1::UpsertSitesRequest r;
-      if (const std::string* file = option("--file")) {
+      static const std::set<std::string> kSpace = {"point", "triangle", "mesh"};
+      const std::string* file = option("--file");
+      const bool space_kind = w.size() >= 3 && kSpace.count(w[2]) > 0;
+      std::string model;  // the model file a mesh came from
+      if (space_kind) {
+        // 3D sites: ID and X,Y,Z points; a mesh from a model file.
+        if (w.size() < 4) Usage(absl::StrCat("sites add ", w[2], " needs an ID"));
+        auto* site = r.add_sites();
+        site->set_id(w[3]);
+        if (w[2] == "mesh") {
+          if (!file || w.size() != 4) Usage("usage: gvd sites add mesh ID --file MODEL");
+          std::string error;
+          if (!ReadModel(*file, site->mutable_mesh(), &error)) {
+            std::fprintf(stderr, "gvd: %s\n", error.c_str());
+            return 2;
+          }
+          model = *file;
+        } else {
+          const size_t n = w[2] == "point" ? 1 : 3;
+          if (w.size() != 4 + n) Usage(absl::StrCat("usage: gvd sites add ", w[2], " ID", n == 1 ? " X,Y,Z" : " X,Y,Z X,Y,Z X,Y,Z"));
+          if (n == 1) {
+            ParsePoint3(w[4], site->mutable_point());
+          } else {
+            ParsePoint3(w[4], site->mutable_triangle()->mutable_a());
+            ParsePoint3(w[5], site->mutable_triangle()->mutable_b());
+            ParsePoint3(w[6], site->mutable_triangle()->mutable_c());
+          }
+        }
+        file = nullptr;
+      }
+      if (file) {
         std::string error;
         if (!ReadSites(*file, &r, &error)) {
           std::fprintf(stderr, "gvd: %s\n", error.c_str());
@@ -385,8 +419,12 @@ int Run(const Args& a) {
         std::vector<gvd::v1::Point> pts;
         for (size_t i = 4; i < w.size(); ++i) {
           std::vector<std::string> xy = absl::StrSplit(w[i], ',');
-          if (xy.size() != 2) Usage(absl::StrCat("points are X,Y, not \"", w[i], "\""));
           pts.emplace_back();
+          if (xy.size() == 3 && w[2] == "segment") {  // a 3D scene's segment
+            ParsePoint3(w[i], &pts.back());
+            continue;
+          }
+          if (xy.size() != 2) Usage(absl::StrCat("points are X,Y, not \"", w[i], "\""));
           pts.back().set_x(Number(xy[0], "X"));
           pts.back().set_y(Number(xy[1], "Y"));
         }
@@ -409,7 +447,7 @@ int Run(const Args& a) {
             site->mutable_bezier()->set_tolerance(Number(*t, "--tolerance"));
           }
         }
-      } else {
+      } else if (!space_kind) {
         if ((w.size() - 2) % 3 != 0) Usage("sites add takes triples ID X Y");
         for (size_t i = 2; i + 2 < w.size(); i += 3) {
           auto* site = r.add_sites();
@@ -427,7 +465,13 @@ int Run(const Args& a) {
         if (const std::string* v = option("--max-distance")) site.set_max_distance(Number(*v, "--max-distance"));
       }
       uint64_t version = 0;
-      if (auto s = client->UpsertSites(r, &version); !s.ok()) return Fail(s);
+      if (auto s = client->UpsertSites(r, &version); !s.ok()) {
+        // A model refused (over a limit, say) names its file too.
+        if (!model.empty()) {
+          return Fail(grpc::Status(s.error_code(), absl::StrCat(model, ": ", s.error_message())));
+        }
+        return Fail(s);
+      }
       std::cout << "upserted " << r.sites_size() << " sites; scene " << a.scene << " is at version "
                 << version << "\n";
       return 0;
@@ -451,7 +495,31 @@ int Run(const Args& a) {
         PrintJson(all);
         return 0;
       }
+      auto xyz = [](const gvd::v1::Point& p) {
+        return absl::StrCat(Num(p.x()), ",", Num(p.y()), ",", Num(p.z()));
+      };
       for (const auto& s : sites) {
+        // 3D sites: a point or a segment with a z, a triangle, a mesh (its size).
+        const bool space = (s.has_point() && s.point().z() != 0) ||
+                           (s.has_segment() && (s.segment().a().z() != 0 || s.segment().b().z() != 0));
+        if (space && s.has_point()) {
+          std::cout << s.id() << "\tpoint\t" << xyz(s.point()) << "\n";
+          continue;
+        }
+        if (space) {
+          std::cout << s.id() << "\tsegment\t" << xyz(s.segment().a()) << "\t" << xyz(s.segment().b()) << "\n";
+          continue;
+        }
+        if (s.has_triangle()) {
+          std::cout << s.id() << "\ttriangle\t" << xyz(s.triangle().a()) << "\t" << xyz(s.triangle().b())
+                    << "\t" << xyz(s.triangle().c()) << "\n";
+          continue;
+        }
+        if (s.has_mesh()) {
+          std::cout << s.id() << "\tmesh\t" << s.mesh().xyz_size() / 3 << " vertices\t"
+                    << s.mesh().triangles_size() / 3 << " triangles\n";
+          continue;
+        }
         if (s.has_point()) {
           std::cout << s.id() << "\t" << Num(s.point().x()) << "\t" << Num(s.point().y()) << "\n";
           continue;
@@ -498,13 +566,22 @@ int Run(const Args& a) {
   }
 
   if (w[0] == "nearest") {
-    if (w.size() < 3 || (w.size() - 1) % 2 != 0) Usage("usage: gvd nearest X Y [X Y ...]");
+    if (w.size() < 3) Usage("usage: gvd nearest X Y [X Y ...] (X Y Z in a 3D scene)");
+    // A 3D scene's points are X Y Z triples: the scene says which.
+    gvd::v1::Scene scene;
+    if (auto s = client->GetScene(a.scene, &scene); !s.ok()) return Fail(s);
+    const size_t dims = scene.depth_px() > 0 ? 3 : 2;
+    if (w.size() < 1 + dims || (w.size() - 1) % dims != 0) {
+      Usage(dims == 3 ? "usage: gvd nearest X Y Z [X Y Z ...] (a 3D scene)"
+                      : "usage: gvd nearest X Y [X Y ...]");
+    }
     gvd::v1::FindNearestRequest r;
     r.set_scene_id(a.scene);
-    for (size_t i = 1; i + 1 < w.size(); i += 2) {
+    for (size_t i = 1; i + dims - 1 < w.size(); i += dims) {
       auto* p = r.add_points();
       p->set_x(Number(w[i], "X"));
       p->set_y(Number(w[i + 1], "Y"));
+      if (dims == 3) p->set_z(Number(w[i + 2], "Z"));
     }
     if (const std::string* v = option("--min-version")) {
       uint64_t mv;
@@ -523,24 +600,30 @@ int Run(const Args& a) {
       PrintJson(response);
       return 0;
     }
-    std::cout << "x\ty\tsite\tdistance\terror_bound\texact\tfeature"
+    std::cout << (dims == 3 ? "x\ty\tz" : "x\ty") << "\tsite\tdistance\terror_bound\texact\tfeature"
               << (closest ? "\tclosest\tgradient\n" : "\n");
+    // X,Y or X,Y,Z.
+    auto point = [&](const gvd::v1::Point& p) {
+      return dims == 3 ? absl::StrCat(Num(p.x()), ",", Num(p.y()), ",", Num(p.z()))
+                       : absl::StrCat(Num(p.x()), ",", Num(p.y()));
+    };
     for (int i = 0; i < response.results_size(); ++i) {
       const auto& n = response.results(i);
       std::cout << Num(r.points(i).x()) << "\t" << Num(r.points(i).y()) << "\t";
+      if (dims == 3) std::cout << Num(r.points(i).z()) << "\t";
       if (n.empty()) {
         std::cout << "(none)\tinf\t0\tyes\t-" << (closest ? "\t-\t-\n" : "\n");
         continue;
       }
       std::string kind = n.feature_kind() == gvd::v1::EDGE    ? "edge"
                          : n.feature_kind() == gvd::v1::CURVE ? "curve"
+                         : n.feature_kind() == gvd::v1::FACE  ? "face"
                                                               : "vertex";
       std::cout << n.site_id() << "\t" << Num(n.distance()) << "\t" << Num(n.error_bound())
                 << "\t" << (n.exact() ? "yes" : "no") << "\t" << kind << " "
                 << n.feature_index();
       if (closest) {
-        std::cout << "\t" << Num(n.closest().x()) << "," << Num(n.closest().y()) << "\t"
-                  << Num(n.gradient().x()) << "," << Num(n.gradient().y());
+        std::cout << "\t" << point(n.closest()) << "\t" << point(n.gradient());
       }
       std::cout << "\n";
     }

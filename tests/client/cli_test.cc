@@ -11,7 +11,12 @@
 #include <fstream>
 #include <sstream>
 
+#include "absl/strings/escaping.h"
+#include "absl/strings/str_cat.h"
+#include "gvd/client.h"
 #include "render/kernel/exact2.h"
+#include "tests/support/meshes3.h"
+#include "tests/support/oracle3.h"
 #include "tests/support/server_process.h"
 
 namespace gvd {
@@ -389,6 +394,186 @@ TEST_F(CliTest, UnreachableServerIsAClearError) {
   int status = pclose(p);
   EXPECT_EQ(WEXITSTATUS(status), 1);
   EXPECT_NE(std::string(buf, n).find("UNAVAILABLE"), std::string::npos) << buf;
+}
+
+}  // namespace
+}  // namespace gvd
+
+namespace gvd {
+namespace {
+
+// A glTF file of one torus drawn twice, by two nodes with transforms of their own, and the
+// mesh Assimp should make of it (the transforms applied). Coordinates are multiples of
+// 2^-16 below 4, so that float and every transform below are exact.
+struct Model {
+  std::string gltf;
+  MeshSite3 flattened;
+};
+
+Model TwoRings() {
+  const MeshSite3 torus = Torus(0.6, 0.2, 24, 12);
+  std::vector<Vec3> v;
+  for (Vec3 p : torus.vertices) v.push_back(glm::round(p * 65536.0) / 65536.0);
+  std::string buffer;
+  for (Vec3 p : v) {
+    for (int k = 0; k < 3; ++k) {
+      const float f = static_cast<float>(p[k]);
+      buffer.append(reinterpret_cast<const char*>(&f), 4);
+    }
+  }
+  const size_t positions = buffer.size();
+  for (const auto& t : torus.triangles) {
+    for (uint32_t i : t) buffer.append(reinterpret_cast<const char*>(&i), 4);
+  }
+  Model m;
+  m.gltf = absl::StrCat(R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1]}],
+"nodes": [{"mesh": 0, "translation": [1.25, 2, 0.5]},
+          {"mesh": 0, "translation": [3, 1.5, 1], "scale": [0.5, 0.5, 0.5]}],
+"meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+"buffers": [{"byteLength": )", buffer.size(), R"(, "uri": "data:application/octet-stream;base64,)",
+                        absl::Base64Escape(buffer), R"("}],
+"bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": )", positions, R"(},
+                {"buffer": 0, "byteOffset": )", positions, R"(, "byteLength": )",
+                        buffer.size() - positions, R"(}],
+"accessors": [{"bufferView": 0, "componentType": 5126, "count": )", v.size(),
+                        R"(, "type": "VEC3", "min": [-0.8, -0.8, -0.2], "max": [0.8, 0.8, 0.2]},
+              {"bufferView": 1, "componentType": 5125, "count": )", 3 * torus.triangles.size(),
+                        R"(, "type": "SCALAR"}]})");
+  std::vector<double> xyz;
+  std::vector<uint32_t> tri;
+  for (auto [offset, scale] : {std::pair{Vec3(1.25, 2, 0.5), 1.0}, {Vec3(3, 1.5, 1), 0.5}}) {
+    const uint32_t base = static_cast<uint32_t>(xyz.size() / 3);
+    for (Vec3 p : v) {
+      const Vec3 w = p * scale + offset;
+      xyz.insert(xyz.end(), {w.x, w.y, w.z});
+    }
+    for (const auto& t : torus.triangles) {
+      for (uint32_t i : t) tri.push_back(base + i);
+    }
+  }
+  m.flattened = Mesh(xyz, tri);
+  return m;
+}
+
+// The README's 3D tour: a scene made by the CLI, a mesh loaded from a model file (its scene
+// graph flattened), 10,000 nearest queries with closest points and gradients against the
+// oracle, and the scene's distances written as an OpenVDB file that OpenVDB's Python reads
+// back with the same values; a file Assimp cannot read, and a model over the server's limit,
+// refused by name with nothing stored.
+TEST_F(CliTest, A3DSceneFromAModelFileToOpenVdb) {
+  const Model model = TwoRings();
+  const std::string path = WriteFile("rings.gltf", model.gltf);
+  Result r = Gvd("scene create model --window 0,0,-1,4,4,2 --size 24x24x18");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("box [0, 4] x [0, 4] x [-1, 2], 24x24x18 voxels"), std::string::npos)
+      << r.out;
+  r = Gvd("--scene model sites add mesh rings --file " + path);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("upserted 1 sites; scene model is at version 2"), std::string::npos) << r.out;
+  r = Gvd("--scene model sites ls");
+  EXPECT_NE(r.out.find("rings\tmesh\t"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\t1152 triangles"), std::string::npos) << r.out;
+
+  // 10,000 queries in and around the box, against the oracle's distance to the flattened
+  // model.
+  auto client = Client::Connect(server_->address());
+  v1::FindNearestRequest q;
+  q.set_scene_id("model");
+  q.set_min_version(2);
+  for (auto f : {v1::FindNearestRequest::SITE, v1::FindNearestRequest::DISTANCE,
+                 v1::FindNearestRequest::ERROR_BOUND, v1::FindNearestRequest::CLOSEST,
+                 v1::FindNearestRequest::GRADIENT}) {
+    q.add_fields(f);
+  }
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(-0.5, 4.5), uz(-1.5, 2.5);
+  std::vector<Vec3> points;
+  for (int i = 0; i < 10000; ++i) {
+    points.push_back({u(rng), u(rng), uz(rng)});
+    for (int k = 0; k < 3; ++k) q.add_xyz(points.back()[k]);
+  }
+  v1::FindNearestResponse answer;
+  grpc::Status st = client->FindNearest(q, &answer);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  const v1::PackedNearest& p = answer.packed();
+  ASSERT_EQ(p.distance_size(), 10000);
+  int failures = 0;
+  for (int i = 0; i < 10000 && failures < 10; ++i) {
+    const Vec3 x = points[i];
+    const double d = double(oracle3::ToGeometry(x, model.flattened));
+    const Vec3 c(p.closest(3 * i), p.closest(3 * i + 1), p.closest(3 * i + 2));
+    const Vec3 g(p.gradient(3 * i), p.gradient(3 * i + 1), p.gradient(3 * i + 2));
+    const double tol = 1e-9 * (1 + d);
+    const bool ok = p.distance(i) >= d - tol && p.distance(i) - d <= p.error_bound(i) + tol &&
+                    double(oracle3::ToGeometry(c, model.flattened)) <= 1e-9 &&
+                    std::abs(Distance(x, c) - p.distance(i)) <= tol &&
+                    Length(g - (x - c) / Distance(x, c)) <= 1e-9;
+    if (!ok) {
+      ++failures;
+      ADD_FAILURE() << "q " << x.x << "," << x.y << "," << x.z << ": " << p.distance(i)
+                    << " bound " << p.error_bound(i) << ", oracle " << d;
+    }
+  }
+
+  // The volume, as OpenVDB's Python reads it: the grid "distance", every voxel active,
+  // index (0, 0, 0) at the first voxel's centre, the values of the clearance field.
+  const std::string vdb = server_->dir() + "/model.vdb";
+  r = Gvd("volume model -o " + vdb);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("24x24x18 distances of scene model at version 2"), std::string::npos) << r.out;
+  const std::string dump = server_->dir() + "/model.txt";
+  r = Run("/usr/bin/python3 -c \"import sys, pyopenvdb as vdb\n"
+          "g = vdb.read(sys.argv[1], 'distance')\n"
+          "m = vdb.readMetadata(sys.argv[1])\n"
+          "out = open(sys.argv[2], 'w')\n"
+          "print(g.activeVoxelCount(), *g.transform.indexToWorld((0, 0, 0)), m['gvd_site_ids'], file=out)\n"
+          "a = g.getConstAccessor()\n"
+          "for k in range(18):\n"
+          "  for j in range(24):\n"
+          "    for i in range(24): print(repr(a.getValue((i, j, k))), file=out)\n\" " +
+          vdb + " " + dump);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  v1::GetClearanceFieldRequest fr;
+  fr.set_scene_id("model");
+  fr.set_min_version(2);
+  v1::GetClearanceFieldResponse field;
+  ASSERT_TRUE(client->GetClearanceField(fr, &field).ok());
+  std::ifstream in(dump);
+  size_t active;
+  Vec3 origin;
+  std::string ids;
+  in >> active >> origin.x >> origin.y >> origin.z >> ids;
+  EXPECT_EQ(active, 24u * 24 * 18);
+  EXPECT_EQ(origin, Vec3(4.0 / 48, 4.0 / 48, -1 + 3.0 / 36));
+  EXPECT_EQ(ids, "rings");
+  ASSERT_EQ(field.clearance_size(), 24 * 24 * 18);
+  for (int n = 0; n < field.clearance_size(); ++n) {
+    double value;
+    ASSERT_TRUE(in >> value) << n;
+    ASSERT_EQ(float(value), field.clearance(n)) << n;
+  }
+
+  // A file Assimp cannot read; a model over the server's limit (a server of its own).
+  const std::string junk = WriteFile("junk.obj", "this is not a model\n");
+  r = Gvd("--scene model sites add mesh junk --file " + junk);
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find(junk + ": "), std::string::npos) << r.out;
+  testing::ServerProcess small(GVD_SERVER_PATH, {"--max-triangles-per-mesh", "1000"});
+  ASSERT_TRUE(small.error().empty()) << small.error();
+  r = Run(std::string(GVD_CLI_PATH) + " --server " + small.address() +
+          " scene create model --window 0,0,-1,4,4,2 --size 8x8x8");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  r = Run(std::string(GVD_CLI_PATH) + " --server " + small.address() +
+          " --scene model sites add mesh rings --file " + path);
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find("RESOURCE_EXHAUSTED: " + path + ": sites[0].mesh.triangles holds 1152 "
+                       "triangles; the limit is 1000 (--max-triangles-per-mesh)"),
+            std::string::npos)
+      << r.out;
+  r = Run(std::string(GVD_CLI_PATH) + " --server " + small.address() + " --scene model sites ls");
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_EQ(r.out, "");
+  ASSERT_EQ(Gvd("scene rm model").exit_code, 0);
 }
 
 }  // namespace
