@@ -54,6 +54,8 @@ Images:
              [--window MIN_X,MIN_Y,MAX_X,MAX_Y] [--draw-sites] [--min-version V]
       writes the scene's frame once its current version is rendered (or from
       --min-version V on); the format follows OUT's extension unless given
+  gvd render SCENE -o OUT --z Z | --slice K [--layer ...] [--window ...]
+      a 3D scene's slice: the one holding Z, or slice K (0 at the box's min z)
   gvd volume SCENE -o OUT.vdb [--window MIN_X,MIN_Y,MIN_Z,MAX_X,MAX_Y,MAX_Z --size WxHxD]
       a 3D scene's distances as an OpenVDB file: a float grid "distance" with every
       sample active (a lower bound on the distance to the nearest site) and an int grid

@@ -60,6 +60,8 @@ ABSL_FLAG(std::string, radius, "", "<R>");
 ABSL_FLAG(std::string, prefer, "", "<clearance|shortest>");
 ABSL_FLAG(std::string, tiles, "", "<N>");
 ABSL_FLAG(std::string, seed, "", "<S>");
+ABSL_FLAG(std::string, z, "", "<Z> (render: the slice of a 3D scene holding Z)");
+ABSL_FLAG(std::string, slice, "", "<K> (render: slice K of a 3D scene)");
 ABSL_FLAG(bool, draw_sites, false, "");
 ABSL_FLAG(bool, coarse, false, "");
 ABSL_FLAG(bool, adaptive, false, "");
@@ -649,6 +651,12 @@ int Run(const Args& a) {
                                  : gvd::v1::RenderImageRequest::PNG);
     if (const std::string* window = option("--window")) ParseWindow(*window, r.mutable_window());
     r.set_draw_sites(option("--draw-sites") != nullptr);
+    if (const std::string* z = option("--z")) r.set_z(Number(*z, "--z"));
+    if (const std::string* k = option("--slice")) {
+      uint32_t slice;
+      if (!absl::SimpleAtoi(*k, &slice)) Usage(absl::StrCat("--slice needs a slice index, not ", *k));
+      r.set_slice(slice);
+    }
     if (const std::string* v = option("--min-version")) {
       uint64_t mv;
       if (!absl::SimpleAtoi(*v, &mv)) Usage("--min-version needs a version number");
@@ -667,8 +675,11 @@ int Run(const Args& a) {
       return 1;
     }
     std::cout << "wrote " << *out << ": " << response.width_px() << "x" << response.height_px()
-              << " " << layer << " of scene " << w[1] << " at version " << response.version()
-              << "\n";
+              << " " << layer << " of scene " << w[1]
+              << (r.has_z() || r.has_slice()
+                      ? absl::StrCat(", slice ", response.slice(), " (z ", Num(response.slice_z()), ")")
+                      : "")
+              << " at version " << response.version() << "\n";
     return 0;
   }
   Usage(absl::StrCat("unknown command \"", absl::StrJoin(w, " "), "\""));

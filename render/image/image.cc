@@ -5,11 +5,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <unordered_map>
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "render/kernel/exact2.h"
+#include "render/kernel/exact3.h"
 
 namespace gvd {
 namespace {
@@ -107,113 +109,187 @@ void SiteColour(const std::string& id, uint32_t feature, uint8_t rgb[3]) {
   rgb[2] = static_cast<uint8_t>(b * 255);
 }
 
-absl::StatusOr<EncodedImage> EncodeImage(const Frame& f, const ImageOptions& o) {
-  const PixelRect& rect = o.rect;
-  const uint32_t w = rect.width(), h = rect.height();
-  EncodedImage out;
-  out.width = w;
-  out.height = h;
-  const bool png = o.format == ImageFormat::kPng;
+namespace {
+
+// What an image's pixel (x, y) of a w x h image shows, y = 0 its bottom row: its site (slot
+// + 1, or 0) and value; the id of a site; the feature of a site nearest to a pixel, as a
+// number (kFeatures).
+struct PixelSource {
+  uint32_t width = 0, height = 0;
+  std::function<ShownSite(uint32_t x, uint32_t y)> shown;
+  std::function<const std::string&(uint32_t id)> site_id;
+  std::function<uint32_t(uint32_t x, uint32_t y, uint32_t id)> feature;
+};
+
+// An image being made: its pixels (one of the three buffers) and their spec.
+struct Raster {
   OIIO::ImageSpec spec;
   std::vector<uint8_t> rgb;
   std::vector<uint16_t> grey;
   std::vector<float> depth;
-  std::vector<uint32_t> scratch;  // Shown's
+};
+
+// The layer of the options, of the source's pixels.
+absl::Status Fill(const PixelSource& src, const ImageOptions& o, Raster* r, EncodedImage* out) {
+  const uint32_t w = src.width, h = src.height;
+  out->width = w;
+  out->height = h;
+  const bool png = o.format == ImageFormat::kPng;
+  auto row = [&](uint32_t y) { return size_t(h - 1 - y) * w; };  // row 0 at the top
   if (o.layer == ImageLayer::kDistance) {
     double max_value = 0;
-    for (uint32_t j = rect.y0; j < rect.y1; ++j) {
-      for (uint32_t i = rect.x0; i < rect.x1; ++i) {
-        if (ShownSite s = Shown(f, i, j, &scratch); s.id) max_value = std::max(max_value, s.value);
+    for (uint32_t y = 0; y < h; ++y) {
+      for (uint32_t x = 0; x < w; ++x) {
+        if (ShownSite s = src.shown(x, y); s.id) max_value = std::max(max_value, s.value);
       }
     }
     if (png) {
-      grey.resize(size_t{w} * h);
-      spec = OIIO::ImageSpec(int(w), int(h), 1, OIIO::TypeDesc::UINT16);
+      r->grey.resize(size_t{w} * h);
+      r->spec = OIIO::ImageSpec(int(w), int(h), 1, OIIO::TypeDesc::UINT16);
     } else {
-      depth.resize(size_t{w} * h);
-      spec = OIIO::ImageSpec(int(w), int(h), 1, OIIO::TypeDesc::FLOAT);
-      spec.channelnames = {"Z"};
+      r->depth.resize(size_t{w} * h);
+      r->spec = OIIO::ImageSpec(int(w), int(h), 1, OIIO::TypeDesc::FLOAT);
+      r->spec.channelnames = {"Z"};
     }
-    for (uint32_t j = rect.y0; j < rect.y1; ++j) {
-      for (uint32_t i = rect.x0; i < rect.x1; ++i) {
-        size_t at = size_t(rect.y1 - 1 - j) * w + (i - rect.x0);
-        const ShownSite s = Shown(f, i, j, &scratch);
+    for (uint32_t y = 0; y < h; ++y) {
+      for (uint32_t x = 0; x < w; ++x) {
+        const size_t at = row(y) + x;
+        const ShownSite s = src.shown(x, y);
         const bool shown = s.id != 0;
         const double v = s.value;
         if (png) {
-          grey[at] = shown && max_value > 0
-                         ? static_cast<uint16_t>(std::lround(std::min(v / max_value, 1.0) * 65535))
-                         : 0;
+          r->grey[at] = shown && max_value > 0
+                            ? static_cast<uint16_t>(std::lround(std::min(v / max_value, 1.0) * 65535))
+                            : 0;
         } else {
-          depth[at] = shown ? static_cast<float>(v) : INFINITY;
+          r->depth[at] = shown ? static_cast<float>(v) : INFINITY;
         }
       }
     }
-    spec.attribute("gvd:max_distance", static_cast<float>(max_value));
-  } else {
-    if (!png) return absl::InvalidArgumentError("format EXR holds the DISTANCE layer only");
-    rgb.assign(size_t{w} * h * 3, 0);
-    spec = OIIO::ImageSpec(int(w), int(h), 3, OIIO::TypeDesc::UINT8);
-    std::unordered_map<uint32_t, uint32_t> index;  // kSiteIndex: slot + 1 -> number written
-    for (uint32_t j = rect.y0; j < rect.y1; ++j) {
-      for (uint32_t i = rect.x0; i < rect.x1; ++i) {
-        const uint32_t id = Shown(f, i, j, &scratch).id;
-        if (id == 0) continue;
-        if (o.layer == ImageLayer::kSiteIndex) {
-          auto [it, fresh] = index.try_emplace(id, static_cast<uint32_t>(out.site_ids.size() + 1));
-          if (fresh) {
-            if (it->second >= (1u << 24)) {
-              return absl::ResourceExhaustedError(
-                  "the window shows more than 16,777,215 sites: SITE_INDEX holds 24 bits");
-            }
-            out.site_ids.push_back(f.sites().get(id - 1)->id);
+    r->spec.attribute("gvd:max_distance", static_cast<float>(max_value));
+    return absl::OkStatus();
+  }
+  if (!png) return absl::InvalidArgumentError("format EXR holds the DISTANCE layer only");
+  r->rgb.assign(size_t{w} * h * 3, 0);
+  r->spec = OIIO::ImageSpec(int(w), int(h), 3, OIIO::TypeDesc::UINT8);
+  std::unordered_map<uint32_t, uint32_t> index;  // kSiteIndex: slot + 1 -> number written
+  for (uint32_t y = 0; y < h; ++y) {
+    for (uint32_t x = 0; x < w; ++x) {
+      const uint32_t id = src.shown(x, y).id;
+      if (id == 0) continue;
+      uint8_t* px = &r->rgb[(row(y) + x) * 3];
+      if (o.layer == ImageLayer::kSiteIndex) {
+        auto [it, fresh] = index.try_emplace(id, static_cast<uint32_t>(out->site_ids.size() + 1));
+        if (fresh) {
+          if (it->second >= (1u << 24)) {
+            return absl::ResourceExhaustedError(
+                "the window shows more than 16,777,215 sites: SITE_INDEX holds 24 bits");
           }
-          uint8_t* px = &rgb[(size_t(rect.y1 - 1 - j) * w + (i - rect.x0)) * 3];
-          px[0] = static_cast<uint8_t>(it->second >> 16);
-          px[1] = static_cast<uint8_t>(it->second >> 8);
-          px[2] = static_cast<uint8_t>(it->second);
-          continue;
+          out->site_ids.push_back(src.site_id(id));
         }
-        const Site& site = *f.sites().get(id - 1);
-        uint32_t feature = 0;
-        if (o.layer == ImageLayer::kFeatures) {
-          FeatureHit hit = NearestFeature(f.grid().Center(i, j), site);
-          feature = 1 + (hit.index << 2 | static_cast<uint32_t>(hit.kind));
-        }
-        SiteColour(site.id, feature, &rgb[(size_t(rect.y1 - 1 - j) * w + (i - rect.x0)) * 3]);
+        px[0] = static_cast<uint8_t>(it->second >> 16);
+        px[1] = static_cast<uint8_t>(it->second >> 8);
+        px[2] = static_cast<uint8_t>(it->second);
+        continue;
       }
+      const uint32_t feature = o.layer == ImageLayer::kFeatures ? src.feature(x, y, id) : 0;
+      SiteColour(src.site_id(id), feature, px);
     }
   }
-  if (o.draw_sites || !o.polyline.empty()) {
-    if (!png) return absl::InvalidArgumentError("draw_sites and polyline need format PNG");
-    if (rgb.empty()) {  // a distance layer: grey to RGB
-      rgb.resize(size_t{w} * h * 3);
-      for (size_t k = 0; k < grey.size(); ++k) rgb[3 * k] = rgb[3 * k + 1] = rgb[3 * k + 2] = grey[k] >> 8;
-      spec = OIIO::ImageSpec(int(w), int(h), 3, OIIO::TypeDesc::UINT8);
-      grey.clear();
-    }
-    if (o.draw_sites) DrawSites(f, rect, &rgb);
-    static constexpr uint8_t kRed[3] = {255, 32, 32};
-    const int thick = std::max<int>(3, std::min(w, h) / 256 * 2 + 1);
-    for (size_t k = 1; k < o.polyline.size(); ++k) {
-      DrawSegment(f.grid(), rect, o.polyline[k - 1], o.polyline[k], kRed, thick, &rgb);
-    }
-  }
-  OIIO::Filesystem::IOVecOutput proxy(out.bytes);
+  return absl::OkStatus();
+}
+
+// The image, encoded.
+absl::Status Write(const ImageOptions& o, Raster* r, EncodedImage* out) {
+  const bool png = o.format == ImageFormat::kPng;
+  OIIO::Filesystem::IOVecOutput proxy(out->bytes);
   const std::string name = png ? "image.png" : "image.exr";
   auto writer = OIIO::ImageOutput::create(name, &proxy);
   if (!writer) {
     return absl::InternalError(absl::StrCat("OpenImageIO has no writer for ", name, ": ",
                                             OIIO::geterror()));
   }
-  if (!png) spec.attribute("compression", "zip");
-  const void* data = !rgb.empty() ? static_cast<const void*>(rgb.data())
-                     : !grey.empty() ? static_cast<const void*>(grey.data())
-                                     : static_cast<const void*>(depth.data());
-  if (!writer->open(name, spec) || !writer->write_image(spec.format, data) || !writer->close()) {
+  if (!png) r->spec.attribute("compression", "zip");
+  const void* data = !r->rgb.empty()    ? static_cast<const void*>(r->rgb.data())
+                     : !r->grey.empty() ? static_cast<const void*>(r->grey.data())
+                                        : static_cast<const void*>(r->depth.data());
+  if (!writer->open(name, r->spec) || !writer->write_image(r->spec.format, data) || !writer->close()) {
     return absl::InternalError(absl::StrCat("encoding the image: ", writer->geterror()));
   }
-  out.mime_type = png ? "image/png" : "image/x-exr";
+  out->mime_type = png ? "image/png" : "image/x-exr";
+  return absl::OkStatus();
+}
+
+// A feature as a colour's number: 1 + its index and kind.
+uint32_t FeatureCode(uint32_t index, FeatureKind kind) {
+  return 1 + (index << 2 | static_cast<uint32_t>(kind));
+}
+
+}  // namespace
+
+absl::StatusOr<EncodedImage> EncodeImage(const Frame& f, const ImageOptions& o) {
+  const PixelRect& rect = o.rect;
+  std::vector<uint32_t> scratch;  // Shown's
+  PixelSource src;
+  src.width = rect.width();
+  src.height = rect.height();
+  src.shown = [&](uint32_t x, uint32_t y) { return Shown(f, rect.x0 + x, rect.y0 + y, &scratch); };
+  src.site_id = [&](uint32_t id) -> const std::string& { return f.sites().get(id - 1)->id; };
+  src.feature = [&](uint32_t x, uint32_t y, uint32_t id) {
+    const FeatureHit hit =
+        NearestFeature(f.grid().Center(rect.x0 + x, rect.y0 + y), *f.sites().get(id - 1));
+    return FeatureCode(hit.index, hit.kind);
+  };
+  EncodedImage out;
+  Raster r;
+  if (auto s = Fill(src, o, &r, &out); !s.ok()) return s;
+  const bool png = o.format == ImageFormat::kPng;
+  const uint32_t w = src.width, h = src.height;
+  if (o.draw_sites || !o.polyline.empty()) {
+    if (!png) return absl::InvalidArgumentError("draw_sites and polyline need format PNG");
+    if (r.rgb.empty()) {  // a distance layer: grey to RGB
+      r.rgb.resize(size_t{w} * h * 3);
+      for (size_t k = 0; k < r.grey.size(); ++k) {
+        r.rgb[3 * k] = r.rgb[3 * k + 1] = r.rgb[3 * k + 2] = r.grey[k] >> 8;
+      }
+      r.spec = OIIO::ImageSpec(int(w), int(h), 3, OIIO::TypeDesc::UINT8);
+      r.grey.clear();
+    }
+    if (o.draw_sites) DrawSites(f, rect, &r.rgb);
+    static constexpr uint8_t kRed[3] = {255, 32, 32};
+    const int thick = std::max<int>(3, std::min(w, h) / 256 * 2 + 1);
+    for (size_t k = 1; k < o.polyline.size(); ++k) {
+      DrawSegment(f.grid(), rect, o.polyline[k - 1], o.polyline[k], kRed, thick, &r.rgb);
+    }
+  }
+  if (auto s = Write(o, &r, &out); !s.ok()) return s;
+  return out;
+}
+
+absl::StatusOr<EncodedImage> EncodeImage(const Volume& v, const ImageOptions& o) {
+  if (o.draw_sites || !o.polyline.empty()) {
+    return absl::InvalidArgumentError("draw_sites and polyline are for 2D scenes");
+  }
+  const PixelRect& rect = o.rect;
+  const uint32_t k = o.slice;
+  PixelSource src;
+  src.width = rect.width();
+  src.height = rect.height();
+  // Every voxel's site is a candidate there (a volume's render is exact per voxel).
+  src.shown = [&](uint32_t x, uint32_t y) {
+    const uint32_t id = v.id_at(rect.x0 + x, rect.y0 + y, k);
+    return ShownSite{id, id == 0 ? 0.0 : double{v.distance_at(rect.x0 + x, rect.y0 + y, k)}};
+  };
+  src.site_id = [&](uint32_t id) -> const std::string& { return v.sites().get(id - 1)->id; };
+  src.feature = [&](uint32_t x, uint32_t y, uint32_t id) {
+    const Hit3 hit = NearestFeature(v.grid().Center(rect.x0 + x, rect.y0 + y, k),
+                                    v.sites().get(id - 1)->geometry);
+    return FeatureCode(hit.index, hit.kind);
+  };
+  EncodedImage out;
+  Raster r;
+  if (auto s = Fill(src, o, &r, &out); !s.ok()) return s;
+  if (auto s = Write(o, &r, &out); !s.ok()) return s;
   return out;
 }
 

@@ -7,6 +7,7 @@
 
 #include "absl/status/statusor.h"
 #include "render/scene/frame.h"
+#include "render/scene/volume.h"
 
 namespace gvd {
 
@@ -20,6 +21,7 @@ struct ImageOptions {
   PixelRect rect;           // the pixels to show; CONTRACT: not empty, inside the grid
   bool draw_sites = false;  // the sites' geometry in white on top (PNG)
   std::vector<Vec2> polyline;  // drawn in red on top (PNG): a planned path, say
+  uint32_t slice = 0;          // a volume's: the slice shown (rect is of its voxels)
 };
 
 struct EncodedImage {
@@ -38,5 +40,9 @@ void SiteColour(const std::string& id, uint32_t feature, uint8_t rgb[3]);
 // or side) show the site that is best at their centre (exactly in a NEAREST diagram, within
 // the frame's bound in a FARTHEST one), or empty. CONTRACT: the frame is not empty.
 absl::StatusOr<EncodedImage> EncodeImage(const Frame& frame, const ImageOptions& options);
+// The same of a slice of a volume (options.slice, rect of its voxels; no draw_sites or
+// polyline): its voxels' sites, the features of those sites nearest to the voxels' centres,
+// or their values. CONTRACT: the slice exists.
+absl::StatusOr<EncodedImage> EncodeImage(const Volume& volume, const ImageOptions& options);
 
 }  // namespace gvd

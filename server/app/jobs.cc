@@ -184,40 +184,58 @@ void BasicNearestJob<S>::AnswerFrom(const std::shared_ptr<const Frame>& frame) {
 
 // ---- ImageJob ----
 
-ImageJob::ImageJob(SceneRegistry* registry, std::shared_ptr<Scene> scene, uint64_t min_version,
-                   ImageOptions options, std::function<bool()> cancelled)
-    : FrameJob(registry, std::move(scene), min_version, std::move(cancelled)),
+template <class S>
+BasicImageJob<S>::BasicImageJob(SceneRegistry* registry, std::shared_ptr<S> scene,
+                                uint64_t min_version, ImageOptions options,
+                                std::function<bool()> cancelled)
+    : BasicFrameJob<S>(registry, std::move(scene), min_version, std::move(cancelled)),
       options_(std::move(options)) {}
 
-std::shared_ptr<ImageJob> ImageJob::Make(SceneRegistry* registry, std::shared_ptr<Scene> scene,
-                                         uint64_t min_version, ImageOptions options,
-                                         std::function<bool()> cancelled) {
-  return std::shared_ptr<ImageJob>(new ImageJob(registry, std::move(scene), min_version,
-                                                std::move(options), std::move(cancelled)));
+template <class S>
+std::shared_ptr<BasicImageJob<S>> BasicImageJob<S>::Make(SceneRegistry* registry,
+                                                         std::shared_ptr<S> scene,
+                                                         uint64_t min_version, ImageOptions options,
+                                                         std::function<bool()> cancelled) {
+  return std::shared_ptr<BasicImageJob>(new BasicImageJob(
+      registry, std::move(scene), min_version, std::move(options), std::move(cancelled)));
 }
 
-void ImageJob::Run(std::shared_ptr<const Frame> frame, bool on_caller) {
+template <class S>
+void BasicImageJob<S>::Run(std::shared_ptr<const Frame> frame, bool on_caller) {
   if (!on_caller) {  // already on the CPU pool (the frame's waiters resume there)
     Encode(*frame);
     return;
   }
-  auto self = std::static_pointer_cast<ImageJob>(shared_from_this());
-  registry_->answers().Submit([self, frame] { self->Encode(*frame); });
+  auto self = std::static_pointer_cast<BasicImageJob>(this->shared_from_this());
+  this->registry_->answers().Submit([self, frame] { self->Encode(*frame); });
 }
 
-void ImageJob::Encode(const Frame& frame) {
-  if (cancelled()) {
-    Finish(absl::CancelledError("the call was cancelled"));
+namespace {
+
+// The part of the plane a rect of a frame's pixels (a volume's slice's voxels) covers.
+Window AreaOf(const Frame& frame, PixelRect rect) { return frame.grid().Area(rect); }
+Window AreaOf(const Volume& volume, PixelRect rect) {
+  const Box3& b = volume.grid().box;
+  return Grid{{b.min_x, b.min_y, b.max_x, b.max_y}, volume.grid().width, volume.grid().height}
+      .Area(rect);
+}
+
+}  // namespace
+
+template <class S>
+void BasicImageJob<S>::Encode(const Frame& frame) {
+  if (this->cancelled()) {
+    this->Finish(absl::CancelledError("the call was cancelled"));
     return;
   }
   auto image = EncodeImage(frame, options_);
   if (!image.ok()) {
-    Finish(image.status());
+    this->Finish(image.status());
     return;
   }
   image_ = std::move(*image);
-  window_ = frame.grid().Area(options_.rect);
-  Finish(absl::OkStatus());
+  window_ = AreaOf(frame, options_.rect);
+  this->Finish(absl::OkStatus());
 }
 
 // ---- AnalysisJob ----
@@ -255,5 +273,7 @@ template class BasicFrameJob<Scene>;
 template class BasicFrameJob<Scene3>;
 template class BasicNearestJob<Scene>;
 template class BasicNearestJob<Scene3>;
+template class BasicImageJob<Scene>;
+template class BasicImageJob<Scene3>;
 
 }  // namespace gvd

@@ -144,19 +144,22 @@ class BasicNearestJob final : public BasicFrameJob<S> {
 using NearestJob = BasicNearestJob<Scene>;
 using NearestJob3 = BasicNearestJob<Scene3>;
 
-// A layer of the frame as an image.
-class ImageJob final : public FrameJob {
+// A layer of the frame as an image: of a 2D scene's frame (ImageJob), or of a slice of a 3D
+// scene's volume (ImageJob3, ImageOptions::slice).
+template <class S>
+class BasicImageJob final : public BasicFrameJob<S> {
  public:
-  static std::shared_ptr<ImageJob> Make(SceneRegistry* registry, std::shared_ptr<Scene> scene,
-                                        uint64_t min_version, ImageOptions options,
-                                        std::function<bool()> cancelled);
+  using Frame = typename S::Frame;
+  static std::shared_ptr<BasicImageJob> Make(SceneRegistry* registry, std::shared_ptr<S> scene,
+                                             uint64_t min_version, ImageOptions options,
+                                             std::function<bool()> cancelled);
   // Valid once `done` was called with OK: the image, and the window it shows.
   const EncodedImage& image() const { return image_; }
   const Window& window() const { return window_; }
 
  private:
-  ImageJob(SceneRegistry* registry, std::shared_ptr<Scene> scene, uint64_t min_version,
-           ImageOptions options, std::function<bool()> cancelled);
+  BasicImageJob(SceneRegistry* registry, std::shared_ptr<S> scene, uint64_t min_version,
+                ImageOptions options, std::function<bool()> cancelled);
   void Run(std::shared_ptr<const Frame> frame, bool on_caller) override;
   void Encode(const Frame& frame);
 
@@ -164,6 +167,8 @@ class ImageJob final : public FrameJob {
   EncodedImage image_;
   Window window_;
 };
+using ImageJob = BasicImageJob<Scene>;
+using ImageJob3 = BasicImageJob<Scene3>;
 
 // A structure or planning call: `work` runs on the frame on the analyses lane, and its status
 // ends the job (RESOURCE_EXHAUSTED, naming --max-queued-analyses, when the lane is full).
@@ -186,5 +191,7 @@ extern template class BasicFrameJob<Scene>;
 extern template class BasicFrameJob<Scene3>;
 extern template class BasicNearestJob<Scene>;
 extern template class BasicNearestJob<Scene3>;
+extern template class BasicImageJob<Scene>;
+extern template class BasicImageJob<Scene3>;
 
 }  // namespace gvd

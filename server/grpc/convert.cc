@@ -756,6 +756,9 @@ grpc::Status ToImageOptions(const v1::RenderImageRequest& request, const Grid& g
       (request.draw_sites() || request.polyline_size() > 0)) {
     return Invalid("layer SITE_INDEX takes neither draw_sites nor polyline: its pixels are numbers");
   }
+  if (request.has_z() || request.has_slice()) {
+    return Invalid("z and slice are for 3D scenes; this scene is 2D");
+  }
   options->draw_sites = request.draw_sites();
   options->rect = grid.all();
   if (request.has_window()) {
@@ -767,6 +770,42 @@ grpc::Status ToImageOptions(const v1::RenderImageRequest& request, const Grid& g
     options->polyline.push_back(p);
   }
   if (!options->polyline.empty() && exr) return Invalid("polyline needs format PNG");
+  return Status::OK;
+}
+
+grpc::Status ToImageOptions3(const v1::RenderImageRequest& request, const Grid3& grid,
+                             ImageOptions* options) {
+  if (request.draw_sites() || request.polyline_size() > 0) {
+    return Invalid("draw_sites and polyline are for 2D scenes");
+  }
+  if (request.has_z() == request.has_slice()) {
+    return Invalid("a 3D scene's image is of one slice: set z or slice (one of them)");
+  }
+  uint32_t k = 0;
+  if (request.has_slice()) {
+    if (request.slice() >= grid.depth) {
+      return Invalid(absl::StrCat("slice is ", request.slice(), "; the scene has ", grid.depth,
+                                  " (0 to ", grid.depth - 1, ")"));
+    }
+    k = request.slice();
+  } else {
+    const double z = request.z();
+    if (!(z >= grid.box.min_z && z <= grid.box.max_z)) {
+      return Invalid(absl::StrCat("z is ", FormatNumber(z), "; it must lie in the box's [",
+                                  FormatNumber(grid.box.min_z), ", ", FormatNumber(grid.box.max_z),
+                                  "]"));
+    }
+    k = static_cast<uint32_t>(std::min<double>(grid.depth - 1, std::floor(grid.ToVoxel({0, 0, z}).z)));
+  }
+  v1::RenderImageRequest plane = request;
+  plane.clear_z();
+  plane.clear_slice();
+  Grid g;
+  g.window = {grid.box.min_x, grid.box.min_y, grid.box.max_x, grid.box.max_y};
+  g.width = grid.width;
+  g.height = grid.height;
+  if (auto s = ToImageOptions(plane, g, options); !s.ok()) return s;
+  options->slice = k;
   return Status::OK;
 }
 

@@ -107,6 +107,11 @@ grpc::Status ToPoint(const v1::Point& p, const FieldPath& field, Vec2* out);
 grpc::Status ToImageOptions(const v1::RenderImageRequest& request, const Grid& grid,
                             ImageOptions* options);
 
+// The same of a 3D scene: the options of one slice (z or slice), its rect of the slice's
+// voxels.
+grpc::Status ToImageOptions3(const v1::RenderImageRequest& request, const Grid3& grid,
+                             ImageOptions* options);
+
 // PickRequest's point and max_distance (0: no limit, returned as +infinity).
 grpc::Status ToPick(const v1::PickRequest& request, Vec2* point, double* max_distance);
 // The same for a 3D scene (point with z).

@@ -518,20 +518,18 @@ grpc::ServerWriteReactor<v1::FindNearestResponse>* VoronoiService::FindNearestSt
   return StartNearestStream(ctx, call.scope, call.scene, request);
 }
 
-grpc::ServerUnaryReactor* VoronoiService::RenderImage(grpc::CallbackServerContext* ctx,
-                                                      const v1::RenderImageRequest* request,
-                                                      v1::RenderImageResponse* response) {
-  Call call = Begin(ctx, "RenderImage", Access::kRead, &request->scene_id());
-  if (!call.ok()) return call.Finish(ctx);
-  ImageOptions options;
-  if (auto s = ToImageOptions(*request, call.scene->settings().grid, &options); !s.ok()) {
-    return call.Finish(ctx, s);
-  }
-  auto version = registry_->ReadVersion(*call.scene, request->min_version());
-  if (!version.ok()) return call.Finish(ctx, ToGrpc(version.status()));
-  auto job = ImageJob::Make(registry_, call.scene, *version, std::move(options),
-                            [ctx] { return ctx->IsCancelled(); });
-  return JobReactor<ImageJob>::Start(call.scope, job, [response](const ImageJob& job) {
+template <class S>
+grpc::ServerUnaryReactor* VoronoiService::StartImage(const std::shared_ptr<CallScope>& scope,
+                                                     grpc::CallbackServerContext* ctx,
+                                                     const std::shared_ptr<S>& scene,
+                                                     ImageOptions options, uint64_t min_version,
+                                                     v1::RenderImageResponse* response) {
+  auto version = registry_->ReadVersion(*scene, min_version);
+  if (!version.ok()) return scope->Done(ctx, ToGrpc(version.status()));
+  using Job = BasicImageJob<S>;
+  auto job = Job::Make(registry_, scene, *version, std::move(options),
+                       [ctx] { return ctx->IsCancelled(); });
+  return JobReactor<Job>::Start(scope, job, [response](const Job& job) {
     const EncodedImage& image = job.image();
     response->set_image(image.bytes.data(), image.bytes.size());
     response->set_mime_type(image.mime_type);
@@ -541,6 +539,27 @@ grpc::ServerUnaryReactor* VoronoiService::RenderImage(grpc::CallbackServerContex
     for (const std::string& id : image.site_ids) response->add_site_ids(id);
     ToProto(job.window(), response->mutable_window());
   });
+}
+
+grpc::ServerUnaryReactor* VoronoiService::RenderImage(grpc::CallbackServerContext* ctx,
+                                                      const v1::RenderImageRequest* request,
+                                                      v1::RenderImageResponse* response) {
+  Call call = Begin(ctx, "RenderImage", Access::kRead, &request->scene_id(), /*three_d=*/true);
+  if (!call.ok()) return call.Finish(ctx);
+  ImageOptions options;
+  if (call.scene3) {
+    const Grid3 grid = call.scene3->settings().grid3();
+    if (auto s = ToImageOptions3(*request, grid, &options); !s.ok()) return call.Finish(ctx, s);
+    response->set_slice(options.slice);
+    response->set_slice_z(grid.SliceZ(options.slice));
+    return StartImage(call.scope, ctx, call.scene3, std::move(options), request->min_version(),
+                      response);
+  }
+  if (auto s = ToImageOptions(*request, call.scene->settings().grid, &options); !s.ok()) {
+    return call.Finish(ctx, s);
+  }
+  return StartImage(call.scope, ctx, call.scene, std::move(options), request->min_version(),
+                    response);
 }
 
 }  // namespace gvd

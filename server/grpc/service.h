@@ -10,6 +10,7 @@
 #include <string>
 
 #include "gvd/v1/voronoi.grpc.pb.h"
+#include "render/image/image.h"
 #include "server/app/limits.h"
 #include "server/app/registry.h"
 #include "server/grpc/auth.h"
@@ -143,6 +144,12 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   grpc::ServerUnaryReactor* StartAnalysis(const char* method, grpc::CallbackServerContext* ctx,
                                           const std::string& scene_id, uint64_t min_version,
                                           Validate validate, Work work);
+  // RenderImage's job on a 2D scene's frame or a 3D scene's slice.
+  template <class S>
+  grpc::ServerUnaryReactor* StartImage(const std::shared_ptr<CallScope>& scope,
+                                       grpc::CallbackServerContext* ctx,
+                                       const std::shared_ptr<S>& scene, ImageOptions options,
+                                       uint64_t min_version, v1::RenderImageResponse* response);
   // GetClearanceField of a 3D scene.
   grpc::ServerUnaryReactor* ClearanceField3(const Call& call, grpc::CallbackServerContext* ctx,
                                             const v1::GetClearanceFieldRequest* request,

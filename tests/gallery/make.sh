@@ -81,3 +81,12 @@ gvd plan --from 0.0417,0.0417 --to 0.9583,0.9583 --radius 0.03 -o "$out/plan-maz
 gvd mosaic "$out/coffee.jpg" "$out/coffee-mosaic.jpg" --tiles 1500 --seed 1 >/dev/null
 gvd mosaic "$out/coffee.jpg" "$out/coffee-mosaic-adaptive.jpg" --tiles 1500 --seed 1 \
   --adaptive >/dev/null
+
+# A 3D diagram (paper sec. 4.2, colour plate 3 in spirit): the Utah teapots of Debian's
+# assimp-testmodels, one mesh of faces, edges and vertices; a thin slab of voxels through
+# the nearest teapot's spout and handle, and its middle slice per feature and by distance.
+gvd scene create teapot --window -0.6,-0.12,0.47,0.65,0.52,0.486 --size 640x328x8 >/dev/null
+export GVD_SCENE=teapot
+gvd sites add mesh teapots --file /usr/share/assimp/models/Collada/teapots.DAE >/dev/null
+gvd render teapot -o "$out/teapot-features.png" --layer features --z 0.478
+gvd render teapot -o "$out/teapot-distance.png" --layer distance --z 0.478

@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
+#include <tuple>
 #include <random>
 #include <string>
 #include <vector>
@@ -13,6 +15,10 @@
 #include "tests/support/meshes3.h"
 #include "tests/support/oracle3.h"
 #include "tests/support/server_process.h"
+
+// After protobuf, whose byte swaps OpenImageIO's headers would hide.
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imageio.h>
 
 namespace gvd {
 namespace {
@@ -281,6 +287,113 @@ TEST_F(SpaceServerTest, ClearanceFieldsAreLowerBoundsWithGradientsAndSites) {
   ASSERT_TRUE(client_->DeleteScene("field").ok());
 }
 
+// Images of a 3D scene's slices: the slice holding z or named by index, its voxels' sites
+// (SITE_INDEX, decoded) and distances (EXR floats) against the oracle at the voxel centres;
+// a window of x and y; bad requests refused by name.
+TEST_F(SpaceServerTest, SliceImagesShowTheNearestSitesAndTheirDistances) {
+  v1::Scene scene;
+  ASSERT_TRUE(client_->CreateScene(Request("slices", 40, 12), &scene).ok());
+  const std::vector<Site3> sites = Sites();
+  std::vector<v1::Site> protos;
+  for (const Site3& s : sites) protos.push_back(ToProto3(s));
+  uint64_t version = 0;
+  ASSERT_TRUE(Put("slices", protos, &version).ok());
+  const double voxel = 4.0 / 40, voxel_z = 3.0 / 12;
+  struct Case {
+    bool by_z;
+    double z;
+    uint32_t slice;
+  };
+  // z 0.6 lies in slice 6 ([0.5, 0.75)); the top face's z (2) in the last slice.
+  for (Case c : {Case{true, 0.6, 6}, Case{false, 0, 3}, Case{true, 2, 11}}) {
+    v1::RenderImageRequest r;
+    r.set_scene_id("slices");
+    r.set_min_version(version);
+    c.by_z ? r.set_z(c.z) : r.set_slice(c.slice);
+    r.set_layer(v1::RenderImageRequest::SITE_INDEX);
+    r.mutable_window()->set_min_x(0.5);
+    r.mutable_window()->set_min_y(1);
+    r.mutable_window()->set_max_x(3.9);
+    r.mutable_window()->set_max_y(4);
+    v1::RenderImageResponse ids;
+    grpc::Status st = client_->RenderImage(r, &ids);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+    EXPECT_EQ(ids.slice(), c.slice);
+    const double z = -1 + (c.slice + 0.5) * voxel_z;
+    EXPECT_DOUBLE_EQ(ids.slice_z(), z);
+    // Voxel columns 5 to 38, rows 10 to 39.
+    ASSERT_EQ(ids.width_px(), 34u);
+    ASSERT_EQ(ids.height_px(), 30u);
+    EXPECT_DOUBLE_EQ(ids.window().min_x(), 5 * voxel);
+    EXPECT_DOUBLE_EQ(ids.window().max_y(), 4);
+    r.set_layer(v1::RenderImageRequest::DISTANCE);
+    r.set_format(v1::RenderImageRequest::EXR);
+    v1::RenderImageResponse distances;
+    st = client_->RenderImage(r, &distances);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+    const uint32_t w = ids.width_px(), h = ids.height_px();
+    std::vector<uint8_t> rgb(size_t{w} * h * 3);
+    std::vector<float> depth(size_t{w} * h);
+    for (auto [image, name, type, channels, out] :
+         {std::tuple{&ids, "ids.png", OIIO::TypeDesc::UINT8, 3, static_cast<void*>(rgb.data())},
+          {&distances, "distances.exr", OIIO::TypeDesc::FLOAT, 1, static_cast<void*>(depth.data())}}) {
+      OIIO::Filesystem::IOMemReader memory(image->image().data(), image->image().size());
+      auto in = OIIO::ImageInput::open(name, nullptr, &memory);
+      ASSERT_TRUE(in) << OIIO::geterror();
+      ASSERT_EQ(in->spec().nchannels, channels);
+      ASSERT_TRUE(in->read_image(0, 0, 0, channels, type, out));
+    }
+    int failures = 0;
+    for (uint32_t row = 0; row < h && failures < 10; ++row) {
+      for (uint32_t col = 0; col < w && failures < 10; ++col) {
+        const size_t at = size_t{row} * w + col;
+        const Vec3 q((5 + col + 0.5) * voxel, 4 - (row + 0.5) * voxel, z);  // row 0 at the top
+        const uint8_t* p = &rgb[at * 3];
+        const uint32_t index = uint32_t{p[0]} << 16 | uint32_t{p[1]} << 8 | p[2];
+        double best = INFINITY;
+        for (const Site3& s : sites) best = std::min(best, OracleValue(q, s));
+        const bool named = index >= 1 && index <= uint32_t(ids.site_ids_size());
+        double value = INFINITY;
+        if (named) {
+          const std::string& id = ids.site_ids(int(index - 1));
+          value = OracleValue(q, *std::find_if(sites.begin(), sites.end(),
+                                               [&](const Site3& s) { return s.id == id; }));
+        }
+        // The voxel's site is the nearest (ties within float rounding), its value the
+        // nearest's in float.
+        const bool ok = named && value <= best * (1 + 1e-6) + 1e-9 &&
+                        std::abs(double(depth[at]) - best) <= 1e-6 * (1 + best);
+        if (!ok) {
+          ++failures;
+          ADD_FAILURE() << "slice " << c.slice << " pixel " << col << "," << row << ": index "
+                        << index << " value " << value << ", depth " << depth[at] << ", oracle "
+                        << best;
+        }
+      }
+    }
+  }
+  // Bad requests, by name.
+  struct Bad {
+    std::function<void(v1::RenderImageRequest*)> edit;
+    const char* says;
+  };
+  for (const Bad& bad : std::vector<Bad>{
+           {[](auto*) {}, "set z or slice"},
+           {[](auto* r) { r->set_z(0); r->set_slice(1); }, "set z or slice"},
+           {[](auto* r) { r->set_slice(12); }, "slice is 12; the scene has 12"},
+           {[](auto* r) { r->set_z(2.5); }, "z is 2.5; it must lie in the box's [-1, 2]"},
+           {[](auto* r) { r->set_z(0); r->set_draw_sites(true); }, "draw_sites and polyline are for 2D"}}) {
+    v1::RenderImageRequest r;
+    r.set_scene_id("slices");
+    bad.edit(&r);
+    v1::RenderImageResponse image;
+    grpc::Status st = client_->RenderImage(r, &image);
+    EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT) << bad.says;
+    EXPECT_NE(st.error_message().find(bad.says), std::string::npos) << st.error_message();
+  }
+  ASSERT_TRUE(client_->DeleteScene("slices").ok());
+}
+
 TEST_F(SpaceServerTest, Bad3DInputIsRefusedByNameAndChangesNothing) {
   v1::Scene scene;
   ASSERT_TRUE(client_->CreateScene(Request("bad3", 8, 8), &scene).ok());
@@ -346,10 +459,10 @@ TEST_F(SpaceServerTest, Bad3DInputIsRefusedByNameAndChangesNothing) {
   EXPECT_NE(st.error_message().find("sites[0].mesh is a site of 3D scenes"), std::string::npos)
       << st.error_message();
   // 2D calls on a 3D scene say what it is.
-  v1::RenderImageRequest image;
-  image.set_scene_id("bad3");
-  v1::RenderImageResponse image_response;
-  st = client_->RenderImage(image, &image_response);
+  v1::GetBoundariesRequest boundaries;
+  boundaries.set_scene_id("bad3");
+  v1::GetBoundariesResponse boundaries_response;
+  st = client_->GetBoundaries(boundaries, &boundaries_response);
   EXPECT_EQ(st.error_code(), StatusCode::FAILED_PRECONDITION);
   EXPECT_NE(st.error_message().find("is a 3D scene"), std::string::npos) << st.error_message();
   // Packed 2D points on a 3D scene.
