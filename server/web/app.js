@@ -32,6 +32,7 @@ const state = {
   frameVersion: 0,
   lastWriteVersion: 0,
   watch: null,          // AbortController of the WatchScene stream
+  slice: -1,            // a 3D scene's slice shown and picked in (its voxels' z: sliceZ()); -1 in 2D
 };
 const gvd = (window.gvd = {
   ready: false,         // the first frame of a scene is drawn
@@ -148,7 +149,7 @@ async function loadScenes(preferred) {
 
 function closeScene() {
   state.watch?.abort();
-  Object.assign(state, { sceneId: '', scene: null, image: null, index: null, hover: null, selected: null });
+  Object.assign(state, { sceneId: '', scene: null, image: null, index: null, hover: null, selected: null, slice: -1 });
   gvd.sceneId = '';
   gvd.ready = false;
   drawBase();
@@ -170,9 +171,22 @@ async function openScene(id) {
     return;
   }
   const w = state.scene.window ?? {};
+  // A 3D scene shows one slice at a time, the middle one first; its sites are edited through
+  // the API, not drawn here.
+  const depth = state.scene.depthPx ?? 0;
+  state.slice = depth > 0 ? Math.floor(depth / 2) : -1;
+  $('z-control').hidden = depth === 0;
+  $('z').max = String(Math.max(0, depth - 1));
+  $('z').value = String(Math.max(0, state.slice));
+  $('z-value').textContent = depth > 0 ? sliceZ().toPrecision(4) : '';
+  for (const radio of document.querySelectorAll('input[name=tool]')) {
+    radio.disabled = depth > 0 && radio.value !== 'select';
+    if (depth > 0 && radio.value === 'select') radio.click();
+  }
+  gvd.slice = state.slice;
   setView(fit({ minX: w.minX ?? 0, minY: w.minY ?? 0, maxX: w.maxX ?? 0, maxY: w.maxY ?? 0 }));
   await refresh(0);
-  watch(id);
+  if (depth === 0) watch(id);  // WatchScene streams 2D scenes' frames only, as yet
 }
 
 // A scene of every kind, to try the app on: 1024x1024 pixels over [0, 100]^2.
@@ -283,6 +297,15 @@ async function decodeIndex(r) {
   return { ids, width, height, window: windowOf(r.window), siteIds, slotOf, boxes, version: Number(r.version ?? 0), tints: new Map() };
 }
 
+// A 3D scene's slice: the z of its voxels' centres; the point picked at (x, y) of the slice.
+function sliceZ() {
+  const w = state.scene?.window ?? {}, depth = state.scene?.depthPx ?? 0;
+  return (w.minZ ?? 0) + ((state.slice + 0.5) * ((w.maxZ ?? 0) - (w.minZ ?? 0))) / depth;
+}
+function pointAt(x, y) {
+  return state.slice >= 0 ? { x, y, z: sliceZ() } : { x, y };
+}
+
 function windowOf(w = {}) {
   return { minX: w.minX ?? 0, minY: w.minY ?? 0, maxX: w.maxX ?? 0, maxY: w.maxY ?? 0 };
 }
@@ -301,8 +324,10 @@ async function refresh(minVersion) {
       state.image = state.index = null;
     } else {
       const common = { sceneId, window, minVersion: String(Math.max(minVersion, state.lastWriteVersion)) };
+      const space = state.slice >= 0;  // a 3D scene: its slice, with no sites drawn over it
+      if (space) common.slice = state.slice;
       const [shown, index] = await Promise.all([
-        client.call('RenderImage', { ...common, layer: $('layer').value === 'distance' ? 'DISTANCE' : 'IDS', drawSites: $('draw-sites').checked }),
+        client.call('RenderImage', { ...common, layer: $('layer').value === 'distance' ? 'DISTANCE' : 'IDS', drawSites: !space && $('draw-sites').checked }),
         client.call('RenderImage', { ...common, layer: 'SITE_INDEX' }),
       ]);
       if (sceneId !== state.sceneId) return;
@@ -311,6 +336,7 @@ async function refresh(minVersion) {
       state.image = { bitmap, window: windowOf(shown.window), version: Number(shown.version ?? 0) };
       state.index = decoded;
       state.frameVersion = Math.min(state.image.version, decoded.version);
+      gvd.imageSlice = space ? Number(shown.slice ?? 0) : -1;
       gvd.frameVersion = state.frameVersion;
     }
     clearError('render');
@@ -508,7 +534,7 @@ function featureName(kind, index) {
 }
 
 function kindOf(site) {
-  return ['point', 'segment', 'polyline', 'polygon', 'bezier'].find((k) => site?.[k]) ?? '–';
+  return ['point', 'segment', 'polyline', 'polygon', 'bezier', 'triangle', 'mesh'].find((k) => site?.[k]) ?? '–';
 }
 
 function percentile(sorted, p) {
@@ -546,7 +572,7 @@ async function pick(at) {
   const sent = performance.now();
   try {
     const maxDistance = Math.max(0, Number($('max-distance').value) || 0);
-    const r = await client.call('Pick', { sceneId: state.sceneId, point: { x: at.x, y: at.y }, maxDistance });
+    const r = await client.call('Pick', { sceneId: state.sceneId, point: pointAt(at.x, at.y), maxDistance });
     state.hover = {
       x: at.x, y: at.y, found: !!r.found, siteId: r.siteId ?? '', distance: r.distance ?? 0,
       feature: r.featureKind ?? '', featureIndex: r.featureIndex ?? 0, site: r.site ?? null,
@@ -582,7 +608,7 @@ async function pick(at) {
 async function select([x, y]) {
   try {
     const maxDistance = Math.max(0, Number($('max-distance').value) || 0);
-    const r = await client.call('Pick', { sceneId: state.sceneId, point: { x, y }, maxDistance });
+    const r = await client.call('Pick', { sceneId: state.sceneId, point: pointAt(x, y), maxDistance });
     state.selected = r.found ? { siteId: r.siteId, site: r.site ?? null } : null;
     clearError('pick');
   } catch (e) {
@@ -842,6 +868,14 @@ $('fit').addEventListener('click', () => {
 });
 $('layer').addEventListener('change', () => refresh(0));
 $('draw-sites').addEventListener('change', () => refresh(0));
+$('z').addEventListener('input', () => {
+  state.slice = gvd.slice = Number($('z').value);
+  $('z-value').textContent = sliceZ().toPrecision(4);
+  state.hover = null;
+  showPanel();
+  drawOverlay();
+  refresh(0);
+});
 $('max-distance').addEventListener('change', () => {
   state.hover = null;
   showPanel();

@@ -405,6 +405,46 @@ class SelectionTest(unittest.TestCase):
         self.assertFalse([id for id in left if id.startswith("polygon-")], left.keys())
         self.assertEqual(len(left), 5)
 
+    def test_a_3d_scene_is_shown_and_picked_slice_by_slice(self):
+        # Points spread through a box of 20 slices: each slice's nearest points differ, and
+        # the pick at (x, y) of slice k is of the point (x, y, z_k).
+        rnd = random.Random(3)
+        points = {f"s{i}": (rnd.uniform(5, 95), rnd.uniform(5, 95), rnd.uniform(0, 40)) for i in range(12)}
+        self.server.ok("CreateScene", {"sceneId": "space", "window": {"minX": 0, "minY": 0, "minZ": 0,
+                                                                     "maxX": 100, "maxY": 100, "maxZ": 40},
+                                       "widthPx": 200, "heightPx": 200, "depthPx": 20})
+        version = int(self.server.ok("UpsertSites", {"sceneId": "space", "sites": [
+            {"id": k, "point": {"x": x, "y": y, "z": z}} for k, (x, y, z) in points.items()]})["version"])
+        d = self.browser()
+        open_scene(d, self.server, "space", min_version=version)
+        self.assertFalse(page(d, "document.getElementById('z-control').hidden"))
+        self.assertEqual(page(d, "window.gvd.slice"), 10)
+        self.assertTrue(page(d, "document.querySelector('input[name=tool][value=point]').disabled"))
+        pointer = Pointer(d)
+        rnd = random.Random(8)
+        for k in (10, 0, 19):
+            if k != page(d, "window.gvd.slice"):
+                page(d, f"(() => {{ const z = document.getElementById('z'); z.value = '{k}'; "
+                        "z.dispatchEvent(new Event('input')); return true; })()")
+            wait(d, f"window.gvd.slice === {k} && window.gvd.imageSlice === {k}", what=f"slice {k} drawn")
+            z = (k + 0.5) * 2
+            self.assertEqual(text(d, "z-value"), f"{z:#.4g}")
+            for _ in range(12):
+                answer = pointer.hover(rnd.uniform(2, pointer.width - 2), rnd.uniform(2, pointer.height - 2))
+                q = (answer["x"], answer["y"], z)
+                truth = {i: math.dist(q, p) for i, p in points.items()}
+                best = min(truth.values())
+                self.assertTrue(answer["found"])
+                self.assertLessEqual(truth[answer["siteId"]], best + 1e-9, f"slice {k} at {q}: {answer}")
+                self.assertAlmostEqual(answer["distance"], truth[answer["siteId"]], delta=1e-9 * 100)
+                # The slice's pixel under the pointer names a site nearest within a voxel.
+                pixel = page(d, f"window.gvd.indexAt({answer['x']}, {answer['y']})")
+                if pixel is not None:
+                    c = (pixel["x"], pixel["y"], z)
+                    self.assertLessEqual(math.dist(c, points[pixel["id"]]),
+                                         min(math.dist(c, p) for p in points.values()) + 1e-6, pixel)
+        self.assertEqual(page(d, "window.gvd.error"), "")
+
     def test_bad_requests_get_clear_answers_and_change_nothing(self):
         version = self.create("guarded", [{"id": "a", "point": P(1, 2)}])
         d = self.browser()
