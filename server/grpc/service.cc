@@ -328,8 +328,9 @@ grpc::ServerUnaryReactor* VoronoiService::DeleteScene(grpc::CallbackServerContex
 
 grpc::ServerWriteReactor<v1::SceneEvent>* VoronoiService::WatchScene(
     grpc::CallbackServerContext* ctx, const v1::WatchSceneRequest* request) {
-  Call call = Begin(ctx, "WatchScene", Access::kRead, &request->scene_id());
+  Call call = Begin(ctx, "WatchScene", Access::kRead, &request->scene_id(), /*three_d=*/true);
   if (!call.ok()) return Watches::Refuse(call.scope, call.status);
+  if (call.scene3) return watches_.Start(call.scope, call.scene3, request->after_version());
   return watches_.Start(call.scope, call.scene, request->after_version());
 }
 

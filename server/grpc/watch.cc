@@ -1,6 +1,7 @@
 #include "server/grpc/watch.h"
 
 #include <optional>
+#include <type_traits>
 
 namespace gvd {
 
@@ -9,6 +10,29 @@ void PendingEvent::Note(const Frame& frame, bool whole) {
   version_ = frame.version();
   sites_ = frame.site_count();
   changed_ = changed_.Union(whole ? frame.grid().all() : frame.changed());
+}
+
+void PendingEvent::Note(const Volume& volume, bool) {
+  if (volume.version() <= std::max(sent_, version_)) return;
+  version_ = volume.version();
+  sites_ = volume.snapshot().size();
+  box_changed_ = true;
+}
+
+void PendingEvent::Take(const Grid3& grid, v1::SceneEvent* event) {
+  event->set_version(version_);
+  event->set_site_count(sites_);
+  if (box_changed_) {
+    v1::Window* changed = event->mutable_changed();
+    changed->set_min_x(grid.box.min_x);
+    changed->set_min_y(grid.box.min_y);
+    changed->set_min_z(grid.box.min_z);
+    changed->set_max_x(grid.box.max_x);
+    changed->set_max_y(grid.box.max_y);
+    changed->set_max_z(grid.box.max_z);
+  }
+  sent_ = version_;
+  box_changed_ = false;
 }
 
 void PendingEvent::Take(const Grid& grid, v1::SceneEvent* event) {
@@ -30,9 +54,11 @@ void PendingEvent::Take(const Grid& grid, v1::SceneEvent* event) {
 // merged into the next event (the newest version, the changed parts joined). The scene's
 // listener only notes frames and starts writes; the stream is finished from gRPC's threads
 // (a write's completion, a cancellation) or the drain, never from the listener.
-class WatchStream final : public grpc::ServerWriteReactor<v1::SceneEvent> {
+template <class S>
+class WatchStream final : public grpc::ServerWriteReactor<v1::SceneEvent>, public WatchStreamBase {
  public:
-  WatchStream(Watches* owner, std::shared_ptr<CallScope> scope, std::shared_ptr<Scene> scene,
+  using Frame = typename S::Frame;
+  WatchStream(Watches* owner, std::shared_ptr<CallScope> scope, std::shared_ptr<S> scene,
               uint64_t after)
       : owner_(owner), scope_(std::move(scope)), scene_(std::move(scene)), pending_(after) {}
 
@@ -53,8 +79,7 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::SceneEvent> {
     }
   }
 
-  // Ends the stream with `status` once the write under way, if any, is done.
-  void End(const grpc::Status& status) {
+  void End(const grpc::Status& status) override {
     std::lock_guard<std::mutex> lock(mu_);
     if (finished_ || end_) return;
     end_ = status;
@@ -103,7 +128,11 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::SceneEvent> {
     event_.Clear();
     event_.set_scene_id(scene_->id());
     if (pending_.ready()) {
-      pending_.Take(scene_->settings().grid, &event_);
+      if constexpr (std::is_same_v<S, Scene3>) {
+        pending_.Take(scene_->settings().grid3(), &event_);
+      } else {
+        pending_.Take(scene_->settings().grid, &event_);
+      }
     } else if (deleted_ && !deletion_sent_) {
       event_.set_version(std::max(pending_.sent(), scene_->version()));
       event_.set_deleted(true);
@@ -125,7 +154,7 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::SceneEvent> {
 
   Watches* const owner_;
   const std::shared_ptr<CallScope> scope_;
-  const std::shared_ptr<Scene> scene_;
+  const std::shared_ptr<S> scene_;
   uint64_t token_ = 0;
 
   std::mutex mu_;  // guards everything below
@@ -153,10 +182,11 @@ class RefusedWatch final : public grpc::ServerWriteReactor<v1::SceneEvent> {
 
 }  // namespace
 
+template <class S>
 grpc::ServerWriteReactor<v1::SceneEvent>* Watches::Start(std::shared_ptr<CallScope> scope,
-                                                         std::shared_ptr<Scene> scene,
+                                                         std::shared_ptr<S> scene,
                                                          uint64_t after) {
-  auto* stream = new WatchStream(this, std::move(scope), std::move(scene), after);
+  auto* stream = new WatchStream<S>(this, std::move(scope), std::move(scene), after);
   grpc::Status ended;
   {
     std::lock_guard<std::mutex> lock(mu_);
@@ -177,12 +207,17 @@ void Watches::EndAll(const grpc::Status& status) {
   std::lock_guard<std::mutex> lock(mu_);
   ended_ = true;
   end_status_ = status;
-  for (WatchStream* s : open_) s->End(status);
+  for (WatchStreamBase* s : open_) s->End(status);
 }
 
-void Watches::Remove(WatchStream* stream) {
+void Watches::Remove(WatchStreamBase* stream) {
   std::lock_guard<std::mutex> lock(mu_);
   open_.erase(stream);
 }
+
+template grpc::ServerWriteReactor<v1::SceneEvent>* Watches::Start<Scene>(
+    std::shared_ptr<CallScope>, std::shared_ptr<Scene>, uint64_t);
+template grpc::ServerWriteReactor<v1::SceneEvent>* Watches::Start<Scene3>(
+    std::shared_ptr<CallScope>, std::shared_ptr<Scene3>, uint64_t);
 
 }  // namespace gvd

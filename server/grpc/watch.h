@@ -16,7 +16,16 @@
 
 namespace gvd {
 
+template <class S>
 class WatchStream;
+
+// A stream, as the set of open ones knows it (watch.cc's WatchStream, a template on the scene).
+class WatchStreamBase {
+ public:
+  virtual ~WatchStreamBase() = default;
+  // Ends the stream with `status` once the write under way, if any, is done.
+  virtual void End(const grpc::Status& status) = 0;
+};
 
 // What a stream has yet to tell: the newest frame noted since its last event, with the
 // changed parts of every frame noted since joined. Not thread-safe.
@@ -29,10 +38,13 @@ class PendingEvent {
   // `whole`: count the whole window as changed (the first frame a stream takes, as it cannot
   // tell what changed since `after`).
   void Note(const Frame& frame, bool whole = false);
+  // A 3D scene's volume: the whole box counts as changed.
+  void Note(const Volume& volume, bool whole = false);
   bool ready() const { return version_ > sent_; }
   // Writes what is pending into `event` (version, site count, changed window in the scene
   // units of `grid`) and starts afresh. CONTRACT: ready().
   void Take(const Grid& grid, v1::SceneEvent* event);
+  void Take(const Grid3& grid, v1::SceneEvent* event);
   // The version of the last event taken (or `after`).
   uint64_t sent() const { return sent_; }
 
@@ -41,6 +53,7 @@ class PendingEvent {
   uint64_t version_ = 0;
   uint64_t sites_ = 0;
   PixelRect changed_;
+  bool box_changed_ = false;  // a volume's
 };
 
 // The streams open now. Thread-safe.
@@ -52,8 +65,10 @@ class Watches {
 
   // A stream of `scene`'s events for frames newer than `after`, counted in `scope` until it
   // ends.
+  // A 2D scene's or a 3D scene's (Scene3).
+  template <class S>
   grpc::ServerWriteReactor<v1::SceneEvent>* Start(std::shared_ptr<CallScope> scope,
-                                                  std::shared_ptr<Scene> scene, uint64_t after);
+                                                  std::shared_ptr<S> scene, uint64_t after);
   // A stream that ends at once with `status` (a refused call).
   static grpc::ServerWriteReactor<v1::SceneEvent>* Refuse(std::shared_ptr<CallScope> scope,
                                                           const grpc::Status& status);
@@ -61,11 +76,12 @@ class Watches {
   void EndAll(const grpc::Status& status);
 
  private:
+  template <class S>
   friend class WatchStream;
-  void Remove(WatchStream* stream);
+  void Remove(WatchStreamBase* stream);
 
   std::mutex mu_;
-  std::set<WatchStream*> open_;
+  std::set<WatchStreamBase*> open_;
   bool ended_ = false;
   grpc::Status end_status_;
 };

@@ -186,7 +186,7 @@ async function openScene(id) {
   gvd.slice = state.slice;
   setView(fit({ minX: w.minX ?? 0, minY: w.minY ?? 0, maxX: w.maxX ?? 0, maxY: w.maxY ?? 0 }));
   await refresh(0);
-  if (depth === 0) watch(id);  // WatchScene streams 2D scenes' frames only, as yet
+  watch(id);
 }
 
 // A scene of every kind, to try the app on: 1024x1024 pixels over [0, 100]^2.

@@ -443,6 +443,11 @@ class SelectionTest(unittest.TestCase):
                     c = (pixel["x"], pixel["y"], z)
                     self.assertLessEqual(math.dist(c, points[pixel["id"]]),
                                          min(math.dist(c, p) for p in points.values()) + 1e-6, pixel)
+        # A site added elsewhere is seen through the scene's watch: the slice is drawn again.
+        later = int(self.server.ok("UpsertSites", {"sceneId": "space", "sites": [
+            {"id": "new", "point": {"x": 50, "y": 50, "z": 39}}]})["version"])
+        wait(d, f"window.gvd.frameVersion >= {later}", what="the new version drawn")
+        self.assertEqual(page(d, "window.gvd.indexAt(50, 50).id"), "new")
         self.assertEqual(page(d, "window.gvd.error"), "")
 
     def test_bad_requests_get_clear_answers_and_change_nothing(self):

@@ -5,6 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <thread>
+#include <mutex>
+#include <condition_variable>
 #include <functional>
 #include <tuple>
 #include <random>
@@ -392,6 +395,47 @@ TEST_F(SpaceServerTest, SliceImagesShowTheNearestSitesAndTheirDistances) {
     EXPECT_NE(st.error_message().find(bad.says), std::string::npos) << st.error_message();
   }
   ASSERT_TRUE(client_->DeleteScene("slices").ok());
+}
+
+// WatchScene on a 3D scene: an event for each rendered version (its box as the part that may
+// have changed, z too), and a last one when the scene is deleted.
+TEST_F(SpaceServerTest, WatchingA3DSceneFollowsItsVersionsToItsDeletion) {
+  v1::Scene scene;
+  ASSERT_TRUE(client_->CreateScene(Request("watched", 8, 6), &scene).ok());
+  std::vector<v1::SceneEvent> events;
+  std::mutex mu;
+  std::condition_variable cv;
+  std::thread watcher([&] {
+    v1::WatchSceneRequest r;
+    r.set_scene_id("watched");
+    grpc::Status st = client_->WatchScene(r, [&](const v1::SceneEvent& e) {
+      std::lock_guard<std::mutex> lock(mu);
+      events.push_back(e);
+      cv.notify_all();
+      return true;
+    });
+    EXPECT_TRUE(st.ok()) << st.error_message();
+  });
+  auto wait_for = [&](auto&& done) {
+    std::unique_lock<std::mutex> lock(mu);
+    return cv.wait_for(lock, std::chrono::seconds(30), [&] { return done(); });
+  };
+  ASSERT_TRUE(wait_for([&] { return !events.empty(); }));
+  uint64_t version = 0;
+  ASSERT_TRUE(Put("watched", {ToProto3({"a", PointSite3{{1, 1, 0.5}}})}, &version).ok());
+  ASSERT_TRUE(wait_for([&] { return events.back().version() >= version; }));
+  {
+    std::lock_guard<std::mutex> lock(mu);
+    const v1::SceneEvent& e = events.back();
+    EXPECT_EQ(e.version(), version);
+    EXPECT_EQ(e.site_count(), 1u);
+    EXPECT_EQ(e.changed().min_z(), -1);
+    EXPECT_EQ(e.changed().max_z(), 2);
+    EXPECT_EQ(e.changed().max_x(), 4);
+  }
+  ASSERT_TRUE(client_->DeleteScene("watched").ok());
+  ASSERT_TRUE(wait_for([&] { return events.back().deleted(); }));
+  watcher.join();
 }
 
 TEST_F(SpaceServerTest, Bad3DInputIsRefusedByNameAndChangesNothing) {
