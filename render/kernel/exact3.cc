@@ -14,9 +14,11 @@ namespace {
 // A power of two that brings the largest magnitude among the vectors near 1, so that the
 // products of four coordinates below neither overflow nor underflow (the regions and the
 // parameters they give do not change under scaling, and scaling by 2^k is exact).
-double Scale(std::initializer_list<Vec3> vs) {
-  double m = 0;
-  for (Vec3 v : vs) m = std::max({m, std::abs(v.x), std::abs(v.y), std::abs(v.z)});
+template <class... V>
+inline double Scale(const V&... vs) {
+  Vec3 largest(0);
+  ((largest = glm::max(largest, glm::abs(vs))), ...);
+  const double m = std::max({largest.x, largest.y, largest.z});
   if (m == 0 || !std::isfinite(m) || (m < 0x1p200 && m > 0x1p-200)) return 1;
   return std::ldexp(1.0, -std::ilogb(m));
 }
@@ -27,64 +29,96 @@ Hit3 Make(Vec3 q, Vec3 closest, FeatureKind kind, uint32_t index) {
 
 }  // namespace
 
-Hit3 NearestOnSegment(Vec3 q, Vec3 a, Vec3 b) {
-  const double s = Scale({b - a, q - a});
+namespace {
+
+// The nearest point of a segment or triangle and what it lies on, without the distance and
+// gradient (which NearestOnSegment and NearestOnTriangle add, and a distance alone does not
+// need).
+struct Foot {
+  Vec3 closest;
+  FeatureKind kind;
+  uint32_t index;
+};
+
+Foot SegmentFoot(Vec3 q, Vec3 a, Vec3 b) {
+  const double s = Scale(b - a, q - a);
   const Vec3 ab = (b - a) * s, aq = (q - a) * s;
   const double len2 = glm::dot(ab, ab);
   const double t = len2 > 0 ? std::clamp(glm::dot(aq, ab) / len2, 0.0, 1.0) : 0.0;
-  if (t == 0) return Make(q, a, FeatureKind::kVertex, 0);
-  if (t == 1) return Make(q, b, FeatureKind::kVertex, 1);
-  return Make(q, a + t * (b - a), FeatureKind::kEdge, 0);
+  if (t == 0) return {a, FeatureKind::kVertex, 0};
+  if (t == 1) return {b, FeatureKind::kVertex, 1};
+  return {a + t * (b - a), FeatureKind::kEdge, 0};
 }
 
 // After Ericson, Real-Time Collision Detection, 5.1.5: the Voronoi regions of the corners,
 // then of the edges, then the face, each decided by dot products with the edge vectors.
-Hit3 NearestOnTriangle(Vec3 q, Vec3 a, Vec3 b, Vec3 c) {
-  const double s = Scale({b - a, c - a, q - a});
+Foot TriangleFoot(Vec3 q, Vec3 a, Vec3 b, Vec3 c) {
+  const double s = Scale(b - a, c - a, q - a);
   const Vec3 ab = (b - a) * s, ac = (c - a) * s, ap = (q - a) * s;
   // A degenerate triangle, or one so thin that the face's parameters lose their precision,
   // is the union of its edges.
   const Vec3 n = glm::cross(ab, ac);
   const double n2 = glm::dot(n, n);
   if (!(n2 > 0x1p-80 * glm::dot(ab, ab) * glm::dot(ac, ac))) {
-    Hit3 best = NearestOnSegment(q, a, b);
+    Foot best = SegmentFoot(q, a, b);
+    double best_distance = Distance(q, best.closest);
     const std::pair<Vec3, Vec3> edges[2] = {{b, c}, {c, a}};
     for (uint32_t e = 0; e < 2; ++e) {
-      Hit3 h = NearestOnSegment(q, edges[e].first, edges[e].second);
-      if (h.distance < best.distance) {
+      Foot h = SegmentFoot(q, edges[e].first, edges[e].second);
+      const double d = Distance(q, h.closest);
+      if (d < best_distance) {
         // The edge's ends are the triangle's corners e + 1 and (e + 2) mod 3.
         h.index = h.kind == FeatureKind::kEdge ? e + 1 : (e + 1 + h.index) % 3;
         best = h;
+        best_distance = d;
       }
     }
     return best;
   }
   const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
-  if (d1 <= 0 && d2 <= 0) return Make(q, a, FeatureKind::kVertex, 0);
+  if (d1 <= 0 && d2 <= 0) return {a, FeatureKind::kVertex, 0};
   const Vec3 bp = ap - ab;
   const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
-  if (d3 >= 0 && d4 <= d3) return Make(q, b, FeatureKind::kVertex, 1);
+  if (d3 >= 0 && d4 <= d3) return {b, FeatureKind::kVertex, 1};
   const double vc = d1 * d4 - d3 * d2;
   if (vc <= 0 && d1 >= 0 && d3 <= 0) {
     const double v = d1 / (d1 - d3);
-    return Make(q, a + v * (b - a), FeatureKind::kEdge, 0);
+    return {a + v * (b - a), FeatureKind::kEdge, 0};
   }
   const Vec3 cp = ap - ac;
   const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
-  if (d6 >= 0 && d5 <= d6) return Make(q, c, FeatureKind::kVertex, 2);
+  if (d6 >= 0 && d5 <= d6) return {c, FeatureKind::kVertex, 2};
   const double vb = d5 * d2 - d1 * d6;
   if (vb <= 0 && d2 >= 0 && d6 <= 0) {
     const double w = d2 / (d2 - d6);
-    return Make(q, a + w * (c - a), FeatureKind::kEdge, 2);
+    return {a + w * (c - a), FeatureKind::kEdge, 2};
   }
   const double va = d3 * d6 - d5 * d4;
   if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) {
     const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-    return Make(q, b + w * (c - b), FeatureKind::kEdge, 1);
+    return {b + w * (c - b), FeatureKind::kEdge, 1};
   }
   const double denom = 1 / (va + vb + vc);
   const double v = vb * denom, w = vc * denom;
-  return Make(q, a + v * (b - a) + w * (c - a), FeatureKind::kFace, 0);
+  return {a + v * (b - a) + w * (c - a), FeatureKind::kFace, 0};
+}
+
+double TriangleDistance(Vec3 q, const MeshSite3& mesh, uint32_t t) {
+  const auto& tri = mesh.triangles[t];
+  return Distance(q, TriangleFoot(q, mesh.vertices[tri[0]], mesh.vertices[tri[1]],
+                                  mesh.vertices[tri[2]]).closest);
+}
+
+}  // namespace
+
+Hit3 NearestOnSegment(Vec3 q, Vec3 a, Vec3 b) {
+  const Foot f = SegmentFoot(q, a, b);
+  return Make(q, f.closest, f.kind, f.index);
+}
+
+Hit3 NearestOnTriangle(Vec3 q, Vec3 a, Vec3 b, Vec3 c) {
+  const Foot f = TriangleFoot(q, a, b, c);
+  return Make(q, f.closest, f.kind, f.index);
 }
 
 Hit3 NearestFeature(Vec3 q, const Geometry3& g, double within) {
@@ -120,7 +154,22 @@ Hit3 NearestFeature(Vec3 q, const Geometry3& g, double within) {
 
 double ExactDistance(Vec3 q, const Geometry3& g, double within) {
   if (const auto* p = std::get_if<PointSite3>(&g)) return Distance(q, p->p);
-  return NearestFeature(q, g, within).distance;
+  if (const auto* s = std::get_if<SegmentSite3>(&g)) {
+    return Distance(q, SegmentFoot(q, s->a, s->b).closest);
+  }
+  if (const auto* t = std::get_if<TriangleSite3>(&g)) {
+    return Distance(q, TriangleFoot(q, t->a, t->b, t->c).closest);
+  }
+  // A mesh's: the least over its triangles within `within`, as NearestFeature finds it, but
+  // without each one's feature and gradient (the volume render asks this per voxel).
+  const auto& mesh = std::get<MeshSite3>(g);
+  double best = INFINITY, bound = within;
+  mesh.tree->Nearest(q, &bound, [&](uint32_t t) {
+    const double d = TriangleDistance(q, mesh, t);
+    if (d <= within && d < best) best = d;
+    return d;
+  });
+  return best;
 }
 
 double SiteValue(Vec3 q, const Site3& site) {
