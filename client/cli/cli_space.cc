@@ -91,6 +91,12 @@ int Volume(const Args& a, Client& client) {
   }
   v1::GetClearanceFieldResponse f;
   if (auto s = client.GetClearanceField(r, &f); !s.ok()) return Fail(s);
+  const size_t n = size_t{f.width_px()} * f.height_px() * f.depth_px();
+  if (size_t(f.clearance_size()) != n || size_t(f.ids_size()) != n) {
+    std::fprintf(stderr, "gvd: the server answered %d distances and %d sites for %zu samples\n",
+                 f.clearance_size(), f.ids_size(), n);
+    return 1;
+  }
   openvdb::initialize();
   const v1::Window& b = f.window();
   const double vx = (b.max_x() - b.min_x()) / f.width_px(), vy = (b.max_y() - b.min_y()) / f.height_px(),

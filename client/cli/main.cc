@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "absl/flags/flag.h"
+#include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
@@ -377,7 +378,10 @@ int Run(const Args& a) {
       gvd::v1::UpsertSitesRequest r;
       static const std::set<std::string> kSpace = {"point", "triangle", "mesh"};
       const std::string* file = option("--file");
-      const bool space_kind = w.size() >= 3 && kSpace.count(w[2]) > 0;
+      // "point" and "triangle" name 3D kinds when their points are X,Y,Z words; otherwise
+      // they may be a point site's id ("sites add point 1 2").
+      const bool space_kind = w.size() >= 3 && kSpace.count(w[2]) > 0 &&
+                              (w[2] == "mesh" || (w.size() >= 5 && absl::StrContains(w[4], ',')));
       std::string model;  // the model file a mesh came from
       if (space_kind) {
         // 3D sites: ID and X,Y,Z points; a mesh from a model file.
@@ -393,6 +397,7 @@ int Run(const Args& a) {
           }
           model = *file;
         } else {
+          if (file) Usage(absl::StrCat("sites add ", w[2], " takes no --file"));
           const size_t n = w[2] == "point" ? 1 : 3;
           if (w.size() != 4 + n) Usage(absl::StrCat("usage: gvd sites add ", w[2], " ID", n == 1 ? " X,Y,Z" : " X,Y,Z X,Y,Z X,Y,Z"));
           if (n == 1) {

@@ -240,21 +240,26 @@ void BasicImageJob<S>::Encode(const Frame& frame) {
 
 // ---- AnalysisJob ----
 
-AnalysisJob::AnalysisJob(SceneRegistry* registry, std::shared_ptr<Scene> scene,
-                         uint64_t min_version, Work work, std::function<bool()> cancelled)
-    : FrameJob(registry, std::move(scene), min_version, std::move(cancelled)),
+template <class S>
+BasicAnalysisJob<S>::BasicAnalysisJob(SceneRegistry* registry, std::shared_ptr<S> scene,
+                                      uint64_t min_version, Work work,
+                                      std::function<bool()> cancelled)
+    : BasicFrameJob<S>(registry, std::move(scene), min_version, std::move(cancelled)),
       work_(std::move(work)) {}
 
-std::shared_ptr<AnalysisJob> AnalysisJob::Make(SceneRegistry* registry,
-                                               std::shared_ptr<Scene> scene, uint64_t min_version,
-                                               Work work, std::function<bool()> cancelled) {
-  return std::shared_ptr<AnalysisJob>(new AnalysisJob(registry, std::move(scene), min_version,
-                                                      std::move(work), std::move(cancelled)));
+template <class S>
+std::shared_ptr<BasicAnalysisJob<S>> BasicAnalysisJob<S>::Make(SceneRegistry* registry,
+                                                               std::shared_ptr<S> scene,
+                                                               uint64_t min_version, Work work,
+                                                               std::function<bool()> cancelled) {
+  return std::shared_ptr<BasicAnalysisJob>(new BasicAnalysisJob(
+      registry, std::move(scene), min_version, std::move(work), std::move(cancelled)));
 }
 
-void AnalysisJob::Run(std::shared_ptr<const Frame> frame, bool) {
-  auto self = std::static_pointer_cast<AnalysisJob>(shared_from_this());
-  CpuPool::Lane& lane = registry_->analyses();
+template <class S>
+void BasicAnalysisJob<S>::Run(std::shared_ptr<const Frame> frame, bool) {
+  auto self = std::static_pointer_cast<BasicAnalysisJob>(this->shared_from_this());
+  CpuPool::Lane& lane = this->registry_->analyses();
   const bool queued = lane.Submit([self, frame] {
     if (self->cancelled()) {
       self->Finish(absl::CancelledError("the call was cancelled"));
@@ -263,7 +268,7 @@ void AnalysisJob::Run(std::shared_ptr<const Frame> frame, bool) {
     self->Finish(self->work_(frame));
   });
   if (!queued) {
-    Finish(absl::ResourceExhaustedError(
+    this->Finish(absl::ResourceExhaustedError(
         absl::StrCat(lane.max_queued(),
                      " analysis calls already wait for a worker (--max-queued-analyses)")));
   }
@@ -275,5 +280,7 @@ template class BasicNearestJob<Scene>;
 template class BasicNearestJob<Scene3>;
 template class BasicImageJob<Scene>;
 template class BasicImageJob<Scene3>;
+template class BasicAnalysisJob<Scene>;
+template class BasicAnalysisJob<Scene3>;
 
 }  // namespace gvd

@@ -171,21 +171,26 @@ using ImageJob = BasicImageJob<Scene>;
 using ImageJob3 = BasicImageJob<Scene3>;
 
 // A structure or planning call: `work` runs on the frame on the analyses lane, and its status
-// ends the job (RESOURCE_EXHAUSTED, naming --max-queued-analyses, when the lane is full).
-class AnalysisJob final : public FrameJob {
+// ends the job (RESOURCE_EXHAUSTED, naming --max-queued-analyses, when the lane is full). Of
+// a 2D scene's frame (AnalysisJob) or a 3D scene's volume (AnalysisJob3).
+template <class S>
+class BasicAnalysisJob final : public BasicFrameJob<S> {
  public:
+  using Frame = typename S::Frame;
   using Work = std::function<absl::Status(const std::shared_ptr<const Frame>& frame)>;
-  static std::shared_ptr<AnalysisJob> Make(SceneRegistry* registry, std::shared_ptr<Scene> scene,
-                                           uint64_t min_version, Work work,
-                                           std::function<bool()> cancelled);
+  static std::shared_ptr<BasicAnalysisJob> Make(SceneRegistry* registry, std::shared_ptr<S> scene,
+                                                uint64_t min_version, Work work,
+                                                std::function<bool()> cancelled);
 
  private:
-  AnalysisJob(SceneRegistry* registry, std::shared_ptr<Scene> scene, uint64_t min_version,
-              Work work, std::function<bool()> cancelled);
+  BasicAnalysisJob(SceneRegistry* registry, std::shared_ptr<S> scene, uint64_t min_version,
+                   Work work, std::function<bool()> cancelled);
   void Run(std::shared_ptr<const Frame> frame, bool on_caller) override;
 
   const Work work_;
 };
+using AnalysisJob = BasicAnalysisJob<Scene>;
+using AnalysisJob3 = BasicAnalysisJob<Scene3>;
 
 extern template class BasicFrameJob<Scene>;
 extern template class BasicFrameJob<Scene3>;
@@ -193,5 +198,7 @@ extern template class BasicNearestJob<Scene>;
 extern template class BasicNearestJob<Scene3>;
 extern template class BasicImageJob<Scene>;
 extern template class BasicImageJob<Scene3>;
+extern template class BasicAnalysisJob<Scene>;
+extern template class BasicAnalysisJob<Scene3>;
 
 }  // namespace gvd

@@ -12,6 +12,8 @@
 #include "render/analysis/analysis.h"
 #include "render/analysis/planning.h"
 #include "render/analysis/refine.h"
+#include "render/kernel/exact3.h"
+#include "render/scene/cpu_pool.h"
 #include "server/app/jobs.h"
 #include "server/grpc/call_scope.h"
 #include "server/grpc/convert.h"
@@ -371,71 +373,104 @@ grpc::ServerUnaryReactor* VoronoiService::GetClearanceField(
 grpc::ServerUnaryReactor* VoronoiService::ClearanceField3(
     const Call& call, grpc::CallbackServerContext* ctx, const v1::GetClearanceFieldRequest* request,
     v1::GetClearanceFieldResponse* response) {
-  if (call.scene3->settings().diagram != Diagram::kNearest) {
+  const Scene3& scene = *call.scene3;
+  if (scene.settings().diagram != Diagram::kNearest) {
     return call.Finish(ctx, Status(StatusCode::FAILED_PRECONDITION,
-                                   absl::StrCat("scene \"", call.scene3->id(),
+                                   absl::StrCat("scene \"", scene.id(),
                                                 "\" is a FARTHEST diagram; clearance needs NEAREST")));
   }
-  ClearanceSamples3 samples;
-  if (auto s = ToClearanceSamples3(*request, call.scene3->settings().grid3(), limits_, &samples);
+  auto samples = std::make_shared<ClearanceSamples3>();
+  if (auto s = ToClearanceSamples3(*request, scene.settings().grid3(), scene.site_count(), limits_,
+                                   samples.get());
       !s.ok()) {
     return call.Finish(ctx, s);
   }
-  auto version = registry_->ReadVersion(*call.scene3, request->min_version());
+  auto version = registry_->ReadVersion(scene, request->min_version());
   if (!version.ok()) return call.Finish(ctx, ToGrpc(version.status()));
-  // Each sample is a nearest-site query: answered from the volume with its bound (exactly
-  // outside the scene's box), its closest point when gradients are asked for.
-  NearestJob3::Query query;
-  query.points = std::move(samples.points);
-  query.features = false;
-  query.min_version = *version;
-  query.closest = request->gradients();
-  auto job = NearestJob3::Make(registry_, call.scene3, std::move(query),
-                               [ctx] { return ctx->IsCancelled(); });
-  const Box3 box = samples.box;
-  const uint32_t width = samples.width, height = samples.height, depth = samples.depth;
   const bool gradients = request->gradients(), indices = request->site_indices();
-  return JobReactor<NearestJob3>::Start(call.scope, job, [=](const NearestJob3& job) {
-    response->set_version(job.version());
-    v1::Window* w = response->mutable_window();
-    w->set_min_x(box.min_x);
-    w->set_min_y(box.min_y);
-    w->set_min_z(box.min_z);
-    w->set_max_x(box.max_x);
-    w->set_max_y(box.max_y);
-    w->set_max_z(box.max_z);
-    response->set_width_px(width);
-    response->set_height_px(height);
-    response->set_depth_px(depth);
-    const auto& rows = job.rows();
-    const int n = static_cast<int>(rows.size());
+  // Written straight into the response, on the analyses lane and the CPU pool: the scene's
+  // voxels as they are (a stored value less its rounding slack bounds the distance from
+  // below, the render being exact per voxel), or each sample's answer from the volume less
+  // its bound (exact outside the box). A gradient points from the sample's site's nearest
+  // point.
+  auto work = [=](const std::shared_ptr<const Volume>& volume) -> absl::Status {
+    const ClearanceSamples3& at = *samples;
+    const int n = static_cast<int>(at.count());
     auto* clearance = response->mutable_clearance();
-    clearance->Resize(n, 0);
-    if (gradients) response->mutable_gradient()->Resize(3 * n, 0);
-    if (indices) response->mutable_ids()->Resize(n, 0);
-    std::unordered_map<uint32_t, uint32_t> named;  // slot -> 1 + index in site_ids
-    for (int i = 0; i < n; ++i) {
-      const AnswerRow& row = rows[i];
-      if (row.site_id == nullptr) {
-        clearance->Set(i, INFINITY);
-        continue;
+    clearance->Resize(n, INFINITY);
+    float* gradient = nullptr;
+    uint32_t* ids = nullptr;
+    if (gradients) {
+      response->mutable_gradient()->Resize(3 * n, 0);
+      gradient = response->mutable_gradient()->mutable_data();
+    }
+    if (indices) {
+      response->mutable_ids()->Resize(n, 0);
+      ids = response->mutable_ids()->mutable_data();
+    }
+    float* out = clearance->mutable_data();
+    std::vector<uint32_t> slots(indices ? n : 0, 0);  // slot + 1 per sample, 0 none
+    const ErrorModel& error = volume->error();
+    const uint32_t rows = at.height * at.depth;
+    ParallelFor(rows, 4, [&](size_t begin, size_t end) {
+      for (size_t row = begin; row < end; ++row) {
+        const uint32_t j = static_cast<uint32_t>(row % at.height);
+        const uint32_t k = static_cast<uint32_t>(row / at.height);
+        for (uint32_t i = 0; i < at.width; ++i) {
+          const size_t s = row * at.width + i;
+          const Vec3 q = at.At(i, j, k);
+          uint32_t slot = 0;  // + 1
+          double lower = INFINITY;
+          if (at.own) {
+            slot = volume->id_at(at.first[0] + i, at.first[1] + j, at.first[2] + k);
+            if (slot != 0) {
+              lower = error.LowerBound(volume->distance_at(at.first[0] + i, at.first[1] + j,
+                                                           at.first[2] + k));
+            }
+          } else if (auto answer = volume->Nearest(q); answer && answer->found) {
+            slot = answer->site_index + 1;
+            lower = answer->distance - answer->error_bound;
+          }
+          if (slot == 0) continue;
+          // A lower bound in float: rounded down from the double one.
+          lower = std::max(0.0, lower);
+          float f = static_cast<float>(lower);
+          if (double{f} > lower) f = std::nextafter(f, -INFINITY);
+          out[s] = f;
+          if (gradient != nullptr) {
+            const Vec3 closest = NearestFeature(q, volume->sites().get(slot - 1)->geometry).closest;
+            const Vec3 g = UnitGradient(q, closest);
+            for (int a = 0; a < 3; ++a) gradient[3 * s + a] = static_cast<float>(g[a]);
+          }
+          if (indices) slots[s] = slot;
+        }
       }
-      // A lower bound in float: rounded down from the double one.
-      const double lower = std::max(0.0, row.distance - row.error_bound);
-      float f = static_cast<float>(lower);
-      if (double{f} > lower) f = std::nextafter(f, -INFINITY);
-      clearance->Set(i, f);
-      if (gradients) {
-        const Vec3 g = UnitGradient(job.points()[i], job.closest()[i]);
-        for (int a = 0; a < 3; ++a) response->mutable_gradient()->Set(3 * i + a, static_cast<float>(g[a]));
-      }
-      if (indices) {
-        auto [it, fresh] = named.try_emplace(row.slot, static_cast<uint32_t>(named.size() + 1));
-        if (fresh) response->add_site_ids(*row.site_id);
-        response->mutable_ids()->Set(i, it->second);
+    });
+    if (indices) {  // 1 + an index into site_ids, in the order the samples first name them
+      std::unordered_map<uint32_t, uint32_t> named;
+      for (int s = 0; s < n; ++s) {
+        if (slots[s] == 0) continue;
+        auto [it, fresh] = named.try_emplace(slots[s], static_cast<uint32_t>(named.size() + 1));
+        if (fresh) response->add_site_ids(volume->sites().get(slots[s] - 1)->id);
+        ids[s] = it->second;
       }
     }
-  });
+    response->set_version(volume->version());
+    v1::Window* w = response->mutable_window();
+    w->set_min_x(at.box.min_x);
+    w->set_min_y(at.box.min_y);
+    w->set_min_z(at.box.min_z);
+    w->set_max_x(at.box.max_x);
+    w->set_max_y(at.box.max_y);
+    w->set_max_z(at.box.max_z);
+    response->set_width_px(at.width);
+    response->set_height_px(at.height);
+    response->set_depth_px(at.depth);
+    return absl::OkStatus();
+  };
+  auto job = AnalysisJob3::Make(registry_, call.scene3, *version, std::move(work),
+                                [ctx] { return ctx->IsCancelled(); });
+  return JobReactor<AnalysisJob3>::Start(call.scope, job, nullptr);
 }
 
 grpc::ServerUnaryReactor* VoronoiService::PlanPath(grpc::CallbackServerContext* ctx,

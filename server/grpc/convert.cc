@@ -598,7 +598,8 @@ grpc::Status ToPixelRect(const v1::Window& w, const Grid& grid, PixelRect* rect)
 }
 
 grpc::Status ToClearanceSamples3(const v1::GetClearanceFieldRequest& r, const Grid3& grid,
-                                 const ServerLimits& limits, ClearanceSamples3* out) {
+                                 size_t sites, const ServerLimits& limits,
+                                 ClearanceSamples3* out) {
   Box3 box = grid.box;
   if (r.has_window()) {
     Window plane;
@@ -650,10 +651,18 @@ grpc::Status ToClearanceSamples3(const v1::GetClearanceFieldRequest& r, const Gr
                   absl::StrCat("the field has ", n, " samples; the limit is ",
                                limits.max_voxels_per_scene, " (--max-voxels-per-scene)"));
   }
-  const uint64_t bytes = n * (5 + (r.gradients() ? 15 : 0) + (r.site_indices() ? 5 : 0));
+  if (!own && n > limits.max_points_per_query) {
+    return Status(StatusCode::RESOURCE_EXHAUSTED,
+                  absl::StrCat("the field has ", n, " samples; the limit is ",
+                               limits.max_points_per_query,
+                               " (--max-points-per-query); the scene's own voxels are not limited so"));
+  }
+  // A float each, three with a gradient, an index and, at most once a site, its id.
+  uint64_t bytes = n * (5 + (r.gradients() ? 15 : 0) + (r.site_indices() ? 5 : 0));
+  if (r.site_indices()) bytes += std::min<uint64_t>(n, sites) * (limits.max_site_id_bytes + 3);
   if (bytes > uint64_t(limits.max_message_bytes)) {
     return Status(StatusCode::RESOURCE_EXHAUSTED,
-                  absl::StrCat("the field's ", n, " samples take about ", bytes,
+                  absl::StrCat("the field's ", n, " samples take up to ", bytes,
                                " bytes, over a message's ", limits.max_message_bytes,
                                " (--max-message-bytes)"));
   }
@@ -661,24 +670,9 @@ grpc::Status ToClearanceSamples3(const v1::GetClearanceFieldRequest& r, const Gr
   out->width = count[0];
   out->height = count[1];
   out->depth = count[2];
-  out->points.clear();
-  out->points.reserve(n);
-  if (own) {
-    for (uint32_t k = 0; k < count[2]; ++k) {
-      for (uint32_t j = 0; j < count[1]; ++j) {
-        for (uint32_t i = 0; i < count[0]; ++i) {
-          out->points.push_back(grid.Center(first[0] + i, first[1] + j, first[2] + k));
-        }
-      }
-    }
-  } else {
-    const Grid3 cells{box, count[0], count[1], count[2]};
-    for (uint32_t k = 0; k < count[2]; ++k) {
-      for (uint32_t j = 0; j < count[1]; ++j) {
-        for (uint32_t i = 0; i < count[0]; ++i) out->points.push_back(cells.Center(i, j, k));
-      }
-    }
-  }
+  out->own = own;
+  out->cells = own ? grid : Grid3{box, count[0], count[1], count[2]};
+  for (int a = 0; a < 3; ++a) out->first[a] = own ? first[a] : 0;
   return Status::OK;
 }
 

@@ -77,17 +77,24 @@ grpc::Status ToQueryPoints3(const v1::FindNearestRequest& request, const Box3& b
                             const ServerLimits& limits, std::vector<Vec3>* points, bool* outside);
 
 // The samples of a 3D scene's clearance field that a request asks for (see
-// GetClearanceFieldRequest): their points, slice by slice from min z, each slice row by row
-// from min y; the box they are the cell centres of; and the counts along x, y, z.
-// INVALID_ARGUMENT naming the field; RESOURCE_EXHAUSTED when the samples exceed
-// --max-voxels-per-scene or, with what each answers, --max-message-bytes.
+// GetClearanceFieldRequest): the box they are the cell centres of, their counts along x, y,
+// z, and where they are. Sample (i, j, k) is the centre of voxel (first + (i, j, k)) of
+// `cells`: the scene's own grid (own) or the box's. INVALID_ARGUMENT naming the field;
+// RESOURCE_EXHAUSTED when the samples exceed --max-voxels-per-scene, --max-points-per-query
+// (samples of a box of the caller's) or, with what each answers, --max-message-bytes.
 struct ClearanceSamples3 {
-  std::vector<Vec3> points;
   Box3 box;
   uint32_t width = 0, height = 0, depth = 0;
+  bool own = false;  // the scene's voxels, read as they are
+  Grid3 cells;
+  uint32_t first[3] = {0, 0, 0};
+  uint64_t count() const { return uint64_t{width} * height * depth; }
+  Vec3 At(uint32_t i, uint32_t j, uint32_t k) const {
+    return cells.Center(first[0] + i, first[1] + j, first[2] + k);
+  }
 };
 grpc::Status ToClearanceSamples3(const v1::GetClearanceFieldRequest& request, const Grid3& grid,
-                                 const ServerLimits& limits, ClearanceSamples3* out);
+                                 size_t sites, const ServerLimits& limits, ClearanceSamples3* out);
 
 // The pixels of `grid` whose centres lie in the window `w` (a request's field "window"):
 // INVALID_ARGUMENT when w is not finite or holds no pixel centre.

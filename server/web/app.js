@@ -725,7 +725,7 @@ overlay.addEventListener('pointerdown', (e) => {
   overlay.setPointerCapture(e.pointerId);
   state.press = { x: cx, y: cy, view: { ...state.view }, moved: false, drag: null };
   const site = state.hover?.found ? state.hover.site : null;
-  if (state.tool === 'select' && site?.point) {
+  if (state.tool === 'select' && site?.point && state.slice < 0) {  // no drags in a 3D slice
     const [px, py] = toCanvas(site.point.x ?? 0, site.point.y ?? 0);
     if (Math.hypot(px - cx, py - cy) <= 10) state.press.drag = { id: state.hover.siteId, site, to: null };
   }

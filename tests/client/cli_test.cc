@@ -474,12 +474,28 @@ TEST_F(CliTest, A3DSceneFromAModelFileToOpenVdb) {
   EXPECT_NE(r.out.find("rings\tmesh\t"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("\t1152 triangles"), std::string::npos) << r.out;
 
+  // Sites of every 3D kind by their points; a query with z; a slice as an image.
+  r = Gvd("--scene model sites add point p 2,2,1.5");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  r = Gvd("--scene model sites add triangle t 0,0,-1 0.5,0,-1 0,0.5,-1");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  r = Gvd("--scene model nearest 2 2 1.75 0.1 0.1 -1.5 --exact --min-version 4");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("2\t2\t1.75\tp\t0.25\t0\tyes\tvertex 0"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("0.1\t0.1\t-1.5\tt\t0.5\t0\tyes\tface 0"), std::string::npos) << r.out;
+  r = Gvd("render model -o " + server_->dir() + "/slice.png --layer features --z 0.5");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("24x24 features of scene model, slice 9 (z 0.58333"), std::string::npos)
+      << r.out;
+  r = Gvd("--scene model sites rm p t");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+
   // 10,000 queries in and around the box, against the oracle's distance to the flattened
   // model.
   auto client = Client::Connect(server_->address());
   v1::FindNearestRequest q;
   q.set_scene_id("model");
-  q.set_min_version(2);
+  q.set_min_version(5);
   for (auto f : {v1::FindNearestRequest::SITE, v1::FindNearestRequest::DISTANCE,
                  v1::FindNearestRequest::ERROR_BOUND, v1::FindNearestRequest::CLOSEST,
                  v1::FindNearestRequest::GRADIENT}) {
@@ -520,7 +536,7 @@ TEST_F(CliTest, A3DSceneFromAModelFileToOpenVdb) {
   const std::string vdb = server_->dir() + "/model.vdb";
   r = Gvd("volume model -o " + vdb);
   ASSERT_EQ(r.exit_code, 0) << r.out;
-  EXPECT_NE(r.out.find("24x24x18 distances of scene model at version 2"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("24x24x18 distances of scene model at version 5"), std::string::npos) << r.out;
   const std::string dump = server_->dir() + "/model.txt";
   r = Run("/usr/bin/python3 -c \"import sys, pyopenvdb as vdb\n"
           "g = vdb.read(sys.argv[1], 'distance')\n"
@@ -535,7 +551,7 @@ TEST_F(CliTest, A3DSceneFromAModelFileToOpenVdb) {
   ASSERT_EQ(r.exit_code, 0) << r.out;
   v1::GetClearanceFieldRequest fr;
   fr.set_scene_id("model");
-  fr.set_min_version(2);
+  fr.set_min_version(5);
   v1::GetClearanceFieldResponse field;
   ASSERT_TRUE(client->GetClearanceField(fr, &field).ok());
   std::ifstream in(dump);

@@ -213,12 +213,23 @@ TEST_F(SpaceServerTest, ClearanceFieldsAreLowerBoundsWithGradientsAndSites) {
   sub.set_width_px(9);
   sub.set_height_px(7);
   sub.set_depth_px(5);
-  for (const auto* r : {&own, &sub}) {
+  // The scene's voxels whose centres lie in a window that cuts through voxels and reaches
+  // past the box: x centres 0.375 to 3.875, y 0.125 to 0.875, z 0.125 and 0.375.
+  v1::GetClearanceFieldRequest part = own;
+  w = part.mutable_window();
+  w->set_min_x(0.3);
+  w->set_min_y(-1);
+  w->set_min_z(0.1);
+  w->set_max_x(5);
+  w->set_max_y(1.1);
+  w->set_max_z(0.6);
+  for (const auto* r : {&own, &sub, &part}) {
     v1::GetClearanceFieldResponse f;
     grpc::Status st = client_->GetClearanceField(*r, &f);
     ASSERT_TRUE(st.ok()) << st.error_message();
     const bool is_own = r == &own;
-    const uint32_t nx = is_own ? 16 : 9, ny = is_own ? 16 : 7, nz = is_own ? 12 : 5;
+    const uint32_t nx = is_own ? 16 : r == &sub ? 9 : 15, ny = is_own ? 16 : r == &sub ? 7 : 4,
+                   nz = is_own ? 12 : r == &sub ? 5 : 2;
     ASSERT_EQ(f.width_px(), nx);
     ASSERT_EQ(f.height_px(), ny);
     ASSERT_EQ(f.depth_px(), nz);
@@ -230,8 +241,15 @@ TEST_F(SpaceServerTest, ClearanceFieldsAreLowerBoundsWithGradientsAndSites) {
     if (is_own) {
       EXPECT_EQ(b.min_z(), -1);
       EXPECT_EQ(b.max_z(), 2);
-    } else {
+    } else if (r == &sub) {
       EXPECT_EQ(b.max_z(), 2.75);
+    } else {  // the part's voxels, out to their edges
+      EXPECT_EQ(b.min_x(), 0.25);
+      EXPECT_EQ(b.max_x(), 4);
+      EXPECT_EQ(b.min_y(), 0);
+      EXPECT_EQ(b.max_y(), 1);
+      EXPECT_EQ(b.min_z(), 0);
+      EXPECT_EQ(b.max_z(), 0.5);
     }
     int failures = 0;
     for (uint32_t k = 0; k < nz; ++k) {
@@ -258,7 +276,7 @@ TEST_F(SpaceServerTest, ClearanceFieldsAreLowerBoundsWithGradientsAndSites) {
                           std::abs(Length(g) - 1) <= 1e-6 && off <= 1e-6 * (1 + d);
           if (!ok) {
             ++failures;
-            ADD_FAILURE() << (is_own ? "own" : "sub") << " sample " << i << "," << j << "," << k
+            ADD_FAILURE() << (is_own ? "own" : r == &sub ? "sub" : "part") << " sample " << i << "," << j << "," << k
                           << " q " << q.x << "," << q.y << "," << q.z << ": clearance " << c
                           << ", oracle " << best << ", site " << id << " at " << value
                           << ", gradient " << g.x << "," << g.y << "," << g.z << " off " << off;
@@ -279,6 +297,14 @@ TEST_F(SpaceServerTest, ClearanceFieldsAreLowerBoundsWithGradientsAndSites) {
   st = client_->GetClearanceField(bad, &f);
   EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT);
   EXPECT_NE(st.error_message().find("window.max_z"), std::string::npos) << st.error_message();
+  bad = sub;
+  bad.set_width_px(200);
+  bad.set_height_px(100);
+  bad.set_depth_px(100);
+  st = client_->GetClearanceField(bad, &f);
+  EXPECT_EQ(st.error_code(), StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_NE(st.error_message().find("--max-points-per-query"), std::string::npos)
+      << st.error_message();
   bad = sub;
   bad.set_width_px(8192);
   bad.set_height_px(8192);
