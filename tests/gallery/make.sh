@@ -83,7 +83,7 @@ gvd mosaic "$out/coffee.jpg" "$out/coffee-mosaic-adaptive.jpg" --tiles 1500 --se
   --adaptive >/dev/null
 
 # A 3D diagram (paper sec. 4.2, colour plate 3 in spirit): the Utah teapots of Debian's
-# assimp-testmodels, one mesh of faces, edges and vertices; a thin slab of voxels through
+# assimp-testmodels (apt-get install assimp-testmodels), one mesh of faces, edges and vertices; a thin slab of voxels through
 # the nearest teapot's spout and handle, and its middle slice per feature and by distance.
 gvd scene create teapot --window -0.6,-0.12,0.47,0.65,0.52,0.486 --size 640x328x8 >/dev/null
 export GVD_SCENE=teapot
