@@ -134,6 +134,9 @@ int Volume(const Args& a, Client& client) {
   meta.insertMeta("gvd_site_ids", openvdb::StringMetadata(ids));
   try {
     openvdb::io::File file(*out);
+    // No per-grid statistics: the box and the values are the request's, and their count
+    // would run TBB's threads for nothing.
+    file.setGridStatsMetadataEnabled(false);
     file.write(grids, meta);
     file.close();
   } catch (const openvdb::Exception& e) {

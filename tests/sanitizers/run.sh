@@ -31,7 +31,11 @@ cmake --build build/tsan --target gvd_core_tests gvd_integration_tests gvd_serve
 export TSAN_OPTIONS="halt_on_error=1 suppressions=$root/tests/sanitizers/tsan.supp"
 (cd build/tsan && ctest --output-on-failure -j "$jobs" --timeout 900 \
   -R '^(SceneCore|SceneRegistry|ServiceThreads|Store|CpuPool|PendingEventTest|MemoryBudgetUnit|FairRenders|ServerTest|SpaceServerTest|LoadTest|CrashTest|CliTest|MetricsTest|AnalysisServerTest|AnalysisLimitsTest|WatchTest|WatchDrain|HttpTest|HttpSecurity|HttpDrain)\.' \
-  -E '^CliTest\.EveryKindAndAnImage$')
+  -E '^CliTest\.(EveryKindAndAnImage|A3DSceneFromAModelFileToOpenVdb)$')
+# A3DSceneFromAModelFileToOpenVdb is left out of TSan only: the single-threaded CLI's OpenVDB
+# export runs Debian's uninstrumented OpenVDB, whose initialize() takes a mutex TSan sees
+# unlocked only (a false report); the server side of 3D scenes runs under TSan in
+# SpaceServerTest.
 # EveryKindAndAnImage is left out of TSan only: the single-threaded CLI's GeoJSON parsing
 # (protobuf Struct maps, inlined from Debian's uninstrumented protobuf) crashes under TSan
 # instrumentation; it passes in the plain, ASan and UBSan runs.
