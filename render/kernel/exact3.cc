@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "render/kernel/mesh_regions.h"
 
 namespace gvd {
 
@@ -103,13 +104,13 @@ Foot TriangleFoot(Vec3 q, Vec3 a, Vec3 b, Vec3 c) {
   return {a + v * (b - a) + w * (c - a), FeatureKind::kFace, 0};
 }
 
+}  // namespace
+
 double TriangleDistance(Vec3 q, const MeshSite3& mesh, uint32_t t) {
   const auto& tri = mesh.triangles[t];
   return Distance(q, TriangleFoot(q, mesh.vertices[tri[0]], mesh.vertices[tri[1]],
                                   mesh.vertices[tri[2]]).closest);
 }
-
-}  // namespace
 
 Hit3 NearestOnSegment(Vec3 q, Vec3 a, Vec3 b) {
   const Foot f = SegmentFoot(q, a, b);
@@ -160,9 +161,12 @@ double ExactDistance(Vec3 q, const Geometry3& g, double within) {
   if (const auto* t = std::get_if<TriangleSite3>(&g)) {
     return Distance(q, TriangleFoot(q, t->a, t->b, t->c).closest);
   }
-  // A mesh's: the least over its triangles within `within`, as NearestFeature finds it, but
-  // without each one's feature and gradient (the volume render asks this per voxel).
-  const auto& mesh = std::get<MeshSite3>(g);
+  return MeshDistance(q, std::get<MeshSite3>(g), within);
+}
+
+double MeshDistance(Vec3 q, const MeshSite3& mesh, double within) {
+  // The least over its triangles within `within`, as NearestFeature finds it, but without
+  // each one's feature and gradient (the volume render asks this per voxel).
   double best = INFINITY, bound = within;
   mesh.tree->Nearest(q, &bound, [&](uint32_t t) {
     const double d = TriangleDistance(q, mesh, t);
@@ -281,6 +285,7 @@ absl::StatusOr<MeshSite3> MakeMesh(const std::vector<double>& xyz,
     mesh.triangle_edges.push_back(named);
   }
   mesh.tree = std::make_shared<const TriangleTree>(mesh.vertices, mesh.triangles);
+  mesh.regions = std::make_shared<const MeshRegions>(mesh);
   return mesh;
 }
 

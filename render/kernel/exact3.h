@@ -36,6 +36,9 @@ Hit3 NearestOnTriangle(Vec3 q, Vec3 a, Vec3 b, Vec3 c);
 // looked for; when none is, the hit's distance is +inf (other sites' hits are exact).
 Hit3 NearestFeature(Vec3 q, const Geometry3& g, double within = INFINITY);
 double ExactDistance(Vec3 q, const Geometry3& g, double within = INFINITY);
+// ExactDistance of a mesh; and the distance from q to its triangle t, as those score it.
+double MeshDistance(Vec3 q, const MeshSite3& mesh, double within = INFINITY);
+double TriangleDistance(Vec3 q, const MeshSite3& mesh, uint32_t t);
 inline double ExactDistance(Vec3 q, const Site3& site) { return ExactDistance(q, site.geometry); }
 
 // The site's value at q: multiplicative * d + additive, or +infinity beyond its max_distance.

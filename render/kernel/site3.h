@@ -18,6 +18,8 @@
 
 namespace gvd {
 
+class MeshRegions;  // mesh_regions.h
+
 // An axis-aligned box of space; valid when min < max on every axis and all values are
 // finite.
 struct Box3 {
@@ -60,6 +62,8 @@ struct MeshSite3 {
   std::vector<std::array<uint32_t, 3>> triangle_edges;
   // Filled by MakeMesh: the triangles' hierarchy of boxes, shared by the mesh's copies.
   std::shared_ptr<const TriangleTree> tree;
+  // Filled by MakeMesh: its features' regions (mesh_regions.h), shared likewise.
+  std::shared_ptr<const MeshRegions> regions;
 };
 
 // Every 3D site kind.

@@ -32,6 +32,11 @@ class TriangleTree {
   template <class Score>
   void Nearest(Vec3 q, double* best, Score&& score) const;
 
+  // Calls `visit(i)` for every triangle i whose leaf's box lies within `reach` of the box
+  // [lo, hi] (so every triangle within `reach` of a point of the box, and some more).
+  template <class Visit>
+  void WithinBox(Vec3 lo, Vec3 hi, double reach, Visit&& visit) const;
+
   // The box of all the triangles (of the mesh's used vertices); empty: +inf to -inf.
   Vec3 lo() const { return nodes_.empty() ? Vec3(INFINITY) : nodes_[0].lo; }
   Vec3 hi() const { return nodes_.empty() ? Vec3(-INFINITY) : nodes_[0].hi; }
@@ -84,6 +89,28 @@ void TriangleTree::Nearest(Vec3 q, double* best, Score&& score) const {
     const bool left_first = BoxDistance2(nodes_[l], q) <= BoxDistance2(nodes_[r], q);
     stack[top++] = left_first ? r : l;
     stack[top++] = left_first ? l : r;
+  }
+}
+
+template <class Visit>
+void TriangleTree::WithinBox(Vec3 lo, Vec3 hi, double reach, Visit&& visit) const {
+  if (nodes_.empty()) return;
+  const Vec3 m = glm::max(glm::max(glm::abs(lo), glm::abs(hi)),
+                          glm::max(glm::abs(nodes_[0].lo), glm::abs(nodes_[0].hi)));
+  const double r = reach + 0x1p-45 * std::max({m.x, m.y, m.z});
+  uint32_t stack[64];
+  uint32_t top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const Node& n = nodes_[stack[--top]];
+    const Vec3 d = glm::max(glm::max(n.lo - hi, lo - n.hi), Vec3(0));
+    if (glm::dot(d, d) > r * r) continue;
+    if (n.count > 0) {
+      for (uint32_t k = n.first; k < n.first + n.count; ++k) visit(order_[k]);
+      continue;
+    }
+    stack[top++] = n.first;
+    stack[top++] = n.first + 1;
   }
 }
 

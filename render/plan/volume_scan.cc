@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "render/kernel/exact3.h"
+#include "render/kernel/mesh_regions.h"
 #include "render/scene/cpu_pool.h"
 
 namespace gvd {
@@ -21,6 +22,9 @@ struct Candidate {
   double lower;  // the least value the site can take at a centre of the brick
   const Site3* site;
   Vec3 point;  // a plain point's position; NaN otherwise
+  const MeshSite3* mesh;  // a mesh's geometry; null otherwise
+  // A mesh's distances over the brick (MeshRegions::Distances), made when first needed.
+  bool ready = false;
 };
 
 // Renders bricks of one volume into slices being written (each brick's voxels are its own,
@@ -43,57 +47,50 @@ class BrickScan {
     const bool nearest = diagram_ == Diagram::kNearest;
     thread_local std::vector<Candidate> candidates;
     Candidates(vb, &candidates);
+    // The meshes' distances over the brick: candidate c's at [c * kBrick^3, ...).
+    thread_local std::vector<double> meshes;
+    meshes.resize(candidates.size() * kBrick * kBrick * kBrick);
+    const uint32_t nx = vb.x1 - vb.x0, ny = vb.y1 - vb.y0;
     pairs->fetch_add(candidates.size(), std::memory_order_relaxed);
     const float none = nearest ? INFINITY : -INFINITY;
     float extreme = nearest ? -INFINITY : INFINITY;
-    // The previous voxel's best site bounds the best value here (kNearest): a site's value
-    // grows by at most m per unit of distance, while it stays within its reach. So a
-    // mesh's search starts bounded, rather than at +inf.
-    const Site3* last_site = nullptr;
-    double last_value = INFINITY, last_distance = 0;
-    Vec3 last;
     for (uint32_t k = vb.z0; k < vb.z1; ++k) {
       Slice& slice = *slices[k];
       for (uint32_t j = vb.y0; j < vb.y1; ++j) {
         for (uint32_t i = vb.x0; i < vb.x1; ++i) {
           const Vec3 p = grid_.Center(i, j, k);
-          double bound = INFINITY;
-          if (nearest && last_site != nullptr) {
-            const double step = Distance(p, last);
-            if (last_distance + step <= last_site->max_distance) {
-              bound = (last_value + last_site->multiplicative * step) * (1 + 1e-9);
-            }
-          }
           uint32_t best_slot = 0;
           double best = nearest ? INFINITY : -INFINITY;
-          double best_distance = 0;
           bool found = false;
-          for (const Candidate& c : candidates) {
+          const size_t local = (size_t{k - vb.z0} * ny + (j - vb.y0)) * nx + (i - vb.x0);
+          for (size_t n = 0; n < candidates.size(); ++n) {
+            Candidate& c = candidates[n];
             // Sorted by lower bound: none further on can do better.
             if (found && nearest && c.lower > best) break;
-            double value, d;
+            double value;
             if (!std::isnan(c.point.x)) {
-              d = Distance(p, c.point);
-              value = d;
+              value = Distance(p, c.point);
+            } else if (c.mesh != nullptr) {
+              // A mesh: all its distances over the brick at once, feature by feature.
+              double* brick = &meshes[n * kBrick * kBrick * kBrick];
+              if (!c.ready) {
+                MeshRegions::Distances(*c.mesh, grid_, vb, brick);
+                c.ready = true;
+              }
+              const Site3& s = *c.site;
+              const double d = brick[local];
+              if (!(d <= s.max_distance)) continue;
+              value = s.multiplicative * d + s.additive;
             } else {
               const Site3& s = *c.site;
-              // Only a value of at most min(best, bound) matters (kNearest): a mesh searches
-              // that far, and a hair farther, so that a tie is still seen whatever the
-              // rounding.
-              const double upto = std::min(best, bound);
-              const double within =
-                  nearest && upto < INFINITY
-                      ? std::min(s.max_distance, (upto - s.additive) / s.multiplicative * (1 + 1e-9))
-                      : s.max_distance;
-              if (within < 0) continue;
-              d = ExactDistance(p, s.geometry, within);
+              // A segment or a triangle.
+              const double d = ExactDistance(p, s.geometry);
               if (!(d <= s.max_distance)) continue;
               value = s.multiplicative * d + s.additive;
             }
             if (!found || Beats(diagram_, value, best) || (value == best && c.slot < best_slot)) {
               best = value;
               best_slot = c.slot;
-              best_distance = d;
               found = true;
             }
           }
@@ -102,10 +99,6 @@ class BrickScan {
           slice.ids[at] = found ? best_slot + 1 : 0;
           slice.distances[at] = stored;
           extreme = nearest ? std::max(extreme, stored) : std::min(extreme, stored);
-          last_site = found ? sites_.sites().get(best_slot) : nullptr;
-          last_value = best;
-          last_distance = best_distance;
-          last = p;
         }
       }
     }
@@ -130,7 +123,7 @@ class BrickScan {
       if (gap > site->max_distance) return;
       const double lower = site->multiplicative * gap + site->additive;
       if (lower > upper) return;
-      out->push_back({s, lower, site, table.point(s)});
+      out->push_back({s, lower, site, table.point(s), std::get_if<MeshSite3>(&site->geometry)});
     };
     double upper = INFINITY;
     if (diagram_ == Diagram::kNearest) {

@@ -15,9 +15,10 @@
 // index returns a superset of those, and each is kept only if m_s dist(C, box(s)) + a_s <= U
 // and dist(C, box(s)) <= its max_distance. When s0 is not a candidate everywhere in C (U is
 // infinite), and in kFarthest, every site is a candidate. Per voxel, the candidates are
-// scored exactly (a mesh through its triangle tree, searching only as far as the best value
-// so far allows); the least value wins, ties going to the least slot, so that the result
-// is the same whatever the candidate set, as long as it holds the best site.
+// scored exactly (a mesh over the whole brick at once, feature by feature, the first time a
+// voxel of the brick needs it: render/kernel/mesh_regions.h); the least value wins, ties
+// going to the least slot, so that the result is the same whatever the candidate set, as
+// long as it holds the best site.
 //
 // What a change can alter. A voxel's best site changes only if the site it holds was
 // removed or replaced, or a site put by the change beats its stored value there. The first

@@ -4,6 +4,7 @@
 #include <map>
 
 #include "render/scene/cpu_pool.h"
+#include "render/kernel/mesh_regions.h"
 #include "render/kernel/segment_tree.h"
 
 namespace gvd {
@@ -244,14 +245,15 @@ size_t SiteBytes(const Site& site) {
 
 size_t SiteBytes(const Site3& site) {
   // As a 2D site's entries; a mesh adds its vertices, triangles, edge tables and triangle
-  // tree (TriangleTree::bytes).
+  // tree (TriangleTree::bytes) and its features' regions (MeshRegions::bytes).
   constexpr size_t kEntries = 320;
   size_t bytes = sizeof(Site3) + kEntries + 2 * site.id.size();
   if (const auto* mesh = std::get_if<MeshSite3>(&site.geometry)) {
     bytes += mesh->vertices.size() * sizeof(Vec3) +
              mesh->triangles.size() * (2 * sizeof(mesh->triangles[0])) +
              mesh->edges.size() * sizeof(mesh->edges[0]) +
-             (mesh->tree ? mesh->tree->bytes() : 0);
+             (mesh->tree ? mesh->tree->bytes() : 0) +
+             (mesh->regions ? mesh->regions->bytes() : 0);
   }
   return bytes;
 }
