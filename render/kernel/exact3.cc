@@ -126,31 +126,29 @@ Hit3 NearestFeature(Vec3 q, const Geometry3& g, double within) {
   if (const auto* p = std::get_if<PointSite3>(&g)) return Make(q, p->p, FeatureKind::kVertex, 0);
   if (const auto* s = std::get_if<SegmentSite3>(&g)) return NearestOnSegment(q, s->a, s->b);
   if (const auto* t = std::get_if<TriangleSite3>(&g)) return NearestOnTriangle(q, t->a, t->b, t->c);
+  // Each triangle's nearest point without its distance's gradient; the hit of the best.
   const auto& mesh = std::get<MeshSite3>(g);
-  Hit3 best{INFINITY, Vec3(NAN), FeatureKind::kVertex, 0, Vec3(0)};
+  Foot best{Vec3(NAN), FeatureKind::kVertex, 0};
+  double best_distance = INFINITY;
   uint32_t best_triangle = UINT32_MAX;
   double bound = within;
   mesh.tree->Nearest(q, &bound, [&](uint32_t i) {
     const auto& tri = mesh.triangles[i];
-    Hit3 h = NearestOnTriangle(q, mesh.vertices[tri[0]], mesh.vertices[tri[1]],
-                               mesh.vertices[tri[2]]);
-    if (h.distance > within) return h.distance;
-    if (h.distance > best.distance || (h.distance == best.distance && i > best_triangle)) {
-      return h.distance;
-    }
-    // The triangle's own numbering, to the mesh's.
-    if (h.kind == FeatureKind::kFace) {
-      h.index = i;
-    } else if (h.kind == FeatureKind::kEdge) {
-      h.index = mesh.triangle_edges[i][h.index];
-    } else {
-      h.index = tri[h.index];
-    }
-    best = h;
+    const Foot f = TriangleFoot(q, mesh.vertices[tri[0]], mesh.vertices[tri[1]], mesh.vertices[tri[2]]);
+    const double d = Distance(q, f.closest);
+    if (d > within || d > best_distance || (d == best_distance && i > best_triangle)) return d;
+    best = f;
+    best_distance = d;
     best_triangle = i;
-    return h.distance;
+    return d;
   });
-  return best;
+  if (best_triangle == UINT32_MAX) return {INFINITY, Vec3(NAN), FeatureKind::kVertex, 0, Vec3(0)};
+  // The triangle's own numbering, to the mesh's.
+  const auto& tri = mesh.triangles[best_triangle];
+  const uint32_t index = best.kind == FeatureKind::kFace   ? best_triangle
+                         : best.kind == FeatureKind::kEdge ? mesh.triangle_edges[best_triangle][best.index]
+                                                           : tri[best.index];
+  return Make(q, best.closest, best.kind, index);
 }
 
 double ExactDistance(Vec3 q, const Geometry3& g, double within) {

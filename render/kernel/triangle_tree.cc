@@ -61,6 +61,8 @@ TriangleTree::TriangleTree(const std::vector<Vec3>& vertices,
     tasks.push_back({left, t.first, half});
     tasks.push_back({left + 1, t.first + half, t.count - half});
   }
+  boxes_.resize(n);
+  for (uint32_t k = 0; k < n; ++k) boxes_[k] = {lo[order_[k]], hi[order_[k]]};
 }
 
 }  // namespace gvd

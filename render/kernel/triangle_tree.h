@@ -32,7 +32,7 @@ class TriangleTree {
   template <class Score>
   void Nearest(Vec3 q, double* best, Score&& score) const;
 
-  // Calls `visit(i)` for every triangle i whose leaf's box lies within `reach` of the box
+  // Calls `visit(i)` for every triangle i whose own box lies within `reach` of the box
   // [lo, hi] (so every triangle within `reach` of a point of the box, and some more).
   template <class Visit>
   void WithinBox(Vec3 lo, Vec3 hi, double reach, Visit&& visit) const;
@@ -42,7 +42,8 @@ class TriangleTree {
   Vec3 hi() const { return nodes_.empty() ? Vec3(-INFINITY) : nodes_[0].hi; }
 
   size_t bytes() const {
-    return sizeof(*this) + nodes_.size() * sizeof(Node) + order_.size() * sizeof(uint32_t);
+    return sizeof(*this) + nodes_.size() * sizeof(Node) + order_.size() * sizeof(uint32_t) +
+           boxes_.size() * sizeof(boxes_[0]);
   }
 
  private:
@@ -61,6 +62,8 @@ class TriangleTree {
   }
   std::vector<Node> nodes_;      // nodes_[0] is the root
   std::vector<uint32_t> order_;  // triangle indices, leaf by leaf
+  // The box of triangle order_[k]: a triangle whose own box lies beyond *best is not scored.
+  std::vector<std::array<Vec3, 2>> boxes_;
 };
 
 template <class Score>
@@ -68,17 +71,26 @@ void TriangleTree::Nearest(Vec3 q, double* best, Score&& score) const {
   if (nodes_.empty()) return;
   const Vec3 m = glm::max(glm::abs(q), glm::max(glm::abs(nodes_[0].lo), glm::abs(nodes_[0].hi)));
   const double slack = 0x1p-45 * std::max({m.x, m.y, m.z});
-  uint32_t stack[64];
+  // Each node waits on the stack with its box's squared distance, computed once.
+  struct Entry {
+    uint32_t node;
+    double distance2;
+  };
+  Entry stack[64];
   uint32_t top = 0;
-  stack[top++] = 0;
+  stack[top++] = {0, BoxDistance2(nodes_[0], q)};
   while (top > 0) {
-    const Node& n = nodes_[stack[--top]];
+    const Entry e = stack[--top];
     // Box distances are squared without scaling: past 1e150 they are infinite, which only
     // visits more (an infinite *best prunes nothing).
     const double b = *best + slack;
-    if (BoxDistance2(n, q) > b * b) continue;
+    if (e.distance2 > b * b) continue;
+    const Node& n = nodes_[e.node];
     if (n.count > 0) {
       for (uint32_t k = n.first; k < n.first + n.count; ++k) {
+        const Vec3 o = glm::max(glm::max(boxes_[k][0] - q, q - boxes_[k][1]), Vec3(0));
+        const double c = *best + slack;
+        if (glm::dot(o, o) > c * c) continue;
         const double d = score(order_[k]);
         if (d < *best) *best = d;
       }
@@ -86,9 +98,14 @@ void TriangleTree::Nearest(Vec3 q, double* best, Score&& score) const {
     }
     // The nearer child is visited first: pushed last.
     const uint32_t l = n.first, r = n.first + 1;
-    const bool left_first = BoxDistance2(nodes_[l], q) <= BoxDistance2(nodes_[r], q);
-    stack[top++] = left_first ? r : l;
-    stack[top++] = left_first ? l : r;
+    const double dl = BoxDistance2(nodes_[l], q), dr = BoxDistance2(nodes_[r], q);
+    if (dl <= dr) {
+      stack[top++] = {r, dr};
+      stack[top++] = {l, dl};
+    } else {
+      stack[top++] = {l, dl};
+      stack[top++] = {r, dr};
+    }
   }
 }
 
@@ -106,7 +123,10 @@ void TriangleTree::WithinBox(Vec3 lo, Vec3 hi, double reach, Visit&& visit) cons
     const Vec3 d = glm::max(glm::max(n.lo - hi, lo - n.hi), Vec3(0));
     if (glm::dot(d, d) > r * r) continue;
     if (n.count > 0) {
-      for (uint32_t k = n.first; k < n.first + n.count; ++k) visit(order_[k]);
+      for (uint32_t k = n.first; k < n.first + n.count; ++k) {
+        const Vec3 o = glm::max(glm::max(boxes_[k][0] - hi, lo - boxes_[k][1]), Vec3(0));
+        if (glm::dot(o, o) <= r * r) visit(order_[k]);
+      }
       continue;
     }
     stack[top++] = n.first;

@@ -93,6 +93,12 @@ void Frame::PixelOf(Vec2 p, uint32_t* i, uint32_t* j) const {
   *j = nearest(c.y, grid_.height);
 }
 
+std::optional<NearestAnswer> Frame::Nearest(Vec2 q, FeatureHit* feature) const {
+  std::optional<NearestAnswer> a = Nearest(q);
+  if (a && a->found) *feature = NearestFeature(q, *sites().get(a->site_index));
+  return a;
+}
+
 std::optional<NearestAnswer> Frame::Nearest(Vec2 q) const {
   if (empty()) return std::nullopt;
   Vec2 c = grid_.ToPixel(q);

@@ -108,6 +108,8 @@ class Frame {
   // Returns nullopt when the frame is empty. q may lie anywhere; outside the window the
   // bound grows with the distance to the nearest pixel centre.
   std::optional<NearestAnswer> Nearest(Vec2 q) const;
+  // The same, with the answer's site's nearest feature in *feature when one is found.
+  std::optional<NearestAnswer> Nearest(Vec2 q, FeatureHit* feature) const;
 
   // The exact best site at q among the frame's sites (certified: error_bound is only the
   // Bezier flattening's tolerance, `curve`), given any answer with a finite value there:

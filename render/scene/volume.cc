@@ -65,18 +65,27 @@ std::shared_ptr<const Volume> Volume::Empty(Grid3 grid, Diagram diagram,
       std::vector<float>(bricks, none), std::move(sites));
 }
 
-std::optional<NearestAnswer> Volume::Nearest(Vec3 q) const {
+std::optional<NearestAnswer> Volume::Nearest(Vec3 q, Hit3* feature) const {
   if (empty()) return std::nullopt;
+  // The nearest feature of the site at slot hit_site, when a mesh's value was found by it.
+  Hit3 hit;
+  uint32_t hit_site = UINT32_MAX;
+  auto finish = [&](const NearestAnswer& a) {
+    if (feature != nullptr && a.found) {
+      *feature = a.site_index == hit_site ? hit : NearestFeature(q, sites().get(a.site_index)->geometry);
+    }
+    return a;
+  };
   const bool nearest = error_.diagram == Diagram::kNearest;
   NearestAnswer none;
   none.found = false;
-  if (!nearest) return Refine(q, none);
+  if (!nearest) return finish(Refine(q, none));
   if (error_.limited_presence) {
     // The nearest site by distance starts the search when it is a candidate at q.
     const ExactNearest n = snapshot_->index().Nearest(q);
     const double value = SiteValue(q, *sites().get(static_cast<uint32_t>(n.index)));
-    if (!std::isfinite(value)) return Refine(q, none);
-    return Refine(q, {static_cast<uint32_t>(n.index), value, 0, true});
+    if (!std::isfinite(value)) return finish(Refine(q, none));
+    return finish(Refine(q, {static_cast<uint32_t>(n.index), value, 0, true}));
   }
   const Vec3 c = grid_.ToVoxel(q);
   const uint32_t i0 = FloorCenter(c.x, grid_.width), j0 = FloorCenter(c.y, grid_.height),
@@ -101,7 +110,19 @@ std::optional<NearestAnswer> Volume::Nearest(Vec3 q) const {
         limit = std::max(limit, error_.LowerBound(stored) - step);
         const uint32_t s = id - 1;
         if (id == 0 || (best.found && s == best.site_index) || sites().get(s) == nullptr) continue;
-        const double value = SiteValue(q, *sites().get(s));
+        const Site3& site = *sites().get(s);
+        double value;
+        if (feature != nullptr && std::holds_alternative<MeshSite3>(site.geometry)) {
+          const Hit3 h = NearestFeature(q, site.geometry);
+          value = h.distance <= site.max_distance ? site.multiplicative * h.distance + site.additive
+                                                  : INFINITY;
+          if (!best.found || value < best.distance || (value == best.distance && s < best.site_index)) {
+            hit = h;
+            hit_site = s;
+          }
+        } else {
+          value = SiteValue(q, site);
+        }
         if (!best.found || value < best.distance || (value == best.distance && s < best.site_index)) {
           if (best.found) runner_up = std::min(runner_up, best.distance);
           best = {s, value, 0, true};
@@ -111,13 +132,13 @@ std::optional<NearestAnswer> Volume::Nearest(Vec3 q) const {
       }
     }
   }
-  if (!best.found) return Refine(q, best);
+  if (!best.found) return finish(Refine(q, best));
   // Outside the box the bound would grow with the distance to it: answered exactly instead,
   // the raster's site bounding the search.
-  if (!grid_.box.Contains(q)) return Refine(q, best);
+  if (!grid_.box.Contains(q)) return finish(Refine(q, best));
   best.error_bound = std::max(0.0, best.distance - limit);
   best.runner_up = runner_up;
-  return best;
+  return finish(best);
 }
 
 NearestAnswer Volume::Refine(Vec3 q, const NearestAnswer& answer) const {

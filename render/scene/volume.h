@@ -81,7 +81,11 @@ class Volume {
   // centres around it: then, and in kFarthest, the sites are searched exactly (Refine) and
   // the bound is 0. q may lie anywhere; outside the box the bound grows with the distance to
   // the nearest centre. nullopt when the volume has no sites.
-  std::optional<NearestAnswer> Nearest(Vec3 q) const;
+  std::optional<NearestAnswer> Nearest(Vec3 q) const { return Nearest(q, nullptr); }
+  // The same, with the answer's site's nearest feature (NearestFeature) in *feature when one
+  // is found (when feature is not null): a mesh's search for its value is that search, made
+  // once.
+  std::optional<NearestAnswer> Nearest(Vec3 q, Hit3* feature) const;
 
   // The exact best site at q (error_bound 0), given any answer with a finite value there:
   // in kNearest the sites that can beat it come from the snapshot's index; in kFarthest, and

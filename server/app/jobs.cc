@@ -148,24 +148,32 @@ void BasicNearestJob<S>::AnswerFrom(const std::shared_ptr<const Frame>& frame) {
       query_.points.size(), SceneFrames<typename S::Kernel>::Order(this->scene_->settings(), query_.points),
       4096, this->cancelled_fn_,
       [&](size_t i, std::vector<uint32_t>&) {
+        using K = typename S::Kernel;
         const Point q = query_.points[i];
-        auto a = frame_->Nearest(q);
+        // The answer's nearest feature comes with it (a mesh's search made once).
+        const bool want_feature = query_.features || query_.closest;
+        typename K::Hit f;
+        auto a = want_feature ? frame_->Nearest(q, &f) : frame_->Nearest(q);
         if (!a) {
           missing = true;
           return false;
         }
-        if (!query_.skip_refinement && a->ambiguous()) a = frame_->Refine(q, *a);
+        bool have_feature = want_feature && a->found;
+        if (!query_.skip_refinement && a->ambiguous()) {
+          const uint32_t before = a->site_index;
+          a = frame_->Refine(q, *a);
+          have_feature = have_feature && a->site_index == before;
+        }
         if (!a->found) {
           rows_[i] = {nullptr, 0, INFINITY, 0, true, FeatureKind::kVertex, 0};
           if (query_.closest) closest_[i] = Point(NAN);
           return true;
         }
-        using K = typename S::Kernel;
         const typename S::Site& site = *frame_->sites().get(a->site_index);
-        typename K::Hit f;
         if (const auto point = K::PointOf(site)) {
+          f = {};
           f.closest = *point;  // vertex 0
-        } else if (query_.features || query_.closest) {
+        } else if (want_feature && !have_feature) {
           f = K::Feature(q, site);
         }
         rows_[i] = {&site.id, a->site_index, a->distance, a->error_bound,
