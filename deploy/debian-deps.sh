@@ -18,7 +18,7 @@ gvd_packages() {
       ;;
     bench)  # the reference libraries of tests/bench/run.sh beyond the test group's, and the
       # stock Python gRPC client of tests/bench/serve.py
-      echo libopencv-dev python3-opencv python3-scipy python3-numpy python3-grpcio \
+      echo libopencv-dev python3-opencv python3-scipy python3-numpy python3-grpcio libembree-dev \
         python3-protobuf
       ;;
     *)

@@ -3,7 +3,11 @@
 // distance_transform_edt is timed on the same inputs by volume_bench.py in the same run.
 #include <benchmark/benchmark.h>
 #include <nanoflann.hpp>
+#ifdef GVD_BENCH_EMBREE
+#include <embree3/rtcore.h>
+#endif
 
+#include <limits>
 #include <memory>
 #include <random>
 #include <string>
@@ -115,13 +119,19 @@ struct Cloud3 {
     return false;
   }
 };
-void BM_Nanoflann3Nearest(benchmark::State& state) {
+using Tree3 = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Cloud3>, Cloud3, 3>;
+struct PointTree3 {
   Cloud3 cloud;
-  for (const Site3& s : RandomPoints3(100000, 1)) cloud.pts.push_back(std::get<PointSite3>(s.geometry).p);
-  using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Cloud3>,
-                                                   Cloud3, 3>;
-  Tree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
-  tree.buildIndex();
+  std::unique_ptr<Tree3> tree;
+  PointTree3() {
+    for (const Site3& s : RandomPoints3(100000, 1)) cloud.pts.push_back(std::get<PointSite3>(s.geometry).p);
+    tree = std::make_unique<Tree3>(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+    tree->buildIndex();
+  }
+};
+void BM_Nanoflann3Nearest(benchmark::State& state) {
+  const PointTree3 points;
+  const Tree3& tree = *points.tree;
   auto q = Queries(1 << 16);
   size_t i = 0;
   for (auto _ : state) {
@@ -135,6 +145,126 @@ void BM_Nanoflann3Nearest(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations());
 }
 BENCHMARK(BM_Nanoflann3Nearest);
+
+// A batch of 1,000,000 random points in the box, answered on one thread as FindNearest
+// answers a 3D scene's batch with closest points and gradients: args (scene, exact). Raster
+// (exact 0): the volume's answer with its bound, then the site's nearest point and gradient;
+// exact (1): that answer refined to the exact best site, then the same. Scene 1 is the torus
+// at 128^3, beside Embree's closest-point query on the same triangles (BM_EmbreeClosestPoint).
+void BM_Batch3(benchmark::State& state) {
+  const int scene = static_cast<int>(state.range(0));
+  const bool exact = state.range(1) == 1;
+  auto volume = ScanVolume(GridOf(128), Diagram::kNearest, Scene(scene));
+  const std::vector<Vec3> q = Queries(1000000);
+  double sum = 0;
+  for (auto _ : state) {
+    for (const Vec3& p : q) {
+      // As FindNearest answers: the feature comes with the raster answer, and is found anew
+      // only when refining changes the site.
+      Hit3 hit;
+      NearestAnswer a = *volume->Nearest(p, &hit);
+      if (exact) {
+        const uint32_t before = a.site_index;
+        a = volume->Refine(p, a);
+        if (a.site_index != before) hit = NearestFeature(p, volume->sites().get(a.site_index)->geometry);
+      }
+      sum += a.distance + hit.closest.x + hit.gradient.x;
+    }
+  }
+  benchmark::DoNotOptimize(sum);
+  state.SetItemsProcessed(state.iterations() * q.size());
+}
+BENCHMARK(BM_Batch3)->Args({0, 0})->Args({0, 1})->Args({1, 0})->Args({1, 1})
+    ->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
+
+void BM_Nanoflann3Batch(benchmark::State& state) {
+  const PointTree3 points;
+  const Tree3& tree = *points.tree;
+  const std::vector<Vec3> q = Queries(1000000);
+  double sum = 0;
+  for (auto _ : state) {
+    for (const Vec3& p : q) {
+      double query[3] = {p.x, p.y, p.z};
+      unsigned index;
+      double d2;
+      tree.knnSearch(query, 1, &index, &d2);
+      sum += d2 + points.cloud.pts[index].x;
+    }
+  }
+  benchmark::DoNotOptimize(sum);
+  state.SetItemsProcessed(state.iterations() * q.size());
+}
+BENCHMARK(BM_Nanoflann3Batch)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
+
+#ifdef GVD_BENCH_EMBREE
+// Embree's closest-point query (rtcPointQuery, after its closest_point tutorial) over the
+// torus's triangles, one thread, 1,000,000 points: each triangle met is scored by the same
+// double-precision closest point as ours (NearestOnTriangle), the query's radius shrinking
+// to the best so far.
+struct EmbreeClosest {
+  const MeshSite3* mesh;
+  Vec3 q;
+  Hit3 best{INFINITY, Vec3(0), FeatureKind::kVertex, 0, Vec3(0)};
+};
+bool EmbreeScore(RTCPointQueryFunctionArguments* args) {
+  auto* c = static_cast<EmbreeClosest*>(args->userPtr);
+  const auto& t = c->mesh->triangles[args->primID];
+  const Hit3 h = NearestOnTriangle(c->q, c->mesh->vertices[t[0]], c->mesh->vertices[t[1]],
+                                   c->mesh->vertices[t[2]]);
+  if (h.distance < c->best.distance) {
+    c->best = h;
+    args->query->radius = static_cast<float>(h.distance);
+    return true;
+  }
+  return false;
+}
+void BM_EmbreeClosestPoint(benchmark::State& state) {
+  const auto sites = Scene(1);
+  const MeshSite3& mesh = std::get<MeshSite3>(sites->sites().get(0)->geometry);
+  RTCDevice device = rtcNewDevice("threads=1");
+  RTCScene scene = rtcNewScene(device);
+  RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0,
+      RTC_FORMAT_FLOAT3, 3 * sizeof(float), mesh.vertices.size()));
+  for (size_t i = 0; i < mesh.vertices.size(); ++i) {
+    v[3 * i] = static_cast<float>(mesh.vertices[i].x);
+    v[3 * i + 1] = static_cast<float>(mesh.vertices[i].y);
+    v[3 * i + 2] = static_cast<float>(mesh.vertices[i].z);
+  }
+  auto* t = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0,
+      RTC_FORMAT_UINT3, 3 * sizeof(unsigned), mesh.triangles.size()));
+  for (size_t i = 0; i < mesh.triangles.size(); ++i) {
+    for (int k = 0; k < 3; ++k) t[3 * i + k] = mesh.triangles[i][k];
+  }
+  rtcSetGeometryPointQueryFunction(geometry, EmbreeScore);
+  rtcCommitGeometry(geometry);
+  rtcAttachGeometry(scene, geometry);
+  rtcReleaseGeometry(geometry);
+  rtcCommitScene(scene);
+  const std::vector<Vec3> q = Queries(1000000);
+  double sum = 0;
+  for (auto _ : state) {
+    for (const Vec3& p : q) {
+      RTCPointQuery query;
+      query.x = static_cast<float>(p.x);
+      query.y = static_cast<float>(p.y);
+      query.z = static_cast<float>(p.z);
+      query.time = 0;
+      query.radius = std::numeric_limits<float>::infinity();
+      RTCPointQueryContext context;
+      rtcInitPointQueryContext(&context);
+      EmbreeClosest c{&mesh, p};
+      rtcPointQuery(scene, &query, &context, nullptr, &c);
+      sum += c.best.distance + c.best.closest.x + c.best.gradient.x;
+    }
+  }
+  benchmark::DoNotOptimize(sum);
+  state.SetItemsProcessed(state.iterations() * q.size());
+  rtcReleaseScene(scene);
+  rtcReleaseDevice(device);
+}
+BENCHMARK(BM_EmbreeClosestPoint)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
+#endif
 
 }  // namespace
 }  // namespace gvd
