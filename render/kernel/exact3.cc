@@ -106,10 +106,50 @@ Foot TriangleFoot(Vec3 q, Vec3 a, Vec3 b, Vec3 c) {
 
 }  // namespace
 
-double TriangleDistance(Vec3 q, const MeshSite3& mesh, uint32_t t) {
+namespace {
+
+// TriangleFoot of a mesh's triangle t, from its prepared form where that is plain and q lies
+// within 2^100 of it (so TriangleFoot's scale would be 1): the same regions, decided by the
+// same dot products, two of them computed ahead (d3 = ab.(ap - ab) = d1 - ab.ab, ...).
+Foot MeshFoot(Vec3 q, const MeshSite3& mesh, uint32_t t) {
+  const PreparedTriangle& p = mesh.tree->prepared(t);
+  const Vec3 ap = q - p.a;
+  const Vec3 m = glm::abs(ap);
   const auto& tri = mesh.triangles[t];
-  return Distance(q, TriangleFoot(q, mesh.vertices[tri[0]], mesh.vertices[tri[1]],
-                                  mesh.vertices[tri[2]]).closest);
+  if (!p.plain || !(std::max({m.x, m.y, m.z}) < 0x1p100)) {
+    return TriangleFoot(q, mesh.vertices[tri[0]], mesh.vertices[tri[1]], mesh.vertices[tri[2]]);
+  }
+  const double d1 = glm::dot(p.ab, ap), d2 = glm::dot(p.ac, ap);
+  if (d1 <= 0 && d2 <= 0) return {p.a, FeatureKind::kVertex, 0};
+  const double d3 = d1 - p.abab, d4 = d2 - p.abac;
+  const Vec3 b = mesh.vertices[tri[1]], c = mesh.vertices[tri[2]];
+  if (d3 >= 0 && d4 <= d3) return {b, FeatureKind::kVertex, 1};
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const double v = d1 / (d1 - d3);
+    return {p.a + v * p.ab, FeatureKind::kEdge, 0};
+  }
+  const double d5 = d1 - p.abac, d6 = d2 - p.acac;
+  if (d6 >= 0 && d5 <= d6) return {c, FeatureKind::kVertex, 2};
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const double w = d2 / (d2 - d6);
+    return {p.a + w * p.ac, FeatureKind::kEdge, 2};
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) {
+    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return {b + w * (c - b), FeatureKind::kEdge, 1};
+  }
+  const double denom = 1 / (va + vb + vc);
+  const double v = vb * denom, w = vc * denom;
+  return {p.a + v * p.ab + w * p.ac, FeatureKind::kFace, 0};
+}
+
+}  // namespace
+
+double TriangleDistance(Vec3 q, const MeshSite3& mesh, uint32_t t) {
+  return Distance(q, MeshFoot(q, mesh, t).closest);
 }
 
 Hit3 NearestOnSegment(Vec3 q, Vec3 a, Vec3 b) {
@@ -133,8 +173,7 @@ Hit3 NearestFeature(Vec3 q, const Geometry3& g, double within) {
   uint32_t best_triangle = UINT32_MAX;
   double bound = within;
   mesh.tree->Nearest(q, &bound, [&](uint32_t i) {
-    const auto& tri = mesh.triangles[i];
-    const Foot f = TriangleFoot(q, mesh.vertices[tri[0]], mesh.vertices[tri[1]], mesh.vertices[tri[2]]);
+    const Foot f = MeshFoot(q, mesh, i);
     const double d = Distance(q, f.closest);
     if (d > within || d > best_distance || (d == best_distance && i > best_triangle)) return d;
     best = f;

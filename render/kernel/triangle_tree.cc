@@ -9,6 +9,22 @@ TriangleTree::TriangleTree(const std::vector<Vec3>& vertices,
                            const std::vector<std::array<uint32_t, 3>>& triangles) {
   const uint32_t n = static_cast<uint32_t>(triangles.size());
   if (n == 0) return;
+  prepared_.resize(n);
+  for (uint32_t i = 0; i < n; ++i) {
+    PreparedTriangle& p = prepared_[i];
+    p.a = vertices[triangles[i][0]];
+    p.ab = vertices[triangles[i][1]] - p.a;
+    p.ac = vertices[triangles[i][2]] - p.a;
+    p.abab = glm::dot(p.ab, p.ab);
+    p.abac = glm::dot(p.ab, p.ac);
+    p.acac = glm::dot(p.ac, p.ac);
+    const Vec3 m = glm::max(glm::abs(p.ab), glm::abs(p.ac));
+    const double largest = std::max({m.x, m.y, m.z});
+    const Vec3 normal = glm::cross(p.ab, p.ac);
+    // As TriangleFoot: unscaled (its scale is 1 for these magnitudes), and not degenerate.
+    p.plain = largest < 0x1p100 && largest > 0x1p-100 &&
+              glm::dot(normal, normal) > 0x1p-80 * p.abab * p.acac;
+  }
   order_.resize(n);
   std::iota(order_.begin(), order_.end(), 0u);
   std::vector<Vec3> lo(n), hi(n), centre(n);

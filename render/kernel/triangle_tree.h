@@ -14,11 +14,23 @@
 
 namespace gvd {
 
+// A triangle made ready for nearest-point queries: its first corner, its edges from it and
+// their dot products, so that the regions of its corners, edges and face (Ericson's) cost two
+// dot products a query rather than six and a cross product. `plain`: not degenerate (as
+// exact3.cc's TriangleFoot judges it) and of coordinates far from overflow and underflow;
+// other triangles are scored the general way.
+struct PreparedTriangle {
+  Vec3 a, ab, ac;
+  double abab = 0, abac = 0, acac = 0;
+  bool plain = false;
+};
+
 // Immutable once built; concurrent queries are safe.
 class TriangleTree {
  public:
-  // At most this many triangles a leaf.
-  static constexpr uint32_t kLeaf = 4;
+  // At most this many triangles a leaf (a leaf tests each triangle's own box before scoring it,
+  // so a wide leaf costs little).
+  static constexpr uint32_t kLeaf = 16;
 
   // The tree of triangles[i] (three indices into `vertices`, all valid). O(n log n).
   TriangleTree(const std::vector<Vec3>& vertices,
@@ -37,13 +49,16 @@ class TriangleTree {
   template <class Visit>
   void WithinBox(Vec3 lo, Vec3 hi, double reach, Visit&& visit) const;
 
+  // Triangle i, made ready for queries.
+  const PreparedTriangle& prepared(uint32_t i) const { return prepared_[i]; }
+
   // The box of all the triangles (of the mesh's used vertices); empty: +inf to -inf.
   Vec3 lo() const { return nodes_.empty() ? Vec3(INFINITY) : nodes_[0].lo; }
   Vec3 hi() const { return nodes_.empty() ? Vec3(-INFINITY) : nodes_[0].hi; }
 
   size_t bytes() const {
     return sizeof(*this) + nodes_.size() * sizeof(Node) + order_.size() * sizeof(uint32_t) +
-           boxes_.size() * sizeof(boxes_[0]);
+           boxes_.size() * sizeof(boxes_[0]) + prepared_.size() * sizeof(PreparedTriangle);
   }
 
  private:
@@ -64,6 +79,7 @@ class TriangleTree {
   std::vector<uint32_t> order_;  // triangle indices, leaf by leaf
   // The box of triangle order_[k]: a triangle whose own box lies beyond *best is not scored.
   std::vector<std::array<Vec3, 2>> boxes_;
+  std::vector<PreparedTriangle> prepared_;  // by triangle index
 };
 
 template <class Score>
