@@ -51,8 +51,39 @@ Foot SegmentFoot(Vec3 q, Vec3 a, Vec3 b) {
   return {a + t * (b - a), FeatureKind::kEdge, 0};
 }
 
-// After Ericson, Real-Time Collision Detection, 5.1.5: the Voronoi regions of the corners,
-// then of the edges, then the face, each decided by dot products with the edge vectors.
+// The nearest point of the non-degenerate triangle abc to q, after Ericson, Real-Time
+// Collision Detection, 5.1.5: the Voronoi regions of the corners, then of the edges, then
+// the face, each decided by dot products of the edge vectors ab and ac with ap, bp = ap - ab
+// and cp = ap - ac: d1 = ab.ap, d2 = ac.ap, d3 = ab.bp, d4 = ac.bp, (d5, d6) = d56() =
+// (ab.cp, ac.cp), asked for only when the regions of a, b and ab have not held q.
+template <class D56>
+Foot RegionFoot(Vec3 a, Vec3 b, Vec3 c, double d1, double d2, double d3, double d4, D56&& d56) {
+  if (d1 <= 0 && d2 <= 0) return {a, FeatureKind::kVertex, 0};
+  if (d3 >= 0 && d4 <= d3) return {b, FeatureKind::kVertex, 1};
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const double v = d1 / (d1 - d3);
+    return {a + v * (b - a), FeatureKind::kEdge, 0};
+  }
+  const auto [d5, d6] = d56();
+  if (d6 >= 0 && d5 <= d6) return {c, FeatureKind::kVertex, 2};
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const double w = d2 / (d2 - d6);
+    return {a + w * (c - a), FeatureKind::kEdge, 2};
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) {
+    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return {b + w * (c - b), FeatureKind::kEdge, 1};
+  }
+  const double denom = 1 / (va + vb + vc);
+  const double v = vb * denom, w = vc * denom;
+  return {a + v * (b - a) + w * (c - a), FeatureKind::kFace, 0};
+}
+
+// The nearest point of the closed triangle abc to q: a degenerate one's as the union of its
+// edges, any other's by Ericson's regions (RegionFoot) in coordinates scaled by Scale.
 Foot TriangleFoot(Vec3 q, Vec3 a, Vec3 b, Vec3 c) {
   const double s = Scale(b - a, c - a, q - a);
   const Vec3 ab = (b - a) * s, ac = (c - a) * s, ap = (q - a) * s;
@@ -77,36 +108,10 @@ Foot TriangleFoot(Vec3 q, Vec3 a, Vec3 b, Vec3 c) {
     return best;
   }
   const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
-  if (d1 <= 0 && d2 <= 0) return {a, FeatureKind::kVertex, 0};
-  const Vec3 bp = ap - ab;
-  const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
-  if (d3 >= 0 && d4 <= d3) return {b, FeatureKind::kVertex, 1};
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
-    const double v = d1 / (d1 - d3);
-    return {a + v * (b - a), FeatureKind::kEdge, 0};
-  }
-  const Vec3 cp = ap - ac;
-  const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
-  if (d6 >= 0 && d5 <= d6) return {c, FeatureKind::kVertex, 2};
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
-    const double w = d2 / (d2 - d6);
-    return {a + w * (c - a), FeatureKind::kEdge, 2};
-  }
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) {
-    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-    return {b + w * (c - b), FeatureKind::kEdge, 1};
-  }
-  const double denom = 1 / (va + vb + vc);
-  const double v = vb * denom, w = vc * denom;
-  return {a + v * (b - a) + w * (c - a), FeatureKind::kFace, 0};
+  const Vec3 bp = ap - ab, cp = ap - ac;
+  return RegionFoot(a, b, c, d1, d2, glm::dot(ab, bp), glm::dot(ac, bp),
+                    [&] { return std::pair(glm::dot(ab, cp), glm::dot(ac, cp)); });
 }
-
-}  // namespace
-
-namespace {
 
 // TriangleFoot of a mesh's triangle t, from its prepared form where that is plain and q lies
 // within 2^100 of it (so TriangleFoot's scale would be 1): the same regions, decided by the
@@ -120,30 +125,8 @@ Foot MeshFoot(Vec3 q, const MeshSite3& mesh, uint32_t t) {
     return TriangleFoot(q, mesh.vertices[tri[0]], mesh.vertices[tri[1]], mesh.vertices[tri[2]]);
   }
   const double d1 = glm::dot(p.ab, ap), d2 = glm::dot(p.ac, ap);
-  if (d1 <= 0 && d2 <= 0) return {p.a, FeatureKind::kVertex, 0};
-  const double d3 = d1 - p.abab, d4 = d2 - p.abac;
-  const Vec3 b = mesh.vertices[tri[1]], c = mesh.vertices[tri[2]];
-  if (d3 >= 0 && d4 <= d3) return {b, FeatureKind::kVertex, 1};
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
-    const double v = d1 / (d1 - d3);
-    return {p.a + v * p.ab, FeatureKind::kEdge, 0};
-  }
-  const double d5 = d1 - p.abac, d6 = d2 - p.acac;
-  if (d6 >= 0 && d5 <= d6) return {c, FeatureKind::kVertex, 2};
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
-    const double w = d2 / (d2 - d6);
-    return {p.a + w * p.ac, FeatureKind::kEdge, 2};
-  }
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) {
-    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-    return {b + w * (c - b), FeatureKind::kEdge, 1};
-  }
-  const double denom = 1 / (va + vb + vc);
-  const double v = vb * denom, w = vc * denom;
-  return {p.a + v * p.ab + w * p.ac, FeatureKind::kFace, 0};
+  return RegionFoot(p.a, mesh.vertices[tri[1]], mesh.vertices[tri[2]], d1, d2, d1 - p.abab,
+                    d2 - p.abac, [&] { return std::pair(d1 - p.abac, d2 - p.acac); });
 }
 
 }  // namespace

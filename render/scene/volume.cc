@@ -111,21 +111,22 @@ std::optional<NearestAnswer> Volume::Nearest(Vec3 q, Hit3* feature) const {
         const uint32_t s = id - 1;
         if (id == 0 || (best.found && s == best.site_index) || sites().get(s) == nullptr) continue;
         const Site3& site = *sites().get(s);
-        double value;
+        // A mesh's value, when its feature is asked for, from its nearest feature.
+        std::optional<Hit3> h;
         if (feature != nullptr && std::holds_alternative<MeshSite3>(site.geometry)) {
-          const Hit3 h = NearestFeature(q, site.geometry);
-          value = h.distance <= site.max_distance ? site.multiplicative * h.distance + site.additive
-                                                  : INFINITY;
-          if (!best.found || value < best.distance || (value == best.distance && s < best.site_index)) {
-            hit = h;
-            hit_site = s;
-          }
-        } else {
-          value = SiteValue(q, site);
+          h = NearestFeature(q, site.geometry);
         }
+        const double value = !h ? SiteValue(q, site)
+                             : h->distance <= site.max_distance
+                                 ? site.multiplicative * h->distance + site.additive
+                                 : INFINITY;
         if (!best.found || value < best.distance || (value == best.distance && s < best.site_index)) {
           if (best.found) runner_up = std::min(runner_up, best.distance);
           best = {s, value, 0, true};
+          if (h) {
+            hit = *h;
+            hit_site = s;
+          }
         } else {
           runner_up = std::min(runner_up, value);
         }
