@@ -9,12 +9,12 @@ gvd_packages() {
         libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler libabsl-dev \
         libboost-dev libssl-dev libglm-dev libsqlite3-dev prometheus-cpp-dev libopenimageio-dev \
         libegl-dev libopengl-dev libegl1 libopengl0 libegl-mesa0 libgl1-mesa-dri libassimp-dev \
-        libopenvdb-dev libboost-iostreams-dev
+        libopenvdb-dev libboost-iostreams-dev libpq-dev
       ;;
     test)
       echo libgtest-dev libgmock-dev libbenchmark-dev libnanoflann-dev libqhull-dev openssl curl \
         shellcheck yamllint python3-yaml chromium chromium-driver python3-selenium \
-        python3-openvdb
+        python3-openvdb postgresql
       ;;
     bench)  # the reference libraries of tests/bench/run.sh beyond the test group's, and the
       # stock Python gRPC client of tests/bench/serve.py

@@ -5,18 +5,22 @@
 
 #include <sys/stat.h>
 
+#include <atomic>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <optional>
 #include <sstream>
 #include <vector>
 #include <string>
 #include <string_view>
+#include <thread>
 
 #include "absl/flags/flag.h"
 #include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
@@ -31,6 +35,7 @@
 #include "server/grpc/service.h"
 #include "server/http/web_app.h"
 #include "server/grpc/legacy_records.h"
+#include "server/store/postgres_store.h"
 #include "server/store/sqlite_store.h"
 
 // The flags (--help lists them: gvd::flags::Describe).
@@ -43,6 +48,11 @@ ABSL_FLAG(std::string, data, "",
           "<DIR> where scenes and sites are stored (SQLite, WAL, synchronous=FULL); by default "
           "$XDG_STATE_HOME/gvd or ~/.local/state/gvd; \":memory:\" keeps nothing across "
           "restarts");
+ABSL_FLAG(std::string, store, "",
+          "<URL> where scenes are stored: sqlite:///DIR (the same as --data DIR), or "
+          "postgresql://... (a libpq URL, several hosts and target_session_attrs included) for "
+          "replicas: every server on one database accepts writes, holds every scene and "
+          "follows the others' changes");
 ABSL_FLAG(std::string, egl_device, "auto",
           "<auto|hardware|software> which EGL device renders (by default auto: a GPU if there "
           "is one, else Mesa's software rasterizer)");
@@ -121,6 +131,7 @@ struct Flags {
   std::string memory_source;  // where limits.max_memory came from
   int render_threads = 2;
   std::string data;
+  std::string postgres;  // --store postgresql://...
   std::string egl_device;
   std::string log_level;
   uint32_t software_render_threads = 0;
@@ -166,6 +177,17 @@ Flags ParseFlags(int argc, char** argv) {
   f.listen = absl::GetFlag(FLAGS_listen);
   f.port_file = absl::GetFlag(FLAGS_port_file);
   f.data = absl::GetFlag(FLAGS_data);
+  if (const std::string store = absl::GetFlag(FLAGS_store); !store.empty()) {
+    if (!f.data.empty()) Die("--store and --data name the same thing: give one");
+    if (absl::StartsWith(store, "sqlite://")) {
+      f.data = store.substr(std::strlen("sqlite://"));
+      if (f.data.empty()) Die("--store sqlite:// needs a directory: sqlite:///DIR");
+    } else if (absl::StartsWith(store, "postgresql://") || absl::StartsWith(store, "postgres://")) {
+      f.postgres = store;
+    } else {
+      Die(absl::StrCat("--store \"", store, "\" is neither sqlite:///DIR nor postgresql://..."));
+    }
+  }
   f.egl_device = absl::GetFlag(FLAGS_egl_device);
   f.log_level = absl::GetFlag(FLAGS_log_level);
   f.software_render_threads = absl::GetFlag(FLAGS_software_render_threads);
@@ -209,7 +231,7 @@ Flags ParseFlags(int argc, char** argv) {
   } else {
     l.max_memory = gvd::DefaultMaxMemory("/sys/fs/cgroup", &f.memory_source);
   }
-  if (f.data.empty()) {
+  if (f.data.empty() && f.postgres.empty()) {
     const char* state = std::getenv("XDG_STATE_HOME");
     const char* home = std::getenv("HOME");
     if (state && *state) {
@@ -289,8 +311,13 @@ int main(int argc, char** argv) {
             {"gl_version", renderer.device().gl_version},
             {"render_threads", absl::StrCat(renderer.lanes())}});
 
-  if (flags.data != ":memory:") MakeParents(flags.data);
-  auto store = gvd::SqliteStore::Open(flags.data, gvd::LegacyRecords(flags.limits));
+  absl::StatusOr<std::unique_ptr<gvd::SceneStore>> store;
+  if (!flags.postgres.empty()) {
+    store = gvd::PostgresStore::Open(flags.postgres);
+  } else {
+    if (flags.data != ":memory:") MakeParents(flags.data);
+    store = gvd::SqliteStore::Open(flags.data, gvd::LegacyRecords(flags.limits));
+  }
   if (!store.ok()) {
     gvd::Log(gvd::LogLevel::kError, "store_failed", {{"error", store.status().ToString()}});
     return 1;
@@ -405,6 +432,24 @@ int main(int argc, char** argv) {
     return 1;
   }
   server->GetHealthCheckService()->SetServingStatus(true);
+  gvd::Log(gvd::LogLevel::kInfo, "store", {{"store", (*store)->Describe()},
+                                           {"shared", (*store)->shared() ? "true" : "false"}});
+  // A replica follows the store; its health says NOT_SERVING while it cannot read the store
+  // and until it has caught up again.
+  std::atomic<bool> stopping{false};
+  std::thread health;
+  if ((*store)->shared()) {
+    registry->StartFollowing();
+    health = std::thread([&] {
+      bool serving = true;
+      while (!stopping) {
+        const bool now = registry->caught_up();
+        if (now != serving) server->GetHealthCheckService()->SetServingStatus(now);
+        serving = now;
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      }
+    });
+  }
   if (!flags.port_file.empty()) {
     std::string tmp = flags.port_file + ".tmp";
     std::ofstream out(tmp);
@@ -420,6 +465,8 @@ int main(int argc, char** argv) {
            {{"signal", strsignal(sig)}, {"in_flight", absl::StrCat(service.in_flight())}});
   // Drain: health says NOT_SERVING, new calls are refused, calls in flight get the grace
   // period to finish; whatever is left then is cancelled.
+  stopping = true;
+  if (health.joinable()) health.join();
   server->GetHealthCheckService()->SetServingStatus(false);
   int left = service.Drain(std::chrono::milliseconds(flags.grace_ms));
   // HTTP connections finish the response under way, idle ones close.

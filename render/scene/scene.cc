@@ -87,10 +87,11 @@ absl::StatusOr<uint64_t> BasicScene<K>::Apply(const ChangeSet& committed) {
   std::lock_guard<std::mutex> lock(writer_mu_);
   if (deleted_) return Gone();
   auto base = snapshot_.load();
-  if (committed.version != base->version() + 1) {
+  if (committed.base() != base->version() || committed.version <= base->version()) {
     return absl::FailedPreconditionError(
         absl::StrCat("scene \"", id(), "\" is at version ", base->version(),
-                     "; a change to version ", committed.version, " cannot follow it"));
+                     "; a change from version ", committed.base(), " to ",
+                     committed.version, " cannot follow it"));
   }
   Builder builder(base, &free_slots_);
   for (const std::string& removed : committed.removed) {
@@ -365,6 +366,30 @@ void BasicScene<K>::FailWaiters(const absl::Status& status) {
     failed.swap(waiters_);
   }
   for (auto& [token, w] : failed) w.done(status);
+}
+
+template <class K>
+uint64_t BasicScene<K>::waiter_mark() {
+  std::lock_guard<std::mutex> lock(waiters_mu_);
+  return next_token_;
+}
+
+template <class K>
+void BasicScene<K>::FailWaitersBeyond(uint64_t version, uint64_t mark,
+                                      const absl::Status& status) {
+  std::vector<FrameCallback> failed;
+  {
+    std::lock_guard<std::mutex> lock(waiters_mu_);
+    for (auto it = waiters_.begin(); it != waiters_.end() && it->first < mark;) {
+      if (it->second.min_version > version) {
+        failed.push_back(std::move(it->second.done));
+        it = waiters_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+  for (auto& done : failed) done(status);
 }
 
 template <class K>

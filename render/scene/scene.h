@@ -124,8 +124,8 @@ class BasicScene {
                                   const Persist& persist = nullptr);
   // Publishes a change that is durable already (committed by another server, say): the same
   // last step as Upsert's and Delete's, after their commit. FAILED_PRECONDITION unless it
-  // brings the scene from its version to the next; NOT_FOUND if it removes an unknown id or
-  // the scene was deleted. Changes nothing then.
+  // follows the scene's version (ChangeSet::base) and brings it further; NOT_FOUND if it
+  // removes an unknown id or the scene was deleted. Changes nothing then.
   absl::StatusOr<uint64_t> Apply(const ChangeSet& committed);
 
   // The latest snapshot of the sites. Never waits for a writer.
@@ -222,10 +222,16 @@ class BasicScene {
   void Publish(std::shared_ptr<const Frame> frame);
   // Fails every waiter (the render failed, or the scene is being deleted).
   void FailWaiters(const absl::Status& status);
+  // The token the next waiter will get: those registered before have smaller ones.
+  uint64_t waiter_mark();
+  // Fails the waiters registered before `mark` that wait for a version above `version`
+  // (a version a replica's store has not reached).
+  void FailWaitersBeyond(uint64_t version, uint64_t mark, const absl::Status& status);
 
   // Calls `done` with a frame of version >= min_version: at once, on this thread, when the
   // latest frame is new enough; else from the thread that publishes one. Returns a token for
-  // Cancel() (0 when done was called at once). CONTRACT: min_version <= version().
+  // Cancel() (0 when done was called at once). CONTRACT: min_version <= version(), or
+  // the version is awaited from a store other servers write (FailWaitersBeyond ends it).
   uint64_t WhenRendered(uint64_t min_version, FrameCallback done);
   // If the waiter is still pending, removes it and calls it with `why`.
   void Cancel(uint64_t token, const absl::Status& why);

@@ -1,16 +1,28 @@
 // Where scenes are made durable: the interface the scene core commits through. The server
-// opens one engine (SQLite today, store/sqlite_store.h; a shared engine such as PostgreSQL
-// for replicas can sit behind the same calls) and hands it to nothing but this interface.
+// opens one engine (SQLite, server/store/sqlite_store.h, for one server; PostgreSQL,
+// server/store/postgres_store.h, shared by replicas) and hands it to nothing but this
+// interface.
+//
+// The store is a log as well as a state. Each site's row carries the version that last put
+// or removed it (a removal leaves a tombstone), so the rows a scene's versions after V wrote
+// are what a follower at V missed: ReadChanges gives them as one net change. A commit is a
+// conditional append: it names the version it follows, and the engine refuses it (ABORTED)
+// when the scene has moved on, so writers on several servers get distinct, ordered versions
+// and none overwrites another's change unseen. Tombstones older than a window of versions
+// are dropped (the scene's horizon moves up); a follower from before the horizon reads the
+// scene's whole state instead.
 //
 // Sites are kept in the core's own form (core/codec.h), as validated when they were
 // accepted: a reload rebuilds snapshots without converting or checking requests again.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <span>
 #include <string>
 #include <string_view>
+#include <thread>
 #include <type_traits>
 #include <vector>
 
@@ -26,6 +38,9 @@ namespace gvd {
 struct StoredScene {
   SceneSettings settings;
   uint64_t version = 0;
+  // Which creation of the scene's id this is: a scene deleted and made again under the same
+  // id has another (chosen by the engine; 0 in an engine that does not tell).
+  uint64_t incarnation = 0;
   std::vector<Site> sites;
   std::vector<Site3> sites3;
 };
@@ -35,11 +50,16 @@ struct StoredScene {
 // passed to.
 struct ChangeSet {
   std::string_view scene_id;
-  uint64_t version = 0;
+  uint64_t version = 0;  // the version it brings the scene to
   std::span<const std::shared_ptr<const Site>> put;
   std::span<const std::string> removed;
   // A 3D scene's sites put (a 2D scene's change has none; a 3D scene's, no `put`).
   std::span<const std::shared_ptr<const Site3>> put3 = {};
+  // The version it follows: 0 for version - 1 (a write); lower for the net change of
+  // several versions a follower read (SceneChanges).
+  uint64_t follows = 0;
+
+  uint64_t base() const { return follows != 0 ? follows : version - 1; }
 
   // The sites put, of the kind a scene of K's sites holds.
   template <class S>
@@ -49,6 +69,34 @@ struct ChangeSet {
     } else {
       return put;
     }
+  }
+};
+
+// A scene's head in the store: what a follower compares its own copy with.
+struct SceneHead {
+  std::string id;
+  uint64_t incarnation = 0;
+  uint64_t version = 0;
+};
+
+// What a follower at version `after` of a scene missed, read from one consistent state of
+// the store: the scene's settings, incarnation and version now, and the net change from
+// `after` to it (each site put after `after` as it is now, each id removed after `after`).
+// When `after` is 0, or the scene's tombstones from after `after` were dropped, `complete`
+// is set: `put` holds every site and `removed` nothing, and the follower drops whatever
+// else it holds.
+struct SceneChanges {
+  SceneSettings settings;
+  uint64_t incarnation = 0;
+  uint64_t version = 0;
+  bool complete = false;
+  std::vector<std::shared_ptr<const Site>> put;
+  std::vector<std::shared_ptr<const Site3>> put3;
+  std::vector<std::string> removed;
+
+  // The change as the scene core applies it, following `after` (a view of this object).
+  ChangeSet View(uint64_t after) const {
+    return {settings.id, version, put, removed, put3, after};
   }
 };
 
@@ -63,12 +111,35 @@ class SceneStore {
   // Every stored scene with its sites and version, in scene id order. DATA_LOSS when a
   // stored scene or site cannot be read.
   virtual absl::StatusOr<std::vector<StoredScene>> Load() = 0;
-  // Stores a new scene with no sites. CONTRACT: no stored scene has its id.
-  virtual absl::Status CreateScene(const SceneSettings& settings, uint64_t version) = 0;
-  // Applies a change set to a stored scene and sets its version.
+  // Stores a new scene with no sites and returns its incarnation. ALREADY_EXISTS when a
+  // stored scene has its id (the engine decides: of two servers creating one id at once, one
+  // is refused).
+  virtual absl::StatusOr<uint64_t> CreateScene(const SceneSettings& settings,
+                                               uint64_t version) = 0;
+  // Applies a change set to a stored scene and sets its version, if the scene is at the
+  // version the change follows (changes.base()): ABORTED, changing nothing, when it is not
+  // (another server wrote first); NOT_FOUND when the scene is not stored.
   virtual absl::Status Commit(const ChangeSet& changes) = 0;
   // Removes a scene and its sites.
   virtual absl::Status DeleteScene(std::string_view scene_id) = 0;
+
+  // Whether other servers write to the same store (then the server follows it).
+  virtual bool shared() const { return false; }
+  // Every stored scene's head, in id order.
+  virtual absl::StatusOr<std::vector<SceneHead>> Heads() {
+    return absl::UnimplementedError("this store keeps no log");
+  }
+  // What a follower at version `after` of the scene missed; NOT_FOUND when it is not stored.
+  virtual absl::StatusOr<SceneChanges> ReadChanges(std::string_view /*scene_id*/,
+                                                   uint64_t /*after*/) {
+    return absl::UnimplementedError("this store keeps no log");
+  }
+  // Waits until another server may have committed something, or `timeout_ms` passed: true
+  // when told of a commit. A store nobody else writes only sleeps.
+  virtual bool WaitForChanges(int timeout_ms) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(timeout_ms));
+    return false;
+  }
 
   // Where the data lives, for logs (a path or a connection name).
   virtual std::string Describe() const = 0;

@@ -1,7 +1,11 @@
 #include "server/app/registry.h"
 
+#include <pthread.h>
+
 #include <algorithm>
 #include <chrono>
+#include <random>
+#include <set>
 
 #include "absl/strings/str_cat.h"
 #include "render/scene/slot_table.h"
@@ -13,6 +17,11 @@ namespace {
 // Threads that wait on the store: enough that writers of many scenes share each fsync
 // (group commit) rather than queue for one.
 constexpr size_t kCommitThreads = 16;
+// A replica reads the store's heads at least this often, told of commits or not.
+constexpr int kFollowPollMs = 250;
+// Tries of a write that other servers' writes keep overtaking, the later ones after a random
+// pause of up to 2^try milliseconds (at most 64), so that racing writers spread out.
+constexpr int kWriteTries = 12;
 
 // How a scene is sampled, for messages: "640x480 pixels" or "64x64x64 voxels".
 std::string SizeOf(const SceneSettings& s) {
@@ -34,7 +43,11 @@ SceneRegistry::SceneRegistry(SceneStore* store, RenderLoop* renderer, ServerLimi
                 limits.max_queued_analyses),
       answers_(CpuPool::Process(), /*priority=*/1, SIZE_MAX, SIZE_MAX) {}
 
-SceneRegistry::~SceneRegistry() { volumes_.Stop(); }
+SceneRegistry::~SceneRegistry() {
+  stop_following_ = true;
+  if (follower_.joinable()) follower_.join();
+  volumes_.Stop();
+}
 
 Executor SceneRegistry::executor() {
   return [this](std::function<void()> job) { answers_.Submit(std::move(job)); };
@@ -100,40 +113,11 @@ absl::Status SceneRegistry::Load() {
   std::sort(stored->begin(), stored->end(),
             [](const StoredScene& a, const StoredScene& b) { return a.settings.id < b.settings.id; });
   for (StoredScene& s : *stored) {
-    const bool three_d = s.settings.three_d();
-    const size_t count = three_d ? s.sites3.size() : s.sites.size();
-    uint64_t bytes = three_d ? Scene3::RasterBytes(s.settings) : Scene::RasterBytes(s.settings);
-    for (const Site& site : s.sites) bytes += SiteBytes(site);
-    for (const Site3& site : s.sites3) bytes += SiteBytes(site);
-    absl::Status fits = memory_.Reserve(
-        bytes, absl::StrCat("scene \"", s.settings.id, "\" (", SizeOf(s.settings), ", ", count,
-                            " sites)"));
-    if (!fits.ok()) {
-      Log(LogLevel::kWarn, "scene_unavailable",
-          {{"scene", s.settings.id}, {"reason", std::string(fits.message())}});
-      std::string id = s.settings.id;
-      std::lock_guard<std::mutex> lock(mu_);
-      unloaded_[id] = {std::move(s.settings), s.version, count, bytes,
-                       std::string(fits.message())};
-      ++unloaded;
-      continue;
-    }
-    MemoryBudget::Reservation reserved(&memory_, bytes);
-    sites += count;
-    // Stored sites were validated when they were accepted: they go straight to a snapshot.
-    auto load = [&](auto scene) {
-      {
-        std::lock_guard<std::mutex> lock(mu_);
-        Scenes<typename decltype(scene)::element_type>()[scene->id()] = scene;
-      }
-      Published(scene);
-    };
-    if (three_d) {
-      load(std::make_shared<Scene3>(std::move(s.settings), s.version, std::move(s.sites3),
-                                    executor()));
+    const size_t count = s.settings.three_d() ? s.sites3.size() : s.sites.size();
+    if (Adopt(std::move(s))) {
+      sites += count;
     } else {
-      load(std::make_shared<Scene>(std::move(s.settings), s.version, std::move(s.sites),
-                                   executor()));
+      ++unloaded;
     }
   }
   Log(LogLevel::kInfo, "store_loaded",
@@ -143,6 +127,49 @@ absl::Status SceneRegistry::Load() {
   std::lock_guard<std::mutex> lock(mu_);
   loaded_ = true;
   return absl::OkStatus();
+}
+
+bool SceneRegistry::Adopt(StoredScene s) {
+  const bool three_d = s.settings.three_d();
+  const size_t count = three_d ? s.sites3.size() : s.sites.size();
+  uint64_t bytes = three_d ? Scene3::RasterBytes(s.settings) : Scene::RasterBytes(s.settings);
+  for (const Site& site : s.sites) bytes += SiteBytes(site);
+  for (const Site3& site : s.sites3) bytes += SiteBytes(site);
+  absl::Status fits = memory_.Reserve(
+      bytes, absl::StrCat("scene \"", s.settings.id, "\" (", SizeOf(s.settings), ", ", count,
+                          " sites)"));
+  if (!fits.ok()) {
+    Log(LogLevel::kWarn, "scene_unavailable",
+        {{"scene", s.settings.id}, {"reason", std::string(fits.message())}});
+    std::string id = s.settings.id;
+    std::lock_guard<std::mutex> lock(mu_);
+    incarnations_[id] = s.incarnation;
+    unloaded_[id] = {std::move(s.settings), s.version, count, bytes, std::string(fits.message())};
+    return false;
+  }
+  MemoryBudget::Reservation reserved(&memory_, bytes);
+  // Stored sites were validated when they were accepted: they go straight to a snapshot.
+  auto load = [&](auto scene) {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      // A scene made here meanwhile (a replica's create that won) is the one kept.
+      if (scenes_.count(scene->id()) || scenes3_.count(scene->id()) ||
+          creating_.count(scene->id())) {
+        return;
+      }
+      Scenes<typename decltype(scene)::element_type>()[scene->id()] = scene;
+      incarnations_[scene->id()] = s.incarnation;
+    }
+    Published(scene);
+  };
+  if (three_d) {
+    load(std::make_shared<Scene3>(std::move(s.settings), s.version, std::move(s.sites3),
+                                  executor()));
+  } else {
+    load(std::make_shared<Scene>(std::move(s.settings), s.version, std::move(s.sites),
+                                 executor()));
+  }
+  return true;
 }
 
 absl::StatusOr<std::shared_ptr<Scene>> SceneRegistry::CreateScene(SceneSettings settings) {
@@ -177,12 +204,18 @@ absl::StatusOr<std::shared_ptr<S>> SceneRegistry::Create(SceneSettings settings)
     }
     creating_.insert(scene->id());  // reserved: the commit runs without the lock
   }
-  absl::Status stored =
-      Durably([&] { return store_->CreateScene(scene->settings(), scene->version()); });
+  absl::StatusOr<uint64_t> incarnation;
+  absl::Status stored = Durably([&] {
+    incarnation = store_->CreateScene(scene->settings(), scene->version());
+    return incarnation.status();
+  });
   {
     std::lock_guard<std::mutex> lock(mu_);
     creating_.erase(scene->id());
-    if (stored.ok()) Scenes<S>().emplace(scene->id(), scene);
+    if (stored.ok()) {
+      Scenes<S>().emplace(scene->id(), scene);
+      incarnations_[scene->id()] = *incarnation;
+    }
   }
   if (!stored.ok()) return stored;
   const SceneSettings& made = scene->settings();
@@ -258,6 +291,7 @@ absl::Status SceneRegistry::DeleteScene(const std::string& id) {
     {
       std::lock_guard<std::mutex> lock(mu_);
       unloaded_.erase(id);
+      incarnations_.erase(id);
     }
     Log(LogLevel::kInfo, "scene_deleted", {{"scene", id}, {"loaded", "false"}});
     return absl::OkStatus();
@@ -273,7 +307,10 @@ absl::Status SceneRegistry::DeleteScene(const std::string& id) {
       std::lock_guard<std::mutex> lock(mu_);
       auto& scenes = Scenes<S>();
       auto it = scenes.find(id);
-      if (it != scenes.end() && it->second == scene) scenes.erase(it);
+      if (it != scenes.end() && it->second == scene) {
+        scenes.erase(it);
+        incarnations_.erase(id);
+      }
     }
     scene->FailWaiters(absl::NotFoundError(absl::StrCat("scene \"", id, "\" was deleted")));
     Published(scene);  // lets the render thread release the scene's target
@@ -296,11 +333,38 @@ absl::StatusOr<uint64_t> SceneRegistry::UpsertSites3(const std::string& scene_id
   return Upsert<Scene3>(scene_id, std::move(sites));
 }
 
+template <class S, class Write>
+absl::StatusOr<uint64_t> SceneRegistry::Retrying(const std::string& scene_id, Write write) {
+  for (int attempt = 1;; ++attempt) {
+    auto scene = FindOf<S>(scene_id);
+    if (!scene.ok()) return scene.status();
+    auto version = write(*scene);
+    if (version.ok()) {
+      Published(*scene);
+      if (store_->shared()) {
+        std::lock_guard<std::mutex> lock(mu_);
+        uint64_t& head = heads_[scene_id];
+        head = std::max(head, *version);
+      }
+    }
+    if (version.ok() || version.status().code() != absl::StatusCode::kAborted ||
+        !store_->shared() || attempt == kWriteTries) {
+      return version;
+    }
+    // Another server wrote the scene first: read what it wrote, and try again on top of it.
+    if (attempt > 1) {
+      thread_local std::mt19937 rng(std::random_device{}());
+      const uint32_t ms = 1u << std::min(attempt, 6);
+      std::this_thread::sleep_for(std::chrono::microseconds(rng() % (ms * 1000)));
+    }
+    std::lock_guard<std::mutex> follow(follow_mu_);
+    if (auto s = Follow(scene_id, nullptr); !s.ok()) return s;
+  }
+}
+
 template <class S>
 absl::StatusOr<uint64_t> SceneRegistry::Upsert(const std::string& scene_id,
                                                std::vector<typename S::Site> sites) {
-  auto scene = FindOf<S>(scene_id);
-  if (!scene.ok()) return scene.status();
   // What the sites add, reserved until the scene's snapshot holds them (sites they replace
   // are not subtracted: a reservation may only overstate).
   uint64_t added = 0;
@@ -311,26 +375,23 @@ absl::StatusOr<uint64_t> SceneRegistry::Upsert(const std::string& scene_id,
     return s;
   }
   MemoryBudget::Reservation reserved(&memory_, added);
-  auto version = (*scene)->Upsert(std::move(sites), limits_.max_sites_per_scene,
-                                  [&](const ChangeSet& c) {
-                                    return Durably([&] { return store_->Commit(c); });
-                                  });
-  if (version.ok()) Published(*scene);
-  return version;
+  const bool retried = store_->shared();  // then each try takes a copy
+  return Retrying<S>(scene_id, [&](const std::shared_ptr<S>& scene) {
+    return scene->Upsert(retried ? sites : std::move(sites), limits_.max_sites_per_scene,
+                         [&](const ChangeSet& c) {
+                           return Durably([&] { return store_->Commit(c); });
+                         });
+  });
 }
 
 absl::StatusOr<uint64_t> SceneRegistry::DeleteSites(const std::string& scene_id,
                                                     const std::vector<std::string>& ids) {
   auto remove = [&](const auto& scene) -> absl::StatusOr<uint64_t> {
-    auto version = scene->Delete(
+    return scene->Delete(
         ids, [&](const ChangeSet& c) { return Durably([&] { return store_->Commit(c); }); });
-    if (version.ok()) Published(scene);
-    return version;
   };
-  if (auto scene3 = Find3(scene_id); scene3.ok()) return remove(*scene3);
-  auto scene = Find(scene_id);
-  if (!scene.ok()) return scene.status();
-  return remove(*scene);
+  if (Find3(scene_id).ok()) return Retrying<Scene3>(scene_id, remove);
+  return Retrying<Scene>(scene_id, remove);
 }
 
 absl::StatusOr<uint64_t> SceneRegistry::Apply(const ChangeSet& committed) {
@@ -359,6 +420,198 @@ absl::StatusOr<uint64_t> SceneRegistry::ApplyTo(const std::shared_ptr<S>& scene,
   auto version = scene->Apply(committed);
   if (version.ok()) Published(scene);
   return version;
+}
+
+absl::Status SceneRegistry::CatchUp() {
+  std::lock_guard<std::mutex> follow(follow_mu_);
+  // The scenes held before the heads are read: only these can have been deleted elsewhere
+  // (one made here later is not in the heads read), and only their waits registered now can
+  // be judged by these heads.
+  std::vector<std::string> held;
+  std::map<std::string, uint64_t> marks;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    for (const auto& [id, scene] : scenes_) marks[id] = scene->waiter_mark();
+    for (const auto& [id, scene] : scenes3_) marks[id] = scene->waiter_mark();
+    for (const auto& [id, mark] : marks) held.push_back(id);
+    for (const auto& [id, scene] : unloaded_) held.push_back(id);
+  }
+  auto heads = store_->Heads();
+  if (!heads.ok()) {
+    std::lock_guard<std::mutex> lock(mu_);
+    caught_up_ = false;
+    return heads.status();
+  }
+  std::map<std::string, uint64_t> latest;
+  for (const SceneHead& h : *heads) latest[h.id] = h.version;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    heads_ = latest;
+    heads_read_ = std::chrono::steady_clock::now();
+  }
+  absl::Status status;
+  for (const SceneHead& h : *heads) {
+    if (auto s = Follow(h.id, &h); !s.ok() && status.ok()) status = s;
+  }
+  for (const std::string& id : held) {
+    if (!latest.count(id)) Forget(id);
+  }
+  FailWaitsBeyondHeads(marks);
+  std::lock_guard<std::mutex> lock(mu_);
+  caught_up_ = status.ok();
+  return status;
+}
+
+absl::Status SceneRegistry::Follow(const std::string& id, const SceneHead* head) {
+  std::shared_ptr<Scene> scene;
+  std::shared_ptr<Scene3> scene3;
+  uint64_t incarnation = 0;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    // A scene being made here is this server's own; one left unloaded stays so.
+    if (creating_.count(id) || unloaded_.count(id)) return absl::OkStatus();
+    if (auto it = scenes_.find(id); it != scenes_.end()) scene = it->second;
+    if (auto it = scenes3_.find(id); it != scenes3_.end()) scene3 = it->second;
+    if (auto it = incarnations_.find(id); it != incarnations_.end()) incarnation = it->second;
+  }
+  const bool held = scene || scene3;
+  const uint64_t local = scene ? scene->version() : scene3 ? scene3->version() : 0;
+  if (held && head && head->incarnation == incarnation && head->version <= local) {
+    return absl::OkStatus();
+  }
+  auto changes = store_->ReadChanges(id, local);
+  if (changes.status().code() == absl::StatusCode::kNotFound) {
+    if (held) Forget(id);
+    return absl::OkStatus();
+  }
+  if (!changes.ok()) return changes.status();
+  if (held && changes->incarnation != incarnation) {
+    // Deleted and made again elsewhere: the scene held here is another one.
+    Forget(id);
+    changes = store_->ReadChanges(id, 0);
+    if (changes.status().code() == absl::StatusCode::kNotFound) return absl::OkStatus();
+    if (!changes.ok()) return changes.status();
+  } else if (held) {
+    return scene ? Advance(scene, *changes, local) : Advance(scene3, *changes, local);
+  }
+  StoredScene stored{std::move(changes->settings), changes->version, changes->incarnation};
+  for (const auto& site : changes->put) stored.sites.push_back(*site);
+  for (const auto& site : changes->put3) stored.sites3.push_back(*site);
+  Adopt(std::move(stored));
+  return absl::OkStatus();
+}
+
+template <class S>
+absl::Status SceneRegistry::Advance(const std::shared_ptr<S>& scene, const SceneChanges& changes,
+                                    uint64_t after) {
+  auto snapshot = scene->snapshot();
+  // Nothing new, or the scene moved meanwhile (a write here): the next catch-up reads again.
+  if (changes.version <= after || snapshot->version() != after) return absl::OkStatus();
+  std::vector<std::string> removed;
+  if (changes.complete) {
+    // The scene's whole state: whatever else is held goes.
+    std::set<std::string_view> kept;
+    for (const auto& site : changes.View(after).template Put<typename S::Site>()) {
+      kept.insert(site->id);
+    }
+    snapshot->ids().ForEachAfter("", [&](const auto& entry) {
+      if (!kept.count(entry.id)) removed.push_back(entry.id);
+      return true;
+    });
+  } else {
+    // A site put and removed after `after` was never held here.
+    for (const std::string& id : changes.removed) {
+      if (snapshot->Find(id)) removed.push_back(id);
+    }
+  }
+  ChangeSet net = changes.View(after);
+  net.removed = removed;
+  auto applied = ApplyTo(scene, net);
+  if (!applied.ok() && applied.status().code() != absl::StatusCode::kFailedPrecondition &&
+      applied.status().code() != absl::StatusCode::kNotFound) {
+    return applied.status();
+  }
+  return absl::OkStatus();
+}
+
+void SceneRegistry::Forget(const std::string& id) {
+  std::shared_ptr<Scene> scene;
+  std::shared_ptr<Scene3> scene3;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (auto it = scenes_.find(id); it != scenes_.end()) {
+      scene = it->second;
+      scenes_.erase(it);
+    }
+    if (auto it = scenes3_.find(id); it != scenes3_.end()) {
+      scene3 = it->second;
+      scenes3_.erase(it);
+    }
+    unloaded_.erase(id);
+    incarnations_.erase(id);
+  }
+  auto retire = [&](const auto& s) {
+    if (!s || !s->Retire().ok()) return;
+    s->FailWaiters(absl::NotFoundError(absl::StrCat("scene \"", id, "\" was deleted")));
+    Published(s);
+  };
+  retire(scene);
+  retire(scene3);
+  Log(LogLevel::kInfo, "scene_deleted", {{"scene", id}, {"by", "another server"}});
+}
+
+void SceneRegistry::FailWaitsBeyondHeads(const std::map<std::string, uint64_t>& marks) {
+  for (const auto& [id, mark] : marks) {
+    std::shared_ptr<Scene> scene;
+    std::shared_ptr<Scene3> scene3;
+    uint64_t head = 0;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      auto h = heads_.find(id);
+      if (h == heads_.end()) continue;
+      head = h->second;
+      if (auto it = scenes_.find(id); it != scenes_.end()) scene = it->second;
+      if (auto it = scenes3_.find(id); it != scenes3_.end()) scene3 = it->second;
+    }
+    const absl::Status beyond = absl::OutOfRangeError(absl::StrCat(
+        "min_version is ahead of scene \"", id, "\", which is at version ", head,
+        " in the store"));
+    if (scene) scene->FailWaitersBeyond(head, mark, beyond);
+    if (scene3) scene3->FailWaitersBeyond(head, mark, beyond);
+  }
+}
+
+void SceneRegistry::StartFollowing() {
+  follower_ = std::thread([this] {
+    pthread_setname_np(pthread_self(), "gvd-follow");
+    bool reachable = true;
+    while (!stop_following_) {
+      absl::Status s = CatchUp();
+      if (!s.ok() && reachable) {
+        Log(LogLevel::kWarn, "store_unreachable",
+            {{"store", store_->Describe()}, {"error", s.ToString()}});
+      } else if (s.ok() && !reachable) {
+        Log(LogLevel::kInfo, "store_caught_up", {{"store", store_->Describe()}});
+      }
+      reachable = s.ok();
+      if (!stop_following_) store_->WaitForChanges(kFollowPollMs);
+    }
+  });
+}
+
+bool SceneRegistry::caught_up() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return caught_up_;
+}
+
+SceneRegistry::StoreLag SceneRegistry::Lag(const std::string& id) const {
+  if (!store_->shared()) return {};
+  std::lock_guard<std::mutex> lock(mu_);
+  StoreLag lag;
+  if (auto it = heads_.find(id); it != heads_.end()) lag.store_version = it->second;
+  lag.read_age_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - heads_read_).count();
+  return lag;
 }
 
 absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> SceneRegistry::Zoom(

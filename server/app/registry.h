@@ -4,6 +4,8 @@
 // changes other servers commit.
 #pragma once
 
+#include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -12,6 +14,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -107,9 +110,35 @@ class SceneRegistry {
   // same store): the write path's last step. Scene::Apply says when it is refused.
   absl::StatusOr<uint64_t> Apply(const ChangeSet& committed);
 
+  // ---- Following a store other servers write to (SceneStore::shared) ----
+  //
+  // A replica holds every scene of the store. It catches up when the store tells of a commit
+  // and at least every kFollowPollMs: scenes made elsewhere are loaded, scenes deleted
+  // elsewhere (or deleted and made again) dropped, and a scene behind its head reads what it
+  // missed (SceneStore::ReadChanges) and publishes it through Apply. A write refused because
+  // another server wrote the scene first (ABORTED) catches the scene up and is tried again.
+
+  // Brings every scene up to the store's heads; the store's error when it cannot be read.
+  absl::Status CatchUp();
+  // Starts the thread that follows the store (after Load). Stopped by the destructor.
+  void StartFollowing();
+  // Whether the last catch-up read the store and applied what it found: false from the
+  // moment the store cannot be read until a catch-up succeeds again.
+  bool caught_up() const;
+  // How far the scene is behind the store: its head as last read (0 when the store is not
+  // shared), and the seconds since the store was last read.
+  struct StoreLag {
+    uint64_t store_version = 0;
+    double read_age_seconds = 0;
+  };
+  StoreLag Lag(const std::string& id) const;
+
   // The version a read of `scene` waits for: `requested` (OUT_OF_RANGE when the scene has
   // not reached it), or the current one while the scene's first render is under way, so
   // that a new scene's reader waits rather than hearing "no sites".
+  // With a shared store, a version the scene has not reached waits when the store's head
+  // (as last read) has it, or may have it: then the next catch-up fails the wait with
+  // OUT_OF_RANGE if the store has not reached it either.
   template <class S>
   absl::StatusOr<uint64_t> ReadVersion(const S& scene, uint64_t requested) const;
 
@@ -157,8 +186,24 @@ class SceneRegistry {
                                   std::vector<typename S::Site> sites);
   template <class S>
   absl::StatusOr<uint64_t> ApplyTo(const std::shared_ptr<S>& scene, const ChangeSet& committed);
+  // Holds a stored scene if it fits --max-memory (true), else lists it unloaded.
+  bool Adopt(StoredScene stored);
   // The bytes the loaded scenes hold (the budget's own figure). Takes mu_.
   uint64_t ScenesMemory() const;
+  // Runs a write (`write(scene)`) on the scene `scene_id` of kind S, catching the scene up
+  // and trying again when another server wrote it first.
+  template <class S, class Write>
+  absl::StatusOr<uint64_t> Retrying(const std::string& scene_id, Write write);
+  // Catch-up's steps, under follow_mu_: one scene to its head; a scene from the store.
+  // `head` is the scene's head as just read, or null to read the store for it.
+  absl::Status Follow(const std::string& id, const SceneHead* head);
+  template <class S>
+  absl::Status Advance(const std::shared_ptr<S>& scene, const SceneChanges& changes,
+                       uint64_t after);
+  // Drops a scene deleted in the store by another server.
+  void Forget(const std::string& id);
+  // Fails the waits of versions beyond the store's heads (registered before `marks`).
+  void FailWaitsBeyondHeads(const std::map<std::string, uint64_t>& marks);
 
   SceneStore* const store_;
   RenderLoop* const renderer_;
@@ -176,6 +221,17 @@ class SceneRegistry {
   // --max-scenes and refuse a second create, but are not found until committed.
   std::set<std::string> creating_;
   std::map<std::string, UnloadedScene> unloaded_;
+  // Each held scene's incarnation in the store (0 while unknown), and each stored scene's
+  // head as last read, with when.
+  std::map<std::string, uint64_t> incarnations_;
+  std::map<std::string, uint64_t> heads_;
+  std::chrono::steady_clock::time_point heads_read_;
+  bool caught_up_ = true;
+
+  // Serializes catch-ups (the follower's and writers').
+  std::mutex follow_mu_;
+  std::atomic<bool> stop_following_{false};
+  std::thread follower_;
 
   // The render thread of 3D scenes (on the CPU). It outlives the lanes, as writes that
   // commits_ drains at destruction still mark their scenes dirty; the destructor stops it
@@ -194,6 +250,9 @@ class SceneRegistry {
 template <class S>
 absl::StatusOr<uint64_t> SceneRegistry::ReadVersion(const S& scene, uint64_t requested) const {
   const uint64_t version = scene.version();
+  // A replica waits for what another server committed, or what the store may hold that it
+  // has not read yet; the follower's next catch-up ends the wait one way or the other.
+  if (requested > version && store_->shared()) return requested;
   if (requested > version) {
     return absl::OutOfRangeError(absl::StrCat("min_version ", requested, " is ahead of scene \"",
                                               scene.id(), "\", which is at version ", version));

@@ -571,6 +571,11 @@ void SceneToProto(const S& scene, v1::Scene* out) {
   out->set_memory_bytes(scene.memory_bytes());
 }
 void ToProto(const Scene& scene, v1::Scene* out) { SceneToProto(scene, out); }
+void ToProto(const SceneRegistry::StoreLag& lag, v1::Scene* out) {
+  if (lag.store_version == 0) return;
+  out->set_store_version(lag.store_version);
+  out->set_store_read_age_seconds(lag.read_age_seconds);
+}
 void ToProto(const Scene3& scene, v1::Scene* out) { SceneToProto(scene, out); }
 
 grpc::Status ToGrpc(const absl::Status& status) {

@@ -15,6 +15,7 @@
 #include "render/kernel/site2.h"
 #include "render/image/image.h"
 #include "server/app/limits.h"
+#include "server/app/registry.h"
 #include "server/log.h"
 #include "render/scene/scene.h"
 
@@ -136,6 +137,8 @@ void ToProto(const Window& w, v1::Window* out);
 void ToProto(const SceneSettings& settings, v1::Scene* out);  // the settings' fields only
 void ToProto(const Scene& scene, v1::Scene* out);
 void ToProto(const Scene3& scene, v1::Scene* out);
+// A replica's lag behind its shared store (nothing on a server with a store of its own).
+void ToProto(const SceneRegistry::StoreLag& lag, v1::Scene* out);
 
 // absl::Status from the render and scene layers to a gRPC status with the same code.
 grpc::Status ToGrpc(const absl::Status& status);

@@ -273,17 +273,20 @@ grpc::ServerUnaryReactor* VoronoiService::GetScene(grpc::CallbackServerContext* 
     Describe(*entry->unloaded, response);
     return call.Finish(ctx, Status::OK);
   }
+  const SceneRegistry::StoreLag lag = registry_->Lag(request->scene_id());
   if (entry->scene3) {
     ToProto(*entry->scene3, response);
+    ToProto(lag, response);
     return call.Finish(ctx, Status::OK);
   }
   // Sites that meet the window but hold no pixel of the latest frame (paper sec. 6.2): their
   // number and the first kHiddenIds ids, computed once per frame on the CPU pool (a scan of
   // the frame's pixels).
   return LaneReactor::Start(
-      call.scope, registry_->answers(), "", [scene = entry->scene, response] {
+      call.scope, registry_->answers(), "", [scene = entry->scene, response, lag] {
         constexpr size_t kHiddenIds = 16;
         ToProto(*scene, response);
+        ToProto(lag, response);
         const std::shared_ptr<const Frame> frame = scene->frame();
         auto hidden = scene->Derived<std::vector<uint32_t>>(frame, [](const Frame& frame) {
           if (frame.empty()) return std::vector<uint32_t>();
@@ -310,6 +313,8 @@ grpc::ServerUnaryReactor* VoronoiService::ListScenes(grpc::CallbackServerContext
     } else {
       ToProto(*entry.scene, response->add_scenes());
     }
+    if (!entry.unloaded) ToProto(registry_->Lag(entry.id()), response->mutable_scenes()->Mutable(
+                                                                response->scenes_size() - 1));
   }
   return call.Finish(ctx, Status::OK);
 }

@@ -10,6 +10,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "render/scene/codec.h"
+#include "server/store/rows.h"
 
 namespace gvd {
 namespace {
@@ -87,19 +88,37 @@ std::string ColumnText(sqlite3_stmt* s, int i) {
 
 // The database's schema. The earlier one (tables "scenes" and "sites", holding request
 // messages) is converted by Migrate.
-// The version of kSchema, recorded in the file (PRAGMA user_version).
-constexpr int kSchemaVersion = 1;
+// The version of kSchema, recorded in the file (PRAGMA user_version). Version 2 made the
+// state a log (store.h): each site row carries the version that last wrote it, a removed
+// site leaves a tombstone (no bytes), and a scene has an incarnation and a horizon.
+constexpr int kSchemaVersion = 2;
 constexpr const char* kSchema[] = {
     "CREATE TABLE IF NOT EXISTS scene ("
     "  id TEXT PRIMARY KEY,"
     "  settings BLOB NOT NULL,"  // EncodeSettings
-    "  version INTEGER NOT NULL)",
+    "  version INTEGER NOT NULL,"
+    "  incarnation INTEGER NOT NULL DEFAULT 0,"
+    "  horizon INTEGER NOT NULL DEFAULT 0)",  // tombstones up to it are dropped
     "CREATE TABLE IF NOT EXISTS site ("
     "  scene TEXT NOT NULL REFERENCES scene(id) ON DELETE CASCADE,"  // kept by the store
     "  id TEXT NOT NULL,"
-    "  site BLOB NOT NULL,"  // EncodeSite
+    "  site BLOB NOT NULL,"  // EncodeSite; empty: a tombstone
+    "  version INTEGER NOT NULL DEFAULT 0,"
     "  PRIMARY KEY (scene, id)) WITHOUT ROWID",
 };
+// Added to a store of schema version 1 (or 0, the same schema unrecorded).
+constexpr const char* kToVersion2[] = {
+    "ALTER TABLE scene ADD COLUMN incarnation INTEGER NOT NULL DEFAULT 0",
+    "ALTER TABLE scene ADD COLUMN horizon INTEGER NOT NULL DEFAULT 0",
+    "ALTER TABLE site ADD COLUMN version INTEGER NOT NULL DEFAULT 0",
+};
+// Only tombstones are indexed by version: compaction finds them without a scan, and live
+// sites' writes pay for no second index (a follower's read scans its scene's rows, and
+// SQLite has no followers but tests).
+constexpr const char* kTombstoneIndex =
+    "CREATE INDEX IF NOT EXISTS site_tombstone ON site (scene, version) WHERE site = x''";
+// A new incarnation: random, positive.
+constexpr const char* kNewIncarnation = "((random() & 0x7fffffffffffffff) | 1)";
 
 }  // namespace
 
@@ -150,7 +169,25 @@ absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string
   for (const char* sql : kSchema) {
     if (auto s = store->Exec(sql); !s.ok()) return s;
   }
+  {
+    Statement logged(store->Prepared(
+        "SELECT count(*) FROM pragma_table_info('site') WHERE name = 'version'"));
+    if (!logged.ok() || sqlite3_step(logged.get()) != SQLITE_ROW) {
+      return SqliteError(db, "reading the schema");
+    }
+    if (sqlite3_column_int(logged.get(), 0) == 0) {
+      for (const char* sql : kToVersion2) {
+        if (auto s = store->Exec(sql); !s.ok()) return s;
+      }
+    }
+  }
+  if (auto s = store->Exec(kTombstoneIndex); !s.ok()) return s;
   if (auto s = store->Migrate(legacy); !s.ok()) return s;
+  if (auto s = store->Exec(absl::StrCat("UPDATE scene SET incarnation = ", kNewIncarnation,
+                                        " WHERE incarnation = 0").c_str());
+      !s.ok()) {
+    return s;
+  }
   if (version < kSchemaVersion) {
     if (auto s = store->Exec(absl::StrCat("PRAGMA user_version = ", kSchemaVersion).c_str()); !s.ok()) {
       return s;
@@ -264,7 +301,7 @@ absl::Status SqliteStore::Migrate(const Legacy& legacy) {
 absl::StatusOr<std::vector<StoredScene>> SqliteStore::Load() {
   std::lock_guard<std::mutex> lock(mu_);
   std::vector<StoredScene> scenes;
-  Statement s(Prepared("SELECT id, settings, version FROM scene ORDER BY id"));
+  Statement s(Prepared("SELECT id, settings, version, incarnation FROM scene ORDER BY id"));
   if (!s.ok()) return SqliteError(db_, "reading scenes");
   int rc;
   while ((rc = sqlite3_step(s.get())) == SQLITE_ROW) {
@@ -276,6 +313,7 @@ absl::StatusOr<std::vector<StoredScene>> SqliteStore::Load() {
     StoredScene scene;
     scene.settings = std::move(*settings);
     scene.version = static_cast<uint64_t>(sqlite3_column_int64(s.get(), 2));
+    scene.incarnation = static_cast<uint64_t>(sqlite3_column_int64(s.get(), 3));
     scenes.push_back(std::move(scene));
   }
   if (rc != SQLITE_DONE) return SqliteError(db_, "reading scenes");
@@ -284,6 +322,7 @@ absl::StatusOr<std::vector<StoredScene>> SqliteStore::Load() {
   for (StoredScene& scene : scenes) {
     sites.Text(1, scene.settings.id);
     while ((rc = sqlite3_step(sites.get())) == SQLITE_ROW) {
+      if (IsTombstone(ColumnBlob(sites.get(), 0))) continue;
       auto fail = [&](const absl::Status& status) {
         return absl::DataLossError(absl::StrCat("store: a site of scene \"", scene.settings.id,
                                                 "\": ", status.message()));
@@ -304,27 +343,45 @@ absl::StatusOr<std::vector<StoredScene>> SqliteStore::Load() {
   return scenes;
 }
 
-absl::Status SqliteStore::CreateScene(const SceneSettings& settings, uint64_t version) {
-  return Transaction([&]() -> absl::Status {
-    Statement s(Prepared("INSERT INTO scene (id, settings, version) VALUES (?, ?, ?)"));
+absl::StatusOr<uint64_t> SqliteStore::CreateScene(const SceneSettings& settings,
+                                                   uint64_t version) {
+  uint64_t incarnation = 0;
+  absl::Status stored = Transaction([&]() -> absl::Status {
+    static const std::string insert = absl::StrCat(
+        "INSERT INTO scene (id, settings, version, incarnation, horizon) VALUES (?, ?, ?, ",
+        kNewIncarnation, ", 0) RETURNING incarnation");
+    Statement s(Prepared(insert.c_str()));
+    if (!s.ok()) return SqliteError(db_, "storing the scene");
     s.Text(1, settings.id);
     s.Blob(2, EncodeSettings(settings));
     s.Int(3, version);
-    if (!s.ok() || !s.Run()) return SqliteError(db_, "storing the scene");
+    if (sqlite3_step(s.get()) != SQLITE_ROW) {
+      if (sqlite3_extended_errcode(db_) == SQLITE_CONSTRAINT_PRIMARYKEY) {
+        return absl::AlreadyExistsError(
+            absl::StrCat("scene \"", settings.id, "\" already exists"));
+      }
+      return SqliteError(db_, "storing the scene");
+    }
+    incarnation = static_cast<uint64_t>(sqlite3_column_int64(s.get(), 0));
+    if (sqlite3_step(s.get()) != SQLITE_DONE) return SqliteError(db_, "storing the scene");
     return absl::OkStatus();
   });
+  if (!stored.ok()) return stored;
+  return incarnation;
 }
 
 absl::Status SqliteStore::DeleteScene(std::string_view scene_id) {
-  return Transaction([&]() -> absl::Status {
-    Statement sites(Prepared("DELETE FROM site WHERE scene = ?"));
-    sites.Text(1, scene_id);
-    if (!sites.ok() || !sites.Run()) return SqliteError(db_, "deleting the scene's sites");
-    Statement s(Prepared("DELETE FROM scene WHERE id = ?"));
-    s.Text(1, scene_id);
-    if (!s.ok() || !s.Run()) return SqliteError(db_, "deleting the scene");
-    return absl::OkStatus();
-  });
+  return Transaction([&] { return DeleteRows(scene_id); });
+}
+
+absl::Status SqliteStore::DeleteRows(std::string_view scene_id) {
+  Statement sites(Prepared("DELETE FROM site WHERE scene = ?"));
+  sites.Text(1, scene_id);
+  if (!sites.ok() || !sites.Run()) return SqliteError(db_, "deleting the scene's sites");
+  Statement s(Prepared("DELETE FROM scene WHERE id = ?"));
+  s.Text(1, scene_id);
+  if (!s.ok() || !s.Run()) return SqliteError(db_, "deleting the scene");
+  return absl::OkStatus();
 }
 
 absl::Status SqliteStore::Commit(const ChangeSet& changes) {
@@ -372,21 +429,22 @@ SqliteStore::GroupStats SqliteStore::group_stats() const {
 }
 
 absl::Status SqliteStore::Write(const ChangeSet& changes) {
-  Statement put(Prepared("INSERT OR REPLACE INTO site (scene, id, site) VALUES (?, ?, ?)"));
-  Statement del(Prepared("DELETE FROM site WHERE scene = ? AND id = ?"));
-  Statement version(Prepared("UPDATE scene SET version = ? WHERE id = ?"));
+  Statement put(Prepared(
+      "INSERT OR REPLACE INTO site (scene, id, site, version) VALUES (?, ?, ?, ?)"));
+  Statement del(Prepared("UPDATE site SET site = x'', version = ? WHERE scene = ? AND id = ?"));
+  Statement version(Prepared("UPDATE scene SET version = ? WHERE id = ? AND version = ?"));
   if (!put.ok() || !del.ok() || !version.ok()) return SqliteError(db_, "storing sites");
+  // The conditional append: the scene moves from the version the change follows, or not.
   version.Int(1, changes.version);
   version.Text(2, changes.scene_id);
+  version.Int(3, changes.base());
   if (!version.Run()) return SqliteError(db_, "storing the version");
-  if (sqlite3_changes(db_) != 1) {
-    return absl::NotFoundError(
-        absl::StrCat("store: scene \"", std::string(changes.scene_id), "\" is not stored"));
-  }
+  if (sqlite3_changes(db_) != 1) return Refused(changes);
   auto store = [&](const auto& site) {
     put.Text(1, changes.scene_id);
     put.Text(2, site.id);
     put.Blob(3, EncodeSite(site));
+    put.Int(4, changes.version);
     return put.Run();
   };
   for (const auto& site : changes.put) {
@@ -396,11 +454,95 @@ absl::Status SqliteStore::Write(const ChangeSet& changes) {
     if (!store(*site)) return SqliteError(db_, "storing a site");
   }
   for (const std::string& id : changes.removed) {
-    del.Text(1, changes.scene_id);
-    del.Text(2, id);
+    del.Int(1, changes.version);
+    del.Text(2, changes.scene_id);
+    del.Text(3, id);
     if (!del.Run()) return SqliteError(db_, "deleting a site");
   }
+  if (retention_.CompactsAt(changes.version)) {
+    Statement drop(Prepared(
+        "DELETE FROM site WHERE scene = ? AND site = x'' AND version <= ?"));
+    Statement horizon(Prepared("UPDATE scene SET horizon = ? WHERE id = ?"));
+    drop.Text(1, changes.scene_id);
+    drop.Int(2, retention_.HorizonAt(changes.version));
+    horizon.Int(1, retention_.HorizonAt(changes.version));
+    horizon.Text(2, changes.scene_id);
+    if (!drop.ok() || !horizon.ok() || !drop.Run() || !horizon.Run()) {
+      return SqliteError(db_, "dropping old tombstones");
+    }
+  }
   return absl::OkStatus();
+}
+
+absl::Status SqliteStore::Refused(const ChangeSet& changes) {
+  Statement s(Prepared("SELECT version FROM scene WHERE id = ?"));
+  if (!s.ok()) return SqliteError(db_, "reading the version");
+  s.Text(1, changes.scene_id);
+  const int rc = sqlite3_step(s.get());
+  if (rc == SQLITE_DONE) {
+    return absl::NotFoundError(
+        absl::StrCat("store: scene \"", std::string(changes.scene_id), "\" is not stored"));
+  }
+  if (rc != SQLITE_ROW) return SqliteError(db_, "reading the version");
+  return StaleChange(changes, static_cast<uint64_t>(sqlite3_column_int64(s.get(), 0)));
+}
+
+absl::StatusOr<std::vector<SceneHead>> SqliteStore::Heads() {
+  std::lock_guard<std::mutex> lock(mu_);
+  std::vector<SceneHead> heads;
+  Statement s(Prepared("SELECT id, incarnation, version FROM scene ORDER BY id"));
+  if (!s.ok()) return SqliteError(db_, "reading scenes");
+  int rc;
+  while ((rc = sqlite3_step(s.get())) == SQLITE_ROW) {
+    heads.push_back({ColumnText(s.get(), 0), static_cast<uint64_t>(sqlite3_column_int64(s.get(), 1)),
+                     static_cast<uint64_t>(sqlite3_column_int64(s.get(), 2))});
+  }
+  if (rc != SQLITE_DONE) return SqliteError(db_, "reading scenes");
+  return heads;
+}
+
+absl::StatusOr<SceneChanges> SqliteStore::ReadChanges(std::string_view scene_id, uint64_t after) {
+  // One connection behind mu_: nothing commits between the two reads.
+  std::lock_guard<std::mutex> lock(mu_);
+  SceneChanges out;
+  uint64_t horizon = 0;
+  {
+    Statement s(Prepared("SELECT settings, incarnation, version, horizon FROM scene WHERE id = ?"));
+    if (!s.ok()) return SqliteError(db_, "reading the scene");
+    s.Text(1, scene_id);
+    const int rc = sqlite3_step(s.get());
+    if (rc == SQLITE_DONE) {
+      return absl::NotFoundError(
+          absl::StrCat("store: scene \"", std::string(scene_id), "\" is not stored"));
+    }
+    if (rc != SQLITE_ROW) return SqliteError(db_, "reading the scene");
+    auto settings = DecodeSettings(ColumnBlob(s.get(), 0));
+    if (!settings.ok()) {
+      return absl::DataLossError(absl::StrCat("store: scene \"", std::string(scene_id),
+                                              "\": ", settings.status().message()));
+    }
+    out.settings = std::move(*settings);
+    out.incarnation = static_cast<uint64_t>(sqlite3_column_int64(s.get(), 1));
+    out.version = static_cast<uint64_t>(sqlite3_column_int64(s.get(), 2));
+    horizon = static_cast<uint64_t>(sqlite3_column_int64(s.get(), 3));
+  }
+  out.complete = after == 0 || after < horizon;
+  Statement sites(Prepared("SELECT id, site, version FROM site WHERE scene = ?"));
+  if (!sites.ok()) return SqliteError(db_, "reading sites");
+  sites.Text(1, scene_id);
+  int rc;
+  while ((rc = sqlite3_step(sites.get())) == SQLITE_ROW) {
+    const uint64_t version = static_cast<uint64_t>(sqlite3_column_int64(sites.get(), 2));
+    const std::string_view bytes = ColumnBlob(sites.get(), 1);
+    if (!out.complete && version <= after) continue;
+    if (IsTombstone(bytes)) {
+      if (!out.complete) out.removed.push_back(ColumnText(sites.get(), 0));
+      continue;
+    }
+    if (auto s = DecodeInto(out.settings, bytes, &out.put, &out.put3); !s.ok()) return s;
+  }
+  if (rc != SQLITE_DONE) return SqliteError(db_, "reading sites");
+  return out;
 }
 
 }  // namespace gvd

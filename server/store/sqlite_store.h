@@ -15,6 +15,7 @@
 
 #include "absl/status/statusor.h"
 #include "render/scene/store.h"
+#include "server/store/rows.h"
 
 struct sqlite3;
 struct sqlite3_stmt;
@@ -41,10 +42,14 @@ class SqliteStore final : public SceneStore {
   SqliteStore& operator=(const SqliteStore&) = delete;
 
   absl::StatusOr<std::vector<StoredScene>> Load() override;
-  absl::Status CreateScene(const SceneSettings& settings, uint64_t version) override;
+  absl::StatusOr<uint64_t> CreateScene(const SceneSettings& settings, uint64_t version) override;
   absl::Status Commit(const ChangeSet& changes) override;
   absl::Status DeleteScene(std::string_view scene_id) override;
+  absl::StatusOr<std::vector<SceneHead>> Heads() override;
+  absl::StatusOr<SceneChanges> ReadChanges(std::string_view scene_id, uint64_t after) override;
   std::string Describe() const override { return path_; }
+  // How much history is kept (rows.h); set before the store is shared.
+  void set_retention(Retention retention) { retention_ = retention; }
 
   // Seconds the last transaction took (BEGIN to durable COMMIT).
   double last_commit_seconds() const;
@@ -69,6 +74,11 @@ class SqliteStore final : public SceneStore {
   absl::Status Transaction(Body body);
   // One change set's writes, inside the open transaction. CONTRACT: mu_ held.
   absl::Status Write(const ChangeSet& changes);
+  // Why a change set's conditional update matched no scene: NOT_FOUND or ABORTED.
+  // CONTRACT: mu_ held.
+  absl::Status Refused(const ChangeSet& changes);
+  // Deletes a scene's rows. CONTRACT: mu_ held, in a transaction.
+  absl::Status DeleteRows(std::string_view scene_id);
 
   // Group commit: the change sets waiting for the next transaction, and whether one is under
   // way (its leader commits every waiter it took).
@@ -88,6 +98,7 @@ class SqliteStore final : public SceneStore {
   std::string path_;
   std::unordered_map<std::string, sqlite3_stmt*> statements_;  // by SQL text
   double last_commit_seconds_ = 0;
+  Retention retention_;
 };
 
 }  // namespace gvd

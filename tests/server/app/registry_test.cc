@@ -64,7 +64,10 @@ class FlakyStore final : public SceneStore {
  public:
   explicit FlakyStore(int allowed) : allowed_(allowed) {}
   absl::StatusOr<std::vector<StoredScene>> Load() override { return std::vector<StoredScene>(); }
-  absl::Status CreateScene(const SceneSettings&, uint64_t) override { return Take(); }
+  absl::StatusOr<uint64_t> CreateScene(const SceneSettings&, uint64_t) override {
+    if (auto s = Take(); !s.ok()) return s;
+    return 1;
+  }
   absl::Status Commit(const ChangeSet&) override { return Take(); }
   absl::Status DeleteScene(std::string_view) override { return Take(); }
   std::string Describe() const override { return "flaky"; }
@@ -332,6 +335,9 @@ TEST(SceneRegistry, AChangeCommittedElsewhereEntersThroughApply) {
   const std::vector<std::shared_ptr<const Site>> put = {
       std::make_shared<const Site>(Point("b", 0.8, 0.8))};
   const std::vector<std::string> removed = {"a"};
+  // Committed by the other server (a store's commit is a conditional append: the next local
+  // write follows version 3 there too).
+  ASSERT_TRUE(in_memory.store->Commit({"s", 3, put, removed}).ok());
   auto applied = registry.Apply({"s", 3, put, removed});
   ASSERT_TRUE(applied.ok()) << applied.status();
   EXPECT_EQ(*applied, 3u);

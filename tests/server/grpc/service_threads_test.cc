@@ -22,7 +22,7 @@ class RecordingStore final : public SceneStore {
  public:
   RecordingStore() : inner_(std::move(*SqliteStore::Open(":memory:"))) {}
   absl::StatusOr<std::vector<StoredScene>> Load() override { return inner_->Load(); }
-  absl::Status CreateScene(const SceneSettings& s, uint64_t v) override {
+  absl::StatusOr<uint64_t> CreateScene(const SceneSettings& s, uint64_t v) override {
     Note();
     return inner_->CreateScene(s, v);
   }

@@ -27,72 +27,15 @@
 #include "render/scene/scene.h"
 #include "server/store/sqlite_store.h"
 #include "tests/support/meshes3.h"
+#include "tests/support/stored_sites.h"
 
 namespace gvd {
 namespace {
 
-bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
-
-bool SamePoints(const std::vector<Vec2>& a, const std::vector<Vec2>& b) {
-  if (a.size() != b.size()) return false;
-  for (size_t i = 0; i < a.size(); ++i) {
-    if (!SameBits(a[i].x, b[i].x) || !SameBits(a[i].y, b[i].y)) return false;
-  }
-  return true;
-}
-
-// Field by field and bit for bit, written here rather than taken from the code under test.
-bool SameSite(const Site& a, const Site& b) {
-  if (a.id != b.id || !SameBits(a.additive, b.additive) ||
-      !SameBits(a.multiplicative, b.multiplicative) || !SameBits(a.max_distance, b.max_distance) ||
-      a.geometry.index() != b.geometry.index()) {
-    return false;
-  }
-  if (auto* p = std::get_if<PointSite>(&a.geometry)) {
-    return SamePoints({p->p}, {std::get<PointSite>(b.geometry).p});
-  }
-  if (auto* s = std::get_if<SegmentSite>(&a.geometry)) {
-    const auto& t = std::get<SegmentSite>(b.geometry);
-    return SamePoints({s->a, s->b}, {t.a, t.b});
-  }
-  if (auto* l = std::get_if<PolylineSite>(&a.geometry)) {
-    return SamePoints(l->points, std::get<PolylineSite>(b.geometry).points);
-  }
-  if (auto* g = std::get_if<PolygonSite>(&a.geometry)) {
-    const auto& h = std::get<PolygonSite>(b.geometry);
-    return g->side == h.side && SamePoints(g->vertices, h.vertices);
-  }
-  const auto& c = std::get<BezierSite>(a.geometry);
-  const auto& d = std::get<BezierSite>(b.geometry);
-  return SameBits(c.tolerance, d.tolerance) && SamePoints(c.control, d.control) &&
-         SamePoints(c.flat, d.flat);
-}
-
-// A random site of every kind in turn, with awkward values: -0, subnormals, huge and tiny
-// magnitudes, infinite max_distance, ids with bytes of every value.
-Site RandomSite(std::mt19937_64& rng, int kind, const std::string& id) {
-  const double awkward[] = {-0.0, 5e-324, 1e308, -1e-300, 0.1, 1.0 / 3, -7.5e12};
-  std::uniform_real_distribution<double> u(-1e6, 1e6);
-  auto value = [&] { return rng() % 4 == 0 ? awkward[rng() % 7] : u(rng); };
-  auto points = [&](size_t n) {
-    std::vector<Vec2> v(n);
-    for (Vec2& p : v) p = {value(), value()};
-    return v;
-  };
-  Site s;
-  s.id = id;
-  s.additive = rng() % 2 ? 0 : std::abs(value());
-  s.multiplicative = rng() % 2 ? 1 : 1 + std::abs(u(rng));
-  s.max_distance = rng() % 2 ? INFINITY : 1 + std::abs(u(rng));
-  switch (kind % 5) {
-    case 0: s.geometry = PointSite{{value(), value()}}; break;
-    case 1: s.geometry = SegmentSite{{value(), value()}, {value(), value()}}; break;
-    case 2: s.geometry = PolylineSite{points(2 + rng() % 40)}; break;
-    case 3: s.geometry = PolygonSite{points(3 + rng() % 40), static_cast<Side>(rng() % 3)}; break;
-    default: s.geometry = BezierSite{points(3 + rng() % 2), std::abs(value()), points(2 + rng() % 90)};
-  }
-  return s;
-}
+using testing::RandomSite;
+using testing::SameBits;
+using testing::SameSite;
+using testing::TempDir;
 
 std::string RandomId(std::mt19937_64& rng) {
   std::string id(1 + rng() % 12, '\0');
@@ -217,19 +160,6 @@ TEST(Codec, ValuesNoAcceptedSiteHadAreDataLoss) {
   }
 }
 
-// A fresh directory under /tmp, removed at the end of the test.
-class TempDir {
- public:
-  TempDir() {
-    char t[] = "/tmp/gvd-store-XXXXXX";
-    path_ = mkdtemp(t);
-  }
-  ~TempDir() { std::system(("rm -rf '" + path_ + "'").c_str()); }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-};
 
 SceneSettings Settings(const std::string& id) {
   SceneSettings s;
@@ -477,6 +407,52 @@ int UserVersion(const std::string& file) {
   return v;
 }
 
+// A store of schema version 1 (before the log) keeps its scenes and sites, and takes the
+// log's columns: its rows count as written at version 0, so any follower reads them.
+TEST(Store, ASchemaVersion1StoreBecomesALog) {
+  TempDir dir;
+  ASSERT_EQ(system(("mkdir -p '" + dir.path() + "/data'").c_str()), 0);
+  const std::string file = dir.path() + "/data/gvd.sqlite3";
+  const Site p{"p", PointSite{{0.25, 0.5}}};
+  RawSql(file, {"CREATE TABLE scene (id TEXT PRIMARY KEY, settings BLOB NOT NULL,"
+                " version INTEGER NOT NULL)",
+                "CREATE TABLE site (scene TEXT NOT NULL REFERENCES scene(id) ON DELETE CASCADE,"
+                " id TEXT NOT NULL, site BLOB NOT NULL, PRIMARY KEY (scene, id)) WITHOUT ROWID",
+                "PRAGMA user_version = 1"});
+  {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(file.c_str(), &db), SQLITE_OK);
+    sqlite3_stmt* st = nullptr;
+    const std::string settings = EncodeSettings(Settings("a")), site = EncodeSite(p);
+    sqlite3_prepare_v2(db, "INSERT INTO scene VALUES ('a', ?, 7)", -1, &st, nullptr);
+    sqlite3_bind_blob(st, 1, settings.data(), static_cast<int>(settings.size()), SQLITE_STATIC);
+    EXPECT_EQ(sqlite3_step(st), SQLITE_DONE);
+    sqlite3_finalize(st);
+    sqlite3_prepare_v2(db, "INSERT INTO site VALUES ('a', 'p', ?)", -1, &st, nullptr);
+    sqlite3_bind_blob(st, 1, site.data(), static_cast<int>(site.size()), SQLITE_STATIC);
+    EXPECT_EQ(sqlite3_step(st), SQLITE_DONE);
+    sqlite3_finalize(st);
+    sqlite3_close(db);
+  }
+  auto store = SqliteStore::Open(dir.path() + "/data");
+  ASSERT_TRUE(store.ok()) << store.status();
+  EXPECT_EQ(UserVersion(file), 2);
+  StoreModel model;
+  model.versions["a"] = 7;
+  model.sites["a"] = {{"p", p}};
+  ExpectStoreHolds(**store, model);
+  auto changes = (*store)->ReadChanges("a", 3);
+  ASSERT_TRUE(changes.ok()) << changes.status();
+  EXPECT_EQ(changes->version, 7u);
+  EXPECT_NE(changes->incarnation, 0u);
+  EXPECT_TRUE(changes->put.empty());  // written before version 3, as far as the log knows
+  std::vector<std::string> removed = {"p"};
+  ASSERT_TRUE((*store)->Commit({"a", 8, {}, removed}).ok());
+  changes = (*store)->ReadChanges("a", 7);
+  ASSERT_TRUE(changes.ok());
+  EXPECT_EQ(changes->removed, removed);
+}
+
 // A damaged file, a file of something else and a store of a newer release are refused when
 // the store opens, each naming the file, and none is changed.
 TEST(Store, DamagedForeignAndNewerFilesAreRefusedByName) {
@@ -487,7 +463,7 @@ TEST(Store, DamagedForeignAndNewerFilesAreRefusedByName) {
     ASSERT_TRUE(store.ok()) << store.status();
     ASSERT_TRUE((*store)->CreateScene(Settings("a"), 1).ok());
   }
-  EXPECT_EQ(UserVersion(file), 1);  // recorded in every store
+  EXPECT_EQ(UserVersion(file), 2);  // recorded in every store
   std::system(("cp " + file + " " + dir.path() + "/good").c_str());
 
   std::mt19937_64 rng(5);

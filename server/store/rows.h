@@ -1,0 +1,61 @@
+// What the store engines share: how a site row's bytes become a site of its scene's kind,
+// and how long a scene's tombstones are kept.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
+#include "render/scene/codec.h"
+#include "render/scene/store.h"
+
+namespace gvd {
+
+// A removed site's row keeps its id and the version that removed it, with no bytes.
+inline bool IsTombstone(std::string_view site_bytes) { return site_bytes.empty(); }
+
+// How much of a scene's history is kept: its tombstones of versions up to its version less
+// `versions` are dropped (and its horizon moves up) by the commit of every `every`-th
+// version. A follower further behind reads the scene's whole state.
+struct Retention {
+  uint64_t versions = 4096;
+  uint64_t every = 64;
+  bool CompactsAt(uint64_t version) const {
+    return version > versions && version % every == 0;
+  }
+  uint64_t HorizonAt(uint64_t version) const { return version - versions; }
+};
+
+// The refusal of a change set whose scene is at `stored`, not at the version it follows.
+inline absl::Status StaleChange(const ChangeSet& changes, uint64_t stored) {
+  return absl::AbortedError(absl::StrCat(
+      "scene \"", std::string(changes.scene_id), "\" is at version ", stored, " in the store, not at ",
+      changes.base(), ": another server wrote to it first"));
+}
+
+// Decodes a site row of `settings`' scene into `put` (or `put3` for a 3D scene); DATA_LOSS
+// naming the scene when its bytes are damaged.
+inline absl::Status DecodeInto(const SceneSettings& settings, std::string_view bytes,
+                               std::vector<std::shared_ptr<const Site>>* put,
+                               std::vector<std::shared_ptr<const Site3>>* put3) {
+  auto fail = [&](const absl::Status& status) {
+    return absl::DataLossError(
+        absl::StrCat("store: a site of scene \"", settings.id, "\": ", status.message()));
+  };
+  if (settings.three_d()) {
+    auto site = DecodeSite3(bytes);
+    if (!site.ok()) return fail(site.status());
+    put3->push_back(std::make_shared<const Site3>(std::move(*site)));
+  } else {
+    auto site = DecodeSite(bytes);
+    if (!site.ok()) return fail(site.status());
+    put->push_back(std::make_shared<const Site>(std::move(*site)));
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace gvd

@@ -1,0 +1,119 @@
+// A PostgreSQL server of the test's own, from Debian's postgresql package: a cluster made by
+// initdb in a temporary directory, listening on a Unix socket there (and on 127.0.0.1 at a
+// free port), stopped and removed when the object goes. Run as the "postgres" user when
+// the test runs as root (PostgreSQL refuses root). The tests that need it fail, not skip,
+// when it cannot start: CI installs the package.
+#pragma once
+
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <netinet/in.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <glob.h>
+#include <string>
+#include <thread>
+
+#include "absl/strings/str_cat.h"
+
+namespace gvd::testing {
+
+class TempPostgres {
+ public:
+  TempPostgres() {
+    char dir[] = "/tmp/gvd-pg-XXXXXX";
+    dir_ = mkdtemp(dir);
+    bin_ = FindBin();
+    port_ = FreePort();
+    if (bin_.empty()) {
+      error_ = "no PostgreSQL server (install Debian's postgresql package)";
+      return;
+    }
+    as_ = getuid() == 0 ? "runuser -u postgres -- " : "";
+    if (getuid() == 0) Sh(absl::StrCat("chown postgres '", dir_, "'"));
+    if (Sh(absl::StrCat(as_, bin_, "/initdb -D '", dir_, "/data' -A trust -U gvd -E UTF8 ",
+                        "--no-sync >'", dir_, "/initdb.log' 2>&1")) != 0) {
+      error_ = absl::StrCat("initdb failed: see ", dir_, "/initdb.log");
+      return;
+    }
+    if (!Start()) return;
+    if (Sh(absl::StrCat(as_, bin_, "/createdb -h '", dir_, "' -p ", port_, " -U gvd gvd")) != 0) {
+      error_ = "createdb failed";
+    }
+  }
+  ~TempPostgres() {
+    Stop();
+    Sh(absl::StrCat("rm -rf '", dir_, "'"));
+  }
+  TempPostgres(const TempPostgres&) = delete;
+  TempPostgres& operator=(const TempPostgres&) = delete;
+
+  // Empty when the server runs; else why it does not.
+  const std::string& error() const { return error_; }
+  // The URL of its database "gvd", over the Unix socket.
+  std::string url() const {
+    return absl::StrCat("postgresql://gvd@/gvd?host=", dir_, "&port=", port_);
+  }
+  // The same over TCP.
+  std::string tcp_url() const {
+    return absl::StrCat("postgresql://gvd@127.0.0.1:", port_, "/gvd");
+  }
+  int port() const { return port_; }
+  // A new, empty database of the server; its URL (over the Unix socket), or "" on failure.
+  std::string NewDatabase(const std::string& name) const {
+    if (Sh(absl::StrCat(as_, bin_, "/createdb -h '", dir_, "' -p ", port_, " -U gvd ", name)) != 0) {
+      return "";
+    }
+    return absl::StrCat("postgresql://gvd@/", name, "?host=", dir_, "&port=", port_);
+  }
+
+  // Starts the server (again), waiting until it takes connections.
+  bool Start() {
+    if (Sh(absl::StrCat(as_, bin_, "/pg_ctl -D '", dir_, "/data' -l '", dir_, "/server.log' ",
+                        "-w -t 60 -o \"-k '", dir_, "' -p ", port_,
+                        " -c listen_addresses=127.0.0.1 -c fsync=off -c full_page_writes=off"
+                        " -c max_connections=200\" start >/dev/null 2>&1")) != 0) {
+      error_ = absl::StrCat("PostgreSQL did not start: see ", dir_, "/server.log");
+      return false;
+    }
+    return true;
+  }
+  // Stops it: "fast" (clients disconnected, a clean shutdown) or "immediate" (a crash).
+  void Stop(const char* mode = "fast") {
+    Sh(absl::StrCat(as_, bin_, "/pg_ctl -D '", dir_, "/data' -m ", mode,
+                    " -w stop >/dev/null 2>&1"));
+  }
+
+ private:
+  static int Sh(const std::string& command) { return std::system(command.c_str()); }
+  static std::string FindBin() {
+    glob_t g;
+    std::string bin;
+    if (glob("/usr/lib/postgresql/*/bin/pg_ctl", 0, nullptr, &g) == 0 && g.gl_pathc > 0) {
+      bin = std::filesystem::path(g.gl_pathv[g.gl_pathc - 1]).parent_path();
+    }
+    globfree(&g);
+    return bin;
+  }
+  static int FreePort() {
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
+    socklen_t n = sizeof a;
+    getsockname(fd, reinterpret_cast<sockaddr*>(&a), &n);
+    close(fd);
+    return ntohs(a.sin_port);
+  }
+
+  std::string dir_, bin_, as_, error_;
+  int port_ = 0;
+};
+
+}  // namespace gvd::testing
