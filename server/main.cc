@@ -432,6 +432,10 @@ int main(int argc, char** argv) {
     return 1;
   }
   server->GetHealthCheckService()->SetServingStatus(true);
+  // "liveness": the process serves, whatever its store does (for a liveness probe that must
+  // not restart a replica that waits for its database); "" (the server as a whole) is
+  // readiness.
+  server->GetHealthCheckService()->SetServingStatus("liveness", true);
   gvd::Log(gvd::LogLevel::kInfo, "store", {{"store", (*store)->Describe()},
                                            {"shared", (*store)->shared() ? "true" : "false"}});
   // A replica follows the store; its health says NOT_SERVING while it cannot read the store
@@ -444,7 +448,7 @@ int main(int argc, char** argv) {
       bool serving = true;
       while (!stopping) {
         const bool now = registry->caught_up();
-        if (now != serving) server->GetHealthCheckService()->SetServingStatus(now);
+        if (now != serving) server->GetHealthCheckService()->SetServingStatus("", now);
         serving = now;
         std::this_thread::sleep_for(std::chrono::milliseconds(100));
       }

@@ -6,6 +6,7 @@
 
 #include <charconv>
 #include <cstdio>
+#include <cmath>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -124,7 +125,13 @@ void PrintScene(const gvd::v1::Scene& s) {
                     ? std::string("exact render")
                     : absl::StrCat(s.cone_triangles(), " triangles per cone"))
             << ", version " << s.version() << ", "
-            << s.site_count() << " sites, rendered version " << s.rendered_version() << "\n";
+            << s.site_count() << " sites, rendered version " << s.rendered_version()
+            << (s.store_version() > 0
+                    ? absl::StrCat(", store version ", s.store_version(), " (read ",
+                                   Num(std::round(s.store_read_age_seconds() * 1000) / 1000),
+                                   " s ago)")
+                    : "")
+            << "\n";
 }
 
 // Sites from a GeoJSON FeatureCollection: Point, LineString (a polyline, or a segment

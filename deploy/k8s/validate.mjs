@@ -8,6 +8,8 @@ const kinds = {
   "v1/PersistentVolumeClaim": "kubernetes-models/v1/PersistentVolumeClaim",
   "v1/Service": "kubernetes-models/v1/Service",
   "apps/v1/Deployment": "kubernetes-models/apps/v1/Deployment",
+  "apps/v1/StatefulSet": "kubernetes-models/apps/v1/StatefulSet",
+  "v1/Secret": "kubernetes-models/v1/Secret",
 };
 let count = 0;
 for (const path of process.argv.slice(2)) {

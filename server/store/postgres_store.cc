@@ -106,6 +106,14 @@ class PostgresStore::Connection {
   ~Connection() { PQfinish(c_); }
   PGconn* get() { return c_; }
   bool broken() const { return broken_ || PQstatus(c_) != CONNECTION_OK; }
+  // Whether an idle connection is still open: reads what the server sent meanwhile (a
+  // server that shut down or restarted has closed it, saying so), without waiting.
+  bool Alive() {
+    if (broken()) return false;
+    if (!PQconsumeInput(c_)) broken_ = true;
+    while (PGnotify* n = PQnotifies(c_)) PQfreemem(n);
+    return !broken();
+  }
 
   // Runs one statement and returns its result; the
   // error as a status naming `what`. The connection is broken after a failure to talk.
@@ -273,10 +281,13 @@ absl::StatusOr<PostgresStore::Lease> PostgresStore::Take() {
   {
     std::unique_lock<std::mutex> lock(mu_);
     idle_cv_.wait(lock, [&] { return !idle_.empty() || open_ < options_.connections; });
-    if (!idle_.empty()) {
-      Lease lease(this, std::move(idle_.back()));
+    // Idle connections the database closed (it restarted, or failed over) are dropped here
+    // rather than failing the call that takes them.
+    while (!idle_.empty()) {
+      std::unique_ptr<Connection> c = std::move(idle_.back());
       idle_.pop_back();
-      return lease;
+      if (c->Alive()) return Lease(this, std::move(c));
+      --open_;
     }
     ++open_;
   }

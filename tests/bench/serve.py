@@ -63,12 +63,19 @@ class Voronoi:
             "/gvd.v1.Voronoi/UpsertSites", request_serializer=lambda body: body,
             response_deserializer=pb.UpsertSitesResponse.FromString)
         self.FindNearest = call("FindNearest", pb.FindNearestRequest, pb.FindNearestResponse)
+        self.WatchScene = channel.unary_stream(
+            "/gvd.v1.Voronoi/WatchScene", request_serializer=pb.WatchSceneRequest.SerializeToString,
+            response_deserializer=pb.SceneEvent.FromString)
 
 
-def start_server(binary, workdir):
+def start_server(binary, workdir, store=None):
+    """Starts gvd-server with its store in workdir (or `store`, a --store URL); returns the
+    process and its gRPC address."""
+    os.makedirs(workdir, exist_ok=True)
     port_file = os.path.join(workdir, "port")
+    where = ["--store", store] if store else ["--data", os.path.join(workdir, "store")]
     server = subprocess.Popen([binary, "--listen", "127.0.0.1:0", "--port-file", port_file,
-                               "--data", os.path.join(workdir, "store"), "--log-level", os.environ.get("GVD_LOG", "warn")])
+                               *where, "--log-level", os.environ.get("GVD_LOG", "warn")])
     deadline = time.monotonic() + 60
     while not (os.path.exists(port_file) and os.path.getsize(port_file) > 0):
         if server.poll() is not None or time.monotonic() > deadline:

@@ -42,14 +42,28 @@ for dep in by_kind.get("Deployment", []):
                 problems.append(f"volume {m['name']}: claim {v['persistentVolumeClaim']['claimName']} is not defined")
         if "nvidia.com/gpu" not in c.get("resources", {}).get("limits", {}):
             problems.append(f"container {c['name']}: no nvidia.com/gpu limit")
-    for svc in by_kind.get("Service", []):
-        for k, v in svc["spec"]["selector"].items():
-            if labels.get(k) != v:
-                problems.append(f"Service {svc['metadata']['name']}: selector {k}={v} matches no pod")
-        named = {p["name"] for c in spec["template"]["spec"]["containers"] for p in c.get("ports", [])}
-        for p in svc["spec"]["ports"]:
-            if isinstance(p.get("targetPort"), str) and p["targetPort"] not in named:
-                problems.append(f"Service {svc['metadata']['name']}: targetPort {p['targetPort']} is not a container port")
+# Each Service selects the pods of a Deployment or StatefulSet, on ports they declare.
+workloads = by_kind.get("Deployment", []) + by_kind.get("StatefulSet", [])
+for svc in by_kind.get("Service", []):
+    matched = [w for w in workloads
+               if all(w["spec"]["template"]["metadata"]["labels"].get(k) == v
+                      for k, v in svc["spec"]["selector"].items())]
+    if not matched:
+        problems.append(f"Service {svc['metadata']['name']}: its selector matches no pod")
+        continue
+    named = {p["name"] for w in matched for c in w["spec"]["template"]["spec"]["containers"]
+             for p in c.get("ports", [])}
+    for p in svc["spec"]["ports"]:
+        if isinstance(p.get("targetPort"), str) and p["targetPort"] not in named:
+            problems.append(f"Service {svc['metadata']['name']}: targetPort {p['targetPort']} is not a container port")
+# A Secret a container reads is defined, with the key it reads.
+secrets = {s["metadata"]["name"]: s for s in by_kind.get("Secret", [])}
+for w in workloads:
+    for c in w["spec"]["template"]["spec"]["containers"]:
+        for e in c.get("env", []):
+            ref = e.get("valueFrom", {}).get("secretKeyRef")
+            if ref and ref["key"] not in secrets.get(ref["name"], {}).get("stringData", {}):
+                problems.append(f"container {c['name']}: secret {ref['name']} has no key {ref['key']}")
 for kind in ("Deployment", "Service", "PersistentVolumeClaim"):
     if kind not in by_kind:
         problems.append(f"no {kind}")

@@ -33,7 +33,8 @@ class ServerProcess {
     std::string port_file = dir_ + "/port";
     log_ = dir_ + "/server.log";
     std::vector<std::string> args = {binary, "--listen", "127.0.0.1:0", "--port-file", port_file};
-    if (std::find(flags.begin(), flags.end(), "--data") == flags.end()) {
+    if (std::find(flags.begin(), flags.end(), "--data") == flags.end() &&
+        std::find(flags.begin(), flags.end(), "--store") == flags.end()) {
       args.insert(args.end(), {"--data", dir_ + "/data"});
     }
     args.insert(args.end(), flags.begin(), flags.end());
@@ -114,6 +115,7 @@ class ServerProcess {
   // The HTTP port (--http-listen), 0 when none.
   int http_port() const { return http_port_; }
   const std::string& dir() const { return dir_; }
+  pid_t pid() const { return pid_; }
   std::string log() const {
     std::ifstream in(log_);
     std::stringstream s;
