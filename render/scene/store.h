@@ -58,6 +58,9 @@ struct ChangeSet {
   // The version it follows: 0 for version - 1 (a write); lower for the net change of
   // several versions a follower read (SceneChanges).
   uint64_t follows = 0;
+  // The incarnation of the scene it was made for (StoredScene::incarnation): the engine
+  // refuses it (ABORTED) when the scene's id now names another one. 0: not checked.
+  uint64_t incarnation = 0;
 
   uint64_t base() const { return follows != 0 ? follows : version - 1; }
 
@@ -117,8 +120,9 @@ class SceneStore {
   virtual absl::StatusOr<uint64_t> CreateScene(const SceneSettings& settings,
                                                uint64_t version) = 0;
   // Applies a change set to a stored scene and sets its version, if the scene is at the
-  // version the change follows (changes.base()): ABORTED, changing nothing, when it is not
-  // (another server wrote first); NOT_FOUND when the scene is not stored.
+  // version the change follows (changes.base()) and of its incarnation (when the change
+  // names one): ABORTED, changing nothing, when it is not (another server wrote first, or
+  // deleted the scene and made it again); NOT_FOUND when the scene is not stored.
   virtual absl::Status Commit(const ChangeSet& changes) = 0;
   // Removes a scene and its sites.
   virtual absl::Status DeleteScene(std::string_view scene_id) = 0;

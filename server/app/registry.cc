@@ -143,6 +143,7 @@ bool SceneRegistry::Adopt(StoredScene s) {
         {{"scene", s.settings.id}, {"reason", std::string(fits.message())}});
     std::string id = s.settings.id;
     std::lock_guard<std::mutex> lock(mu_);
+    if (scenes_.count(id) || scenes3_.count(id) || creating_.count(id)) return false;
     incarnations_[id] = s.incarnation;
     unloaded_[id] = {std::move(s.settings), s.version, count, bytes, std::string(fits.message())};
     return false;
@@ -338,13 +339,27 @@ absl::StatusOr<uint64_t> SceneRegistry::Retrying(const std::string& scene_id, Wr
   for (int attempt = 1;; ++attempt) {
     auto scene = FindOf<S>(scene_id);
     if (!scene.ok()) return scene.status();
-    auto version = write(*scene);
+    uint64_t incarnation = 0;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (auto it = incarnations_.find(scene_id); it != incarnations_.end()) {
+        incarnation = it->second;
+      }
+    }
+    // The commit names the incarnation the scene had here: a scene made again elsewhere
+    // under the same id refuses it.
+    auto commit = [&](const ChangeSet& c) {
+      ChangeSet named = c;
+      named.incarnation = incarnation;
+      return Durably([&] { return store_->Commit(named); });
+    };
+    auto version = write(*scene, commit);
     if (version.ok()) {
       Published(*scene);
       if (store_->shared()) {
         std::lock_guard<std::mutex> lock(mu_);
-        uint64_t& head = heads_[scene_id];
-        head = std::max(head, *version);
+        auto& head = heads_[scene_id];
+        if (head.first == incarnation) head.second = std::max(head.second, *version);
       }
     }
     if (version.ok() || version.status().code() != absl::StatusCode::kAborted ||
@@ -376,19 +391,16 @@ absl::StatusOr<uint64_t> SceneRegistry::Upsert(const std::string& scene_id,
   }
   MemoryBudget::Reservation reserved(&memory_, added);
   const bool retried = store_->shared();  // then each try takes a copy
-  return Retrying<S>(scene_id, [&](const std::shared_ptr<S>& scene) {
+  return Retrying<S>(scene_id, [&](const std::shared_ptr<S>& scene, const auto& commit) {
     return scene->Upsert(retried ? sites : std::move(sites), limits_.max_sites_per_scene,
-                         [&](const ChangeSet& c) {
-                           return Durably([&] { return store_->Commit(c); });
-                         });
+                         commit);
   });
 }
 
 absl::StatusOr<uint64_t> SceneRegistry::DeleteSites(const std::string& scene_id,
                                                     const std::vector<std::string>& ids) {
-  auto remove = [&](const auto& scene) -> absl::StatusOr<uint64_t> {
-    return scene->Delete(
-        ids, [&](const ChangeSet& c) { return Durably([&] { return store_->Commit(c); }); });
+  auto remove = [&](const auto& scene, const auto& commit) -> absl::StatusOr<uint64_t> {
+    return scene->Delete(ids, commit);
   };
   if (Find3(scene_id).ok()) return Retrying<Scene3>(scene_id, remove);
   return Retrying<Scene>(scene_id, remove);
@@ -427,14 +439,14 @@ absl::Status SceneRegistry::CatchUp() {
   // The scenes held before the heads are read: only these can have been deleted elsewhere
   // (one made here later is not in the heads read), and only their waits registered now can
   // be judged by these heads.
-  std::vector<std::string> held;
-  std::map<std::string, uint64_t> marks;
+  std::vector<std::pair<std::string, uint64_t>> held;  // id, incarnation
+  std::vector<WaitMark> marks;
   {
     std::lock_guard<std::mutex> lock(mu_);
-    for (const auto& [id, scene] : scenes_) marks[id] = scene->waiter_mark();
-    for (const auto& [id, scene] : scenes3_) marks[id] = scene->waiter_mark();
-    for (const auto& [id, mark] : marks) held.push_back(id);
-    for (const auto& [id, scene] : unloaded_) held.push_back(id);
+    for (const auto& [id, scene] : scenes_) marks.push_back({id, scene, nullptr, scene->waiter_mark()});
+    for (const auto& [id, scene] : scenes3_) marks.push_back({id, nullptr, scene, scene->waiter_mark()});
+    for (const WaitMark& m : marks) held.emplace_back(m.id, incarnations_[m.id]);
+    for (const auto& [id, scene] : unloaded_) held.emplace_back(id, incarnations_[id]);
   }
   auto heads = store_->Heads();
   if (!heads.ok()) {
@@ -442,10 +454,17 @@ absl::Status SceneRegistry::CatchUp() {
     caught_up_ = false;
     return heads.status();
   }
-  std::map<std::string, uint64_t> latest;
-  for (const SceneHead& h : *heads) latest[h.id] = h.version;
+  std::map<std::string, std::pair<uint64_t, uint64_t>> latest;  // incarnation, version
   {
     std::lock_guard<std::mutex> lock(mu_);
+    for (const SceneHead& h : *heads) {
+      auto& head = latest[h.id];
+      head = {h.incarnation, h.version};
+      // A commit of this server's after the heads were read keeps its higher version.
+      if (auto old = heads_.find(h.id); old != heads_.end() && old->second.first == h.incarnation) {
+        head.second = std::max(head.second, old->second.second);
+      }
+    }
     heads_ = latest;
     heads_read_ = std::chrono::steady_clock::now();
   }
@@ -453,8 +472,8 @@ absl::Status SceneRegistry::CatchUp() {
   for (const SceneHead& h : *heads) {
     if (auto s = Follow(h.id, &h); !s.ok() && status.ok()) status = s;
   }
-  for (const std::string& id : held) {
-    if (!latest.count(id)) Forget(id);
+  for (const auto& [id, incarnation] : held) {
+    if (!latest.count(id)) Forget(id, incarnation);
   }
   FailWaitsBeyondHeads(marks);
   std::lock_guard<std::mutex> lock(mu_);
@@ -481,13 +500,13 @@ absl::Status SceneRegistry::Follow(const std::string& id, const SceneHead* head)
   }
   auto changes = store_->ReadChanges(id, local);
   if (changes.status().code() == absl::StatusCode::kNotFound) {
-    if (held) Forget(id);
+    if (held) Forget(id, incarnation);
     return absl::OkStatus();
   }
   if (!changes.ok()) return changes.status();
   if (held && changes->incarnation != incarnation) {
     // Deleted and made again elsewhere: the scene held here is another one.
-    Forget(id);
+    Forget(id, incarnation);
     changes = store_->ReadChanges(id, 0);
     if (changes.status().code() == absl::StatusCode::kNotFound) return absl::OkStatus();
     if (!changes.ok()) return changes.status();
@@ -534,11 +553,14 @@ absl::Status SceneRegistry::Advance(const std::shared_ptr<S>& scene, const Scene
   return absl::OkStatus();
 }
 
-void SceneRegistry::Forget(const std::string& id) {
+void SceneRegistry::Forget(const std::string& id, uint64_t incarnation) {
   std::shared_ptr<Scene> scene;
   std::shared_ptr<Scene3> scene3;
   {
     std::lock_guard<std::mutex> lock(mu_);
+    // Only the scene that was judged gone: one made here meanwhile under the id stays.
+    auto it = incarnations_.find(id);
+    if (it == incarnations_.end() || it->second != incarnation) return;
     if (auto it = scenes_.find(id); it != scenes_.end()) {
       scene = it->second;
       scenes_.erase(it);
@@ -560,24 +582,29 @@ void SceneRegistry::Forget(const std::string& id) {
   Log(LogLevel::kInfo, "scene_deleted", {{"scene", id}, {"by", "another server"}});
 }
 
-void SceneRegistry::FailWaitsBeyondHeads(const std::map<std::string, uint64_t>& marks) {
-  for (const auto& [id, mark] : marks) {
-    std::shared_ptr<Scene> scene;
-    std::shared_ptr<Scene3> scene3;
+void SceneRegistry::FailWaitsBeyondHeads(const std::vector<WaitMark>& marks) {
+  for (const WaitMark& m : marks) {
     uint64_t head = 0;
     {
       std::lock_guard<std::mutex> lock(mu_);
-      auto h = heads_.find(id);
-      if (h == heads_.end()) continue;
-      head = h->second;
-      if (auto it = scenes_.find(id); it != scenes_.end()) scene = it->second;
-      if (auto it = scenes3_.find(id); it != scenes3_.end()) scene3 = it->second;
+      auto h = heads_.find(m.id);
+      // The marks are of the scene objects held before the heads were read: a scene made
+      // again since has waiters of its own, not judged by these heads.
+      auto held = incarnations_.find(m.id);
+      if (h == heads_.end() || held == incarnations_.end() || held->second != h->second.first) {
+        continue;
+      }
+      if (m.scene ? scenes_.count(m.id) == 0 || scenes_[m.id] != m.scene
+                  : scenes3_.count(m.id) == 0 || scenes3_[m.id] != m.scene3) {
+        continue;
+      }
+      head = h->second.second;
     }
     const absl::Status beyond = absl::OutOfRangeError(absl::StrCat(
-        "min_version is ahead of scene \"", id, "\", which is at version ", head,
+        "min_version is ahead of scene \"", m.id, "\", which is at version ", head,
         " in the store"));
-    if (scene) scene->FailWaitersBeyond(head, mark, beyond);
-    if (scene3) scene3->FailWaitersBeyond(head, mark, beyond);
+    if (m.scene) m.scene->FailWaitersBeyond(head, m.mark, beyond);
+    if (m.scene3) m.scene3->FailWaitersBeyond(head, m.mark, beyond);
   }
 }
 
@@ -608,7 +635,7 @@ SceneRegistry::StoreLag SceneRegistry::Lag(const std::string& id) const {
   if (!store_->shared()) return {};
   std::lock_guard<std::mutex> lock(mu_);
   StoreLag lag;
-  if (auto it = heads_.find(id); it != heads_.end()) lag.store_version = it->second;
+  if (auto it = heads_.find(id); it != heads_.end()) lag.store_version = it->second.second;
   lag.read_age_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - heads_read_).count();
   return lag;

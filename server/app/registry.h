@@ -190,8 +190,9 @@ class SceneRegistry {
   bool Adopt(StoredScene stored);
   // The bytes the loaded scenes hold (the budget's own figure). Takes mu_.
   uint64_t ScenesMemory() const;
-  // Runs a write (`write(scene)`) on the scene `scene_id` of kind S, catching the scene up
-  // and trying again when another server wrote it first.
+  // Runs a write (`write(scene, commit)`, commit being the Persist that names the scene's
+  // incarnation) on the scene `scene_id` of kind S, catching the scene up and trying again
+  // when another server wrote it first.
   template <class S, class Write>
   absl::StatusOr<uint64_t> Retrying(const std::string& scene_id, Write write);
   // Catch-up's steps, under follow_mu_: one scene to its head; a scene from the store.
@@ -200,10 +201,19 @@ class SceneRegistry {
   template <class S>
   absl::Status Advance(const std::shared_ptr<S>& scene, const SceneChanges& changes,
                        uint64_t after);
-  // Drops a scene deleted in the store by another server.
-  void Forget(const std::string& id);
-  // Fails the waits of versions beyond the store's heads (registered before `marks`).
-  void FailWaitsBeyondHeads(const std::map<std::string, uint64_t>& marks);
+  // Drops a scene deleted in the store by another server: the one of `incarnation`, if it
+  // is still the one held under the id.
+  void Forget(const std::string& id, uint64_t incarnation);
+  // A held scene object and the first waiter token it had not given when the heads were
+  // read.
+  struct WaitMark {
+    std::string id;
+    std::shared_ptr<Scene> scene;
+    std::shared_ptr<Scene3> scene3;
+    uint64_t mark = 0;
+  };
+  // Fails the waits of versions beyond the store's heads (registered before their marks).
+  void FailWaitsBeyondHeads(const std::vector<WaitMark>& marks);
 
   SceneStore* const store_;
   RenderLoop* const renderer_;
@@ -224,7 +234,7 @@ class SceneRegistry {
   // Each held scene's incarnation in the store (0 while unknown), and each stored scene's
   // head as last read, with when.
   std::map<std::string, uint64_t> incarnations_;
-  std::map<std::string, uint64_t> heads_;
+  std::map<std::string, std::pair<uint64_t, uint64_t>> heads_;  // incarnation, version
   std::chrono::steady_clock::time_point heads_read_;
   bool caught_up_ = true;
 

@@ -280,7 +280,12 @@ absl::StatusOr<std::unique_ptr<PostgresStore>> PostgresStore::Open(const std::st
 absl::StatusOr<PostgresStore::Lease> PostgresStore::Take() {
   {
     std::unique_lock<std::mutex> lock(mu_);
-    idle_cv_.wait(lock, [&] { return !idle_.empty() || open_ < options_.connections; });
+    if (!idle_cv_.wait_for(lock, options_.deadline,
+                           [&] { return !idle_.empty() || open_ < options_.connections; })) {
+      return absl::UnavailableError(absl::StrCat(
+          "store: all ", options_.connections, " connections to PostgreSQL stayed busy for ",
+          options_.deadline.count(), " ms"));
+    }
     // Idle connections the database closed (it restarted, or failed over) are dropped here
     // rather than failing the call that takes them.
     while (!idle_.empty()) {
@@ -425,7 +430,7 @@ absl::Status PostgresStore::Commit(const ChangeSet& changes) {
   // follows, and only then are its rows written and the followers told.
   auto r = (*c)->Run(
       "WITH head AS (UPDATE gvd_scene SET version = $2 WHERE id = $1 AND version = $3 "
-      "RETURNING id), "
+      "  AND ($7 = 0 OR incarnation = $7) RETURNING id), "
       "put AS (INSERT INTO gvd_site (scene, id, version, site) "
       "  SELECT head.id, p.id, $2, p.site FROM head, unnest($4::bytea[], $5::bytea[]) AS p(id, site) "
       "  ON CONFLICT (scene, id) DO UPDATE SET version = EXCLUDED.version, site = EXCLUDED.site), "
@@ -433,17 +438,17 @@ absl::Status PostgresStore::Commit(const ChangeSet& changes) {
       "  WHERE scene = (SELECT id FROM head) AND id = ANY($6::bytea[])) "
       "SELECT pg_notify('gvd_changes', id) FROM head",
       {Text(scene), Int8(changes.version), Int8(changes.base()), ByteaArray(put_ids),
-       ByteaArray(put_sites), ByteaArray(removed)},
+       ByteaArray(put_sites), ByteaArray(removed), Int8(changes.incarnation)},
       options_.deadline, absl::StrCat("committing to scene \"", scene, "\""));
   if (!r.ok()) return r.status();
   if (r->rows() == 0) {
-    auto head = (*c)->Run("SELECT version FROM gvd_scene WHERE id = $1", {Text(scene)},
-                          options_.deadline, "reading a scene's version");
+    auto head = (*c)->Run("SELECT version, incarnation FROM gvd_scene WHERE id = $1",
+                          {Text(scene)}, options_.deadline, "reading a scene's version");
     if (!head.ok()) return head.status();
     if (head->rows() == 0) {
       return absl::NotFoundError(absl::StrCat("store: scene \"", scene, "\" is not stored"));
     }
-    return StaleChange(changes, head->int8(0, 0));
+    return StaleChange(changes, head->int8(0, 0), head->int8(0, 1));
   }
   if (options_.retention.CompactsAt(changes.version)) {
     // Old tombstones and the horizon move together, in one statement.

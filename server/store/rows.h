@@ -30,8 +30,14 @@ struct Retention {
   uint64_t HorizonAt(uint64_t version) const { return version - versions; }
 };
 
-// The refusal of a change set whose scene is at `stored`, not at the version it follows.
-inline absl::Status StaleChange(const ChangeSet& changes, uint64_t stored) {
+// The refusal of a change set whose scene is at `stored` (of incarnation `incarnation`), not
+// at the version it follows or of the incarnation it was made for.
+inline absl::Status StaleChange(const ChangeSet& changes, uint64_t stored, uint64_t incarnation) {
+  if (changes.incarnation != 0 && changes.incarnation != incarnation) {
+    return absl::AbortedError(absl::StrCat(
+        "scene \"", std::string(changes.scene_id),
+        "\" was deleted and made again by another server since this change was made"));
+  }
   return absl::AbortedError(absl::StrCat(
       "scene \"", std::string(changes.scene_id), "\" is at version ", stored, " in the store, not at ",
       changes.base(), ": another server wrote to it first"));

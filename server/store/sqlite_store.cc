@@ -106,11 +106,17 @@ constexpr const char* kSchema[] = {
     "  version INTEGER NOT NULL DEFAULT 0,"
     "  PRIMARY KEY (scene, id)) WITHOUT ROWID",
 };
-// Added to a store of schema version 1 (or 0, the same schema unrecorded).
-constexpr const char* kToVersion2[] = {
-    "ALTER TABLE scene ADD COLUMN incarnation INTEGER NOT NULL DEFAULT 0",
-    "ALTER TABLE scene ADD COLUMN horizon INTEGER NOT NULL DEFAULT 0",
-    "ALTER TABLE site ADD COLUMN version INTEGER NOT NULL DEFAULT 0",
+// Added to a store of schema version 1 (or 0, the same schema unrecorded), each column when
+// missing: a conversion cut short is finished at the next start.
+struct AddedColumn {
+  const char* table;
+  const char* column;
+  const char* sql;
+};
+constexpr AddedColumn kToVersion2[] = {
+    {"scene", "incarnation", "ALTER TABLE scene ADD COLUMN incarnation INTEGER NOT NULL DEFAULT 0"},
+    {"scene", "horizon", "ALTER TABLE scene ADD COLUMN horizon INTEGER NOT NULL DEFAULT 0"},
+    {"site", "version", "ALTER TABLE site ADD COLUMN version INTEGER NOT NULL DEFAULT 0"},
 };
 // Only tombstones are indexed by version: compaction finds them without a scan, and live
 // sites' writes pay for no second index (a follower's read scans its scene's rows, and
@@ -169,16 +175,19 @@ absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string
   for (const char* sql : kSchema) {
     if (auto s = store->Exec(sql); !s.ok()) return s;
   }
-  {
-    Statement logged(store->Prepared(
-        "SELECT count(*) FROM pragma_table_info('site') WHERE name = 'version'"));
-    if (!logged.ok() || sqlite3_step(logged.get()) != SQLITE_ROW) {
-      return SqliteError(db, "reading the schema");
+  for (const AddedColumn& added : kToVersion2) {
+    bool missing;
+    {
+      Statement has(store->Prepared(
+          "SELECT count(*) FROM pragma_table_info(?) WHERE name = ?"));
+      if (!has.ok()) return SqliteError(db, "reading the schema");
+      has.Text(1, added.table);
+      has.Text(2, added.column);
+      if (sqlite3_step(has.get()) != SQLITE_ROW) return SqliteError(db, "reading the schema");
+      missing = sqlite3_column_int(has.get(), 0) == 0;
     }
-    if (sqlite3_column_int(logged.get(), 0) == 0) {
-      for (const char* sql : kToVersion2) {
-        if (auto s = store->Exec(sql); !s.ok()) return s;
-      }
+    if (missing) {
+      if (auto s = store->Exec(added.sql); !s.ok()) return s;
     }
   }
   if (auto s = store->Exec(kTombstoneIndex); !s.ok()) return s;
@@ -432,12 +441,15 @@ absl::Status SqliteStore::Write(const ChangeSet& changes) {
   Statement put(Prepared(
       "INSERT OR REPLACE INTO site (scene, id, site, version) VALUES (?, ?, ?, ?)"));
   Statement del(Prepared("UPDATE site SET site = x'', version = ? WHERE scene = ? AND id = ?"));
-  Statement version(Prepared("UPDATE scene SET version = ? WHERE id = ? AND version = ?"));
+  Statement version(Prepared(
+      "UPDATE scene SET version = ? WHERE id = ? AND version = ? AND (? = 0 OR incarnation = ?)"));
   if (!put.ok() || !del.ok() || !version.ok()) return SqliteError(db_, "storing sites");
   // The conditional append: the scene moves from the version the change follows, or not.
   version.Int(1, changes.version);
   version.Text(2, changes.scene_id);
   version.Int(3, changes.base());
+  version.Int(4, changes.incarnation);
+  version.Int(5, changes.incarnation);
   if (!version.Run()) return SqliteError(db_, "storing the version");
   if (sqlite3_changes(db_) != 1) return Refused(changes);
   auto store = [&](const auto& site) {
@@ -475,7 +487,7 @@ absl::Status SqliteStore::Write(const ChangeSet& changes) {
 }
 
 absl::Status SqliteStore::Refused(const ChangeSet& changes) {
-  Statement s(Prepared("SELECT version FROM scene WHERE id = ?"));
+  Statement s(Prepared("SELECT version, incarnation FROM scene WHERE id = ?"));
   if (!s.ok()) return SqliteError(db_, "reading the version");
   s.Text(1, changes.scene_id);
   const int rc = sqlite3_step(s.get());
@@ -484,7 +496,8 @@ absl::Status SqliteStore::Refused(const ChangeSet& changes) {
         absl::StrCat("store: scene \"", std::string(changes.scene_id), "\" is not stored"));
   }
   if (rc != SQLITE_ROW) return SqliteError(db_, "reading the version");
-  return StaleChange(changes, static_cast<uint64_t>(sqlite3_column_int64(s.get(), 0)));
+  return StaleChange(changes, static_cast<uint64_t>(sqlite3_column_int64(s.get(), 0)),
+                     static_cast<uint64_t>(sqlite3_column_int64(s.get(), 1)));
 }
 
 absl::StatusOr<std::vector<SceneHead>> SqliteStore::Heads() {

@@ -94,7 +94,9 @@ class Writer {
     std::unique_ptr<Client> client;
     std::string connected;
     ClientOptions options;
-    options.timeout = std::chrono::seconds(20);
+    // Generous: a call to the frozen replica waits for it; the server itself never lets a
+    // call hang on the database (the outage's failures are checked to be UNAVAILABLE).
+    options.timeout = std::chrono::seconds(120);
     while (!stop) {
       const std::string target = address();
       if (target != connected) {

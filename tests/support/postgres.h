@@ -116,4 +116,11 @@ class TempPostgres {
   int port_ = 0;
 };
 
+// One server for a whole test program (each test takes a database of its own with
+// NewDatabase), stopped and removed at exit.
+inline TempPostgres& SharedPostgres() {
+  static TempPostgres pg;
+  return pg;
+}
+
 }  // namespace gvd::testing

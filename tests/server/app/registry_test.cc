@@ -23,6 +23,7 @@
 #include "tests/support/meshes3.h"
 #include "tests/support/oracle.h"
 #include "tests/support/oracle3.h"
+#include "tests/support/stored_sites.h"
 
 namespace gvd {
 namespace {
@@ -45,19 +46,7 @@ absl::Status RunJob(const std::shared_ptr<FrameJob>& job) {
   return done.get_future().get();
 }
 
-// A fresh directory under /tmp, removed at the end of the test.
-class TempDir {
- public:
-  TempDir() {
-    char t[] = "/tmp/gvd-registry-XXXXXX";
-    path_ = mkdtemp(t);
-  }
-  ~TempDir() { std::system(("rm -rf '" + path_ + "'").c_str()); }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-};
+using testing::TempDir;
 
 // A store that refuses every commit after the first `allowed`, and counts what it took.
 class FlakyStore final : public SceneStore {

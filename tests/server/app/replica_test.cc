@@ -25,7 +25,7 @@ namespace gvd {
 namespace {
 
 using testing::SameSite;
-using testing::TempPostgres;
+using testing::SharedPostgres;
 
 SceneSettings Settings(const std::string& id, uint32_t side = 32) {
   SceneSettings s;
@@ -36,29 +36,25 @@ SceneSettings Settings(const std::string& id, uint32_t side = 32) {
   return s;
 }
 
-TempPostgres& Postgres() {
-  static TempPostgres pg;  // stopped and removed at exit
-  return pg;
-}
 
 // One server: its own connections to the shared database, its own registry (no renderer).
 struct Replica {
   std::unique_ptr<PostgresStore> store;
   std::unique_ptr<SceneRegistry> registry;
-  explicit Replica(const std::string& url) {
+  explicit Replica(const std::string& url, bool follow = true) {
     auto s = PostgresStore::Open(url);
     EXPECT_TRUE(s.ok()) << s.status();
     store = std::move(*s);
     registry = std::make_unique<SceneRegistry>(store.get(), nullptr, ServerLimits());
     EXPECT_TRUE(registry->Load().ok());
-    registry->StartFollowing();
+    if (follow) registry->StartFollowing();
   }
 };
 
 std::vector<std::unique_ptr<Replica>> Replicas(int n) {
   static int databases = 0;
-  EXPECT_EQ(Postgres().error(), "");
-  const std::string url = Postgres().NewDatabase("replicas" + std::to_string(++databases));
+  EXPECT_EQ(SharedPostgres().error(), "");
+  const std::string url = SharedPostgres().NewDatabase("replicas" + std::to_string(++databases));
   std::vector<std::unique_ptr<Replica>> out;
   for (int i = 0; i < n; ++i) out.push_back(std::make_unique<Replica>(url));
   return out;
@@ -163,6 +159,9 @@ TEST(Replicas, AReadAtAVersionWaitsForTheLog) {
     auto version = b.registry->ReadVersion(*on_b, *written);
     ASSERT_TRUE(version.ok()) << version.status();  // not OUT_OF_RANGE
     EXPECT_EQ(*version, *written);
+    // and the version comes, with the write in it
+    ASSERT_TRUE(Eventually([&] { return on_b->version() >= *written; }));
+    EXPECT_TRUE(on_b->snapshot()->Find("p" + std::to_string(k)).has_value());
   }
   ASSERT_TRUE(Eventually([&] { return on_b->version() == 21; }));
   // Beyond the store: the wait ends with OUT_OF_RANGE at the follower's next read.
@@ -212,6 +211,39 @@ TEST(Replicas, DeletionsAndNewIncarnationsReachEveryServer) {
     auto scene = a.registry->Find("s");
     return scene.ok() && (*scene)->settings().grid.width == 8 && (*scene)->site_count() == 0;
   }));
+}
+
+// A server that has not yet seen a scene deleted and made again elsewhere (it does not
+// follow here, as if the notification were late) writes to its old copy: the database
+// refuses the write for the new scene, which keeps none of it, and the server, reading the
+// store, finds the scene is another one now.
+TEST(Replicas, AWriteToASceneMadeAgainElsewhereIsRefused) {
+  static int databases = 0;
+  ASSERT_EQ(SharedPostgres().error(), "");
+  const std::string url = SharedPostgres().NewDatabase("incarnation" + std::to_string(++databases));
+  Replica late(url, /*follow=*/false);
+  Replica other(url);
+  ASSERT_TRUE(late.registry->CreateScene(Settings("s")).ok());
+  ASSERT_TRUE(late.registry->UpsertSites("s", {{"p", PointSite{{0.5, 0.5}}}}).ok());
+  ASSERT_TRUE(Eventually([&] { return VersionOn(other, "s") == 2; }));
+  // Deleted and made again, as a 3D scene, and brought to version 2 as well.
+  ASSERT_TRUE(other.registry->DeleteScene("s").ok());
+  SceneSettings three_d = Settings("s", 4);
+  three_d.depth = 4;
+  three_d.max_z = 1;
+  ASSERT_TRUE(other.registry->CreateScene3(three_d).ok());
+  ASSERT_TRUE(other.registry->UpsertSites3("s", {{"q", PointSite3{{0.5, 0.5, 0.5}}}}).ok());
+  // The late server's write follows version 2 of its own copy, which the store also has.
+  auto written = late.registry->UpsertSites("s", {{"r", PointSite{{0.25, 0.25}}}});
+  EXPECT_FALSE(written.ok());
+  EXPECT_EQ(written.status().code(), absl::StatusCode::kFailedPrecondition) << written.status();
+  auto stored = other.store->ReadChanges("s", 0);
+  ASSERT_TRUE(stored.ok()) << stored.status();
+  EXPECT_TRUE(stored->put.empty());
+  ASSERT_EQ(stored->put3.size(), 1u);
+  EXPECT_EQ(stored->put3[0]->id, "q");
+  EXPECT_EQ(stored->version, 2u);
+  EXPECT_TRUE(late.registry->Find3("s").ok());  // it now holds the new scene
 }
 
 }  // namespace

@@ -24,7 +24,7 @@ namespace {
 using testing::RandomSite;
 using testing::SameSite;
 using testing::TempDir;
-using testing::TempPostgres;
+using testing::SharedPostgres;
 
 using State = std::map<std::string, Site>;
 
@@ -37,11 +37,6 @@ SceneSettings Settings(const std::string& id) {
   return s;
 }
 
-// One PostgreSQL for the whole program's tests, each test on a database of its own.
-TempPostgres& Postgres() {
-  static TempPostgres pg;  // stopped and removed at exit
-  return pg;
-}
 
 // Opens stores of one engine: several on one database stand for replicas.
 class Engine {
@@ -49,8 +44,8 @@ class Engine {
   Engine(const std::string& kind, Retention retention) : kind_(kind), retention_(retention) {
     static int databases = 0;
     if (kind_ == "postgres") {
-      EXPECT_EQ(Postgres().error(), "");
-      url_ = Postgres().NewDatabase("log" + std::to_string(++databases));
+      EXPECT_EQ(SharedPostgres().error(), "");
+      url_ = SharedPostgres().NewDatabase("log" + std::to_string(++databases));
       EXPECT_NE(url_, "");
     }
   }
@@ -116,6 +111,14 @@ TEST_P(LogStore, ACommitFollowsTheStoredVersionOrIsRefused) {
   EXPECT_NE(std::string(stale.message()).find("at version 2"), std::string::npos) << stale;
   // Nor may a change skip versions.
   EXPECT_EQ(store->Commit({"s", 5, put_q, {}}).code(), absl::StatusCode::kAborted);
+  // Nor be made for another incarnation of the scene (one deleted and made again).
+  ChangeSet other{"s", 3, put_q, {}};
+  auto heads0 = store->Heads();
+  ASSERT_TRUE(heads0.ok());
+  other.incarnation = (*heads0)[0].incarnation + 1;
+  absl::Status made_again = store->Commit(other);
+  EXPECT_EQ(made_again.code(), absl::StatusCode::kAborted) << made_again;
+  EXPECT_NE(std::string(made_again.message()).find("made again"), std::string::npos);
   EXPECT_EQ(store->Commit({"absent", 2, put_q, {}}).code(), absl::StatusCode::kNotFound);
   auto loaded = store->Load();
   ASSERT_TRUE(loaded.ok()) << loaded.status();
