@@ -140,6 +140,8 @@ class Writer {
           w.acknowledged = true;  // the site was not there: an earlier failed delete took it
           held_.erase(w.id);
         }
+        // Overtaken by other servers' writes on every try: refused whole, nothing stored.
+        if (s.error_code() == grpc::StatusCode::ABORTED) continue;
         std::this_thread::sleep_for(std::chrono::milliseconds(20));
       }
       writes_.push_back(w);
@@ -147,12 +149,16 @@ class Writer {
   }
 
   // Whether `sites` (every site of this writer's ids) can be what the writes left: for each
-  // id, the last acknowledged write's value or that of a failed write made after it.
+  // id, the last acknowledged write's value (absent before any) or that of a failed write
+  // made after it.
   void ExpectExplains(const std::map<std::string, Point>& sites) const {
     std::lock_guard<std::mutex> lock(mu_);
+    // Each id starts absent; an acknowledged write fixes its value, a failed one may or may
+    // not have taken effect.
     std::map<std::string, std::vector<std::optional<Point>>> possible;
     for (const Write& w : writes_) {
-      auto& p = possible[w.id];
+      auto& p = possible.try_emplace(w.id, std::vector<std::optional<Point>>{std::nullopt})
+                    .first->second;
       if (w.acknowledged) p.clear();
       p.push_back(w.point);
     }
@@ -168,7 +174,7 @@ class Writer {
     for (const auto& [id, values] : possible) {
       if (sites.count(id)) continue;
       EXPECT_NE(std::find(values.begin(), values.end(), std::nullopt), values.end())
-          << id << " is missing, though an acknowledged write put it";
+          << id << " is missing, though an acknowledged write put it and none removed it";
     }
   }
 
@@ -188,7 +194,10 @@ class Writer {
     std::lock_guard<std::mutex> lock(mu_);
     int n = 0;
     for (const auto& [code, count] : codes_) {
-      if (code != grpc::StatusCode::UNAVAILABLE && code != grpc::StatusCode::NOT_FOUND) n += count;
+      if (code != grpc::StatusCode::UNAVAILABLE && code != grpc::StatusCode::NOT_FOUND &&
+          code != grpc::StatusCode::ABORTED) {
+        n += count;
+      }
     }
     return n;
   }
