@@ -594,8 +594,10 @@ void SceneRegistry::FailWaitsBeyondHeads(const std::vector<WaitMark>& marks) {
       if (h == heads_.end() || held == incarnations_.end() || held->second != h->second.first) {
         continue;
       }
-      if (m.scene ? scenes_.count(m.id) == 0 || scenes_[m.id] != m.scene
-                  : scenes3_.count(m.id) == 0 || scenes3_[m.id] != m.scene3) {
+      auto s = scenes_.find(m.id);
+      auto s3 = scenes3_.find(m.id);
+      if (m.scene ? s == scenes_.end() || s->second != m.scene
+                  : s3 == scenes3_.end() || s3->second != m.scene3) {
         continue;
       }
       head = h->second.second;

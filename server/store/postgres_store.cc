@@ -342,17 +342,14 @@ absl::StatusOr<std::vector<StoredScene>> PostgresStore::Load() {
   }
   // Sites come in scene order, as the scenes do.
   size_t k = 0;
-  std::vector<std::shared_ptr<const Site>> put;
-  std::vector<std::shared_ptr<const Site3>> put3;
   for (int i = 0; i < sites->rows(); ++i) {
     const std::string_view scene = sites->bytes(i, 0);
     while (k < out.size() && out[k].settings.id < scene) ++k;
     if (k == out.size() || out[k].settings.id != scene) continue;  // a scene being deleted
-    put.clear();
-    put3.clear();
-    if (auto s = DecodeInto(out[k].settings, sites->bytes(i, 1), &put, &put3); !s.ok()) return s;
-    for (auto& site : put) out[k].sites.push_back(*site);
-    for (auto& site : put3) out[k].sites3.push_back(*site);
+    if (auto s = DecodeInto(out[k].settings, sites->bytes(i, 1), &out[k].sites, &out[k].sites3);
+        !s.ok()) {
+      return s;
+    }
   }
   return out;
 }

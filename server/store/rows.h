@@ -43,11 +43,19 @@ inline absl::Status StaleChange(const ChangeSet& changes, uint64_t stored, uint6
       changes.base(), ": another server wrote to it first"));
 }
 
-// Decodes a site row of `settings`' scene into `put` (or `put3` for a 3D scene); DATA_LOSS
-// naming the scene when its bytes are damaged.
-inline absl::Status DecodeInto(const SceneSettings& settings, std::string_view bytes,
-                               std::vector<std::shared_ptr<const Site>>* put,
-                               std::vector<std::shared_ptr<const Site3>>* put3) {
+// Decodes a site row of `settings`' scene into `put` (or `put3` for a 3D scene): vectors of
+// sites, or of shared pointers to them. DATA_LOSS naming the scene when its bytes are damaged.
+template <class T>
+void Add(std::vector<T>* out, T site) {
+  out->push_back(std::move(site));
+}
+template <class T>
+void Add(std::vector<std::shared_ptr<const T>>* out, T site) {
+  out->push_back(std::make_shared<const T>(std::move(site)));
+}
+template <class Sites, class Sites3>
+absl::Status DecodeInto(const SceneSettings& settings, std::string_view bytes, Sites* put,
+                        Sites3* put3) {
   auto fail = [&](const absl::Status& status) {
     return absl::DataLossError(
         absl::StrCat("store: a site of scene \"", settings.id, "\": ", status.message()));
@@ -55,11 +63,11 @@ inline absl::Status DecodeInto(const SceneSettings& settings, std::string_view b
   if (settings.three_d()) {
     auto site = DecodeSite3(bytes);
     if (!site.ok()) return fail(site.status());
-    put3->push_back(std::make_shared<const Site3>(std::move(*site)));
+    Add(put3, std::move(*site));
   } else {
     auto site = DecodeSite(bytes);
     if (!site.ok()) return fail(site.status());
-    put->push_back(std::make_shared<const Site>(std::move(*site)));
+    Add(put, std::move(*site));
   }
   return absl::OkStatus();
 }

@@ -331,19 +331,10 @@ absl::StatusOr<std::vector<StoredScene>> SqliteStore::Load() {
   for (StoredScene& scene : scenes) {
     sites.Text(1, scene.settings.id);
     while ((rc = sqlite3_step(sites.get())) == SQLITE_ROW) {
-      if (IsTombstone(ColumnBlob(sites.get(), 0))) continue;
-      auto fail = [&](const absl::Status& status) {
-        return absl::DataLossError(absl::StrCat("store: a site of scene \"", scene.settings.id,
-                                                "\": ", status.message()));
-      };
-      if (scene.settings.three_d()) {
-        auto site = DecodeSite3(ColumnBlob(sites.get(), 0));
-        if (!site.ok()) return fail(site.status());
-        scene.sites3.push_back(std::move(*site));
-      } else {
-        auto site = DecodeSite(ColumnBlob(sites.get(), 0));
-        if (!site.ok()) return fail(site.status());
-        scene.sites.push_back(std::move(*site));
+      const std::string_view bytes = ColumnBlob(sites.get(), 0);
+      if (IsTombstone(bytes)) continue;
+      if (auto s = DecodeInto(scene.settings, bytes, &scene.sites, &scene.sites3); !s.ok()) {
+        return s;
       }
     }
     sqlite3_reset(sites.get());
