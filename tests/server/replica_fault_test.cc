@@ -5,9 +5,14 @@
 // made and what the server said of them: an acknowledged write must be in the final state; a
 // write that failed may or may not be (the kill or the outage cut its answer), but nothing
 // else may. Every replica must end up with the same sites at the same version.
+//
+// A partition: the database and two replicas each in a network namespace of the test's, on
+// addresses of their own; one replica is cut off the database and joined again.
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <unistd.h>
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <map>
@@ -19,12 +24,17 @@
 #include <thread>
 #include <vector>
 
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
 #include <grpcpp/grpcpp.h>
 
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "gvd/client.h"
 #include "tests/support/postgres.h"
 #include "tests/support/server_process.h"
+#include "tests/support/stored_sites.h"
 #include "tests/support/test_scenes.h"
 
 namespace gvd {
@@ -350,6 +360,222 @@ TEST(ReplicaFaults, ThreeReplicasKeepEveryAcknowledgedWrite) {
     v1::Scene s;
     ASSERT_TRUE(Client::Connect(r->address())->GetScene("scene", &s).ok());
     EXPECT_EQ(s.store_version(), s.version());
+  }
+}
+
+// Network namespaces of one test: "db" for the database and one per replica, each replica
+// joined to the database's namespace by a veth pair of its own (10.77.R.2 on the replica's
+// side, 10.77.R.1 on the database's), and nothing else: a link set down is a partition.
+class Namespaces {
+ public:
+  explicit Namespaces(int replicas) : base_("gvd" + std::to_string(getpid())) {
+    if (getuid() != 0) {
+      error_ = "network namespaces need root";
+      return;
+    }
+    if (!Ip("netns add " + db())) return;
+    made_.push_back(db());
+    if (!Ip("-n " + db() + " link set lo up")) return;
+    for (int r = 0; r < replicas; ++r) {
+      const std::string ns = replica(r), net = "10.77." + std::to_string(r) + ".";
+      if (!Ip("netns add " + ns)) return;
+      made_.push_back(ns);
+      if (!Ip("-n " + ns + " link set lo up") ||
+          !Ip("-n " + db() + " link add " + link(r) + " type veth peer name eth0 netns " + ns) ||
+          !Ip("-n " + db() + " addr add " + net + "1/24 dev " + link(r)) ||
+          !Ip("-n " + ns + " addr add " + net + "2/24 dev eth0") ||
+          !Ip("-n " + db() + " link set " + link(r) + " up") ||
+          !Ip("-n " + ns + " link set eth0 up")) {
+        return;
+      }
+    }
+  }
+  ~Namespaces() {
+    for (const std::string& ns : made_) Ip("netns del " + ns);
+  }
+  // Empty when every namespace and link is made; else why not.
+  const std::string& error() const { return error_; }
+  std::string db() const { return base_ + "-db"; }
+  std::string replica(int r) const { return base_ + "-r" + std::to_string(r); }
+  // The database's address as replica r reaches it.
+  static std::string db_address(int r) { return "10.77." + std::to_string(r) + ".1"; }
+  // How a replica is cut off the database: its link loses its carrier (its packets fail at
+  // once), or the database's address on that link goes (its packets vanish unanswered).
+  enum Partition { kLinkDown, kBlackHole };
+  // Cuts replica r off the database, or joins it again.
+  bool Cut(int r, Partition how) {
+    const std::string on = "-n " + db() + " ";
+    return how == kLinkDown ? Ip(on + "link set " + link(r) + " down")
+                            : Ip(on + "addr del " + db_address(r) + "/24 dev " + link(r));
+  }
+  bool Join(int r, Partition how) {
+    const std::string on = "-n " + db() + " ";
+    return how == kLinkDown ? Ip(on + "link set " + link(r) + " up")
+                            : Ip(on + "addr add " + db_address(r) + "/24 dev " + link(r));
+  }
+
+ private:
+  static std::string link(int r) { return "r" + std::to_string(r); }
+  // Runs `ip ARGS`; on failure keeps its output as the error.
+  bool Ip(const std::string& args) {
+    FILE* p = popen(("ip " + args + " 2>&1").c_str(), "r");
+    if (p == nullptr) {
+      error_ = "cannot run ip";
+      return false;
+    }
+    std::string out;
+    std::array<char, 256> buf;
+    while (fgets(buf.data(), buf.size(), p) != nullptr) out += buf.data();
+    if (pclose(p) != 0) {
+      if (error_.empty()) error_ = "ip " + args + ": " + (out.empty() ? "failed" : out);
+      return false;
+    }
+    return true;
+  }
+
+  const std::string base_;
+  std::vector<std::string> made_;
+  std::string error_;
+};
+
+TEST(ReplicaFaults, ReplicaCutOffTheDatabaseReportsItThenCatchesUp) {
+  Namespaces ns(2);
+  if (!ns.error().empty()) GTEST_SKIP() << "no network namespaces here: " << ns.error();
+  TempPostgres pg(TempPostgres::Options{
+      ns.db(), Namespaces::db_address(0) + "," + Namespaces::db_address(1)});
+  ASSERT_EQ(pg.error(), "");
+  // Each replica in its own namespace reaches the database over its veth pair only; the test
+  // reaches the replica over a Unix socket.
+  testing::TempDir sockets;
+  std::vector<std::unique_ptr<ServerProcess>> replicas;
+  for (int r = 0; r < 2; ++r) {
+    const std::string socket = "unix:" + sockets.path() + "/" + std::to_string(r) + ".sock";
+    replicas.push_back(std::make_unique<ServerProcess>(
+        GVD_SERVER_PATH,
+        std::vector<std::string>{"--store",
+                                 "postgresql://gvd@" + Namespaces::db_address(r) + ":" +
+                                     std::to_string(pg.port()) + "/gvd",
+                                 "--render-threads", "1", "--listen", socket},
+        std::vector<std::string>{"ip", "netns", "exec", ns.replica(r)}));
+    ASSERT_EQ(replicas[r]->error(), "");
+  }
+  ServerProcess& writer = *replicas[0];
+  ServerProcess& cut = *replicas[1];
+  ClientOptions options;
+  options.timeout = std::chrono::seconds(60);
+  auto to_writer = Client::Connect(writer.address(), options);
+  auto to_cut = Client::Connect(cut.address(), options);
+  v1::Scene made;
+  ASSERT_TRUE(to_writer->CreateScene(testing::UnitScene("scene", 64, 64), &made).ok());
+
+  // The oracle: the sites as written, each write acknowledged before the next.
+  std::map<std::string, Point> sites;
+  std::mt19937_64 rng(27);
+  std::uniform_real_distribution<double> u(0, 1);
+  uint64_t version = 0;
+  auto write = [&](Client& client, const std::string& id) {
+    const Point p{u(rng), u(rng)};
+    v1::UpsertSitesRequest r;
+    r.set_scene_id("scene");
+    auto* site = r.add_sites();
+    site->set_id(id);
+    site->mutable_point()->set_x(p.first);
+    site->mutable_point()->set_y(p.second);
+    grpc::Status s = client.UpsertSites(r, &version);
+    if (s.ok()) sites[id] = p;
+    return s;
+  };
+  // Whether `server` answers FindNearest at `at` (or later) with the oracle's nearest site
+  // for each of a few points.
+  auto answers = [&](ServerProcess& server, uint64_t at) {
+    v1::FindNearestRequest r;
+    r.set_scene_id("scene");
+    r.set_min_version(at);
+    r.set_exact(true);
+    std::vector<Point> queries;
+    for (int k = 0; k < 16; ++k) queries.push_back({u(rng), u(rng)});
+    for (const Point& q : queries) {
+      auto* p = r.add_points();
+      p->set_x(q.first);
+      p->set_y(q.second);
+    }
+    v1::FindNearestResponse response;
+    if (!Client::Connect(server.address(), options)->FindNearest(r, &response).ok()) return false;
+    if (response.results_size() != static_cast<int>(queries.size())) return false;
+    for (size_t k = 0; k < queries.size(); ++k) {
+      double best = std::numeric_limits<double>::infinity();
+      for (const auto& [id, p] : sites) {
+        best = std::min(best, std::hypot(p.first - queries[k].first, p.second - queries[k].second));
+      }
+      const auto& got = response.results(k);
+      const Point& p = sites.at(got.site_id());
+      if (std::hypot(p.first - queries[k].first, p.second - queries[k].second) != best) {
+        return false;
+      }
+    }
+    return true;
+  };
+  for (int k = 0; k < 20; ++k) ASSERT_TRUE(write(*to_writer, "before-" + std::to_string(k)).ok());
+  const uint64_t joined_at = version;
+  ASSERT_TRUE(Eventually([&] { return answers(cut, joined_at); }));
+  using Serving = grpc::health::v1::HealthCheckResponse;
+  EXPECT_EQ(Health(cut), Serving::SERVING);
+
+  auto since = [](std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+  };
+  for (Namespaces::Partition how : {Namespaces::kLinkDown, Namespaces::kBlackHole}) {
+    const char* name = how == Namespaces::kLinkDown ? "link down" : "black hole";
+    SCOPED_TRACE(name);
+    // Cut off: the other replica goes on writing; the cut one says NOT_SERVING, goes on
+    // answering from the state it holds, reports how stale that is, and refuses writes with
+    // UNAVAILABLE (within the store's deadline, not the client's).
+    const std::map<std::string, Point> before_cut = sites;
+    ASSERT_TRUE(ns.Cut(1, how)) << ns.error();
+    const auto cut_at = std::chrono::steady_clock::now();
+    for (int k = 0; k < 50; ++k) {
+      const std::string id = "during-" + std::to_string(how) + "-" + std::to_string(k);
+      ASSERT_TRUE(write(*to_writer, id).ok());
+    }
+    const uint64_t written = version;
+    EXPECT_TRUE(Eventually([&] { return Health(cut) == Serving::NOT_SERVING; }, 40));
+    std::printf("%s: NOT_SERVING %.1f s after the cut\n", name, since(cut_at));
+    EXPECT_EQ(Health(writer), Serving::SERVING);
+    v1::Scene stale;
+    ASSERT_TRUE(to_cut->GetScene("scene", &stale).ok());
+    EXPECT_LT(stale.version(), written);
+    EXPECT_LT(stale.store_version(), written);
+    EXPECT_GT(stale.store_read_age_seconds(), 1.0);
+    auto held = Read(cut, "scene");
+    ASSERT_TRUE(held.has_value());
+    EXPECT_EQ(held->version, stale.version());
+    EXPECT_EQ(held->sites, before_cut);
+    const auto start = std::chrono::steady_clock::now();
+    const std::map<std::string, Point> before_refused = sites;
+    grpc::Status refused = write(*to_cut, "refused");
+    EXPECT_EQ(refused.error_code(), grpc::StatusCode::UNAVAILABLE) << refused.error_message();
+    EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(30));
+    std::printf("%s: a write on the cut replica refused after %.1f s\n", name, since(start));
+    EXPECT_EQ(sites, before_refused);
+
+    // Joined again: it catches up from the log by itself, says SERVING, holds every write,
+    // answers at the version written elsewhere, and takes writes again.
+    ASSERT_TRUE(ns.Join(1, how)) << ns.error();
+    const auto joined = std::chrono::steady_clock::now();
+    EXPECT_TRUE(Eventually([&] { return Health(cut) == Serving::SERVING; }, 60));
+    std::printf("%s: SERVING %.1f s after the join\n", name, since(joined));
+    ASSERT_TRUE(Eventually([&] {
+      auto now = Read(cut, "scene");
+      return now && now->version >= written && now->sites == sites;
+    }, 60));
+    EXPECT_TRUE(answers(cut, written));
+    ASSERT_TRUE(write(*to_cut, "after-" + std::to_string(how)).ok());
+    const uint64_t after = version;
+    ASSERT_TRUE(Eventually([&] {
+      auto a = Read(writer, "scene"), b = Read(cut, "scene");
+      return a && b && a->version == after && *a == *b && a->sites == sites;
+    }));
+    EXPECT_TRUE(answers(writer, after));
   }
 }
 

@@ -2,7 +2,9 @@
 // initdb in a temporary directory, listening on a Unix socket there (and on 127.0.0.1 at a
 // free port), stopped and removed when the object goes. Run as the "postgres" user when
 // the test runs as root (PostgreSQL refuses root). The tests that need it fail, not skip,
-// when it cannot start: CI installs the package.
+// when it cannot start: CI installs the package. Options put it in a network namespace of
+// the test's (ip netns) and on the addresses given there; the Unix socket, a file, is
+// reached from anywhere.
 #pragma once
 
 #include <signal.h>
@@ -18,6 +20,7 @@
 #include <glob.h>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include "absl/strings/str_cat.h"
 
@@ -25,7 +28,12 @@ namespace gvd::testing {
 
 class TempPostgres {
  public:
-  TempPostgres() {
+  struct Options {
+    std::string netns;                 // "": the test's own
+    std::string listen = "127.0.0.1";  // listen_addresses, comma-separated
+  };
+  TempPostgres() : TempPostgres(Options{}) {}
+  explicit TempPostgres(Options options) : options_(std::move(options)) {
     char dir[] = "/tmp/gvd-pg-XXXXXX";
     dir_ = mkdtemp(dir);
     bin_ = FindBin();
@@ -40,6 +48,10 @@ class TempPostgres {
                         "--no-sync >'", dir_, "/initdb.log' 2>&1")) != 0) {
       error_ = absl::StrCat("initdb failed: see ", dir_, "/initdb.log");
       return;
+    }
+    // In a namespace of the test's own, any address there may connect.
+    if (!options_.netns.empty()) {
+      std::ofstream(dir_ + "/data/pg_hba.conf", std::ios::app) << "host all all 0.0.0.0/0 trust\n";
     }
     if (!Start()) return;
     if (Sh(absl::StrCat(as_, bin_, "/createdb -h '", dir_, "' -p ", port_, " -U gvd gvd")) != 0) {
@@ -74,9 +86,11 @@ class TempPostgres {
 
   // Starts the server (again), waiting until it takes connections.
   bool Start() {
-    if (Sh(absl::StrCat(as_, bin_, "/pg_ctl -D '", dir_, "/data' -l '", dir_, "/server.log' ",
+    const std::string in = options_.netns.empty() ? "" : "ip netns exec " + options_.netns + " ";
+    if (Sh(absl::StrCat(in, as_, bin_, "/pg_ctl -D '", dir_, "/data' -l '", dir_, "/server.log' ",
                         "-w -t 60 -o \"-k '", dir_, "' -p ", port_,
-                        " -c listen_addresses=127.0.0.1 -c fsync=off -c full_page_writes=off"
+                        " -c listen_addresses=", options_.listen,
+                        " -c fsync=off -c full_page_writes=off"
                         " -c max_connections=200\" start >/dev/null 2>&1")) != 0) {
       error_ = absl::StrCat("PostgreSQL did not start: see ", dir_, "/server.log");
       return false;
@@ -112,6 +126,7 @@ class TempPostgres {
     return ntohs(a.sin_port);
   }
 
+  Options options_;
   std::string dir_, bin_, as_, error_;
   int port_ = 0;
 };

@@ -25,9 +25,12 @@ namespace gvd::testing {
 
 class ServerProcess {
  public:
-  // Starts `binary` with --listen 127.0.0.1:0 and the extra flags; waits until it has
-  // written its port. On failure, error() says why.
-  ServerProcess(const std::string& binary, std::vector<std::string> flags = {}) {
+  // Starts `binary` with --listen 127.0.0.1:0 and the extra flags (a --listen among them
+  // wins: "unix:PATH" becomes the address), under the command `prefix` when one is given
+  // (such as {"ip", "netns", "exec", NAME}); waits until it has written its port. On
+  // failure, error() says why.
+  ServerProcess(const std::string& binary, std::vector<std::string> flags = {},
+                std::vector<std::string> prefix = {}) {
     char dir_template[] = "/tmp/gvd-test-XXXXXX";
     dir_ = mkdtemp(dir_template);
     std::string port_file = dir_ + "/port";
@@ -38,6 +41,11 @@ class ServerProcess {
       args.insert(args.end(), {"--data", dir_ + "/data"});
     }
     args.insert(args.end(), flags.begin(), flags.end());
+    if (auto listen = std::find(flags.begin(), flags.end(), "--listen");
+        listen != flags.end() && listen + 1 != flags.end() && listen[1].rfind("unix:", 0) == 0) {
+      unix_address_ = listen[1];
+    }
+    args.insert(args.begin(), prefix.begin(), prefix.end());
     pid_ = fork();
     if (pid_ == 0) {
       setenv("GVD_TEST_HOLD_RENDERS", hold_renders_path().c_str(), 1);
@@ -46,7 +54,7 @@ class ServerProcess {
       std::vector<char*> argv;
       for (auto& a : args) argv.push_back(a.data());
       argv.push_back(nullptr);
-      execv(argv[0], argv.data());
+      execvp(argv[0], argv.data());
       _exit(127);
     }
     auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
@@ -111,7 +119,9 @@ class ServerProcess {
   }
 
   const std::string& error() const { return error_; }
-  std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
+  std::string address() const {
+    return unix_address_.empty() ? "127.0.0.1:" + std::to_string(port_) : unix_address_;
+  }
   // The HTTP port (--http-listen), 0 when none.
   int http_port() const { return http_port_; }
   const std::string& dir() const { return dir_; }
@@ -124,7 +134,7 @@ class ServerProcess {
   }
 
  private:
-  std::string dir_, log_, error_;
+  std::string dir_, log_, error_, unix_address_;
   pid_t pid_ = -1;
   int port_ = 0, http_port_ = 0;
 };
