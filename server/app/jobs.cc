@@ -89,10 +89,18 @@ std::shared_ptr<BasicNearestJob<S>> BasicNearestJob<S>::Make(SceneRegistry* regi
 
 template <class S>
 void BasicNearestJob<S>::Begin() {
-  if (!query_.exact) {
+  // Exact answers come from the latest version, once it has reached min_version: a replica
+  // behind it waits for the log (its frame waiters end when the store has it, or fail when
+  // the store has not reached it either).
+  if (!query_.exact || this->scene_->version() < this->min_version_) {
     this->WaitForFrame();
     return;
   }
+  BeginExact();
+}
+
+template <class S>
+void BasicNearestJob<S>::BeginExact() {
   const auto snapshot = this->scene_->snapshot();
   if (snapshot->empty()) {
     this->Finish(absl::FailedPreconditionError(absl::StrCat(
@@ -130,6 +138,10 @@ void BasicNearestJob<S>::AnswerExact() {
 
 template <class S>
 void BasicNearestJob<S>::Run(std::shared_ptr<const Frame> frame, bool on_caller) {
+  if (query_.exact) {
+    BeginExact();
+    return;
+  }
   if (on_caller && query_.points.size() > kInlinePoints) {
     auto self = std::static_pointer_cast<BasicNearestJob>(this->shared_from_this());
     this->registry_->answers().Submit([self, frame] { self->AnswerFrom(frame); });

@@ -132,6 +132,7 @@ class BasicNearestJob final : public BasicFrameJob<S> {
                   std::function<bool()> cancelled);
   void Begin() override;
   void Run(std::shared_ptr<const Frame> frame, bool on_caller) override;
+  void BeginExact();
   void AnswerExact();
   void AnswerFrom(const std::shared_ptr<const Frame>& frame);
 

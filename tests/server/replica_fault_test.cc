@@ -26,6 +26,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <future>
 #include <limits>
 
 #include <grpcpp/grpcpp.h>
@@ -485,8 +486,8 @@ TEST(ReplicaFaults, ReplicaCutOffTheDatabaseReportsItThenCatchesUp) {
     if (s.ok()) sites[id] = p;
     return s;
   };
-  // Whether `server` answers FindNearest at `at` (or later) with the oracle's nearest site
-  // for each of a few points.
+  // Whether `server` answers an exact FindNearest at `at` (or later) with the oracle's
+  // nearest site for each of a few points.
   auto answers = [&](ServerProcess& server, uint64_t at) {
     v1::FindNearestRequest r;
     r.set_scene_id("scene");
@@ -501,7 +502,9 @@ TEST(ReplicaFaults, ReplicaCutOffTheDatabaseReportsItThenCatchesUp) {
     }
     v1::FindNearestResponse response;
     if (!Client::Connect(server.address(), options)->FindNearest(r, &response).ok()) return false;
-    if (response.results_size() != static_cast<int>(queries.size())) return false;
+    if (response.version() < at || response.results_size() != static_cast<int>(queries.size())) {
+      return false;
+    }
     for (size_t k = 0; k < queries.size(); ++k) {
       double best = std::numeric_limits<double>::infinity();
       for (const auto& [id, p] : sites) {
@@ -557,6 +560,9 @@ TEST(ReplicaFaults, ReplicaCutOffTheDatabaseReportsItThenCatchesUp) {
     EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(30));
     std::printf("%s: a write on the cut replica refused after %.1f s\n", name, since(start));
     EXPECT_EQ(sites, before_refused);
+    // A read at the version written elsewhere waits for it, and is answered once joined.
+    auto waiting = std::async(std::launch::async, [&] { return answers(cut, written); });
+    EXPECT_EQ(waiting.wait_for(std::chrono::seconds(1)), std::future_status::timeout);
 
     // Joined again: it catches up from the log by itself, says SERVING, holds every write,
     // answers at the version written elsewhere, and takes writes again.
@@ -564,6 +570,7 @@ TEST(ReplicaFaults, ReplicaCutOffTheDatabaseReportsItThenCatchesUp) {
     const auto joined = std::chrono::steady_clock::now();
     EXPECT_TRUE(Eventually([&] { return Health(cut) == Serving::SERVING; }, 60));
     std::printf("%s: SERVING %.1f s after the join\n", name, since(joined));
+    EXPECT_TRUE(waiting.get());
     ASSERT_TRUE(Eventually([&] {
       auto now = Read(cut, "scene");
       return now && now->version >= written && now->sites == sites;
