@@ -1,13 +1,15 @@
-"""What the Python tests share: gvd-server started on loopback with its HTTP/JSON calls, and an
-exact oracle over the API's JSON sites, written for the tests (distances in double precision
+"""What the Python tests share: gvd-server started on loopback with its HTTP/JSON calls, a
+PostgreSQL of their own, and an exact oracle over the API's JSON sites, written for the tests (distances in double precision
 from the sites' geometry, Bezier curves sampled and refined on the curve itself), never the
 server's own code.
 """
+import glob
 import json
 import math
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import tempfile
 import time
@@ -16,13 +18,15 @@ import urllib.request
 
 
 def start_server(binary, data, port_file, log, *flags, timeout=60):
-    """Starts gvd-server on loopback ports of its choosing, storing in `data`; returns the
-    process and its HTTP port once it serves."""
+    """Starts gvd-server on loopback ports of its choosing, storing in `data` (a directory,
+    or a --store URL such as postgresql://...); returns the process and its HTTP port once
+    it serves."""
     if os.path.exists(port_file):
         os.remove(port_file)
+    store = ["--store", data] if "://" in data else ["--data", data]
     process = subprocess.Popen(
         [binary, "--listen", "127.0.0.1:0", "--http-listen", "127.0.0.1:0",
-         "--port-file", port_file, "--data", data, *flags],
+         "--port-file", port_file, *store, *flags],
         stdout=subprocess.DEVNULL, stderr=log)
     deadline = time.monotonic() + timeout
     while not os.path.exists(port_file):
@@ -32,6 +36,45 @@ def start_server(binary, data, port_file, log, *flags, timeout=60):
         time.sleep(0.05)
     with open(port_file) as f:
         return process, int(f.read().split()[1])
+
+
+class Postgres:
+    """A PostgreSQL cluster of the caller's own, from Debian's postgresql package: made by
+    initdb in workdir/pg, listening on a Unix socket in workdir and on no TCP address, run as
+    the postgres user when this runs as root (PostgreSQL refuses root). `url` is its
+    database "gvd"."""
+
+    def __init__(self, workdir, *settings):
+        found = sorted(glob.glob("/usr/lib/postgresql/*/bin/pg_ctl"))
+        if not found:
+            raise RuntimeError("no PostgreSQL server (install Debian's postgresql package)")
+        self.bindir = os.path.dirname(found[-1])
+        self.data, self.sock = os.path.join(workdir, "pg"), workdir
+        self.as_pg = ["runuser", "-u", "postgres", "--"] if os.getuid() == 0 else []
+        if os.getuid() == 0:
+            shutil.chown(workdir, "postgres")
+        with socket.socket() as s:  # a port number for the socket's name, free on loopback
+            s.bind(("127.0.0.1", 0))
+            self.port = s.getsockname()[1]
+        self.settings = ["-c", "listen_addresses=", "-c", "max_connections=200", *settings]
+        subprocess.run(self.as_pg + [f"{self.bindir}/initdb", "-D", self.data, "-A", "trust",
+                                     "-U", "gvd", "-E", "UTF8"], check=True,
+                       stdout=subprocess.DEVNULL)
+        self.start()
+        subprocess.run(self.as_pg + [f"{self.bindir}/createdb", "-h", self.sock, "-p",
+                                     str(self.port), "-U", "gvd", "gvd"], check=True)
+        self.url = f"postgresql://gvd@/gvd?host={self.sock}&port={self.port}"
+
+    def start(self):
+        options = " ".join([f"-k {self.sock}", f"-p {self.port}", *self.settings])
+        subprocess.run(self.as_pg + [f"{self.bindir}/pg_ctl", "-D", self.data, "-l",
+                                     os.path.join(self.sock, "pg.log"), "-w", "-o", options,
+                                     "start"], check=True, stdout=subprocess.DEVNULL)
+
+    def stop(self, mode="fast"):
+        """"fast": clients disconnected, a clean shutdown; "immediate": as a crash."""
+        subprocess.run(self.as_pg + [f"{self.bindir}/pg_ctl", "-D", self.data, "-m", mode, "-w",
+                                     "stop"], check=False, stdout=subprocess.DEVNULL)
 
 
 def percentile(values, q):

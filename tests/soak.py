@@ -2,6 +2,7 @@
 """Mixed load on a real gvd-server for a set time, with restarts, every answer checked.
 
 Usage: soak.py --server GVD_SERVER --seconds N [--out DIR] [--restarts K] [--seed S]
+              [--replicas N]
 
 Starts GVD_SERVER on loopback with a store on disk and drives it over HTTP/JSON (the Connect
 protocol, Python's standard library only):
@@ -24,6 +25,15 @@ At the end the scenes are compared once more, the server must stop cleanly on SI
 script exits 1 on any unexpected error or wrong answer. Errors are expected only while a
 restart is under way (refused connections, UNAVAILABLE from a draining server). It prints
 p50/p99 of each call and writes the figures to DIR/soak.json.
+
+With --replicas N (2 or more) the same load runs on N gvd-servers sharing one PostgreSQL of
+the soak's own (Debian's postgresql package). Each scene's writer goes through one replica;
+readers, analysts and churn pick a replica per call, so a min_version acknowledged by one
+replica is asked of another. The faults, in turn: SIGKILL of one replica, the database
+stopped (fast) and started, SIGTERM of another replica, the database crashed (immediate)
+and started. While the database is down, writes may fail with UNAVAILABLE (their effect is
+resolved as across a restart, once every replica has caught up again) and reads go on, each
+checked at its version. At the end every replica must hold every scene's acknowledged state.
 """
 import argparse
 import atexit
@@ -37,7 +47,7 @@ import tempfile
 import threading
 import time
 
-from gvdtest import distance, percentile, start_server, value
+from gvdtest import Postgres, distance, percentile, start_server, value
 
 SCENES = 4
 WINDOW = (0.0, 0.0, 100.0, 100.0)
@@ -45,7 +55,7 @@ TOL = 1e-9
 
 
 class RestartError(Exception):
-    """The call met a restart: no answer, no verdict."""
+    """The call met a restart or a database outage: no answer, no verdict."""
 
 
 class CallError(Exception):
@@ -66,19 +76,22 @@ def normalized(site):
 
 
 class Server:
-    """gvd-server on loopback, restarted in place on the same store."""
+    """gvd-server on loopback, restarted in place on the same store (a directory, or the
+    URL of a database that replicas share)."""
 
-    def __init__(self, binary, workdir):
+    def __init__(self, binary, workdir, store, name="server"):
         self.binary = binary
-        self.workdir = workdir
-        self.store = os.path.join(workdir, "store.db")
-        self.port_file = os.path.join(workdir, "port")
+        self.store = store
+        self.name = name
+        self.port_file = os.path.join(workdir, name + ".port")
         self.lock = threading.Condition()
         self.generation = 0
         self.restarting = False
+        self.degraded = False  # its database is down, or it has not caught up since
+        self.faults = 0  # counts each fault's start and end
         self.http_port = None
         self.proc = None
-        self.log = open(os.path.join(workdir, "server.log"), "ab")
+        self.log = open(os.path.join(workdir, name + ".log"), "ab")
 
     def start(self):
         self.proc, port = start_server(self.binary, self.store, self.port_file, self.log,
@@ -86,17 +99,26 @@ class Server:
         with self.lock:
             self.http_port = port
             self.generation += 1
+            self.faults += 1
             self.restarting = False
+            self.lock.notify_all()
+
+    def degrade(self, degraded):
+        """Marks the server's database down (True), or up with the server caught up (False)."""
+        with self.lock:
+            self.degraded = degraded
+            self.faults += 1
             self.lock.notify_all()
 
     def restart(self, sig):
         """Stops the server with sig and starts it again; SIGTERM must end in exit 0."""
         with self.lock:
             self.restarting = True
+            self.faults += 1
         self.proc.send_signal(sig)
         code = self.proc.wait(timeout=120)
         if sig == signal.SIGTERM and code != 0:
-            raise SystemExit(f"soak: SIGTERM ended gvd-server with {code}, not 0")
+            raise SystemExit(f"soak: SIGTERM ended {self.name} with {code}, not 0")
         self.start()
 
     def stop(self):
@@ -115,12 +137,11 @@ class Server:
             pass
         return None
 
-    def wait_serving(self, generation):
-        """Blocks until a generation newer than `generation` serves; returns the current."""
+    def wait_serving(self):
+        """Blocks while a restart or a database outage is under way."""
         with self.lock:
-            while self.restarting or self.generation == generation:
+            while self.restarting or self.degraded:
                 self.lock.wait(1)
-            return self.generation
 
 
 class Client:
@@ -134,7 +155,7 @@ class Client:
 
     def call(self, method, body, timeout=120):
         with self.server.lock:
-            generation, port = self.server.generation, self.server.http_port
+            faults, port = self.server.faults, self.server.http_port
             if self.server.restarting:
                 raise RestartError(method)
         if self.conn is None or self.port != port:
@@ -152,7 +173,7 @@ class Client:
         except (OSError, http.client.HTTPException) as e:
             self.conn.close()
             self.conn = None
-            if self.during_restart(generation):
+            if self.during_fault(faults):
                 raise RestartError(method) from e
             raise CallError("transport", f"{method}: {e!r}") from e
         elapsed = time.perf_counter() - start
@@ -162,15 +183,16 @@ class Client:
             except ValueError:
                 err = {"code": f"http {response.status}", "message": payload[:200].decode(errors="replace")}
             code = err.get("code", "?")
-            if code == "unavailable" and self.during_restart(generation):
+            if code == "unavailable" and self.during_fault(faults):
                 raise RestartError(method)
             raise CallError(code, f"{method}: {err.get('message', '')}")
         self.stats.latency(method, elapsed)
         return json.loads(payload)
 
-    def during_restart(self, generation):
+    def during_fault(self, faults):
+        """Whether a fault was under way, began or ended since the call began."""
         with self.server.lock:
-            return self.server.restarting or self.server.generation != generation
+            return self.server.restarting or self.server.degraded or self.server.faults != faults
 
 
 class Stats:
@@ -313,11 +335,10 @@ def same_sites(a, b):
 
 
 def resolve(server, stats, model, client):
-    """After a restart: the write in flight took effect entirely or not at all, and every
-    acknowledged one is there."""
-    generation = 0
+    """After a restart or an outage: the write in flight took effect entirely or not at all,
+    and every acknowledged one is there."""
     while True:
-        generation = server.wait_serving(generation)
+        server.wait_serving()
         try:
             version, stored = list_sites(client, model.scene_id)
         except RestartError:
@@ -375,7 +396,7 @@ def versioned_call(server, stats, client, model, method, body, min_version):
     try:
         answer = client.call(method, body)
     except RestartError:
-        server.wait_serving(0)
+        server.wait_serving()
         return None
     except CallError as e:
         stats.fail(f"{model.scene_id} {method}: {e}")
@@ -390,9 +411,11 @@ def versioned_call(server, stats, client, model, method, body, min_version):
     return answer, version, sites
 
 
-def reader(server, stats, models, rng, stop):
-    client = Client(server, stats)
+def reader(servers, stats, models, rng, stop):
+    clients = [Client(server, stats) for server in servers]
     while not stop.is_set():
+        k = rng.randrange(len(servers))
+        server, client = servers[k], clients[k]
         model = rng.choice(models)
         acked, _ = model.latest()
         exact = rng.random() < 0.5
@@ -414,9 +437,11 @@ def reader(server, stats, models, rng, stop):
         stats.count("nearest answers checked", len(body["points"]))
 
 
-def analyst(server, stats, models, rng, stop):
-    client = Client(server, stats)
+def analyst(servers, stats, models, rng, stop):
+    clients = [Client(server, stats) for server in servers]
     while not stop.is_set():
+        k = rng.randrange(len(servers))
+        server, client = servers[k], clients[k]
         model = rng.choice(models)
         acked, _ = model.latest()
         method = rng.choice(["Pick", "Pick", "GetNeighbors", "GetBoundaries"] +
@@ -450,10 +475,12 @@ def analyst(server, stats, models, rng, stop):
         stats.count(f"{method} answers checked")
 
 
-def churn(server, stats, rng, stop):
-    client = Client(server, stats)
+def churn(servers, stats, rng, stop):
+    clients = [Client(server, stats) for server in servers]
     n = 0
     while not stop.is_set():
+        k = rng.randrange(len(servers))
+        server, client = servers[k], clients[k]
         n += 1
         scene_id = f"churn-{os.getpid()}-{n}"
         size = rng.choice([64, 128, 256])
@@ -476,7 +503,7 @@ def churn(server, stats, rng, stop):
                     stats.fail(f"GetScene of deleted {scene_id}: {e}")
             stats.count("scenes created and deleted")
         except RestartError:
-            server.wait_serving(0)
+            server.wait_serving()
             cleanup(server, stats, client, scene_id)
         except CallError as e:
             stats.fail(f"{scene_id}: {e}")
@@ -489,7 +516,7 @@ def cleanup(server, stats, client, scene_id):
             client.call("DeleteScene", {"sceneId": scene_id})
             return
         except RestartError:
-            server.wait_serving(0)
+            server.wait_serving()
         except CallError as e:
             if e.code != "not_found":
                 stats.fail(f"DeleteScene {scene_id} after a restart: {e}")
@@ -506,29 +533,88 @@ def slope_mib_per_min(samples):
     return 60.0 * sum((t - mt) * (r - mr) for t, r in zip(ts, rs)) / den if den else float("nan")
 
 
+def wait_caught_up(server, stats, scene_id):
+    """Blocks until the server has read the store's heads twice since it came back: the
+    catch-up that read them first has then finished."""
+    client = Client(server, stats)
+    first = None
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        try:
+            scene = client.call("GetScene", {"sceneId": scene_id})
+        except (RestartError, CallError):
+            time.sleep(0.1)
+            continue
+        age = float(scene.get("storeReadAgeSeconds", 0.0))
+        read_at = time.monotonic() - age
+        if first is None and age < 0.5:
+            first = read_at
+        elif first is not None and read_at > first + 0.05:
+            return
+        time.sleep(0.1)
+    stats.fail(f"{server.name} did not catch up within 120 s after the database came back")
+
+
+def database_outage(pg, servers, stats, mode):
+    """Stops the database (mode "fast" or "immediate") for two seconds under the load."""
+    for server in servers:
+        server.degrade(True)
+    pg.stop(mode)
+    time.sleep(2)
+    pg.start()
+    for server in servers:
+        wait_caught_up(server, stats, "soak-0")
+        server.degrade(False)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--server", required=True)
     ap.add_argument("--seconds", type=float, default=60)
     ap.add_argument("--restarts", type=int, default=None,
-                    help="restarts in the first half (default: one per minute of it, at least 2)")
+                    help="faults in the first half (default: one per minute of it, at least 2; "
+                    "with replicas one per half minute, at least 4)")
     ap.add_argument("--readers", type=int, default=3)
+    ap.add_argument("--replicas", type=int, default=0,
+                    help="gvd-servers sharing one PostgreSQL (default: one server on SQLite)")
     ap.add_argument("--seed", type=int, default=None)
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
+    if args.replicas == 1:
+        ap.error("--replicas needs at least 2")
     seed = args.seed if args.seed is not None else random.randrange(1 << 30)
-    restarts = args.restarts if args.restarts is not None else max(2, int(args.seconds / 120))
+    if args.restarts is not None:
+        restarts = args.restarts
+    elif args.replicas:
+        restarts = max(4, int(args.seconds / 60))
+    else:
+        restarts = max(2, int(args.seconds / 120))
     workdir = tempfile.mkdtemp(prefix="gvd-soak-")
     out = args.out or workdir
     os.makedirs(out, exist_ok=True)
-    print(f"soak: {args.seconds:.0f} s, {restarts} restarts, seed {seed}, work in {workdir}",
-          flush=True)
+    print(f"soak: {args.seconds:.0f} s, {restarts} faults, seed {seed}, "
+          f"{f'{args.replicas} replicas on PostgreSQL' if args.replicas else 'one server'}, "
+          f"work in {workdir}", flush=True)
 
-    server = Server(args.server, workdir)
-    atexit.register(lambda: server.proc and server.proc.poll() is None and server.proc.kill())
-    server.start()
+    pg = None
+    if args.replicas:
+        os.chmod(workdir, 0o755)
+        pg = Postgres(workdir)
+        atexit.register(pg.stop)
+        servers = [Server(args.server, workdir, pg.url, f"replica-{k}")
+                   for k in range(args.replicas)]
+        # In turn: a replica killed, the database stopped, another replica stopped, the
+        # database crashed.
+        faults = [("replica", 0, signal.SIGKILL), ("database", "fast"),
+                  ("replica", 1, signal.SIGTERM), ("database", "immediate")]
+    else:
+        servers = [Server(args.server, workdir, os.path.join(workdir, "store.db"))]
+        faults = [("replica", 0, signal.SIGTERM), ("replica", 0, signal.SIGKILL)]
+    atexit.register(lambda: [s.proc.kill() for s in servers if s.proc and s.proc.poll() is None])
+    for server in servers:
+        server.start()
     stats = Stats()
-    setup = Client(server, stats)
+    setup = Client(servers[0], stats)
     models = []
     for i in range(SCENES):
         model = SceneModel(f"soak-{i}", points_only=i % 2 == 0)
@@ -545,55 +631,74 @@ def main():
         models.append(model)
 
     stop = threading.Event()
-    threads = [threading.Thread(target=writer, args=(server, stats, m, random.Random(seed + i), stop))
+    # Each scene has one writer, through one server.
+    threads = [threading.Thread(target=writer, args=(servers[i % len(servers)], stats, m,
+                                                     random.Random(seed + i), stop))
                for i, m in enumerate(models)]
-    threads += [threading.Thread(target=reader, args=(server, stats, models,
+    threads += [threading.Thread(target=reader, args=(servers, stats, models,
                                                       random.Random(seed + 100 + i), stop))
                 for i in range(args.readers)]
-    threads.append(threading.Thread(target=analyst, args=(server, stats, models,
+    threads.append(threading.Thread(target=analyst, args=(servers, stats, models,
                                                           random.Random(seed + 200), stop)))
-    threads.append(threading.Thread(target=churn, args=(server, stats, random.Random(seed + 300), stop)))
+    threads.append(threading.Thread(target=churn, args=(servers, stats, random.Random(seed + 300), stop)))
     for t in threads:
         t.daemon = True
         t.start()
 
     start = time.time()
     half = args.seconds / 2
-    restart_at = [start + half * (k + 1) / (restarts + 1) for k in range(restarts)]
+    fault_at = [start + half * (k + 1) / (restarts + 1) for k in range(restarts)]
+    watched = servers[0]  # whose resident memory is sampled
     rss = []  # (seconds since start, KiB, generation)
-    kinds = [signal.SIGTERM, signal.SIGKILL]
     done = 0
     while time.time() - start < args.seconds and not stats.failures:
-        if done < len(restart_at) and time.time() >= restart_at[done]:
-            sig = kinds[done % 2]
-            print(f"soak: {time.time() - start:5.1f} s  {signal.Signals(sig).name}", flush=True)
-            server.restart(sig)
+        if done < len(fault_at) and time.time() >= fault_at[done]:
+            fault = faults[done % len(faults)]
+            if fault[0] == "replica":
+                server = servers[fault[1]]
+                print(f"soak: {time.time() - start:5.1f} s  {signal.Signals(fault[2]).name} "
+                      f"{server.name}", flush=True)
+                server.restart(fault[2])
+            else:
+                print(f"soak: {time.time() - start:5.1f} s  database stopped ({fault[1]})",
+                      flush=True)
+                database_outage(pg, servers, stats, fault[1])
             done += 1
             continue
-        kib = server.rss_kib()
+        kib = watched.rss_kib()
         if kib:
-            rss.append((time.time() - start, kib, server.generation))
+            rss.append((time.time() - start, kib, watched.generation))
         time.sleep(0.5)
     stop.set()
     for t in threads:
         t.join(timeout=180)
 
-    final = Client(server, stats)
-    for model in models:
-        version, stored = list_sites(final, model.scene_id)
-        with model.lock:
-            expected = model.history.get(version)
-            acked = model.acked
-        if version != acked or expected is None or not same_sites(stored, expected):
-            stats.fail(f"{model.scene_id} at the end: version {version}, acknowledged {acked}")
-    code = server.stop()
-    if code != 0:
-        stats.fail(f"the final SIGTERM ended gvd-server with {code}")
+    # Every server holds every scene's acknowledged state (a replica within 60 s).
+    for server in servers:
+        final = Client(server, stats)
+        for model in models:
+            deadline = time.monotonic() + 60
+            while True:
+                version, stored = list_sites(final, model.scene_id)
+                with model.lock:
+                    expected = model.history.get(version)
+                    acked = model.acked
+                if version == acked and expected is not None and same_sites(stored, expected):
+                    break
+                if time.monotonic() > deadline or not args.replicas:
+                    stats.fail(f"{model.scene_id} on {server.name} at the end: version {version}, "
+                               f"acknowledged {acked}")
+                    break
+                time.sleep(0.2)
+    for server in servers:
+        code = server.stop()
+        if code != 0:
+            stats.fail(f"the final SIGTERM ended {server.name} with {code}")
 
-    last = [(t, k) for t, k, g in rss if g == server.generation]
+    last = [(t, k) for t, k, g in rss if g == watched.generation]
     warm = [(t, k) for t, k in last if t >= (last[0][0] + 0.25 * (last[-1][0] - last[0][0]))] if last else []
     report = {
-        "seconds": args.seconds, "seed": seed, "restarts": done,
+        "seconds": args.seconds, "seed": seed, "restarts": done, "replicas": args.replicas,
         "counts": stats.counts, "failures": stats.failures,
         "rss_mib_after_warmup": warm[0][1] / 1024.0 if warm else None,
         "rss_mib_at_end": warm[-1][1] / 1024.0 if warm else None,
@@ -616,7 +721,7 @@ def main():
               f"slope {report['rss_slope_mib_per_min']:+.2f} MiB/min")
     print(f"figures in {os.path.join(out, 'soak.json')}")
     if stats.failures:
-        print(f"soak: {len(stats.failures)} failure(s); server log {server.log.name}", file=sys.stderr)
+        print(f"soak: {len(stats.failures)} failure(s); server logs in {workdir}", file=sys.stderr)
         return 1
     needed = ["writes acknowledged", "nearest answers checked", "Pick answers checked",
               "scenes created and deleted", "scenes compared after restarts"]
@@ -626,7 +731,6 @@ def main():
         return 1
     print("soak: no unexpected errors, every answer matched its version, nothing acknowledged lost")
     return 0
-
 
 if __name__ == "__main__":
     sys.exit(main())

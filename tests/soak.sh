@@ -2,8 +2,10 @@
 # A soak: mixed load on a real gvd-server for MINUTES (default 10), with SIGTERM and SIGKILL
 # restarts, every answer checked against its version (tests/soak.py says what it does).
 # Usage: bash tests/soak.sh [MINUTES] [--server PATH] [soak.py options]
+#   --replicas 2: the replicated form, two gvd-servers on a PostgreSQL of the soak's own,
+#   with kills of either replica and stops and crashes of the database.
 # Without --server it builds gvd-server in Release (build/release), as deploy/run-server.sh.
-# CI runs the one-minute form as the ctest `soak_1min`.
+# CI runs the one-minute forms as the ctests `soak_1min` and `soak_replicated_1min`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 minutes=10

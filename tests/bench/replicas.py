@@ -15,13 +15,11 @@ gvd-servers on it (--store postgresql://...) and one on SQLite (--data), and mea
     client threads, against one replica and split over two.
 """
 import argparse
-import glob
 import json
 import os
 import shutil
 import signal
 import statistics
-import subprocess
 import sys
 import tempfile
 import threading
@@ -31,26 +29,9 @@ import grpc
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from serve import Voronoi, load_messages, start_server  # noqa: E402  pylint: disable=wrong-import-position
-
-
-def start_postgres(workdir):
-    """A PostgreSQL cluster in workdir/pg; returns its URL and a function that stops it."""
-    bindir = os.path.dirname(sorted(glob.glob("/usr/lib/postgresql/*/bin/pg_ctl"))[-1])
-    data, sock = os.path.join(workdir, "pg"), workdir
-    as_pg = ["runuser", "-u", "postgres", "--"] if os.getuid() == 0 else []
-    if os.getuid() == 0:
-        shutil.chown(workdir, "postgres")
-    subprocess.run(as_pg + [f"{bindir}/initdb", "-D", data, "-A", "trust", "-U", "gvd", "-E",
-                            "UTF8"], check=True, stdout=subprocess.DEVNULL)
-    subprocess.run(as_pg + [f"{bindir}/pg_ctl", "-D", data, "-l", f"{workdir}/pg.log", "-w", "-o",
-                            f"-k {sock} -c listen_addresses='' -p 5499 -c max_connections=200",
-                            "start"], check=True, stdout=subprocess.DEVNULL)
-    subprocess.run(as_pg + [f"{bindir}/createdb", "-h", sock, "-p", "5499", "-U", "gvd", "gvd"],
-                   check=True)
-    stop = lambda: subprocess.run(as_pg + [f"{bindir}/pg_ctl", "-D", data, "-m", "fast", "-w",
-                                           "stop"], check=False, stdout=subprocess.DEVNULL)
-    return f"postgresql://gvd@/gvd?host={sock}&port=5499", stop
+from gvdtest import Postgres  # noqa: E402  pylint: disable=wrong-import-position
 
 
 def create(api, pb, scene):
@@ -146,10 +127,11 @@ def main():
     args = ap.parse_args()
     work = tempfile.mkdtemp(prefix="gvd-replicas-")
     os.chmod(work, 0o755)
-    servers, stop_pg = [], None
+    servers, pg = [], None
     try:
         pb = load_messages(work)
-        url, stop_pg = start_postgres(work)
+        pg = Postgres(work)
+        url = pg.url
         sqlite, sqlite_at = start_server(args.server, os.path.join(work, "sqlite"))
         a, a_at = start_server(args.server, os.path.join(work, "a"), url)
         b, b_at = start_server(args.server, os.path.join(work, "b"), url)
@@ -188,8 +170,8 @@ def main():
         for s in servers:
             s.send_signal(signal.SIGTERM)
             s.wait()
-        if stop_pg:
-            stop_pg()
+        if pg:
+            pg.stop()
         shutil.rmtree(work, ignore_errors=True)
 
 
