@@ -61,8 +61,12 @@ class Postgres:
                                      "-U", "gvd", "-E", "UTF8"], check=True,
                        stdout=subprocess.DEVNULL)
         self.start()
-        subprocess.run(self.as_pg + [f"{self.bindir}/createdb", "-h", self.sock, "-p",
-                                     str(self.port), "-U", "gvd", "gvd"], check=True)
+        try:
+            subprocess.run(self.as_pg + [f"{self.bindir}/createdb", "-h", self.sock, "-p",
+                                         str(self.port), "-U", "gvd", "gvd"], check=True)
+        except subprocess.CalledProcessError:
+            self.stop()
+            raise
         self.url = f"postgresql://gvd@/gvd?host={self.sock}&port={self.port}"
 
     def start(self):
@@ -73,6 +77,8 @@ class Postgres:
 
     def stop(self, mode="fast"):
         """"fast": clients disconnected, a clean shutdown; "immediate": as a crash."""
+        if not os.path.isdir(self.data):
+            return
         subprocess.run(self.as_pg + [f"{self.bindir}/pg_ctl", "-D", self.data, "-m", mode, "-w",
                                      "stop"], check=False, stdout=subprocess.DEVNULL)
 

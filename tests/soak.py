@@ -41,6 +41,7 @@ import http.client
 import json
 import os
 import random
+import shutil
 import signal
 import sys
 import tempfile
@@ -88,7 +89,9 @@ class Server:
         self.generation = 0
         self.restarting = False
         self.degraded = False  # its database is down, or it has not caught up since
-        self.faults = 0  # counts each fault's start and end
+        self.database_down = False
+        self.restarts = 0  # counts each restart's start and end
+        self.outages = 0  # counts each database outage's start and end
         self.http_port = None
         self.proc = None
         self.log = open(os.path.join(workdir, name + ".log"), "ab")
@@ -99,7 +102,7 @@ class Server:
         with self.lock:
             self.http_port = port
             self.generation += 1
-            self.faults += 1
+            self.restarts += 1
             self.restarting = False
             self.lock.notify_all()
 
@@ -107,14 +110,14 @@ class Server:
         """Marks the server's database down (True), or up with the server caught up (False)."""
         with self.lock:
             self.degraded = degraded
-            self.faults += 1
+            self.outages += 1
             self.lock.notify_all()
 
     def restart(self, sig):
         """Stops the server with sig and starts it again; SIGTERM must end in exit 0."""
         with self.lock:
             self.restarting = True
-            self.faults += 1
+            self.restarts += 1
         self.proc.send_signal(sig)
         code = self.proc.wait(timeout=120)
         if sig == signal.SIGTERM and code != 0:
@@ -144,6 +147,11 @@ class Server:
                 self.lock.wait(1)
 
 
+# The calls that write to the store: while the database is down they may fail with
+# UNAVAILABLE. Every other call must be answered, from the state the server holds.
+WRITES = {"CreateScene", "DeleteScene", "UpsertSites", "DeleteSites"}
+
+
 class Client:
     """One keep-alive HTTP connection, Connect unary calls in JSON."""
 
@@ -155,7 +163,8 @@ class Client:
 
     def call(self, method, body, timeout=120):
         with self.server.lock:
-            faults, port = self.server.faults, self.server.http_port
+            seen = (self.server.restarts, self.server.outages)
+            port, outage = self.server.http_port, self.server.database_down
             if self.server.restarting:
                 raise RestartError(method)
         if self.conn is None or self.port != port:
@@ -173,7 +182,8 @@ class Client:
         except (OSError, http.client.HTTPException) as e:
             self.conn.close()
             self.conn = None
-            if self.during_fault(faults):
+            # A call that hung until the client's timeout is a failure, whatever happened.
+            if not isinstance(e, TimeoutError) and self.during_restart(seen):
                 raise RestartError(method) from e
             raise CallError("transport", f"{method}: {e!r}") from e
         elapsed = time.perf_counter() - start
@@ -183,16 +193,29 @@ class Client:
             except ValueError:
                 err = {"code": f"http {response.status}", "message": payload[:200].decode(errors="replace")}
             code = err.get("code", "?")
-            if code == "unavailable" and self.during_fault(faults):
+            if code == "unavailable" and (self.during_restart(seen) or
+                                          (method in WRITES and self.during_outage(seen))):
                 raise RestartError(method)
             raise CallError(code, f"{method}: {err.get('message', '')}")
         self.stats.latency(method, elapsed)
+        if outage and method not in WRITES:
+            self.stats.count("reads answered while the database was down")
         return json.loads(payload)
 
-    def during_fault(self, faults):
-        """Whether a fault was under way, began or ended since the call began."""
+    def close(self):
+        if self.conn:
+            self.conn.close()
+            self.conn = None
+
+    def during_restart(self, seen):
+        """Whether a restart of the server was under way, began or ended since `seen`."""
         with self.server.lock:
-            return self.server.restarting or self.server.degraded or self.server.faults != faults
+            return self.server.restarting or self.server.restarts != seen[0]
+
+    def during_outage(self, seen):
+        """Whether a database outage was under way, began or ended since `seen`."""
+        with self.server.lock:
+            return self.server.degraded or self.server.outages != seen[1]
 
 
 class Stats:
@@ -533,37 +556,49 @@ def slope_mib_per_min(samples):
     return 60.0 * sum((t - mt) * (r - mr) for t, r in zip(ts, rs)) / den if den else float("nan")
 
 
-def wait_caught_up(server, stats, scene_id):
-    """Blocks until the server has read the store's heads twice since it came back: the
-    catch-up that read them first has then finished."""
+def wait_caught_up(server, stats, models, since):
+    """Blocks until the server has read the store's heads after `since` (a time.monotonic()
+    when the database was up again) and holds every scene at the version they said."""
     client = Client(server, stats)
-    first = None
     deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        try:
-            scene = client.call("GetScene", {"sceneId": scene_id})
-        except (RestartError, CallError):
-            time.sleep(0.1)
-            continue
-        age = float(scene.get("storeReadAgeSeconds", 0.0))
-        read_at = time.monotonic() - age
-        if first is None and age < 0.5:
-            first = read_at
-        elif first is not None and read_at > first + 0.05:
-            return
-        time.sleep(0.1)
-    stats.fail(f"{server.name} did not catch up within 120 s after the database came back")
+    try:
+        for model in models:
+            while True:
+                try:
+                    scene = client.call("GetScene", {"sceneId": model.scene_id})
+                except CallError as e:
+                    stats.fail(f"GetScene {model.scene_id} on {server.name} after an outage: {e}")
+                    return
+                age = float(scene.get("storeReadAgeSeconds", 0.0))
+                read_after = time.monotonic() - age > since
+                if read_after and int(scene.get("version", 0)) >= int(scene.get("storeVersion", 0)):
+                    break
+                if time.monotonic() > deadline:
+                    stats.fail(f"{server.name} did not catch up within 120 s after the database "
+                               "came back")
+                    return
+                time.sleep(0.1)
+    finally:
+        client.close()
 
 
-def database_outage(pg, servers, stats, mode):
+def database_outage(pg, servers, stats, models, mode):
     """Stops the database (mode "fast" or "immediate") for two seconds under the load."""
+    def down(flag):
+        for server in servers:
+            with server.lock:
+                server.database_down = flag
+
     for server in servers:
         server.degrade(True)
+    down(True)
     pg.stop(mode)
     time.sleep(2)
     pg.start()
+    down(False)
+    since = time.monotonic()
     for server in servers:
-        wait_caught_up(server, stats, "soak-0")
+        wait_caught_up(server, stats, models, since)
         server.degrade(False)
 
 
@@ -630,6 +665,11 @@ def main():
         model.history[model.acked] = first
         models.append(model)
 
+    # Every replica holds every scene before the load starts (a replica learns of a scene
+    # made through another from the log).
+    for server in servers[1:]:
+        wait_caught_up(server, stats, models, 0.0)
+
     stop = threading.Event()
     # Each scene has one writer, through one server.
     threads = [threading.Thread(target=writer, args=(servers[i % len(servers)], stats, m,
@@ -662,7 +702,7 @@ def main():
             else:
                 print(f"soak: {time.time() - start:5.1f} s  database stopped ({fault[1]})",
                       flush=True)
-                database_outage(pg, servers, stats, fault[1])
+                database_outage(pg, servers, stats, models, fault[1])
             done += 1
             continue
         kib = watched.rss_kib()
@@ -725,12 +765,18 @@ def main():
         return 1
     needed = ["writes acknowledged", "nearest answers checked", "Pick answers checked",
               "scenes created and deleted", "scenes compared after restarts"]
+    if args.replicas:
+        needed.append("reads answered while the database was down")
     missing = [k for k in needed if not stats.counts.get(k)]
     if missing:
         print(f"soak: nothing was {missing}: the load did not run", file=sys.stderr)
         return 1
     print("soak: no unexpected errors, every answer matched its version, nothing acknowledged lost")
+    if pg:
+        pg.stop()
+        shutil.rmtree(pg.data, ignore_errors=True)
     return 0
+
 
 if __name__ == "__main__":
     sys.exit(main())

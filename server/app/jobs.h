@@ -105,8 +105,9 @@ struct AnswerRow {
 };
 
 // Answers a query: raster answers from the frame (refined where ambiguous), or exact ones
-// from the scene's latest snapshot, whose first render it need not wait for. NearestJob is a
-// 2D scene's, NearestJob3 a 3D scene's (its frames are volumes).
+// from the scene's latest snapshot, whose first render it need not wait for (a replica that
+// has not reached min_version waits for that version's frame, then answers from its latest
+// snapshot). NearestJob is a 2D scene's, NearestJob3 a 3D scene's (its frames are volumes).
 template <class S>
 class BasicNearestJob final : public BasicFrameJob<S> {
  public:

@@ -22,6 +22,17 @@ for tool in podman docker-compose python3 curl; do
   fi
 done
 work=$(mktemp -d /tmp/gvd-compose-XXXXXX)
+service=
+checker=
+compose=()
+cleanup() {
+  set +e
+  [[ -n $checker ]] && kill "$checker" 2>/dev/null
+  [[ ${#compose[@]} -gt 0 ]] && "${compose[@]}" down -v >/dev/null 2>&1
+  [[ -n $service ]] && kill "$service" 2>/dev/null
+  rm -rf "$work"
+}
+trap cleanup EXIT
 runtime=${GVD_OCI_RUNTIME:-}
 if [[ -z $runtime && -x ../shared/tools/runc-norlimits ]]; then
   runtime=$(realpath ../shared/tools/runc-norlimits)
@@ -51,14 +62,6 @@ service=$!
 export DOCKER_HOST=unix://$work/podman.sock
 project=gvdcompose$$
 compose=(docker-compose --ansi never -p "$project" -f deploy/compose.yaml --profile replicas)
-checker=
-cleanup() {
-  [[ -n $checker ]] && kill "$checker" 2>/dev/null
-  "${compose[@]}" down -v >/dev/null 2>&1 || true
-  kill "$service" 2>/dev/null || true
-  rm -rf "$work"
-}
-trap cleanup EXIT
 for _ in $(seq 100); do [[ -S $work/podman.sock ]] && break; sleep 0.1; done
 
 # Podman runs healthchecks from systemd timers; where there is no systemd, nothing would, and
@@ -71,8 +74,15 @@ while :; do
   sleep 1
 done &
 checker=$!
+for port in 50051 50052 8080 8081; do
+  if (exec 3<>"/dev/tcp/127.0.0.1/$port") 2>/dev/null; then
+    echo "FAIL: port $port is taken; the installation publishes 50051, 50052, 8080 and 8081"
+    exit 1
+  fi
+done
 if ! timeout 300 "${compose[@]}" up -d --no-build; then
   "${compose[@]}" logs
+  cat "$work/podman.log"
   echo "FAIL: the installation did not start (podman runs a healthcheck with exec: the OCI"
   echo "runtime must allow it, GVD_OCI_RUNTIME included)"
   exit 1
@@ -132,12 +142,14 @@ for port in 8080 8081; do
 done
 
 # A replica killed while a write lands through the other catches up when started again.
-"${podman[@]}" kill "${project}_gvd-2_1" >/dev/null
+"${compose[@]}" kill gvd-2
 gvd 50051 --scene city sites add e 90 90
 "${compose[@]}" start gvd-2
 serving 50052
 out=$(gvd 50052 --scene city nearest 88 91 12 11 --min-version 4 --exact)
 echo "$out"
 expect "a 10 10 b 80 20 c 50 90 d 60 60 e 90 90" "88 91 12 11" "$out"
-gvd 50052 scene get city
+scene=$(gvd 50052 scene get city)
+echo "$scene"
+[[ $scene == *"version 4, 5 sites"*"store version 4"* ]] || { echo "FAIL: $scene"; exit 1; }
 echo "compose replicas: the tour passed through both replicas, and a killed one caught up"

@@ -400,8 +400,8 @@ class Namespaces {
   std::string replica(int r) const { return base_ + "-r" + std::to_string(r); }
   // The database's address as replica r reaches it.
   static std::string db_address(int r) { return "10.77." + std::to_string(r) + ".1"; }
-  // How a replica is cut off the database: its link loses its carrier (its packets fail at
-  // once), or the database's address on that link goes (its packets vanish unanswered).
+  // How a replica is cut off the database: its link loses its carrier, or the database's
+  // address on that link goes (the replica's link stays up; its packets vanish unanswered).
   enum Partition { kLinkDown, kBlackHole };
   // Cuts replica r off the database, or joins it again.
   bool Cut(int r, Partition how) {
@@ -554,18 +554,17 @@ TEST(ReplicaFaults, ReplicaCutOffTheDatabaseReportsItThenCatchesUp) {
     EXPECT_EQ(held->version, stale.version());
     EXPECT_EQ(held->sites, before_cut);
     const auto start = std::chrono::steady_clock::now();
-    const std::map<std::string, Point> before_refused = sites;
     grpc::Status refused = write(*to_cut, "refused");
     EXPECT_EQ(refused.error_code(), grpc::StatusCode::UNAVAILABLE) << refused.error_message();
     EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(30));
     std::printf("%s: a write on the cut replica refused after %.1f s\n", name, since(start));
-    EXPECT_EQ(sites, before_refused);
     // A read at the version written elsewhere waits for it, and is answered once joined.
     auto waiting = std::async(std::launch::async, [&] { return answers(cut, written); });
     EXPECT_EQ(waiting.wait_for(std::chrono::seconds(1)), std::future_status::timeout);
 
-    // Joined again: it catches up from the log by itself, says SERVING, holds every write,
-    // answers at the version written elsewhere, and takes writes again.
+    // Joined again: it catches up from the log by itself, says SERVING, holds every
+    // acknowledged write and nothing of the refused one, answers at the version written
+    // elsewhere, and takes writes again.
     ASSERT_TRUE(ns.Join(1, how)) << ns.error();
     const auto joined = std::chrono::steady_clock::now();
     EXPECT_TRUE(Eventually([&] { return Health(cut) == Serving::SERVING; }, 60));
