@@ -1,7 +1,7 @@
 // WatchScene against a real gvd-server: events follow every published frame, the changed
 // windows cover every pixel whose best site changed (by the oracle, between the versions of
 // consecutive events), deletion ends the stream, hundreds of watchers keep up, and the drain
-// ends the streams.
+// ends the streams. A watch on one replica follows the writes made through another.
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -16,6 +16,7 @@
 #include <grpcpp/security/credentials.h>
 
 #include "gvd/client.h"
+#include "tests/support/postgres.h"
 #include "tests/support/server_process.h"
 #include "tests/support/test_scenes.h"
 
@@ -295,6 +296,49 @@ TEST(WatchDrain, ShutdownEndsTheStreams) {
   EXPECT_EQ(b.WaitEnd().error_code(), StatusCode::UNAVAILABLE);
   const int status = server.Wait();
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << server.log();
+}
+
+// Two replicas on one PostgreSQL: a watch on the second sees the first's random writes as
+// they reach it, every event in order with its version's site count and a changed window
+// holding every pixel whose nearest site changed since the event before (several versions
+// read from the log at once come as one event), and the deletion made through the first
+// ends the stream.
+TEST(WatchReplicas, AWatchOnOneReplicaFollowsWritesThroughAnother) {
+  testing::TempPostgres pg;
+  ASSERT_EQ(pg.error(), "");
+  std::vector<std::unique_ptr<testing::ServerProcess>> replicas;
+  for (int i = 0; i < 2; ++i) {
+    replicas.push_back(std::make_unique<testing::ServerProcess>(
+        GVD_SERVER_PATH, std::vector<std::string>{"--store", pg.url(), "--render-threads", "1"}));
+    ASSERT_EQ(replicas.back()->error(), "");
+  }
+  auto writer = Client::Connect(replicas[0]->address());
+  auto reader = Client::Connect(replicas[1]->address());
+  v1::Scene scene;
+  ASSERT_TRUE(writer->CreateScene(testing::UnitScene("watched", 48, 48), &scene).ok());
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (!reader->GetScene("watched", &scene).ok()) {
+    ASSERT_LT(std::chrono::steady_clock::now(), until) << "the scene did not reach the second";
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  const Grid grid{{0, 0, 1, 1}, 48, 48};
+  std::map<uint64_t, SiteTable> at{{1, {}}};
+  SiteTable sites;
+  Watcher watcher(replicas[1]->address(), "watched");
+  ASSERT_TRUE(watcher.WaitFor(1));
+  const uint64_t last = RandomChanges("watched", 60, 6, &sites, &at, writer.get(),
+                                      [&](uint64_t v) {
+                                        if (v % 9 == 0) {
+                                          EXPECT_TRUE(watcher.WaitFor(v));
+                                        }
+                                      });
+  ASSERT_TRUE(watcher.WaitFor(last));
+  ExpectEventsCoverChanges(watcher.events(), at, last, grid, "watched");
+  ASSERT_TRUE(writer->DeleteScene("watched").ok());
+  EXPECT_TRUE(watcher.WaitEnd().ok());
+  const auto events = watcher.events();
+  ASSERT_FALSE(events.empty());
+  EXPECT_TRUE(events.back().deleted());
 }
 
 }  // namespace
