@@ -379,7 +379,9 @@ class Session final : public SessionBase {
 
   // A server-streaming call: a 200 response with chunked transfer, one envelope per message
   // as the service sends it (the next is read when the last is written: the HTTP reader's
-  // pace is the stream's), then the end-of-stream envelope with the status.
+  // pace is the stream's), then the end-of-stream envelope with the status. One write at a
+  // time: the call can end (OnDone) while its last message, or the header, is still being
+  // written, and the end then waits for that write.
   class StreamCall;
   // What the connection's strand and the call's gRPC threads share: the call, until its
   // OnDone (after which it is gone).
@@ -435,10 +437,23 @@ class Session final : public SessionBase {
     call->StartWrite(&call->request);
     call->StartWritesDone();
     call->StartCall();
+    writing_ = true;
     http::async_write_header(stream_, *serializer_, [self = Self()](beast::error_code ec, size_t) {
-      if (ec) return self->StreamBroken();
-      self->NextRead();
+      self->StreamWritten(ec);
     });
+  }
+
+  // A write of the stream's is done: the end, if it came meanwhile, goes now; else the next
+  // message is asked for.
+  void StreamWritten(beast::error_code ec) {
+    writing_ = false;
+    if (ec) StreamBroken();
+    if (pending_end_) {
+      const grpc::Status s = *pending_end_;
+      pending_end_.reset();
+      return StreamEnd(s);
+    }
+    if (!ec) NextRead();
   }
 
   // Asks the call for its next message, unless it is done.
@@ -461,14 +476,18 @@ class Session final : public SessionBase {
       }
     }
     auto chunk = std::make_shared<std::string>(Envelope(0, payload));
+    writing_ = true;
     net::async_write(stream_, http::make_chunk(net::buffer(*chunk)),
                      [self = Self(), chunk](beast::error_code ec, size_t) {
-                       if (ec) return self->StreamBroken();
-                       self->NextRead();
+                       self->StreamWritten(ec);
                      });
   }
 
   void StreamEnd(const grpc::Status& s) {
+    if (writing_) {
+      pending_end_ = s;
+      return;
+    }
     call_.reset();
     if (broken_) return Close();
     std::string end = "{}";
@@ -576,7 +595,8 @@ class Session final : public SessionBase {
   std::optional<http::request_parser<http::string_body>> parser_;
   unsigned version_ = 11;
   bool keep_alive_ = false, idle_ = false, closing_ = false, closed_ = false;
-  bool json_ = true, broken_ = false;
+  bool json_ = true, broken_ = false, writing_ = false;
+  std::optional<grpc::Status> pending_end_;  // the stream's end, waiting for a write
   std::string origin_, content_type_, authorization_;
   std::optional<std::chrono::system_clock::time_point> deadline_;
   const google::protobuf::Descriptor* output_ = nullptr;

@@ -14,6 +14,7 @@
 #include <boost/beast/ssl.hpp>
 #include <fstream>
 #include <map>
+#include <random>
 #include <sstream>
 #include <thread>
 
@@ -427,6 +428,66 @@ TEST_F(HttpTest, CorsForTheAllowedOriginsOnly) {
 // Tokens and TLS apply to HTTP as to gRPC: no token, UNAUTHENTICATED (401); a read token on
 // a write, PERMISSION_DENIED (403); a write token works; only over HTTPS with the server's
 // certificate.
+// Large FindNearestStream chunks in binary (1.3 MB each), several times over: each response
+// whole, its chunked framing intact (Beast's reader refuses anything else), every message
+// the same as gRPC's, the end last. (The end of the call used to be written while its last
+// message still was, interleaving their bytes.)
+TEST(HttpStreams, LargeChunksArriveWholeAndInOrder) {
+  testing::ServerProcess server(GVD_SERVER_PATH, {"--http-listen", "127.0.0.1:0"});
+  ASSERT_TRUE(server.error().empty()) << server.error();
+  ClientOptions options;
+  options.timeout = std::chrono::seconds(600);  // generous: the sanitizer builds are slow
+  auto client = Client::Connect(server.address(), options);
+  v1::Scene scene;
+  ASSERT_TRUE(client->CreateScene(testing::UnitScene("large", 64, 64), &scene).ok());
+  v1::UpsertSitesRequest sites;
+  sites.set_scene_id("large");
+  std::mt19937_64 rng(41);
+  std::uniform_real_distribution<double> u(0, 1);
+  for (int i = 0; i < 300; ++i) {
+    auto* site = sites.add_sites();
+    site->set_id("p" + std::to_string(i));
+    site->mutable_point()->set_x(u(rng));
+    site->mutable_point()->set_y(u(rng));
+  }
+  uint64_t version = 0;
+  ASSERT_TRUE(client->UpsertSites(sites, &version).ok());
+  v1::FindNearestRequest find;
+  find.set_scene_id("large");
+  find.set_min_version(version);
+  find.set_chunk_size(65536);
+  for (int i = 0; i < 200000; ++i) {
+    find.add_xy(u(rng));
+    find.add_xy(u(rng));
+  }
+  std::vector<v1::FindNearestResponse> chunks;
+  ASSERT_TRUE(client->FindNearestStream(find, &chunks).ok());
+  ASSERT_EQ(chunks.size(), 4u);
+  std::string body(5, '\0');
+  const std::string request = find.SerializeAsString();
+  for (int i = 0; i < 4; ++i) body[1 + i] = static_cast<char>((request.size() >> (24 - 8 * i)) & 0xff);
+  body += request;
+  for (int round = 0; round < 8; ++round) {
+    SCOPED_TRACE(round);
+    Reply r;
+    try {
+      r = Send(server.http_port(), http::verb::post, "/gvd.v1.Voronoi/FindNearestStream", body,
+               {{"Content-Type", "application/connect+proto"}});
+    } catch (const std::exception& e) {
+      FAIL() << "the response is not well-formed HTTP: " << e.what();
+    }
+    StreamReply s = ReadStream(r.body, r.status);
+    EXPECT_EQ(s.status, 200);
+    EXPECT_EQ(s.end, "{}");
+    ASSERT_EQ(s.messages.size(), chunks.size());
+    for (size_t k = 0; k < chunks.size(); ++k) {
+      v1::FindNearestResponse m;
+      ASSERT_TRUE(m.ParseFromString(s.messages[k]));
+      EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(m, chunks[k]));
+    }
+  }
+}
+
 TEST(HttpSecurity, TokensAndTls) {
   char dir_template[] = "/tmp/gvd-http-pki-XXXXXX";
   const std::string d = mkdtemp(dir_template);
