@@ -550,6 +550,15 @@ absl::Status SceneRegistry::Advance(const std::shared_ptr<S>& scene, const Scene
       applied.status().code() != absl::StatusCode::kNotFound) {
     return applied.status();
   }
+  if (applied.ok()) {
+    // The store held this version when it was read: the store version reported is never
+    // below the one held (a write's retry reads the log without reading the heads).
+    std::lock_guard<std::mutex> lock(mu_);
+    if (auto head = heads_.find(scene->id());
+        head != heads_.end() && head->second.first == changes.incarnation) {
+      head->second.second = std::max(head->second.second, changes.version);
+    }
+  }
   return absl::OkStatus();
 }
 

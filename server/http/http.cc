@@ -396,8 +396,14 @@ class Session final : public SessionBase {
     grpc::ClientContext ctx;
     grpc::ByteBuffer request, message;
 
+    // The call is held (AddHold) from its start: gRPC ends it (freeing the stream, then
+    // OnDone) only once the session starts no more reads, so NextRead can never start one on
+    // a freed stream. Released when a read finds the end, or when the connection broke.
+    void Release() {
+      if (!released_.exchange(true)) RemoveHold();
+    }
     void OnReadDone(bool ok) override {
-      if (!ok) return;  // the stream ends: OnDone follows
+      if (!ok) return Release();  // the stream ends: OnDone follows
       std::string bytes = Bytes(message);
       auto session = session_;
       net::post(session->stream_.get_executor(), [session, bytes = std::move(bytes)]() mutable {
@@ -417,6 +423,7 @@ class Session final : public SessionBase {
    private:
     std::shared_ptr<Session> session_;
     std::shared_ptr<CallHandle> handle_;
+    std::atomic<bool> released_{false};
   };
 
   void Stream(const std::string& path, const std::string& request) {
@@ -436,8 +443,10 @@ class Session final : public SessionBase {
     server_->stub().PrepareBidiStreamingCall(&call->ctx, path, grpc::StubOptions(), call);
     call->StartWrite(&call->request);
     call->StartWritesDone();
+    call->AddHold();
     call->StartCall();
     writing_ = true;
+    beast::get_lowest_layer(stream_).expires_after(std::chrono::seconds(120));
     http::async_write_header(stream_, *serializer_, [self = Self()](beast::error_code ec, size_t) {
       self->StreamWritten(ec);
     });
@@ -447,6 +456,9 @@ class Session final : public SessionBase {
   // message is asked for.
   void StreamWritten(beast::error_code ec) {
     writing_ = false;
+    // A reader that stops reading fails the write after 120 s; between messages (a watch
+    // waits for frames) there is no deadline.
+    beast::get_lowest_layer(stream_).expires_never();
     if (ec) StreamBroken();
     if (pending_end_) {
       const grpc::Status s = *pending_end_;
@@ -477,6 +489,7 @@ class Session final : public SessionBase {
     }
     auto chunk = std::make_shared<std::string>(Envelope(0, payload));
     writing_ = true;
+    beast::get_lowest_layer(stream_).expires_after(std::chrono::seconds(120));
     net::async_write(stream_, http::make_chunk(net::buffer(*chunk)),
                      [self = Self(), chunk](beast::error_code ec, size_t) {
                        self->StreamWritten(ec);
@@ -512,7 +525,10 @@ class Session final : public SessionBase {
     broken_ = true;
     if (!call_) return Close();
     std::lock_guard<std::mutex> lock(call_->mu);
-    if (call_->call != nullptr) call_->call->ctx.TryCancel();
+    if (call_->call != nullptr) {
+      call_->call->ctx.TryCancel();
+      call_->call->Release();  // no read is outstanding: a write was, and it failed
+    }
   }
 
   void Preflight() {

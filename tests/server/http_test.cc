@@ -148,12 +148,14 @@ StreamReply ReadStream(const std::string& body, int status) {
                        (uint32_t(uint8_t(body[at + 3])) << 8) | uint32_t(uint8_t(body[at + 4]));
     std::string payload = body.substr(at + 5, n);
     at += 5 + n;
+    EXPECT_TRUE(r.end.empty()) << "an envelope after the end of the stream";
     if (flags & 0x02) {
       r.end = payload;
     } else {
       r.messages.push_back(payload);
     }
   }
+  EXPECT_EQ(at, body.size()) << "bytes past the last whole envelope";
   return r;
 }
 std::string Envelope(const std::string& json) {
@@ -425,10 +427,7 @@ TEST_F(HttpTest, CorsForTheAllowedOriginsOnly) {
             0u);
 }
 
-// Tokens and TLS apply to HTTP as to gRPC: no token, UNAUTHENTICATED (401); a read token on
-// a write, PERMISSION_DENIED (403); a write token works; only over HTTPS with the server's
-// certificate.
-// Large FindNearestStream chunks in binary (1.3 MB each), several times over: each response
+// Large FindNearestStream chunks in binary (1 MB each), several times over: each response
 // whole, its chunked framing intact (Beast's reader refuses anything else), every message
 // the same as gRPC's, the end last. (The end of the call used to be written while its last
 // message still was, interleaving their bytes.)
@@ -455,7 +454,7 @@ TEST(HttpStreams, LargeChunksArriveWholeAndInOrder) {
   v1::FindNearestRequest find;
   find.set_scene_id("large");
   find.set_min_version(version);
-  find.set_chunk_size(65536);
+  find.set_chunk_size(50000);  // four equal chunks of 1 MB: the last write is a large one
   for (int i = 0; i < 200000; ++i) {
     find.add_xy(u(rng));
     find.add_xy(u(rng));
@@ -488,6 +487,9 @@ TEST(HttpStreams, LargeChunksArriveWholeAndInOrder) {
   }
 }
 
+// Tokens and TLS apply to HTTP as to gRPC: no token, UNAUTHENTICATED (401); a read token on
+// a write, PERMISSION_DENIED (403); a write token works; only over HTTPS with the server's
+// certificate.
 TEST(HttpSecurity, TokensAndTls) {
   char dir_template[] = "/tmp/gvd-http-pki-XXXXXX";
   const std::string d = mkdtemp(dir_template);
