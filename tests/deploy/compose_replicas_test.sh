@@ -6,21 +6,28 @@
 # lands through the other catches up when started again. Answers are checked against the
 # exact nearest sites, computed here in double precision.
 # Usage: bash tests/deploy/compose_replicas_test.sh [GVD_CLI]   (default build/test/client/gvd)
-# Needs podman, docker-compose (Debian's 1.29, which knows profiles) and the images
-# gvd:latest (built from deploy/Dockerfile when absent and the debian:bookworm base is there)
-# and postgres:15-bookworm (deploy/README.md). Environment: GVD_OCI_RUNTIME as in
-# container_test.sh. Exits 77 (ctest's skip) saying why where one is missing.
+# Needs podman, docker-compose (Debian's 1.29, which knows profiles), the image of this source
+# and postgres:15-bookworm (deploy/README.md). Environment: GVD_IMAGE, GVD_BUILD_IMAGE and
+# GVD_OCI_RUNTIME as in tests/deploy/image.sh. Exits 77 (ctest's skip) saying why where one
+# is missing.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 cli=$(realpath "${1:-build/test/client/gvd}")
 [[ -x $cli ]] || { echo "FAIL: no gvd CLI at $cli"; exit 1; }
-for tool in podman docker-compose python3 curl; do
+for tool in docker-compose python3 curl; do
   if ! command -v "$tool" >/dev/null; then
     echo "SKIP: $tool is not installed (Debian: apt-get install podman runc docker-compose" \
       "golang-github-containernetworking-plugin-dnsname curl)"
     exit 77
   fi
 done
+needs_exec=1  # podman runs PostgreSQL's healthcheck with exec
+# shellcheck source=tests/deploy/image.sh
+source tests/deploy/image.sh
+if ! "${podman[@]}" image exists postgres:15-bookworm; then
+  echo "SKIP: no image postgres:15-bookworm (docker.io/library/postgres; deploy/README.md)"
+  exit 77
+fi
 work=$(mktemp -d /tmp/gvd-compose-XXXXXX)
 service=
 checker=
@@ -33,28 +40,12 @@ cleanup() {
   rm -rf "$work"
 }
 trap cleanup EXIT
-runtime=${GVD_OCI_RUNTIME:-}
-if [[ -z $runtime && -x ../shared/tools/runc-norlimits ]]; then
-  runtime=$(realpath ../shared/tools/runc-norlimits)
-fi
 if [[ -n $runtime && -z ${CONTAINERS_CONF:-} ]]; then
   printf '[engine]\nruntime = "gvd"\n[engine.runtimes]\ngvd = ["%s"]\n' "$runtime" \
     >"$work/containers.conf"
   export CONTAINERS_CONF=$work/containers.conf
 fi
-podman=(podman --storage-driver vfs)
-if ! "${podman[@]}" image exists postgres:15-bookworm; then
-  echo "SKIP: no image postgres:15-bookworm (docker.io/library/postgres; deploy/README.md)"
-  exit 77
-fi
-if ! "${podman[@]}" image exists gvd:latest; then
-  if ! "${podman[@]}" image exists docker.io/library/debian:bookworm; then
-    echo "SKIP: no image gvd:latest and no debian:bookworm base to build it from (deploy/README.md)"
-    exit 77
-  fi
-  "${podman[@]}" build --pull=never --network=host --isolation=chroot \
-    -f deploy/Dockerfile -t gvd:latest .
-fi
+export GVD_IMAGE=$image  # deploy/compose.yaml's image
 
 # docker-compose talks to podman's Docker-compatible API on a socket of this test's own.
 "${podman[@]}" system service --time=0 "unix://$work/podman.sock" 2>"$work/podman.log" &

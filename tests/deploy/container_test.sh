@@ -3,36 +3,16 @@
 # memory budget from the container's cgroup (3/4 of --memory), refuses the scene that would
 # not fit with RESOURCE_EXHAUSTED naming --max-memory, keeps serving, and is never OOM-killed.
 # Usage: bash tests/deploy/container_test.sh
-# Environment: GVD_IMAGE (default localhost/gvd:test; built from deploy/Dockerfile when
-# absent, which needs the debian:bookworm base images: see deploy/README.md),
-# GVD_OCI_RUNTIME (an OCI runtime for podman's --runtime; default: ../shared/tools/runc-norlimits
-# beside the checkout where it exists, for sandboxes that refuse rlimits, else podman's own),
-# GVD_CONTAINER_MEMORY (default 4g).
-# Exits 77 (ctest's skip) saying why where podman is absent.
+# Environment: GVD_IMAGE, GVD_BUILD_IMAGE and GVD_OCI_RUNTIME as in tests/deploy/image.sh,
+# which skips (exit 77) saying why where podman, a working runtime or the image of this
+# source is missing; GVD_CONTAINER_MEMORY (default 4g).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-if ! command -v podman >/dev/null; then
-  echo "SKIP: podman is not installed (Debian: apt-get install podman runc)"
-  exit 77
-fi
-image=${GVD_IMAGE:-localhost/gvd:test}
+# shellcheck source=tests/deploy/image.sh
+source tests/deploy/image.sh
 memory=${GVD_CONTAINER_MEMORY:-4g}
-runtime=${GVD_OCI_RUNTIME:-}
-if [[ -z $runtime && -x ../shared/tools/runc-norlimits ]]; then
-  runtime=$(realpath ../shared/tools/runc-norlimits)
-fi
-podman=(podman --storage-driver vfs)
 run=("${podman[@]}")
 [[ -n $runtime ]] && run+=(--runtime "$runtime")
-
-if ! "${podman[@]}" image exists "$image"; then
-  if ! "${podman[@]}" image exists docker.io/library/debian:bookworm; then
-    echo "SKIP: no image $image and no debian:bookworm base to build it from (deploy/README.md)"
-    exit 77
-  fi
-  "${podman[@]}" build --pull=never --network=host --isolation=chroot \
-    -f deploy/Dockerfile -t "$image" .
-fi
 
 port=$((20000 + RANDOM % 20000))
 name=gvd-memory-$$
