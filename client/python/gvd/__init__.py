@@ -1,0 +1,18 @@
+"""gvd: a client for gvd-server, which computes generalized Voronoi diagrams on graphics
+hardware and answers proximity queries.
+
+    import numpy as np, gvd
+    with gvd.Client("127.0.0.1:50051") as c:          # "http://127.0.0.1:8080": HTTP
+        c.create_scene("s", window=(0, 0, 1, 1), size=(1024, 1024))
+        v = c.upsert_points("s", ids, xy)             # xy: (n, 2) array
+        r = c.find_nearest("s", q, min_version=v)     # q: (m, 2) array
+        r.site_ids, r.distances, r.error_bounds, r.exact
+
+Errors are GvdError (code: a grpc.StatusCode; message: the server's). The API's messages
+are gvd.v1 (generated from the server's proto when the package is built).
+"""
+from ._client import Client, NearestResult, site_from_dict
+from ._transport import GvdError
+
+__all__ = ["Client", "GvdError", "NearestResult", "site_from_dict"]
+__version__ = "0.1.0"

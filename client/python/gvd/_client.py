@@ -1,0 +1,352 @@
+"""gvd.Client: gvd-server's calls with NumPy arrays in and out."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable, Dict, Iterable, Iterator, List, Mapping, Optional, Sequence, Union
+
+import numpy as np
+from google.protobuf import json_format
+
+from gvd.v1 import voronoi_pb2 as pb  # generated when the package is built
+from ._transport import GrpcTransport, GvdError, HttpTransport
+
+ArrayLike = Union[np.ndarray, Sequence[Sequence[float]]]
+Progress = Callable[[int, int], None]
+
+# The server's defaults (--max-points-per-query, --max-sites-per-request): a larger batch is
+# sent in several calls.
+MAX_POINTS_PER_CALL = 1_000_000
+MAX_SITES_PER_CALL = 100_000
+# Answers per FindNearestStream chunk, each a progress step.
+CHUNK_POINTS = 65_536
+
+
+@dataclass
+class NearestResult:
+    """Answers to m query points, each a NumPy array of shape (m,) (closest and gradient: (m,
+    2) or (m, 3)). An empty answer (no site is a candidate) has site_id None, site_index -1
+    and distance +inf."""
+    version: int
+    site_ids: np.ndarray        # object: str, or None for an empty answer
+    site_indices: np.ndarray    # int64 into `ids`, -1 for an empty answer
+    ids: List[str]              # the distinct sites named, in the order site_indices count
+    distances: np.ndarray       # float64, scene units
+    error_bounds: np.ndarray    # float64, scene units: the distance's possible error (0 if exact)
+    exact: np.ndarray           # bool: certified exact
+    feature_indices: np.ndarray  # uint32: the part of the site nearest to the point
+    feature_kinds: np.ndarray   # int32: gvd.v1.FeatureKind values
+    closest: Optional[np.ndarray] = None   # with closest=True: each site's nearest point
+    gradient: Optional[np.ndarray] = None  # with closest=True: the distance's unit gradient
+
+    def __len__(self) -> int:
+        return len(self.distances)
+
+
+class Client:
+    """A connection to a gvd-server.
+
+    target: "HOST:PORT" (or any gRPC target) speaks gRPC; "http://HOST:PORT" or
+    "https://HOST:PORT" speaks HTTP with the Connect protocol. token: a bearer token
+    (--tokens on the server). root_certificates, private_key, certificate_chain: PEM bytes
+    for TLS (tls=True with none of them uses the system's roots). timeout: seconds for each
+    call (None: no deadline; a call with min_version waits at most this long).
+
+    Every call of the service is a method; arguments after the scene id are keyword
+    arguments named after the request's fields. A failed call raises GvdError, whose `code` is
+    the status (grpc.StatusCode) and `message` the server's.
+    """
+
+    def __init__(self, target: str, *, token: Optional[str] = None,
+                 root_certificates: Optional[bytes] = None, private_key: Optional[bytes] = None,
+                 certificate_chain: Optional[bytes] = None, tls: bool = False,
+                 timeout: Optional[float] = 60.0, max_message_bytes: int = 256 << 20):
+        kind = HttpTransport if target.startswith(("http://", "https://")) else GrpcTransport
+        self._transport = kind(target, token=token, root_certificates=root_certificates,
+                               private_key=private_key, certificate_chain=certificate_chain,
+                               tls=tls, max_message_bytes=max_message_bytes)
+        self.timeout = timeout
+
+    def __enter__(self) -> "Client":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._transport.close()
+
+    # ---- any call ----
+
+    def call(self, method: str, request: Any) -> Any:
+        """Any unary call of gvd.v1.Voronoi by name, with its request message; the response
+        message."""
+        response = _RESPONSES[method]
+        return self._transport.unary(method, request, response, self.timeout)
+
+    # ---- scenes ----
+
+    def create_scene(self, scene_id: str, *, window: Sequence[float], size: Sequence[int],
+                     **fields: Any) -> pb.Scene:
+        """A new scene. window: (min_x, min_y, max_x, max_y), or (min_x, min_y, min_z, max_x,
+        max_y, max_z) for a 3D scene; size: (width_px, height_px), or with depth_px. Other
+        fields of CreateSceneRequest by name (max_error, render_mode, diagram)."""
+        request = pb.CreateSceneRequest(scene_id=scene_id, window=_window(window), **fields)
+        request.width_px, request.height_px = int(size[0]), int(size[1])
+        if len(size) == 3:
+            request.depth_px = int(size[2])
+        return self._transport.unary("CreateScene", request, pb.Scene, self.timeout)
+
+    def get_scene(self, scene_id: str) -> pb.Scene:
+        return self._transport.unary("GetScene", pb.GetSceneRequest(scene_id=scene_id),
+                                     pb.Scene, self.timeout)
+
+    def list_scenes(self) -> List[pb.Scene]:
+        return list(self._transport.unary("ListScenes", pb.ListScenesRequest(),
+                                          pb.ListScenesResponse, self.timeout).scenes)
+
+    def delete_scene(self, scene_id: str) -> None:
+        self._transport.unary("DeleteScene", pb.DeleteSceneRequest(scene_id=scene_id),
+                              pb.DeleteSceneResponse, self.timeout)
+
+    def watch(self, scene_id: str, *, after_version: int = 0,
+              timeout: Optional[float] = None) -> Iterator[pb.SceneEvent]:
+        """The scene's events, one per published frame, until the scene is deleted (its last
+        event says deleted) or the iterator is closed. No deadline unless `timeout`."""
+        request = pb.WatchSceneRequest(scene_id=scene_id, after_version=after_version)
+        return self._transport.stream("WatchScene", request, pb.SceneEvent, timeout)
+
+    # ---- sites ----
+
+    def upsert_points(self, scene_id: str, ids: Sequence[str], xy: ArrayLike, *,
+                      progress: Optional[Progress] = None) -> int:
+        """Puts point sites: ids[i] at xy[i] (an (n, 2) array, or (n, 3) in a 3D scene),
+        replacing sites of those ids. Returns the scene's version that includes them. More
+        than 100,000 go in several calls, each its own version (progress(done, n) after
+        each)."""
+        xy = _points(xy, "xy")
+        if len(ids) != len(xy):
+            raise ValueError(f"{len(ids)} ids for {len(xy)} points")
+        version = 0
+        for start in range(0, len(xy), MAX_SITES_PER_CALL):
+            chunk = xy[start:start + MAX_SITES_PER_CALL]
+            request = pb.UpsertSitesRequest(scene_id=scene_id)
+            three = chunk.shape[1] == 3
+            for sid, p in zip(ids[start:start + len(chunk)], chunk.tolist()):
+                site = request.sites.add(id=str(sid))
+                site.point.x, site.point.y = p[0], p[1]
+                if three:
+                    site.point.z = p[2]
+            version = self._transport.unary("UpsertSites", request, pb.UpsertSitesResponse,
+                                            self.timeout).version
+            if progress:
+                progress(start + len(chunk), len(xy))
+        return version
+
+    def upsert_sites(self, scene_id: str, sites: Iterable[Union[Mapping[str, Any], pb.Site]], *,
+                     progress: Optional[Progress] = None) -> int:
+        """Puts sites of any kind, each a gvd.v1.Site or a dict in the API's JSON form
+        ({"id": "a", "segment": {"a": {"x": 0, "y": 0}, "b": {"x": 1, "y": 1}}}) or
+        GeoJSON-like ({"id": "a", "type": "LineString", "coordinates": [[0, 0], [1, 1]]}).
+        Returns the version that includes them (several calls past 100,000 sites)."""
+        messages = [s if isinstance(s, pb.Site) else site_from_dict(s) for s in sites]
+        version = 0
+        for start in range(0, len(messages), MAX_SITES_PER_CALL):
+            request = pb.UpsertSitesRequest(scene_id=scene_id,
+                                            sites=messages[start:start + MAX_SITES_PER_CALL])
+            version = self._transport.unary("UpsertSites", request, pb.UpsertSitesResponse,
+                                            self.timeout).version
+            if progress:
+                progress(min(start + MAX_SITES_PER_CALL, len(messages)), len(messages))
+        return version
+
+    def delete_sites(self, scene_id: str, ids: Sequence[str]) -> int:
+        """Removes sites by id (NOT_FOUND if one is not there, and then none is removed).
+        Returns the version without them."""
+        request = pb.DeleteSitesRequest(scene_id=scene_id, ids=[str(i) for i in ids])
+        return self._transport.unary("DeleteSites", request, pb.DeleteSitesResponse,
+                                     self.timeout).version
+
+    def list_sites(self, scene_id: str, *, page_size: int = 10_000) -> List[Dict[str, Any]]:
+        """Every site, as dicts in the API's JSON form, read page by page; a write between
+        pages restarts the listing, so the list is one version's."""
+        while True:
+            sites: List[Dict[str, Any]] = []
+            token, version = "", None
+            while True:
+                page = self._transport.unary(
+                    "ListSites", pb.ListSitesRequest(scene_id=scene_id, page_size=page_size,
+                                                     page_token=token),
+                    pb.ListSitesResponse, self.timeout)
+                if version is not None and page.version != version:
+                    break
+                version = page.version
+                sites += [json_format.MessageToDict(s) for s in page.sites]
+                token = page.next_page_token
+                if not token:
+                    return sites
+
+    # ---- queries ----
+
+    def find_nearest(self, scene_id: str, points: ArrayLike, *, min_version: int = 0,
+                     exact: bool = False, closest: bool = False, skip_refinement: bool = False,
+                     progress: Optional[Progress] = None) -> NearestResult:
+        """The nearest site to each of m query points (an (m, 2) array, or (m, 3) in a 3D
+        scene), sent packed. min_version: answer from a frame at least this recent (waiting
+        for it). exact: certify every answer. closest: also each answer's closest point and
+        the distance's gradient. progress(done, m) follows the answers as they come."""
+        q = _points(points, "points")
+        m = len(q)
+        parts: List[_Packed] = []
+        for start in range(0, max(m, 1), MAX_POINTS_PER_CALL):
+            part = q[start:start + MAX_POINTS_PER_CALL]
+            request = pb.FindNearestRequest(scene_id=scene_id, min_version=min_version,
+                                            exact=exact, skip_refinement=skip_refinement,
+                                            chunk_size=CHUNK_POINTS)
+            if closest:
+                request.fields.extend([pb.FindNearestRequest.SITE, pb.FindNearestRequest.DISTANCE,
+                                       pb.FindNearestRequest.ERROR_BOUND,
+                                       pb.FindNearestRequest.EXACT, pb.FindNearestRequest.FEATURE,
+                                       pb.FindNearestRequest.CLOSEST,
+                                       pb.FindNearestRequest.GRADIENT])
+            # The points go packed, written straight from the array: field xy (5) or xyz.
+            field = 5 if part.shape[1] == 2 else _XYZ_FIELD
+            body = request.SerializeToString() + _packed_doubles(field, part)
+            for chunk in self._transport.stream("FindNearestStream", request,
+                                                pb.FindNearestResponse, self.timeout, body=body):
+                parts.append(_Packed(chunk, start))
+                if progress:
+                    progress(start + int(chunk.offset) + len(chunk.packed.distance), m)
+        return _join(parts, m, q.shape[1], closest)
+
+    def pick(self, scene_id: str, x: float, y: float, z: Optional[float] = None, *,
+             max_distance: float = 0.0) -> pb.PickResponse:
+        """The site under a cursor: the exact nearest site to (x, y) within max_distance (0: any
+        distance), with its closest point and the whole site."""
+        point = pb.Point(x=x, y=y, z=z or 0.0)
+        request = pb.PickRequest(scene_id=scene_id, point=point, max_distance=max_distance)
+        return self._transport.unary("Pick", request, pb.PickResponse, self.timeout)
+
+
+# ---- helpers ----
+
+_RESPONSES = {m.name: getattr(pb, m.output_type.name)
+              for m in pb.DESCRIPTOR.services_by_name["Voronoi"].methods}
+_XYZ_FIELD = next((f.number for f in pb.FindNearestRequest.DESCRIPTOR.fields if f.name == "xyz"),
+                  None)
+
+
+def _window(w: Sequence[float]) -> pb.Window:
+    if len(w) == 4:
+        return pb.Window(min_x=w[0], min_y=w[1], max_x=w[2], max_y=w[3])
+    if len(w) == 6:
+        return pb.Window(min_x=w[0], min_y=w[1], min_z=w[2], max_x=w[3], max_y=w[4], max_z=w[5])
+    raise ValueError(f"a window is (min_x, min_y, max_x, max_y) or its 3D form, not {tuple(w)}")
+
+
+def _points(a: ArrayLike, name: str) -> np.ndarray:
+    arr = np.ascontiguousarray(a, dtype="<f8")
+    if arr.ndim != 2 or arr.shape[1] not in (2, 3):
+        raise ValueError(f"{name} must be an (n, 2) or (n, 3) array, not of shape {arr.shape}")
+    return arr
+
+
+def _varint(n: int) -> bytes:
+    out = bytearray()
+    while True:
+        b = n & 0x7F
+        n >>= 7
+        if n:
+            out.append(b | 0x80)
+        else:
+            out.append(b)
+            return bytes(out)
+
+
+def _packed_doubles(field: Optional[int], a: np.ndarray) -> bytes:
+    if field is None:
+        raise GvdError(_grpc_code("UNIMPLEMENTED"), "this server's API has no 3D query points")
+    data = a.astype("<f8", copy=False).tobytes()
+    return _varint(field << 3 | 2) + _varint(len(data)) + data
+
+
+def _grpc_code(name: str):
+    import grpc  # pylint: disable=import-outside-toplevel
+    return getattr(grpc.StatusCode, name)
+
+
+@dataclass
+class _Packed:
+    response: pb.FindNearestResponse
+    start: int
+
+
+def _join(parts: List[_Packed], m: int, dims: int, closest: bool) -> NearestResult:
+    ids: List[str] = []
+    index: Dict[str, int] = {}
+    site = np.full(m, -1, dtype=np.int64)
+    distance = np.full(m, np.inf)
+    bound = np.zeros(m)
+    exact = np.zeros(m, dtype=bool)
+    feature_index = np.zeros(m, dtype=np.uint32)
+    feature_kind = np.zeros(m, dtype=np.int32)
+    near = np.full((m, dims), np.nan) if closest else None
+    grad = np.full((m, dims), np.nan) if closest else None
+    version = 0
+    for part in parts:
+        r, p = part.response, part.response.packed
+        version = max(version, r.version)
+        lo = part.start + int(r.offset)
+        n = len(p.distance)
+        hi = lo + n
+        local = np.array([index.setdefault(s, len(index)) for s in p.site_ids], dtype=np.int64)
+        idx = np.array(p.site, dtype=np.int64)
+        found = idx != 0xFFFFFFFF
+        named = np.full(n, -1, dtype=np.int64)
+        named[found] = local[idx[found]]
+        site[lo:hi] = named
+        distance[lo:hi] = np.array(p.distance)
+        if len(p.error_bound):
+            bound[lo:hi] = np.array(p.error_bound)
+        if len(p.exact):
+            exact[lo:hi] = np.array(p.exact, dtype=bool)
+        if len(p.feature_index):
+            feature_index[lo:hi] = np.array(p.feature_index, dtype=np.uint32)
+        if len(p.feature_kind):
+            feature_kind[lo:hi] = np.array(p.feature_kind, dtype=np.int32)
+        if closest:
+            near[lo:hi] = np.array(p.closest).reshape(n, dims)
+            grad[lo:hi] = np.array(p.gradient).reshape(n, dims)
+    ids = [""] * len(index)
+    for s, i in index.items():
+        ids[i] = s
+    named = np.array(ids + [None], dtype=object)
+    return NearestResult(version=version, site_ids=named[site], site_indices=site, ids=ids,
+                         distances=distance, error_bounds=bound, exact=exact,
+                         feature_indices=feature_index, feature_kinds=feature_kind,
+                         closest=near, gradient=grad)
+
+
+def site_from_dict(d: Mapping[str, Any]) -> pb.Site:
+    """A gvd.v1.Site from the API's JSON form, or from a GeoJSON-like geometry with an "id":
+    Point, LineString (a polyline; two points: a segment) or Polygon (its outer ring)."""
+    if "type" in d and "coordinates" in d:
+        kind, c = d["type"], d["coordinates"]
+        rest = {k: v for k, v in d.items() if k not in ("type", "coordinates")}
+        site = json_format.ParseDict(rest, pb.Site())
+        if kind == "Point":
+            site.point.x, site.point.y = c[0], c[1]
+            if len(c) > 2:
+                site.point.z = c[2]
+        elif kind == "LineString" and len(c) == 2:
+            site.segment.a.x, site.segment.a.y = c[0][0], c[0][1]
+            site.segment.b.x, site.segment.b.y = c[1][0], c[1][1]
+        elif kind == "LineString":
+            site.polyline.points.extend(pb.Point(x=p[0], y=p[1]) for p in c)
+        elif kind == "Polygon":
+            ring = c[0][:-1] if len(c[0]) > 1 and list(c[0][0]) == list(c[0][-1]) else c[0]
+            site.polygon.vertices.extend(pb.Point(x=p[0], y=p[1]) for p in ring)
+        else:
+            raise ValueError(f"site {d.get('id')!r}: GeoJSON type {kind!r} is not a site "
+                             "(Point, LineString or Polygon)")
+        return site
+    return json_format.ParseDict(dict(d), pb.Site())
