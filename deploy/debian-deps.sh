@@ -14,7 +14,8 @@ gvd_packages() {
     test)
       echo libgtest-dev libgmock-dev libbenchmark-dev libnanoflann-dev libqhull-dev openssl curl \
         shellcheck yamllint python3-yaml chromium chromium-driver python3-selenium \
-        python3-openvdb postgresql iproute2
+        python3-openvdb postgresql iproute2 \
+        python3-venv python3-pytest python3-grpcio python3-protobuf python3-numpy
       ;;
     bench)  # the reference libraries of tests/bench/run.sh beyond the test group's, and the
       # stock Python gRPC client of tests/bench/serve.py
