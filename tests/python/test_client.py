@@ -108,3 +108,67 @@ def test_watch_sees_a_write_and_the_deletion(client):
     client.delete_scene(sid)
     last = list(events)[-1]
     assert last.deleted
+
+
+def test_render_window_is_the_diagram_within_its_error_bound(client):
+    sid = f"raster-{client.kind}"
+    client.create_scene(sid, window=(0, 0, 1, 1), size=(64, 64))
+    rng = np.random.default_rng(11)
+    xy = rng.random((40, 2))
+    ids = [f"s{i}" for i in range(len(xy))]
+    v = client.upsert_points(sid, ids, xy)
+    r = client.render_window(sid, window=(0.25, 0.25, 0.75, 0.5), size=(50, 25), min_version=v)
+    assert r.version >= v and r.site_indices.shape == (25, 50) == r.distances.shape
+    # Pixel centres, row 0 at the bottom.
+    cx = 0.25 + (np.arange(50) + 0.5) * 0.5 / 50
+    cy = 0.25 + (np.arange(25) + 0.5) * 0.25 / 25
+    q = np.stack(np.meshgrid(cx, cy), axis=-1).reshape(-1, 2)
+    _, dist = brute_nearest(xy, q)
+    named = np.array([ids.index(r.ids[i]) for i in r.site_indices.ravel()])
+    dx, dy = (xy[named] - q).T
+    own = np.sqrt(dx * dx + dy * dy)
+    slack = r.max_error + 1e-6 * (1 + dist)  # the meshes' bound, and float32 storage
+    assert (own <= dist + 2 * slack).all()  # the pixel names a site within the bound
+    assert (np.abs(r.distances.ravel() - dist) <= slack).all()
+    image = client.render_image(sid)  # the scene's own frame, row 0 at the top
+    whole = client.render_window(sid)
+    assert np.array_equal(image, whole.distances[::-1])
+
+
+def test_async_client_under_100_concurrent_calls(server):
+    import asyncio
+
+    async def run(target):
+        async with gvd.AsyncClient(target) as c:
+            sid = "async-" + ("http" if target.startswith("http") else "grpc")
+            await c.create_scene(sid, window=(0, 0, 1, 1), size=(64, 64))
+            rng = np.random.default_rng(5)
+            xy = rng.random((100, 2))
+            v = await c.upsert_points(sid, [f"a{i}" for i in range(100)], xy)
+            queries = [rng.random((50, 2)) for _ in range(100)]
+            answers = await asyncio.gather(*(c.find_nearest(sid, q, min_version=v, exact=True)
+                                             for q in queries))
+            for q, r in zip(queries, answers):
+                _, dist = brute_nearest(xy, q)
+                assert np.array_equal(r.distances, dist)
+            events = c.watch(sid, timeout=60)
+            first = await events.__anext__()
+            assert first.scene_id == sid
+            await events.aclose()
+
+    for target in server.targets.values():
+        asyncio.run(run(target))
+
+
+def test_plan_path_keeps_its_clearance(client):
+    sid = f"plan-{client.kind}"
+    client.create_scene(sid, window=(0, 0, 10, 10), size=(128, 128))
+    v = client.upsert_sites(sid, [
+        {"id": "wall", "type": "LineString", "coordinates": [[5, 0], [5, 7]]},
+        {"id": "post", "type": "Point", "coordinates": [2, 8]},
+    ])
+    path = client.plan_path(sid, (1, 1), (9, 1), robot_radius=0.5, min_version=v)
+    assert path.points.shape[1] == 2 and len(path.points) >= 2
+    assert np.allclose(path.points[0], (1, 1)) and np.allclose(path.points[-1], (9, 1))
+    assert path.min_clearance >= 0.5
+    assert path.points[:, 1].max() > 7  # around the wall's end

@@ -11,8 +11,8 @@ hardware and answers proximity queries.
 Errors are GvdError (code: a grpc.StatusCode; message: the server's). The API's messages
 are gvd.v1 (generated from the server's proto when the package is built).
 """
-from ._client import Client, NearestResult, site_from_dict
+from ._client import AsyncClient, Client, NearestResult, Path, Raster, site_from_dict
 from ._transport import GvdError
 
-__all__ = ["Client", "GvdError", "NearestResult", "site_from_dict"]
+__all__ = ["AsyncClient", "Client", "GvdError", "NearestResult", "Path", "Raster", "site_from_dict"]
 __version__ = "0.1.0"

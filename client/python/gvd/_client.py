@@ -227,6 +227,109 @@ class Client:
         return self._transport.unary("Pick", request, pb.PickResponse, self.timeout)
 
 
+    # ---- rasters, analysis and planning ----
+
+    def render_window(self, scene_id: str, *, window: Optional[Sequence[float]] = None,
+                      size: Optional[Sequence[int]] = None, min_version: int = 0) -> "Raster":
+        """The diagram over any window at any resolution (the service's adaptive zoom): per
+        pixel the nearest site and its distance, as (H, W) arrays with row 0 at the window's
+        bottom (min y). No window and size: the scene's own latest frame as it is."""
+        request = pb.RenderWindowRequest(scene_id=scene_id, min_version=min_version)
+        if window is not None:
+            request.window.CopyFrom(_window(window))
+        if size is not None:
+            request.width_px, request.height_px = int(size[0]), int(size[1])
+        r = self._transport.unary("RenderWindow", request, pb.RenderWindowResponse, self.timeout)
+        h, w = r.height_px, r.width_px
+        ids = np.array(r.ids, dtype=np.int64).reshape(h, w) - 1  # -1: no site
+        return Raster(version=r.version, window=(r.window.min_x, r.window.min_y,
+                                                 r.window.max_x, r.window.max_y),
+                      site_indices=ids, ids=list(r.site_ids),
+                      distances=np.array(r.distances, dtype=np.float32).reshape(h, w),
+                      max_error=r.max_error)
+
+    def render_image(self, scene_id: str, *, layer: str = "distance", **fields: Any) -> Any:
+        """layer "distance": the (H, W) float32 distances of the scene's latest frame (row 0
+        at the top, as images go); "ids": (H, W) site indices (-1: none) and the ids they
+        name. Any other layer ("features", "site_index" and the rest of RenderImageRequest's
+        fields, such as format="PNG") returns the encoded image's RenderImageResponse."""
+        if layer in ("distance", "ids") and not fields:
+            raster = self.render_window(scene_id)
+            if layer == "distance":
+                return raster.distances[::-1]
+            return raster.site_indices[::-1], raster.ids
+        request = pb.RenderImageRequest(scene_id=scene_id,
+                                        layer=pb.RenderImageRequest.Layer.Value(layer.upper()),
+                                        **fields)
+        return self._transport.unary("RenderImage", request, pb.RenderImageResponse, self.timeout)
+
+    def get_boundaries(self, scene_id: str, **fields: Any) -> pb.GetBoundariesResponse:
+        """The diagram's boundaries, as polylines between pairs of sites (GetBoundariesRequest's
+        fields by name: window, method, site_id, min_version, coarse)."""
+        if "window" in fields:
+            fields["window"] = _window(fields["window"])
+        return self._transport.unary("GetBoundaries",
+                                     pb.GetBoundariesRequest(scene_id=scene_id, **fields),
+                                     pb.GetBoundariesResponse, self.timeout)
+
+    def get_neighbors(self, scene_id: str, **fields: Any) -> pb.GetNeighborsResponse:
+        """The pairs of sites whose regions touch (and the hidden sites found)."""
+        return self._transport.unary("GetNeighbors",
+                                     pb.GetNeighborsRequest(scene_id=scene_id, **fields),
+                                     pb.GetNeighborsResponse, self.timeout)
+
+    def get_delaunay(self, scene_id: str, **fields: Any) -> pb.GetDelaunayResponse:
+        """The Delaunay triangulation of a scene of points: edges and triangles by site id."""
+        return self._transport.unary("GetDelaunay",
+                                     pb.GetDelaunayRequest(scene_id=scene_id, **fields),
+                                     pb.GetDelaunayResponse, self.timeout)
+
+    def get_clearance_field(self, scene_id: str, *, window: Optional[Sequence[float]] = None,
+                            size: Optional[Sequence[int]] = None,
+                            **fields: Any) -> pb.GetClearanceFieldResponse:
+        """Clearance (distance to the nearest site) sampled over a window; the response's
+        `clearance` is a flat list (np.asarray(...).reshape(height_px, width_px))."""
+        request = pb.GetClearanceFieldRequest(scene_id=scene_id, **fields)
+        if window is not None:
+            request.window.CopyFrom(_window(window))
+        if size is not None:
+            request.width_px, request.height_px = int(size[0]), int(size[1])
+            if len(size) == 3:
+                request.depth_px = int(size[2])
+        return self._transport.unary("GetClearanceField", request, pb.GetClearanceFieldResponse,
+                                     self.timeout)
+
+    def plan_path(self, scene_id: str, start: Sequence[float], goal: Sequence[float], *,
+                  robot_radius: float = 0.0, **fields: Any) -> "Path":
+        """A path for a disc of robot_radius from start to goal along the diagram's
+        boundaries: its points as an (k, 2) array and its proven minimum clearance."""
+        request = pb.PlanPathRequest(scene_id=scene_id, start=pb.Point(x=start[0], y=start[1]),
+                                     goal=pb.Point(x=goal[0], y=goal[1]),
+                                     robot_radius=robot_radius, **fields)
+        r = self._transport.unary("PlanPath", request, pb.PlanPathResponse, self.timeout)
+        return Path(points=np.array([(p.x, p.y) for p in r.path]).reshape(-1, 2),
+                    min_clearance=r.min_clearance, response=r)
+
+
+@dataclass
+class Raster:
+    """A window of the diagram: per pixel (row 0 at the bottom) the nearest site's index into
+    `ids` (-1: none) and its distance (+inf: none), with the meshes' error bound."""
+    version: int
+    window: tuple
+    site_indices: np.ndarray
+    ids: List[str]
+    distances: np.ndarray
+    max_error: float
+
+
+@dataclass
+class Path:
+    points: np.ndarray
+    min_clearance: float
+    response: Any
+
+
 # ---- helpers ----
 
 _RESPONSES = {m.name: getattr(pb, m.output_type.name)
@@ -350,3 +453,45 @@ def site_from_dict(d: Mapping[str, Any]) -> pb.Site:
                              "(Point, LineString or Polygon)")
         return site
     return json_format.ParseDict(dict(d), pb.Site())
+
+
+class AsyncClient:
+    """gvd.Client's methods for asyncio: each call runs on a thread of the default executor
+    (the transports are thread-safe), so many may be in flight at once; watch() is an async
+    iterator."""
+
+    def __init__(self, target: str, **options: Any):
+        self._client = Client(target, **options)
+
+    async def __aenter__(self) -> "AsyncClient":
+        return self
+
+    async def __aexit__(self, *exc: Any) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._client.close()
+
+    def __getattr__(self, name: str) -> Any:
+        import asyncio  # pylint: disable=import-outside-toplevel
+        method = getattr(self._client, name)
+        if not callable(method) or name.startswith("_"):
+            return method
+
+        async def call(*args: Any, **kwargs: Any) -> Any:
+            return await asyncio.to_thread(method, *args, **kwargs)
+        call.__doc__ = method.__doc__
+        return call
+
+    async def watch(self, scene_id: str, **kwargs: Any):  # type: ignore[override]
+        import asyncio  # pylint: disable=import-outside-toplevel
+        events = self._client.watch(scene_id, **kwargs)
+        done = object()
+        try:
+            while True:
+                event = await asyncio.to_thread(next, events, done)
+                if event is done:
+                    return
+                yield event
+        finally:
+            events.close()
