@@ -1,0 +1,103 @@
+// @gvd/client in Node against a real gvd-server (GVD_SERVER; default the test build's), over
+// the Connect protocol in binary and in JSON: answers checked against a brute-force
+// double-precision oracle, errors with the server's code and message, a watch to the
+// deletion.
+import { after, before, test } from "node:test";
+import assert from "node:assert/strict";
+import { spawn } from "node:child_process";
+import { existsSync, mkdtempSync, readFileSync, rmSync } from "node:fs";
+import { tmpdir } from "node:os";
+import { join, resolve } from "node:path";
+
+import { Code, ConnectError, createGvdClient } from "../dist/index.js";
+
+const serverPath = resolve(process.env.GVD_SERVER ?? "../../build/test/server/gvd-server");
+let server, dir, baseUrl;
+
+before(async () => {
+  dir = mkdtempSync(join(tmpdir(), "gvd-ts-"));
+  const portFile = join(dir, "port");
+  server = spawn(serverPath, ["--listen", "127.0.0.1:0", "--http-listen", "127.0.0.1:0",
+    "--port-file", portFile, "--data", join(dir, "data")], { stdio: ["ignore", "ignore", "inherit"] });
+  for (let i = 0; i < 600 && !existsSync(portFile); ++i) await new Promise((r) => setTimeout(r, 50));
+  const [, http] = readFileSync(portFile, "utf8").trim().split(/\s+/);
+  baseUrl = `http://127.0.0.1:${http}`;
+});
+
+after(() => {
+  server?.kill("SIGTERM");
+  rmSync(dir, { recursive: true, force: true });
+});
+
+function random(seed) {
+  let s = seed >>> 0;
+  return () => ((s = (Math.imul(s, 1664525) + 1013904223) >>> 0) / 2 ** 32);
+}
+
+for (const binary of [true, false]) {
+  const kind = binary ? "binary" : "json";
+
+  test(`points in, nearest out (${kind})`, async () => {
+    const c = createGvdClient(baseUrl, { useBinaryFormat: binary });
+    const scene = `points-${kind}`;
+    await c.rpc.createScene({ sceneId: scene, window: { maxX: 1, maxY: 1 }, widthPx: 128, heightPx: 128 });
+    const rnd = random(3);
+    const sites = Array.from({ length: 300 }, (_, i) => ({ id: `p${i}`, x: rnd(), y: rnd() }));
+    const { version } = await c.rpc.upsertSites({
+      sceneId: scene,
+      sites: sites.map((s) => ({ id: s.id, geometry: { case: "point", value: { x: s.x, y: s.y } } })),
+    });
+    const m = 100_000;
+    const xy = new Float64Array(2 * m).map(() => rnd());
+    const steps = [];
+    const r = await c.findNearest(scene, xy, { minVersion: version, exact: true, onProgress: (d) => steps.push(d) });
+    assert.ok(r.version >= version);
+    assert.equal(steps.at(-1), m);
+    for (let k = 0; k < m; ++k) {
+      let best = Infinity;
+      for (const s of sites) {
+        const dx = xy[2 * k] - s.x, dy = xy[2 * k + 1] - s.y;
+        best = Math.min(best, Math.sqrt(dx * dx + dy * dy));
+      }
+      assert.equal(r.distance[k], best, `point ${k}`);  // exact: bitwise
+      const s = sites[Number(r.siteIds[r.site[k]].slice(1))];
+      const dx = xy[2 * k] - s.x, dy = xy[2 * k + 1] - s.y;
+      assert.equal(Math.sqrt(dx * dx + dy * dy), best);
+      assert.equal(r.exact[k], 1);
+    }
+  });
+
+  test(`errors carry the server's code and message (${kind})`, async () => {
+    const c = createGvdClient(baseUrl, { useBinaryFormat: binary });
+    await assert.rejects(c.rpc.getScene({ sceneId: "missing" }), (e) => {
+      assert.ok(e instanceof ConnectError);
+      assert.equal(e.code, Code.NotFound);
+      assert.match(e.rawMessage, /missing/);
+      return true;
+    });
+    await assert.rejects(c.rpc.createScene({ sceneId: "has spaces", widthPx: 8, heightPx: 8 }), (e) => {
+      assert.equal(e.code, Code.InvalidArgument);
+      return true;
+    });
+  });
+
+  test(`a watch sees the write and ends at the deletion (${kind})`, async () => {
+    const c = createGvdClient(baseUrl, { useBinaryFormat: binary });
+    const scene = `watched-${kind}`;
+    await c.rpc.createScene({ sceneId: scene, window: { maxX: 1, maxY: 1 }, widthPx: 16, heightPx: 16 });
+    const { version } = await c.rpc.upsertSites({
+      sceneId: scene, sites: [{ id: "a", geometry: { case: "point", value: { x: 0.5, y: 0.5 } } }],
+    });
+    const events = [];
+    let deleted = false;
+    for await (const e of c.watch(scene)) {
+      events.push(e);
+      if (!deleted && e.version >= version) {
+        deleted = true;
+        await c.rpc.deleteScene({ sceneId: scene });
+      }
+    }
+    assert.ok(events.some((e) => e.version >= version));
+    assert.ok(events.at(-1).deleted);
+  });
+}
