@@ -172,3 +172,8 @@ def test_plan_path_keeps_its_clearance(client):
     assert np.allclose(path.points[0], (1, 1)) and np.allclose(path.points[-1], (9, 1))
     assert path.min_clearance >= 0.5
     assert path.points[:, 1].max() > 7  # around the wall's end
+
+
+def test_no_points_no_call(client):
+    r = client.find_nearest("not-even-there", np.zeros((0, 2)))
+    assert len(r) == 0 and r.version == 0

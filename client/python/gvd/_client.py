@@ -197,7 +197,7 @@ class Client:
         q = _points(points, "points")
         m = len(q)
         parts: List[_Packed] = []
-        for start in range(0, max(m, 1), MAX_POINTS_PER_CALL):
+        for start in range(0, m, MAX_POINTS_PER_CALL):
             part = q[start:start + MAX_POINTS_PER_CALL]
             request = pb.FindNearestRequest(scene_id=scene_id, min_version=min_version,
                                             exact=exact, skip_refinement=skip_refinement,

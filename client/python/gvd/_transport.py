@@ -126,14 +126,19 @@ class HttpTransport:
             headers["Connect-Timeout-Ms"] = str(max(1, int(timeout * 1000)))
         for attempt in range(2):
             conn = self._connection(timeout)
+            reused = getattr(conn, "gvd_used", False)
             try:
                 conn.request("POST", f"{self.prefix}/{SERVICE}/{method}", body, headers)
-                return conn.getresponse()
+                answer = conn.getresponse()
+                conn.gvd_used = True
+                return answer
             except (ConnectionError, http.client.RemoteDisconnected, http.client.BadStatusLine) as e:
-                # A kept-alive connection the server closed meanwhile: once more, afresh.
                 conn.close()
                 self.local.conn = None
-                if attempt == 1:
+                # A kept-alive connection that the server had closed while idle: the request
+                # never reached it, so once more on a new one. A new connection's failure is
+                # the answer.
+                if attempt == 1 or not reused:
                     raise GvdError(grpc.StatusCode.UNAVAILABLE, f"{method}: {e!r}") from None
             except OSError as e:
                 conn.close()
