@@ -19,6 +19,8 @@
 #include <set>
 #include <thread>
 
+#include <zlib.h>
+
 #include "absl/strings/ascii.h"
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
@@ -106,8 +108,40 @@ class SessionBase : public std::enable_shared_from_this<SessionBase> {
 
 }  // namespace
 
+namespace {
+
+// A gzip body inflated, refused past `limit` bytes (a small body can inflate to any size).
+absl::StatusOr<std::string> Gunzip(const std::string& in, size_t limit) {
+  z_stream z{};
+  if (inflateInit2(&z, 16 + MAX_WBITS) != Z_OK) return absl::InternalError("zlib failed");
+  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(in.data()));
+  z.avail_in = static_cast<uInt>(in.size());
+  std::string out;
+  char buf[1 << 16];
+  int r = Z_OK;
+  while (r != Z_STREAM_END) {
+    z.next_out = reinterpret_cast<Bytef*>(buf);
+    z.avail_out = sizeof buf;
+    r = inflate(&z, Z_NO_FLUSH);
+    if (r != Z_OK && r != Z_STREAM_END) break;
+    out.append(buf, sizeof buf - z.avail_out);
+    if (out.size() > limit) {
+      inflateEnd(&z);
+      return absl::ResourceExhaustedError(absl::StrCat(
+          "the request body inflates past ", limit, " bytes (--max-message-bytes)"));
+    }
+    if (r == Z_OK && z.avail_in == 0 && z.avail_out != 0) break;  // cut short
+  }
+  inflateEnd(&z);
+  if (r != Z_STREAM_END) return absl::InvalidArgumentError("the body is not whole gzip");
+  return out;
+}
+
+}  // namespace
+
 ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::string& content_type,
-                              std::string body, const std::string& timeout_ms) {
+                              std::string body, const std::string& timeout_ms,
+                              const std::string& encoding, size_t max_bytes) {
   ConnectCall call;
   auto refuse = [&call](grpc::StatusCode code, std::string message, int http_status = 0) {
     call.method = nullptr;
@@ -142,11 +176,38 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
   }
   call.json = type == want_json;
   call.content_type = call.json ? want_json : want_proto;
+  const std::string coding = absl::AsciiStrToLower(absl::StripAsciiWhitespace(encoding));
+  if (!coding.empty() && coding != "identity" && coding != "gzip") {
+    return refuse(grpc::StatusCode::UNIMPLEMENTED,
+                  absl::StrCat(streaming ? "Connect-Content-Encoding" : "Content-Encoding", " \"",
+                               coding, "\" is not supported: send gzip or identity"));
+  }
+  // Inflates `bytes` in place; a refusal on failure.
+  auto inflate = [&](std::string& bytes) -> std::optional<ConnectCall> {
+    auto inflated = Gunzip(bytes, max_bytes);
+    if (!inflated.ok()) {
+      const bool big = inflated.status().code() == absl::StatusCode::kResourceExhausted;
+      return refuse(static_cast<grpc::StatusCode>(inflated.status().code()),
+                    std::string(inflated.status().message()),
+                    big ? static_cast<int>(http::status::too_many_requests) : 0);
+    }
+    bytes = std::move(*inflated);
+    return std::nullopt;
+  };
+  if (!streaming && coding == "gzip") {
+    if (auto refused = inflate(body)) return std::move(*refused);
+  }
   if (streaming) {
-    // One enveloped message, uncompressed.
-    if (body.size() < 5 || (static_cast<uint8_t>(body[0]) & 0x01) != 0) {
+    // One enveloped message, compressed (flag 1) only as Connect-Content-Encoding says.
+    if (body.size() < 5) {
       return refuse(grpc::StatusCode::INVALID_ARGUMENT,
-                    "a streaming request's body must be one uncompressed Connect envelope");
+                    "a streaming request's body must be one Connect envelope");
+    }
+    const bool compressed = (static_cast<uint8_t>(body[0]) & 0x01) != 0;
+    if (compressed && coding != "gzip") {
+      return refuse(grpc::StatusCode::INVALID_ARGUMENT,
+                    "the request's envelope is compressed, and Connect-Content-Encoding names "
+                    "no compression");
     }
     const uint32_t n = (uint32_t(uint8_t(body[1])) << 24) | (uint32_t(uint8_t(body[2])) << 16) |
                        (uint32_t(uint8_t(body[3])) << 8) | uint32_t(uint8_t(body[4]));
@@ -156,13 +217,18 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
                                  " follow it"));
     }
     body = body.substr(5);
+    if (compressed) {
+      if (auto refused = inflate(body)) return std::move(*refused);
+    }
   }
+  auto* prototype =
+      google::protobuf::MessageFactory::generated_factory()->GetPrototype(method->input_type());
   if (call.json) {
-    auto* prototype =
-        google::protobuf::MessageFactory::generated_factory()->GetPrototype(method->input_type());
     std::unique_ptr<Message> message(prototype->New());
     google::protobuf::util::JsonParseOptions parse;
-    parse.ignore_unknown_fields = false;
+    // A newer client's fields are ignored, as protobuf's JSON mapping and Connect's servers
+    // do, so that it can talk to an older server.
+    parse.ignore_unknown_fields = true;
     if (auto s = google::protobuf::util::JsonStringToMessage(body.empty() ? "{}" : body,
                                                                message.get(), parse);
         !s.ok()) {
@@ -172,6 +238,12 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
     }
     call.request = message->SerializeAsString();
   } else {
+    std::unique_ptr<Message> message(prototype->New());
+    if (!message->ParseFromString(body)) {
+      return refuse(grpc::StatusCode::INVALID_ARGUMENT,
+                    absl::StrCat("the body is not a ", method->input_type()->name(),
+                                 " in binary protobuf"));
+    }
     call.request = std::move(body);
   }
   if (!timeout_ms.empty()) {
@@ -313,9 +385,13 @@ class Session final : public SessionBase {
       const auto v = req[field];
       return std::string(v.data(), v.size());
     };
-    ConnectCall call = DecodeConnectCall(name, req.method() == http::verb::post,
-                                         header(http::field::content_type), std::move(req.body()),
-                                         header("Connect-Timeout-Ms"));
+    const std::string type = header(http::field::content_type);
+    const bool streaming_type = absl::StrContains(absl::AsciiStrToLower(type), "connect+");
+    ConnectCall call = DecodeConnectCall(
+        name, req.method() == http::verb::post, type, std::move(req.body()),
+        header("Connect-Timeout-Ms"),
+        header(streaming_type ? "Connect-Content-Encoding" : "Content-Encoding"),
+        server_->options().max_body_bytes);
     if (call.method == nullptr) {
       return Error(call.code, call.message,
                    call.http_status ? std::optional(static_cast<http::status>(call.http_status))
@@ -435,6 +511,7 @@ class Session final : public SessionBase {
     // The response header first; messages follow as they come.
     response_header_.emplace(http::status::ok, version_);
     response_header_->set(http::field::content_type, content_type_);
+    response_header_->set("Connect-Accept-Encoding", "gzip");
     Cors(*response_header_);
     response_header_->chunked(true);
     response_header_->keep_alive(keep_alive_);
@@ -541,7 +618,8 @@ class Session final : public SessionBase {
     Cors(*res);
     res->set(http::field::access_control_allow_methods, "POST, GET, OPTIONS");
     res->set(http::field::access_control_allow_headers,
-             "Content-Type, Authorization, Connect-Protocol-Version, Connect-Timeout-Ms");
+             "Content-Type, Authorization, Connect-Protocol-Version, Connect-Timeout-Ms, "
+             "Content-Encoding, Connect-Content-Encoding, Connect-Accept-Encoding");
     res->set(http::field::access_control_max_age, "7200");
     Write(res);
   }
@@ -578,6 +656,7 @@ class Session final : public SessionBase {
   void Send(http::status status, const std::string& type, std::string body) {
     auto res = std::make_shared<http::response<http::string_body>>(status, version_);
     res->set(http::field::content_type, type);
+    res->set(http::field::accept_encoding, "gzip");  // what request bodies may be
     res->body() = std::move(body);
     Cors(*res);
     Write(res);

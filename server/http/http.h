@@ -17,6 +17,7 @@
 #include <chrono>
 #include <map>
 #include <memory>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -58,9 +59,14 @@ struct ConnectCall {
   int http_status = 0;
 };
 // `name`: the path after /gvd.v1.Voronoi/; `post`: whether the HTTP method is POST;
-// `timeout_ms`: the Connect-Timeout-Ms header (empty when absent).
+// `timeout_ms`: the Connect-Timeout-Ms header (empty when absent); `encoding`: the body's
+// Content-Encoding (unary) or Connect-Content-Encoding (streaming): "", "identity" or "gzip"
+// (anything else is UNIMPLEMENTED); a gzip body inflated past `max_bytes` is
+// RESOURCE_EXHAUSTED.
 ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::string& content_type,
-                              std::string body, const std::string& timeout_ms);
+                              std::string body, const std::string& timeout_ms,
+                              const std::string& encoding = "",
+                              size_t max_bytes = std::numeric_limits<size_t>::max());
 
 class HttpServer {
  public:
