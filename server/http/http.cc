@@ -14,6 +14,7 @@
 #include <boost/beast/ssl.hpp>
 #include <charconv>
 #include <deque>
+#include <limits>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -342,28 +343,81 @@ class Session final : public SessionBase {
     return std::static_pointer_cast<Session>(shared_from_this());
   }
 
+  // The header first: a body declared past --max-message-bytes is drained, not read.
   void Read() {
     if (closing_) return Close();
     idle_ = true;
-    parser_.emplace();
-    parser_->header_limit(64 << 10);
-    parser_->body_limit(server_->options().max_body_bytes);
+    header_parser_.emplace();
+    header_parser_->header_limit(64 << 10);
+    // Beast checks a declared length against the body limit with the header: not yet.
+    header_parser_->body_limit(std::numeric_limits<std::uint64_t>::max());
     beast::get_lowest_layer(stream_).expires_after(std::chrono::seconds(120));
+    http::async_read_header(stream_, buffer_, *header_parser_,
+                            [self = Self()](beast::error_code ec, size_t) { self->OnHeader(ec); });
+  }
+
+  void OnHeader(beast::error_code ec) {
+    idle_ = false;
+    if (ec) return Close();  // the peer went, timed out, or spoke no HTTP
+    const uint64_t limit = server_->options().max_body_bytes;
+    if (auto length = header_parser_->content_length(); length && *length > limit) {
+      return Drain(*length);
+    }
+    parser_.emplace(std::move(*header_parser_));
+    header_parser_.reset();
+    parser_->body_limit(limit);
     http::async_read(stream_, buffer_, *parser_,
                      [self = Self()](beast::error_code ec, size_t) { self->OnRead(ec); });
   }
 
   void OnRead(beast::error_code ec) {
-    idle_ = false;
-    if (ec == http::error::body_limit) {
+    if (ec == http::error::body_limit) {  // a chunked body past the limit: answered, closed
       keep_alive_ = false;
-      return Error(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                   absl::StrCat("the request body exceeds ", server_->options().max_body_bytes,
-                                " bytes (--max-message-bytes)"),
-                   http::status::payload_too_large);
+      return Error(grpc::StatusCode::RESOURCE_EXHAUSTED, TooLarge("the request body"));
     }
     if (ec) return Close();  // the peer went, timed out, or spoke no HTTP
     Handle(parser_->release());
+  }
+
+  std::string TooLarge(const std::string& what) const {
+    return absl::StrCat(what, " exceeds ", server_->options().max_body_bytes,
+                        " bytes (--max-message-bytes)");
+  }
+
+  // A body declared past --max-message-bytes is read and dropped (up to kDrainBytes), then
+  // answered RESOURCE_EXHAUSTED (429) on a connection that stays open: a client still
+  // sending it would otherwise meet a closed socket, not the answer. Beyond kDrainBytes the
+  // answer comes at once and the connection closes.
+  static constexpr uint64_t kDrainBytes = 256ull << 20;
+  void Drain(uint64_t length) {
+    const auto& req = header_parser_->get();
+    version_ = req.version();
+    keep_alive_ = req.keep_alive() && !server_->stopping();
+    origin_ = std::string(req[http::field::origin]);
+    drain_message_ = TooLarge(absl::StrCat("the request body of ", length, " bytes"));
+    if (length > kDrainBytes) {
+      keep_alive_ = false;
+      header_parser_.reset();
+      return Error(grpc::StatusCode::RESOURCE_EXHAUSTED, drain_message_);
+    }
+    drain_parser_.emplace(std::move(*header_parser_));
+    header_parser_.reset();
+    drain_parser_->body_limit(length);
+    if (!scratch_) scratch_ = std::make_unique<char[]>(kScratch);
+    DrainSome();
+  }
+  static constexpr size_t kScratch = 64 << 10;
+  void DrainSome() {
+    drain_parser_->get().body().data = scratch_.get();
+    drain_parser_->get().body().size = kScratch;
+    http::async_read(stream_, buffer_, *drain_parser_,
+                     [self = Self()](beast::error_code ec, size_t) {
+                       if (ec == http::error::need_buffer) ec = {};
+                       if (ec) return self->Close();
+                       if (!self->drain_parser_->is_done()) return self->DrainSome();
+                       self->drain_parser_.reset();
+                       self->Error(grpc::StatusCode::RESOURCE_EXHAUSTED, self->drain_message_);
+                     });
   }
 
   void Handle(http::request<http::string_body> req) {
@@ -687,7 +741,11 @@ class Session final : public SessionBase {
   HttpServer::Impl* const server_;
   StreamType stream_;
   beast::flat_buffer buffer_;
+  std::optional<http::request_parser<http::empty_body>> header_parser_;
   std::optional<http::request_parser<http::string_body>> parser_;
+  std::optional<http::request_parser<http::buffer_body>> drain_parser_;
+  std::unique_ptr<char[]> scratch_;
+  std::string drain_message_;
   unsigned version_ = 11;
   bool keep_alive_ = false, idle_ = false, closing_ = false, closed_ = false;
   bool json_ = true, broken_ = false, writing_ = false;

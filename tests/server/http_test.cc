@@ -333,7 +333,7 @@ TEST_F(HttpTest, BadRequestsAreRefusedByNameAndChangeNothing) {
       {"wrong type in a list",
        Post(port(), "UpsertSites", R"({"sceneId": "x", "sites": [{"id": "a", "point": {"x": []}}]})"),
        400, "invalid_argument", "x"},
-      {"oversize", Post(port(), "CreateScene", "{\"sceneId\": \"x\"" + huge + "}"), 413,
+      {"oversize", Post(port(), "CreateScene", "{\"sceneId\": \"x\"" + huge + "}"), 429,
        "resource_exhausted", "--max-message-bytes"},
       {"unknown method", Post(port(), "MakeCoffee", "{}"), 404, "unimplemented", "MakeCoffee"},
       {"GET of a method", Send(port(), http::verb::get, "/gvd.v1.Voronoi/ListScenes", ""), 405,
@@ -366,6 +366,38 @@ TEST_F(HttpTest, BadRequestsAreRefusedByNameAndChangeNothing) {
   ASSERT_TRUE(client_->GetScene("newer", &made).ok());
   EXPECT_EQ(made.width_px(), 8u);
   ASSERT_TRUE(client_->DeleteScene("newer").ok());
+}
+
+// A body past --max-message-bytes (5 MB here, against 200,000 bytes) is read through and
+// answered 429 resource_exhausted naming the flag, and the connection then serves the next
+// request: a client sending it sees the answer, not a broken pipe.
+TEST_F(HttpTest, OversizeBodiesAreReadThroughAndAnswered) {
+  net::io_context ioc;
+  tcp::resolver resolver(ioc);
+  beast::tcp_stream stream(ioc);
+  stream.connect(resolver.resolve("127.0.0.1", std::to_string(port())));
+  beast::flat_buffer buffer;
+  auto call = [&](const std::string& method, std::string body) {
+    http::request<http::string_body> req{http::verb::post, "/gvd.v1.Voronoi/" + method, 11};
+    req.set(http::field::host, "127.0.0.1");
+    req.set(http::field::content_type, "application/json");
+    req.keep_alive(true);
+    req.body() = std::move(body);
+    req.prepare_payload();
+    http::write(stream, req);
+    http::response<http::string_body> res;
+    http::read(stream, buffer, res);
+    Reply r;
+    r.status = static_cast<int>(res.result_int());
+    r.headers["content-type"] = std::string(res[http::field::content_type]);
+    r.body = res.body();
+    return r;
+  };
+  Reply big = call("CreateScene", "{\"sceneId\": \"x\"" + std::string(5 << 20, ' ') + "}");
+  EXPECT_EQ(big.status, 429) << big.body;
+  EXPECT_EQ(ConnectError(big).first, "resource_exhausted");
+  EXPECT_NE(ConnectError(big).second.find("--max-message-bytes"), std::string::npos);
+  EXPECT_EQ(call("ListScenes", "{}").status, 200);  // the same connection
 }
 
 // Request bodies compressed with gzip (Content-Encoding, and Connect-Content-Encoding with a
