@@ -187,10 +187,9 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
   auto inflate = [&](std::string& bytes) -> std::optional<ConnectCall> {
     auto inflated = Gunzip(bytes, max_bytes);
     if (!inflated.ok()) {
-      const bool big = inflated.status().code() == absl::StatusCode::kResourceExhausted;
       return refuse(static_cast<grpc::StatusCode>(inflated.status().code()),
                     std::string(inflated.status().message()),
-                    big ? static_cast<int>(http::status::too_many_requests) : 0);
+                    0);
     }
     bytes = std::move(*inflated);
     return std::nullopt;
@@ -359,6 +358,17 @@ class Session final : public SessionBase {
   void OnHeader(beast::error_code ec) {
     idle_ = false;
     if (ec) return Close();  // the peer went, timed out, or spoke no HTTP
+    // A Connect streaming request is answered 200 even when refused, its error in the
+    // end-of-stream message: streaming clients read no error from an HTTP status.
+    stream_type_.clear();
+    {
+      const auto field = header_parser_->get()[http::field::content_type];
+      std::string type = absl::AsciiStrToLower(std::string(field.data(), field.size()));
+      type = std::string(absl::StripAsciiWhitespace(type.substr(0, type.find(';'))));
+      if (type == "application/connect+json" || type == "application/connect+proto") {
+        stream_type_ = type;
+      }
+    }
     const uint64_t limit = server_->options().max_body_bytes;
     if (auto length = header_parser_->content_length(); length && *length > limit) {
       return Drain(*length);
@@ -426,13 +436,20 @@ class Session final : public SessionBase {
     origin_ = std::string(req[http::field::origin]);
     std::string target(req.target().data(), req.target().size());
     target = target.substr(0, target.find('?'));
-    if (req.method() == http::verb::options) return Preflight();
     const std::string prefix = absl::StrCat("/", kService, "/");
+    if (req.method() != http::verb::post || !absl::StartsWith(target, prefix)) {
+      stream_type_.clear();  // not a call of the service's
+    }
+    if (req.method() == http::verb::options) return Preflight();
     if (!absl::StartsWith(target, prefix)) {
       if (req.method() == http::verb::get || req.method() == http::verb::head) {
         return StaticFile(target, req.method() == http::verb::head);
       }
-      return Error(grpc::StatusCode::NOT_FOUND, absl::StrCat("no such path: ", target));
+      // As a Connect server answers a service it does not have: 404, unimplemented.
+      return Error(grpc::StatusCode::UNIMPLEMENTED,
+                   absl::StrCat("no such service or path: ", target, " (this server has ",
+                                kService, ")"),
+                   http::status::not_found);
     }
     const std::string name = target.substr(prefix.size());
     auto header = [&req](const auto& field) {
@@ -701,9 +718,15 @@ class Session final : public SessionBase {
     }
   }
 
+  // `status`, where given, is the HTTP status even for a streaming request (an unknown
+  // method's 404, an unsupported content type's 415).
   void Error(grpc::StatusCode code, const std::string& message,
              std::optional<http::status> status = std::nullopt) {
     const ConnectCode c = ToConnect(code);
+    if (!stream_type_.empty() && !status) {
+      return Send(http::status::ok, stream_type_,
+                  Envelope(0x02, absl::StrCat("{\"error\":", ErrorJson(c.name, message), "}")));
+    }
     Send(status.value_or(c.status), "application/json", ErrorJson(c.name, message));
   }
 
@@ -751,6 +774,7 @@ class Session final : public SessionBase {
   bool json_ = true, broken_ = false, writing_ = false;
   std::optional<grpc::Status> pending_end_;  // the stream's end, waiting for a write
   std::string origin_, content_type_, authorization_;
+  std::string stream_type_;  // the request's Content-Type where it is a Connect stream's
   std::optional<std::chrono::system_clock::time_point> deadline_;
   const google::protobuf::Descriptor* output_ = nullptr;
   std::shared_ptr<CallHandle> call_;

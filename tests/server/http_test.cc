@@ -166,9 +166,10 @@ std::string Envelope(const std::string& json) {
   for (int i = 0; i < 4; ++i) out[1 + i] = static_cast<char>((n >> (24 - 8 * i)) & 0xff);
   return out + json;
 }
-StreamReply Stream(int port, const std::string& method, const std::string& json) {
-  Reply r = Send(port, http::verb::post, "/gvd.v1.Voronoi/" + method, Envelope(json),
-                 {{"Content-Type", "application/connect+json"}});
+StreamReply Stream(int port, const std::string& method, const std::string& json,
+                   std::map<std::string, std::string> headers = {}) {
+  headers.emplace("Content-Type", "application/connect+json");
+  Reply r = Send(port, http::verb::post, "/gvd.v1.Voronoi/" + method, Envelope(json), headers);
   EXPECT_EQ(r.headers["content-type"], "application/connect+json");
   return ReadStream(r.body, r.status);
 }
@@ -343,6 +344,9 @@ TEST_F(HttpTest, BadRequestsAreRefusedByNameAndChangeNothing) {
        415, "unimplemented", "application/json"},
       {"unknown path", Send(port(), http::verb::get, "/etc/passwd", ""), 404, "not_found",
        "/etc/passwd"},
+      {"unknown service", Send(port(), http::verb::post, "/gvd.v2.Voronoi/ListScenes", "{}",
+                               {{"Content-Type", "application/json"}}),
+       404, "unimplemented", "gvd.v2.Voronoi"},
       {"bad timeout", Post(port(), "ListScenes", "{}", {{"Connect-Timeout-Ms", "soon"}}), 400,
        "invalid_argument", "Connect-Timeout-Ms"},
   };
@@ -503,6 +507,20 @@ TEST_F(HttpTest, ServerStreamsOverHttp) {
   EXPECT_TRUE(error.messages.empty());
   EXPECT_EQ(error.end.rfind("{\"error\":{", 0), 0u) << error.end;
   EXPECT_EQ(JsonString(error.end, "code"), "not_found");
+
+  // Errors found before the stream starts come the same way, 200 and the end-of-stream
+  // message: streaming clients read no error from an HTTP status.
+  StreamReply bad_timeout =
+      Stream(port(), "WatchScene", Json(gone), {{"Connect-Timeout-Ms", "soon"}});
+  EXPECT_EQ(bad_timeout.status, 200);
+  EXPECT_TRUE(bad_timeout.messages.empty());
+  EXPECT_EQ(JsonString(bad_timeout.end, "code"), "invalid_argument") << bad_timeout.end;
+  EXPECT_NE(bad_timeout.end.find("Connect-Timeout-Ms"), std::string::npos) << bad_timeout.end;
+  StreamReply oversize = Stream(port(), "FindNearestStream",
+                                "{\"sceneId\": \"x\"" + std::string(300000, ' ') + "}");
+  EXPECT_EQ(oversize.status, 200);
+  EXPECT_EQ(JsonString(oversize.end, "code"), "resource_exhausted") << oversize.end;
+  EXPECT_NE(oversize.end.find("--max-message-bytes"), std::string::npos) << oversize.end;
 }
 
 // CORS: a preflight from an allowed origin is answered with what a browser needs, from
