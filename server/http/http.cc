@@ -373,20 +373,45 @@ class Session final : public SessionBase {
     if (auto length = header_parser_->content_length(); length && *length > limit) {
       return Drain(*length);
     }
+    const bool chunked = header_parser_->chunked();
     parser_.emplace(std::move(*header_parser_));
     header_parser_.reset();
     parser_->body_limit(limit);
+    chunked_body_.clear();
+    chunked_over_ = false;
+    if (chunked) {
+      // A chunked body (a streaming client's) declares no length: its chunks are kept while
+      // within the limit, then read through and dropped (up to kDrainBytes), to be answered
+      // as a declared one is.
+      parser_->body_limit(kDrainBytes);
+      on_chunk_ = [this, limit](uint64_t, beast::string_view body, beast::error_code&) {
+        if (!chunked_over_ && chunked_body_.size() + body.size() <= limit) {
+          chunked_body_.append(body.data(), body.size());
+        } else if (!chunked_over_) {
+          chunked_over_ = true;
+          std::string().swap(chunked_body_);
+        }
+        return body.size();
+      };
+      parser_->on_chunk_body(on_chunk_);
+    }
     http::async_read(stream_, buffer_, *parser_,
                      [self = Self()](beast::error_code ec, size_t) { self->OnRead(ec); });
   }
 
   void OnRead(beast::error_code ec) {
-    if (ec == http::error::body_limit) {  // a chunked body past the limit: answered, closed
+    if (ec == http::error::body_limit) {  // a chunked body past kDrainBytes: answered, closed
       keep_alive_ = false;
       return Error(grpc::StatusCode::RESOURCE_EXHAUSTED, TooLarge("the request body"));
     }
     if (ec) return Close();  // the peer went, timed out, or spoke no HTTP
-    Handle(parser_->release());
+    if (chunked_over_) {
+      std::string().swap(chunked_body_);
+      return Error(grpc::StatusCode::RESOURCE_EXHAUSTED, TooLarge("the request body"));
+    }
+    auto req = parser_->release();
+    if (req.chunked()) req.body() = std::move(chunked_body_);
+    Handle(std::move(req));
   }
 
   std::string TooLarge(const std::string& what) const {
@@ -767,6 +792,10 @@ class Session final : public SessionBase {
   std::optional<http::request_parser<http::empty_body>> header_parser_;
   std::optional<http::request_parser<http::string_body>> parser_;
   std::optional<http::request_parser<http::buffer_body>> drain_parser_;
+  // A chunked body, gathered by on_chunk_ (the parser keeps a reference to it).
+  std::function<size_t(uint64_t, beast::string_view, beast::error_code&)> on_chunk_;
+  std::string chunked_body_;
+  bool chunked_over_ = false;  // past --max-message-bytes: read through, not kept
   std::unique_ptr<char[]> scratch_;
   std::string drain_message_;
   unsigned version_ = 11;
