@@ -1,6 +1,6 @@
 # shellcheck shell=bash
 # Sourced by the setup scripts: installs Debian 12 packages that are missing, idempotently.
-# Usage: gvd_install_packages GROUP...   (groups: build, test, bench)
+# Usage: gvd_install_packages GROUP...   (groups: build, test, node, bench)
 
 gvd_packages() {
   case "$1" in
@@ -16,6 +16,9 @@ gvd_packages() {
         shellcheck yamllint python3-yaml chromium chromium-driver python3-selenium \
         python3-openvdb postgresql iproute2 \
         python3-venv python3-pytest python3-grpcio python3-protobuf python3-numpy
+      ;;
+    node)  # the TypeScript client's tests (client/ts), where no Node.js is installed
+      echo nodejs npm
       ;;
     bench)  # the reference libraries of tests/bench/run.sh beyond the test group's, and the
       # stock Python gRPC client of tests/bench/serve.py

@@ -7,6 +7,9 @@ cd "$(dirname "$0")/.."
 # shellcheck source=deploy/debian-deps.sh
 . deploy/debian-deps.sh
 gvd_install_packages build test
+# Node.js and npm for the TypeScript client's tests: Debian's, unless a Node.js is here already
+# (another distribution's package may hold npm within it).
+command -v npm >/dev/null || gvd_install_packages node
 cmake -S . -B build/test -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGVD_BUILD_TESTS=ON
 cmake --build build/test
 cd build/test
