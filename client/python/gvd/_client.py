@@ -8,6 +8,8 @@ import numpy as np
 from google.protobuf import json_format
 
 from gvd.v1 import voronoi_pb2 as pb  # generated when the package is built
+from . import _packed
+from ._packed import PackedAnswers
 from ._transport import GrpcTransport, GvdError, HttpTransport
 
 ArrayLike = Union[np.ndarray, Sequence[Sequence[float]]]
@@ -19,6 +21,7 @@ MAX_POINTS_PER_CALL = 1_000_000
 MAX_SITES_PER_CALL = 100_000
 # Answers per FindNearestStream chunk, each a progress step.
 CHUNK_POINTS = 65_536
+_NO_SITE = 0xFFFFFFFF  # PackedNearest.site for a point with no site
 
 
 @dataclass
@@ -212,10 +215,10 @@ class Client:
             field = 5 if part.shape[1] == 2 else _XYZ_FIELD
             body = request.SerializeToString() + _packed_doubles(field, part)
             for chunk in self._transport.stream("FindNearestStream", request,
-                                                pb.FindNearestResponse, self.timeout, body=body):
+                                                PackedAnswers, self.timeout, body=body):
                 parts.append(_Packed(chunk, start))
                 if progress:
-                    progress(start + int(chunk.offset) + len(chunk.packed.distance), m)
+                    progress(start + chunk.offset + chunk.count, m)
         return _join(parts, m, q.shape[1], closest)
 
     def pick(self, scene_id: str, x: float, y: float, z: Optional[float] = None, *,
@@ -379,12 +382,11 @@ def _grpc_code(name: str):
 
 @dataclass
 class _Packed:
-    response: pb.FindNearestResponse
+    answers: PackedAnswers
     start: int
 
 
 def _join(parts: List[_Packed], m: int, dims: int, closest: bool) -> NearestResult:
-    ids: List[str] = []
     index: Dict[str, int] = {}
     site = np.full(m, -1, dtype=np.int64)
     distance = np.full(m, np.inf)
@@ -396,29 +398,32 @@ def _join(parts: List[_Packed], m: int, dims: int, closest: bool) -> NearestResu
     grad = np.full((m, dims), np.nan) if closest else None
     version = 0
     for part in parts:
-        r, p = part.response, part.response.packed
-        version = max(version, r.version)
-        lo = part.start + int(r.offset)
-        n = len(p.distance)
+        a = part.answers
+        version = max(version, a.version)
+        lo = part.start + a.offset
+        n = a.count
         hi = lo + n
-        local = np.array([index.setdefault(s, len(index)) for s in p.site_ids], dtype=np.int64)
-        idx = np.array(p.site, dtype=np.int64)
-        found = idx != 0xFFFFFFFF
+        # The chunk's site indices name its own site_ids: to the call's.
+        local = np.array([index.setdefault(s, len(index)) for s in a.site_ids], dtype=np.int64)
+        idx = a.get(_packed.SITE, "u8")
+        if len(idx) != n:
+            raise GvdError(_grpc_code("INTERNAL"), f"{len(idx)} sites for {n} distances")
+        found = idx != _NO_SITE
+        if len(idx) and found.any() and int(idx[found].max()) >= len(local):
+            raise GvdError(_grpc_code("INTERNAL"), "a site index past the chunk's site_ids")
         named = np.full(n, -1, dtype=np.int64)
-        named[found] = local[idx[found]]
+        named[found] = local[idx[found].astype(np.int64)]
         site[lo:hi] = named
-        distance[lo:hi] = np.array(p.distance)
-        if len(p.error_bound):
-            bound[lo:hi] = np.array(p.error_bound)
-        if len(p.exact):
-            exact[lo:hi] = np.array(p.exact, dtype=bool)
-        if len(p.feature_index):
-            feature_index[lo:hi] = np.array(p.feature_index, dtype=np.uint32)
-        if len(p.feature_kind):
-            feature_kind[lo:hi] = np.array(p.feature_kind, dtype=np.int32)
+        distance[lo:hi] = a.get(_packed.DISTANCE, "<f8")
+        for number, target in ((_packed.ERROR_BOUND, bound), (_packed.EXACT, exact),
+                               (_packed.FEATURE_INDEX, feature_index),
+                               (_packed.FEATURE_KIND, feature_kind)):
+            values = a.arrays.get(number)
+            if values is not None:
+                target[lo:hi] = values
         if closest:
-            near[lo:hi] = np.array(p.closest).reshape(n, dims)
-            grad[lo:hi] = np.array(p.gradient).reshape(n, dims)
+            near[lo:hi] = a.get(_packed.CLOSEST, "<f8").reshape(n, dims)
+            grad[lo:hi] = a.get(_packed.GRADIENT, "<f8").reshape(n, dims)
     ids = [""] * len(index)
     for s, i in index.items():
         ids[i] = s

@@ -1,0 +1,73 @@
+"""The Python client's reader of packed FindNearestStream answers (gvd._packed), against
+protobuf's own parser of the same bytes: random and edge values (indices of every varint
+length, no site, infinities, negative zero), fields split over several records, and the
+unpacked encoding another server may send. No server needed."""
+import numpy as np
+import pytest
+
+from gvd import _packed
+from gvd._packed import PackedAnswers
+from gvd.v1 import voronoi_pb2 as pb
+
+EDGE_INDICES = [0, 1, 127, 128, 16383, 16384, 2**21 - 1, 2**21, 2**28, 2**32 - 1]
+
+
+def message(rng, n, closest):
+    p = pb.PackedNearest()
+    p.site_ids.extend(f"site-{k}-ü" for k in range(5))
+    p.site.extend((EDGE_INDICES * (n // len(EDGE_INDICES) + 1))[:n] if n % 2 else
+                  rng.integers(0, 2**32, n).tolist())
+    d = rng.random(n) * 10.0 ** rng.integers(-300, 300, n)
+    d[: min(n, 3)] = [np.inf, -0.0, 5e-324][: min(n, 3)]
+    p.distance.extend(d.tolist())
+    p.error_bound.extend(rng.random(n).tolist())
+    p.exact.extend((rng.random(n) < 0.5).tolist())
+    p.feature_index.extend(rng.integers(0, 2**32, n).tolist())
+    p.feature_kind.extend(rng.integers(0, 3, n).tolist())
+    if closest:
+        p.closest.extend(rng.random(2 * n).tolist())
+        p.gradient.extend(rng.random(2 * n).tolist())
+    return pb.FindNearestResponse(packed=p, version=int(rng.integers(0, 2**63)),
+                                  offset=int(rng.integers(0, 2**40)))
+
+
+def check(a, r):
+    p = r.packed
+    assert a.version == r.version and a.offset == r.offset
+    assert a.site_ids == list(p.site_ids)
+    for number, values in ((_packed.SITE, p.site), (_packed.DISTANCE, p.distance),
+                           (_packed.ERROR_BOUND, p.error_bound), (_packed.EXACT, p.exact),
+                           (_packed.FEATURE_INDEX, p.feature_index),
+                           (_packed.FEATURE_KIND, p.feature_kind),
+                           (_packed.CLOSEST, p.closest), (_packed.GRADIENT, p.gradient)):
+        got = a.get(number, "<f8")
+        want = np.array(list(values), dtype=got.dtype if len(got) else "<f8")
+        assert len(got) == len(values), number
+        # Bitwise: the same doubles, signs of zero included.
+        assert got.tobytes() == want.tobytes(), number
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 7, 1000, 65537])
+@pytest.mark.parametrize("closest", [False, True])
+def test_packed_answers_equal_protobufs_reading(n, closest):
+    rng = np.random.default_rng(n)
+    r = message(rng, n, closest)
+    check(PackedAnswers.FromString(r.SerializeToString()), r)
+
+
+def test_a_field_split_over_records_is_joined():
+    rng = np.random.default_rng(5)
+    first, second = message(rng, 9, False), message(rng, 4, False)
+    # Protobuf merges a message field given twice, appending its repeated fields.
+    r = pb.FindNearestResponse.FromString(first.SerializeToString() + second.SerializeToString())
+    check(PackedAnswers.FromString(first.SerializeToString() + second.SerializeToString()), r)
+
+
+def test_the_unpacked_encoding_is_read_by_protobuf():
+    # distance (field 3) as one unpacked double, then a packed site: valid protobuf.
+    inner = bytes([3 << 3 | 1]) + np.float64(2.5).tobytes() + bytes([2 << 3 | 2, 1, 0])
+    data = bytes([3 << 3 | 2, len(inner)]) + inner + bytes([2 << 3, 7])
+    r = pb.FindNearestResponse.FromString(data)
+    a = PackedAnswers.FromString(data)
+    check(a, r)
+    assert a.version == 7 and list(a.get(_packed.DISTANCE, "<f8")) == [2.5]
