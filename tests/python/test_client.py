@@ -44,13 +44,19 @@ def brute_nearest(sites, q):
     return d.argmin(axis=1), d.min(axis=1)
 
 
+def random_scene(client, sid, n, size, seed, prefix):
+    """A scene over the unit square of n random points named prefix0, prefix1, ...:
+    (the random generator, the points, their ids, the version that holds them)."""
+    client.create_scene(sid, window=(0, 0, 1, 1), size=(size, size))
+    rng = np.random.default_rng(seed)
+    xy = rng.random((n, 2))
+    ids = [f"{prefix}{i}" for i in range(n)]
+    return rng, xy, ids, client.upsert_points(sid, ids, xy)
+
+
 def test_points_in_nearest_out(client):
     sid = f"points-{client.kind}"
-    client.create_scene(sid, window=(0, 0, 1, 1), size=(256, 256))
-    rng = np.random.default_rng(7)
-    xy = rng.random((500, 2))
-    ids = [f"p{i}" for i in range(len(xy))]
-    v = client.upsert_points(sid, ids, xy)
+    rng, xy, ids, v = random_scene(client, sid, 500, 256, 7, "p")
     q = np.vstack([rng.random((20_000, 2)), xy[:50], [[0.5, 1.5], [-3, -3]]])  # on sites, outside
     steps = []
     r = client.find_nearest(sid, q, min_version=v, exact=True,
@@ -112,11 +118,7 @@ def test_watch_sees_a_write_and_the_deletion(client):
 
 def test_render_window_is_the_diagram_within_its_error_bound(client):
     sid = f"raster-{client.kind}"
-    client.create_scene(sid, window=(0, 0, 1, 1), size=(64, 64))
-    rng = np.random.default_rng(11)
-    xy = rng.random((40, 2))
-    ids = [f"s{i}" for i in range(len(xy))]
-    v = client.upsert_points(sid, ids, xy)
+    _, xy, ids, v = random_scene(client, sid, 40, 64, 11, "s")
     r = client.render_window(sid, window=(0.25, 0.25, 0.75, 0.5), size=(50, 25), min_version=v)
     assert r.version >= v and r.site_indices.shape == (25, 50) == r.distances.shape
     # Pixel centres, row 0 at the bottom.

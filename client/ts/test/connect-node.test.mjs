@@ -5,35 +5,22 @@
 // unimplemented. Answers are checked against a brute-force double-precision oracle.
 import { after, before, test } from "node:test";
 import assert from "node:assert/strict";
-import { spawn } from "node:child_process";
-import { existsSync, mkdtempSync, readFileSync, rmSync } from "node:fs";
-import { tmpdir } from "node:os";
-import { join, resolve } from "node:path";
 
 import { Code, ConnectError, createClient } from "@connectrpc/connect";
 import { compressionGzip, createConnectTransport } from "@connectrpc/connect-node";
 
 import { Voronoi } from "../dist/index.js";
+import { random, startServer } from "./support.mjs";
 
-const serverPath = resolve(process.env.GVD_SERVER ?? "../../build/test/server/gvd-server");
 const maxMessageBytes = 1 << 20;
-let server, dir, baseUrl;
+let server, baseUrl;
 
 before(async () => {
-  dir = mkdtempSync(join(tmpdir(), "gvd-ts-node-"));
-  const portFile = join(dir, "port");
-  server = spawn(serverPath, ["--listen", "127.0.0.1:0", "--http-listen", "127.0.0.1:0",
-    "--port-file", portFile, "--data", join(dir, "data"),
-    "--max-message-bytes", String(maxMessageBytes)], { stdio: ["ignore", "ignore", "inherit"] });
-  for (let i = 0; i < 600 && !existsSync(portFile); ++i) await new Promise((r) => setTimeout(r, 50));
-  const [, http] = readFileSync(portFile, "utf8").trim().split(/\s+/);
-  baseUrl = `http://127.0.0.1:${http}`;
+  server = await startServer("--max-message-bytes", String(maxMessageBytes));
+  baseUrl = server.baseUrl;
 });
 
-after(() => {
-  server?.kill("SIGTERM");
-  rmSync(dir, { recursive: true, force: true });
-});
+after(() => server?.stop());
 
 function client(binary, gzip) {
   return createClient(Voronoi, createConnectTransport({
@@ -45,10 +32,6 @@ function client(binary, gzip) {
   }));
 }
 
-function random(seed) {
-  let s = seed >>> 0;
-  return () => ((s = (Math.imul(s, 1664525) + 1013904223) >>> 0) / 2 ** 32);
-}
 
 for (const binary of [true, false]) {
   const kind = binary ? "binary" : "json";
