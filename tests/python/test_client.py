@@ -179,3 +179,28 @@ def test_plan_path_keeps_its_clearance(client):
 def test_no_points_no_call(client):
     r = client.find_nearest("not-even-there", np.zeros((0, 2)))
     assert len(r) == 0 and r.version == 0
+
+
+@pytest.mark.parametrize("kind", ["grpc", "http"])
+def test_tokens_refused_by_code_and_message(kind, tmp_path):
+    write, read = "w" * 20 + "-writer", "r" * 20 + "-reader"
+    tokens = tmp_path / "tokens"
+    tokens.write_text(f"{write} write\n{read} read\n")
+    s = Server(SERVER, "--tokens", str(tokens))
+    try:
+        with open(os.path.join(s.dir, "ports")) as f:
+            target = {"grpc": f"127.0.0.1:{int(f.read().split()[0])}", "http": s.url}[kind]
+        with gvd.Client(target, token=write) as c:
+            c.create_scene("guarded", window=(0, 0, 1, 1), size=(16, 16))
+        for token, code, named in ((None, grpc.StatusCode.UNAUTHENTICATED, "bearer token"),
+                                   ("x" * 20, grpc.StatusCode.UNAUTHENTICATED, "unknown"),
+                                   (read, grpc.StatusCode.PERMISSION_DENIED, "may read")):
+            with gvd.Client(target, token=token) as c:
+                with pytest.raises(gvd.GvdError) as e:
+                    c.upsert_points("guarded", ["a"], [[0.5, 0.5]])
+                assert e.value.code == code, e.value
+                assert named in e.value.message
+        with gvd.Client(target, token=read) as c:
+            assert c.get_scene("guarded").version == 1
+    finally:
+        s.stop()

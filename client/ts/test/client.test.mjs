@@ -4,6 +4,9 @@
 // deletion.
 import { after, before, test } from "node:test";
 import assert from "node:assert/strict";
+import { mkdtempSync, rmSync, writeFileSync } from "node:fs";
+import { tmpdir } from "node:os";
+import { join } from "node:path";
 
 import { Code, ConnectError, createGvdClient } from "../dist/index.js";
 import { random, startServer } from "./support.mjs";
@@ -85,3 +88,27 @@ for (const binary of [true, false]) {
     assert.ok(events.at(-1).deleted);
   });
 }
+
+test("tokens refused by code and message", async (t) => {
+  const dir = mkdtempSync(join(tmpdir(), "gvd-ts-tokens-"));
+  const write = "w".repeat(20) + "-writer", read = "r".repeat(20) + "-reader";
+  writeFileSync(join(dir, "tokens"), `${write} write\n${read} read\n`);
+  const guarded = await startServer("--tokens", join(dir, "tokens"));
+  t.after(() => {
+    guarded.stop();
+    rmSync(dir, { recursive: true, force: true });
+  });
+  await createGvdClient(guarded.baseUrl, { token: write }).rpc.createScene(
+    { sceneId: "guarded", window: { maxX: 1, maxY: 1 }, widthPx: 16, heightPx: 16 });
+  const upsert = { sceneId: "guarded", sites: [{ id: "a", geometry: { case: "point", value: { x: 0.5, y: 0.5 } } }] };
+  for (const [token, code, named] of [[undefined, Code.Unauthenticated, /bearer token/],
+    ["x".repeat(20), Code.Unauthenticated, /unknown/], [read, Code.PermissionDenied, /may read/]]) {
+    await assert.rejects(createGvdClient(guarded.baseUrl, { token }).rpc.upsertSites(upsert), (e) => {
+      assert.equal(e.code, code, e.message);
+      assert.match(e.rawMessage, named);
+      return true;
+    });
+  }
+  const scene = await createGvdClient(guarded.baseUrl, { token: read }).rpc.getScene({ sceneId: "guarded" });
+  assert.equal(scene.version, 1n);
+});
