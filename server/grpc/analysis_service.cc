@@ -69,8 +69,11 @@ struct ZoomSpec {
   PixelRect rect;  // when not
 };
 
+// `pixel_bytes`: the least an answer holds per pixel, to refuse one that cannot fit a message
+// before rendering it (0: no such check; an encoded image's size is known once encoded).
 Status ToZoomSpec(bool has_window, const v1::Window& window, uint32_t width, uint32_t height,
-                  const Grid& scene, const ServerLimits& limits, ZoomSpec* spec) {
+                  const Grid& scene, const ServerLimits& limits, ZoomSpec* spec,
+                  uint64_t pixel_bytes = 10) {
   if (width == 0 && height == 0) return RectOf(has_window, window, scene, &spec->rect);
   spec->render = true;
   spec->grid.window = scene.window;
@@ -79,7 +82,7 @@ Status ToZoomSpec(bool has_window, const v1::Window& window, uint32_t width, uin
   }
   if (auto s = ToGridSize(width, height, limits, &spec->grid); !s.ok()) return s;
   // Each pixel answers with an id and a float at least.
-  if (spec->grid.pixel_count() * 10 > uint64_t(limits.max_message_bytes)) {
+  if (spec->grid.pixel_count() * pixel_bytes > uint64_t(limits.max_message_bytes)) {
     return Status(StatusCode::RESOURCE_EXHAUSTED,
                   absl::StrCat(width, "x", height, " pixels do not fit in a message of ",
                                limits.max_message_bytes, " bytes (--max-message-bytes)"));
@@ -320,6 +323,50 @@ grpc::ServerUnaryReactor* VoronoiService::RenderWindow(grpc::CallbackServerConte
         response->set_width_px(rect.width());
         response->set_height_px(rect.height());
         response->set_max_error(f->error().max_excess);
+        return absl::OkStatus();
+      });
+}
+
+grpc::ServerUnaryReactor* VoronoiService::RenderImageAt(const Call& call,
+                                                        grpc::CallbackServerContext* ctx,
+                                                        const v1::RenderImageRequest* request,
+                                                        v1::RenderImageResponse* response) {
+  auto spec = std::make_shared<ZoomSpec>();
+  auto options = std::make_shared<ImageOptions>();
+  SceneRegistry* registry = registry_;
+  const ServerLimits limits = limits_;
+  return StartAnalysis(
+      call, ctx, request->min_version(),
+      [=](const Scene& scene) {
+        if (auto s = ToZoomSpec(request->has_window(), request->window(), request->width_px(),
+                                request->height_px(), scene.settings().grid, limits, spec.get(),
+                                /*pixel_bytes=*/0);
+            !s.ok()) {
+          return s;
+        }
+        // The request's window is the zoom grid's: all of its pixels.
+        return ToImageOptions(*request, spec->grid, options.get());
+      },
+      [=](const std::shared_ptr<const Frame>& frame, const Scene& scene) {
+        auto resolved = Resolve(*spec, frame, scene.settings().mode, registry, ctx);
+        if (!resolved.ok()) return resolved.status();
+        const auto& [f, rect] = *resolved;
+        options->rect = rect;
+        auto image = EncodeImage(*f, *options);
+        if (!image.ok()) return image.status();
+        if (image->bytes.size() + 4096 > size_t(limits.max_message_bytes)) {
+          return absl::ResourceExhaustedError(absl::StrCat(
+              "the ", options->rect.width(), "x", options->rect.height(), " image is ",
+              image->bytes.size(), " bytes, more than a message holds (--max-message-bytes ",
+              limits.max_message_bytes, ")"));
+        }
+        response->set_image(image->bytes.data(), image->bytes.size());
+        response->set_mime_type(image->mime_type);
+        response->set_width_px(image->width);
+        response->set_height_px(image->height);
+        response->set_version(f->version());
+        for (const std::string& id : image->site_ids) response->add_site_ids(id);
+        ToProto(EdgesOf(f->grid(), rect), response->mutable_window());
         return absl::OkStatus();
       });
 }

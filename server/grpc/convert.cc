@@ -777,6 +777,10 @@ grpc::Status ToImageOptions3(const v1::RenderImageRequest& request, const Grid3&
   if (request.draw_sites() || request.polyline_size() > 0) {
     return Invalid("draw_sites and polyline are for 2D scenes");
   }
+  if (request.width_px() != 0 || request.height_px() != 0) {
+    return Invalid("width_px and height_px are for 2D scenes: a 3D scene's image is a slice "
+                   "of its voxels");
+  }
   if (request.has_z() == request.has_slice()) {
     return Invalid("a 3D scene's image is of one slice: set z or slice (one of them)");
   }

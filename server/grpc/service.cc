@@ -561,6 +561,9 @@ grpc::ServerUnaryReactor* VoronoiService::RenderImage(grpc::CallbackServerContex
     return StartImage(call.scope, ctx, call.scene3, std::move(options), request->min_version(),
                       response);
   }
+  if (request->width_px() != 0 || request->height_px() != 0) {
+    return RenderImageAt(call, ctx, request, response);
+  }
   if (auto s = ToImageOptions(*request, call.scene->settings().grid, &options); !s.ok()) {
     return call.Finish(ctx, s);
   }

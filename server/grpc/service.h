@@ -150,6 +150,10 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
                                        grpc::CallbackServerContext* ctx,
                                        const std::shared_ptr<S>& scene, ImageOptions options,
                                        uint64_t min_version, v1::RenderImageResponse* response);
+  // RenderImage of a window rendered at a resolution of its own (a 2D scene's, begun).
+  grpc::ServerUnaryReactor* RenderImageAt(const Call& call, grpc::CallbackServerContext* ctx,
+                                          const v1::RenderImageRequest* request,
+                                          v1::RenderImageResponse* response);
   // GetClearanceField of a 3D scene.
   grpc::ServerUnaryReactor* ClearanceField3(const Call& call, grpc::CallbackServerContext* ctx,
                                             const v1::GetClearanceFieldRequest* request,

@@ -49,6 +49,8 @@ const gvd = (window.gvd = {
   toCanvas: (x, y) => toCanvas(x, y),
   toScene: (cx, cy) => toScene(cx, cy),
   indexAt: (x, y) => indexAt(x, y),
+  // The picture's pixels: their number and the window they cover.
+  indexShape: () => state.index && { width: state.index.width, height: state.index.height, window: state.index.window },
 });
 
 // ---- errors -------------------------------------------------------------------------------
@@ -264,6 +266,19 @@ function clip(view, w) {
   return out.minX < out.maxX && out.minY < out.maxY ? out : null;
 }
 
+// Zoomed in past the scene's raster (a scene pixel wider than a canvas pixel): the window
+// rendered anew at the canvas's resolution (the service's zoom windows), not the frame's
+// pixels stretched into squares. Nothing where the frame's own pixels are fine enough.
+const kMaxZoomSide = 4096;
+function zoomSize(window) {
+  const w = state.scene.window ?? {}, columns = Number(state.scene.widthPx ?? 0);
+  if (!columns) return {};
+  const s = scale();
+  if (s * ((w.maxX ?? 0) - (w.minX ?? 0)) / columns <= 1) return {};
+  const side = (extent) => Math.min(kMaxZoomSide, Math.max(1, Math.round(extent * s)));
+  return { widthPx: side(window.maxX - window.minX), heightPx: side(window.maxY - window.minY) };
+}
+
 async function decode(bytes, width, height) {
   const bitmap = await createImageBitmap(new Blob([bytes], { type: 'image/png' }),
                                          { colorSpaceConversion: 'none', premultiplyAlpha: 'none' });
@@ -326,6 +341,7 @@ async function refresh(minVersion) {
       const common = { sceneId, window, minVersion: String(Math.max(minVersion, state.lastWriteVersion)) };
       const space = state.slice >= 0;  // a 3D scene: its slice, with no sites drawn over it
       if (space) common.slice = state.slice;
+      else Object.assign(common, zoomSize(window));
       const [shown, index] = await Promise.all([
         client.call('RenderImage', { ...common, layer: $('layer').value === 'distance' ? 'DISTANCE' : 'IDS', drawSites: !space && $('draw-sites').checked }),
         client.call('RenderImage', { ...common, layer: 'SITE_INDEX' }),

@@ -304,6 +304,37 @@ class SelectionTest(unittest.TestCase):
         pointer.hover(*page(d, "window.gvd.toCanvas(%f, %f)" % (vertex["x"] + 0.5, vertex["y"] + 0.5)))
         screenshot(d, "app-selection.png")
 
+    def test_zoomed_past_the_raster_the_picture_is_rendered_at_screen_resolution(self):
+        sites = {s["id"]: s for s in mixed_sites(5)}
+        version = self.create("zoomed", list(sites.values()))  # pixels of 0.098, finer than the canvas's
+        scene_px = 100 / 1024
+        max_error = self.server.ok("GetScene", {"sceneId": "zoomed"})["maxError"]
+        d = self.browser()
+        open_scene(d, self.server, "zoomed", min_version=version)
+        before = page(d, "window.gvd.indexShape()")
+        self.assertAlmostEqual((before["window"]["maxX"] - before["window"]["minX"]) / before["width"], scene_px)
+        refreshes = page(d, "window.gvd.refreshes")
+        # The wheel, 20 times nearer, about the middle of the canvas.
+        d.execute_script("""
+const o = document.getElementById('overlay'), r = o.getBoundingClientRect();
+o.dispatchEvent(new WheelEvent('wheel', {deltaY: -2000, clientX: r.left + r.width / 2,
+                                         clientY: r.top + r.height / 2, cancelable: true}));""")
+        wait(d, f"window.gvd.refreshes > {refreshes} && window.gvd.indexShape().width > 0 && "
+                "(window.gvd.view.maxX - window.gvd.view.minX) < 50", what="the zoomed picture")
+        view = page(d, "window.gvd.view")
+        shape = page(d, "window.gvd.indexShape()")
+        canvas_px = (view["maxX"] - view["minX"]) / page(d, "document.getElementById('base').width")
+        self.assertLess(canvas_px, scene_px / 10)
+        w = shape["window"]
+        # The picture's pixels are the canvas's, not the scene's stretched.
+        self.assertAlmostEqual((w["maxX"] - w["minX"]) / shape["width"], canvas_px, delta=canvas_px * 0.02)
+        self.assertAlmostEqual((w["maxY"] - w["minY"]) / shape["height"], canvas_px, delta=canvas_px * 0.02)
+        rnd = random.Random(3)
+        for _ in range(150):
+            x, y = rnd.uniform(w["minX"], w["maxX"]), rnd.uniform(w["minY"], w["maxY"])
+            pixel = page(d, f"window.gvd.indexAt({x}, {y})")
+            self.check_pixel(pixel, sites, max_error=max_error)
+
     def test_max_distance_limits_what_is_picked(self):
         sites = {s["id"]: s for s in mixed_sites(8) if s["id"].startswith(("pt", "seg"))}
         version = self.create("limited", list(sites.values()))

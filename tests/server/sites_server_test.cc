@@ -312,6 +312,52 @@ TEST_F(SitesServerTest, SiteIndexImagesNameEachPixelsNearestSite) {
   // Each site listed is named by some pixel, once.
   EXPECT_EQ(named.size(), size_t(image.site_ids_size()));
 
+  // A zoom window: the same window rendered at 8 times the scene's resolution names the
+  // nearest site at each of its own pixels' centres, finer than the scene's raster can.
+  r.set_width_px(8 * 64);
+  r.set_height_px(8 * 48);
+  r.mutable_window()->set_min_x(103 * px);
+  r.mutable_window()->set_max_x(167 * px);
+  r.mutable_window()->set_min_y(154 * px);
+  r.mutable_window()->set_max_y(202 * px);
+  v1::RenderImageResponse zoomed;
+  st = client_->RenderImage(r, &zoomed);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  ASSERT_EQ(zoomed.width_px(), 8u * 64);
+  ASSERT_EQ(zoomed.height_px(), 8u * 48);
+  EXPECT_DOUBLE_EQ(zoomed.window().min_x(), 103 * px);
+  EXPECT_DOUBLE_EQ(zoomed.window().max_y(), 202 * px);
+  OIIO::Filesystem::IOMemReader zoomed_memory(zoomed.image().data(), zoomed.image().size());
+  auto zin = OIIO::ImageInput::open("zoomed.png", nullptr, &zoomed_memory);
+  ASSERT_TRUE(zin) << OIIO::geterror();
+  std::vector<uint8_t> zrgb(size_t{zoomed.width_px()} * zoomed.height_px() * 3);
+  ASSERT_TRUE(zin->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, zrgb.data()));
+  const double zpx = px / 8;
+  int finer = 0;  // pixels whose site is not the one at the centre of their scene pixel
+  for (uint32_t row = 0; row < zoomed.height_px(); ++row) {
+    for (uint32_t col = 0; col < zoomed.width_px(); ++col) {
+      const uint8_t* p = &zrgb[(size_t{row} * zoomed.width_px() + col) * 3];
+      const uint32_t index = uint32_t{p[0]} << 16 | uint32_t{p[1]} << 8 | p[2];
+      ASSERT_GE(index, 1u) << col << "," << row;
+      ASSERT_LE(index, uint32_t(zoomed.site_ids_size())) << col << "," << row;
+      const Site& s = sites[std::stoi(zoomed.site_ids(int(index - 1)).substr(1))];
+      const Vec2 q{zoomed.window().min_x() + (col + 0.5) * zpx,
+                   zoomed.window().max_y() - (row + 0.5) * zpx};
+      const oracle::Best truth = oracle::BestSite(q, sites);
+      if (!(oracle::Value(q, s) <= truth.value + 1e-5) && ++failures < 10) {
+        ADD_FAILURE() << "zoomed pixel " << col << "," << row << " names " << s.id
+                      << "; nearest is s" << truth.index;
+      }
+      const Vec2 coarse{zoomed.window().min_x() + (col / 8 + 0.5) * px,
+                        zoomed.window().max_y() - (row / 8 + 0.5) * px};
+      if (&s != &sites[oracle::BestSite(coarse, sites).index]) ++finer;
+    }
+  }
+  EXPECT_EQ(failures, 0);
+  EXPECT_GT(finer, 200) << "the zoom shows no more than the scene's raster";
+  r.clear_width_px();
+  r.clear_height_px();
+
   // Numbers are not pictures: no sites drawn, no EXR.
   r.set_draw_sites(true);
   st = client_->RenderImage(r, &image);
