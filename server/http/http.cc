@@ -27,6 +27,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
+#include "absl/strings/strip.h"
 #include "server/log.h"
 
 namespace gvd {
@@ -136,6 +137,40 @@ absl::StatusOr<std::string> Gunzip(const std::string& in, size_t limit) {
   inflateEnd(&z);
   if (r != Z_STREAM_END) return absl::InvalidArgumentError("the body is not whole gzip");
   return out;
+}
+
+// `in` gzip-compressed, fast (zlib's level 1: an answer is compressed on the request's path).
+std::string Gzip(const std::string& in) {
+  z_stream z{};
+  if (deflateInit2(&z, Z_BEST_SPEED, Z_DEFLATED, 16 + MAX_WBITS, 8, Z_DEFAULT_STRATEGY) != Z_OK) {
+    return {};
+  }
+  std::string out(deflateBound(&z, in.size()), '\0');
+  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(in.data()));
+  z.avail_in = static_cast<uInt>(in.size());
+  z.next_out = reinterpret_cast<Bytef*>(out.data());
+  z.avail_out = static_cast<uInt>(out.size());
+  const int r = deflate(&z, Z_FINISH);
+  out.resize(z.total_out);
+  deflateEnd(&z);
+  return r == Z_STREAM_END ? out : std::string();
+}
+
+// Whether an Accept-Encoding header takes gzip (listed, and not with q=0).
+bool AcceptsGzip(absl::string_view header) {
+  for (absl::string_view item : absl::StrSplit(header, ',')) {
+    std::vector<absl::string_view> parts = absl::StrSplit(item, ';');
+    if (!absl::EqualsIgnoreCase(absl::StripAsciiWhitespace(parts[0]), "gzip")) continue;
+    for (size_t k = 1; k < parts.size(); ++k) {
+      absl::string_view q = absl::StripAsciiWhitespace(parts[k]);
+      double value = 1;
+      if (absl::ConsumePrefix(&q, "q=") && absl::SimpleAtod(q, &value) && value <= 0) {
+        return false;
+      }
+    }
+    return true;
+  }
+  return false;
 }
 
 }  // namespace
@@ -459,6 +494,10 @@ class Session final : public SessionBase {
     version_ = req.version();
     keep_alive_ = req.keep_alive() && !server_->stopping();
     origin_ = std::string(req[http::field::origin]);
+    {
+      const auto accept = req[http::field::accept_encoding];
+      gzip_answer_ = AcceptsGzip(absl::string_view(accept.data(), accept.size()));
+    }
     std::string target(req.target().data(), req.target().size());
     target = target.substr(0, target.find('?'));
     const std::string prefix = absl::StrCat("/", kService, "/");
@@ -755,10 +794,21 @@ class Session final : public SessionBase {
     Send(status.value_or(c.status), "application/json", ErrorJson(c.name, message));
   }
 
+  // A unary answer (or a refused stream's end) whole; gzip-compressed where the request
+  // accepts it and the body is worth it (not a stream's: its envelopes say their own).
+  static constexpr size_t kGzipFrom = 1024;
   void Send(http::status status, const std::string& type, std::string body) {
     auto res = std::make_shared<http::response<http::string_body>>(status, version_);
     res->set(http::field::content_type, type);
     res->set(http::field::accept_encoding, "gzip");  // what request bodies may be
+    if (stream_type_.empty()) res->set(http::field::vary, "Accept-Encoding");
+    if (gzip_answer_ && stream_type_.empty() && body.size() >= kGzipFrom) {
+      std::string packed = Gzip(body);
+      if (!packed.empty() && packed.size() < body.size()) {
+        body = std::move(packed);
+        res->set(http::field::content_encoding, "gzip");
+      }
+    }
     res->body() = std::move(body);
     Cors(*res);
     Write(res);
@@ -804,6 +854,7 @@ class Session final : public SessionBase {
   std::optional<grpc::Status> pending_end_;  // the stream's end, waiting for a write
   std::string origin_, content_type_, authorization_;
   std::string stream_type_;  // the request's Content-Type where it is a Connect stream's
+  bool gzip_answer_ = false;  // the request's Accept-Encoding takes gzip
   std::optional<std::chrono::system_clock::time_point> deadline_;
   const google::protobuf::Descriptor* output_ = nullptr;
   std::shared_ptr<CallHandle> call_;

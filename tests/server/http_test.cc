@@ -189,6 +189,25 @@ std::string Gzip(const std::string& data) {
   return out;
 }
 
+// `data` inflated (zlib's own decoder, not the server's encoder); empty when it is not whole.
+std::string Gunzip(const std::string& data) {
+  z_stream z{};
+  inflateInit2(&z, 16 + MAX_WBITS);
+  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(data.data()));
+  z.avail_in = static_cast<uInt>(data.size());
+  std::string out;
+  char buf[1 << 16];
+  int r = Z_OK;
+  while (r == Z_OK) {
+    z.next_out = reinterpret_cast<Bytef*>(buf);
+    z.avail_out = sizeof buf;
+    r = inflate(&z, Z_NO_FLUSH);
+    out.append(buf, sizeof buf - z.avail_out);
+  }
+  inflateEnd(&z);
+  return r == Z_STREAM_END ? out : std::string();
+}
+
 class HttpTest : public testing::SharedServerTest {
  protected:
   static void SetUpTestSuite() {
@@ -442,6 +461,51 @@ TEST_F(HttpTest, GzipRequestBodies) {
   ASSERT_EQ(s.messages.size(), 1u) << r.body;
   EXPECT_EQ(Parse<v1::FindNearestResponse>(s.messages[0]).packed().site_ids(0), "a");
   EXPECT_EQ(s.end, "{}");
+}
+
+// Answers are gzip-compressed where the request's Accept-Encoding takes gzip and the body is
+// over 1 KB, and are then the same bytes inflated; not for q=0, small bodies or streams.
+TEST_F(HttpTest, AnswersAreGzipWhereTheRequestTakesIt) {
+  v1::CreateSceneRequest create;
+  create.set_scene_id("gzipped");
+  create.mutable_window()->set_max_x(1);
+  create.mutable_window()->set_max_y(1);
+  create.set_width_px(64);
+  create.set_height_px(64);
+  v1::Scene scene;
+  ASSERT_TRUE(client_->CreateScene(create, &scene).ok());
+  SiteTable sites;
+  for (int i = 0; i < 300; ++i) sites.push_back({"site-" + std::to_string(i), PointSite{{i / 300.0, 0.5}}});
+  const uint64_t v = Upsert("gzipped", sites);
+  const std::string list = R"({"sceneId": "gzipped", "pageSize": 1000})";
+  Reply plain = Post(port(), "ListSites", list);
+  ASSERT_EQ(plain.status, 200) << plain.body;
+  ASSERT_GT(plain.body.size(), 1024u);
+  EXPECT_EQ(plain.headers.count("content-encoding"), 0u);
+  for (const std::string accept : {"gzip", "deflate, gzip;q=0.8", "br, GZIP"}) {
+    SCOPED_TRACE(accept);
+    Reply zipped = Post(port(), "ListSites", list, {{"Accept-Encoding", accept}});
+    EXPECT_EQ(zipped.headers["content-encoding"], "gzip");
+    EXPECT_LT(zipped.body.size(), plain.body.size() / 2);
+    EXPECT_EQ(Gunzip(zipped.body), plain.body);
+  }
+  Reply refused = Post(port(), "ListSites", list, {{"Accept-Encoding", "gzip;q=0, deflate"}});
+  EXPECT_EQ(refused.headers.count("content-encoding"), 0u);
+  EXPECT_EQ(refused.body, plain.body);
+  Reply small = Post(port(), "GetScene", R"({"sceneId": "gzipped"})", {{"Accept-Encoding", "gzip"}});
+  EXPECT_LT(small.body.size(), 1024u);
+  EXPECT_EQ(small.headers.count("content-encoding"), 0u);
+  v1::FindNearestRequest find;
+  find.set_scene_id("gzipped");
+  find.set_min_version(v);
+  for (int i = 0; i < 500; ++i) {
+    find.add_xy(i / 500.0);
+    find.add_xy(0.25);
+  }
+  StreamReply stream = Stream(port(), "FindNearestStream", Json(find), {{"Accept-Encoding", "gzip"}});
+  EXPECT_EQ(stream.status, 200);
+  ASSERT_EQ(stream.messages.size(), 1u);
+  EXPECT_EQ(Parse<v1::FindNearestResponse>(stream.messages[0]).packed().distance_size(), 500);
 }
 
 // Server streams in the Connect protocol: FindNearestStream's chunks as gRPC gives them,
