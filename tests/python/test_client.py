@@ -176,6 +176,76 @@ def test_plan_path_keeps_its_clearance(client):
     assert path.points[:, 1].max() > 7  # around the wall's end
 
 
+def empty_circle_triangles(xy, ids):
+    """The Delaunay triangles of points in general position by brute force: every triple
+    whose circumcircle holds no other point, with its circumcentre."""
+    n = len(xy)
+    out = {}
+    for i in range(n):
+        for j in range(i + 1, n):
+            for k in range(j + 1, n):
+                (ax, ay), (bx, by), (cx, cy) = xy[i], xy[j], xy[k]
+                d = 2 * (ax * (by - cy) + bx * (cy - ay) + cx * (ay - by))
+                if abs(d) < 1e-12:
+                    continue
+                ux = ((ax * ax + ay * ay) * (by - cy) + (bx * bx + by * by) * (cy - ay)
+                      + (cx * cx + cy * cy) * (ay - by)) / d
+                uy = ((ax * ax + ay * ay) * (cx - bx) + (bx * bx + by * by) * (ax - cx)
+                      + (cx * cx + cy * cy) * (bx - ax)) / d
+                r2 = (ax - ux) ** 2 + (ay - uy) ** 2
+                inside = ((xy[:, 0] - ux) ** 2 + (xy[:, 1] - uy) ** 2) < r2 * (1 - 1e-9)
+                inside[[i, j, k]] = False
+                if not inside.any():
+                    out[frozenset((ids[i], ids[j], ids[k]))] = (ux, uy)
+    return out
+
+
+def test_structure_calls_against_brute_force(client):
+    sid = f"structure-{client.kind}"
+    _, xy, ids, v = random_scene(client, sid, 30, 256, 17, "d")
+    assert sid in [s.scene_id for s in client.list_scenes()]
+    truth = empty_circle_triangles(xy, ids)
+    px = 1 / 256
+    delaunay = client.get_delaunay(sid, min_version=v)
+    triangles = {frozenset((t.a, t.b, t.c)) for t in delaunay.triangles}
+    # The server's are those whose Voronoi edges cross the window: every triangle whose
+    # circumcentre (where its three Voronoi edges meet) is inside it, and no other kind.
+    assert triangles <= set(truth)
+    assert {t for t, (ux, uy) in truth.items()
+            if 2 * px < ux < 1 - 2 * px and 2 * px < uy < 1 - 2 * px} <= triangles
+    edges = {frozenset(e) for t in truth for e in
+             ((a, b) for a in t for b in t if a < b)}
+    assert {frozenset((e.site_a, e.site_b)) for e in delaunay.edges} <= edges
+    # Voronoi neighbours within the window are Delaunay edges.
+    neighbours = {frozenset((p.site_a, p.site_b)) for p in
+                  client.get_neighbors(sid, min_version=v).pairs}
+    assert neighbours <= edges and len(neighbours) >= len(edges) * 0.7
+    # Boundary points are equidistant from their two sites, and no site is nearer, within
+    # two of the scene's pixels.
+    where = dict(zip(ids, xy))
+    boundaries = client.get_boundaries(sid, min_version=v).boundaries
+    assert boundaries
+    for b in boundaries:
+        pts = np.array(b.xy).reshape(-1, 2)
+        da = np.hypot(*(pts - where[b.site_a]).T)
+        db = np.hypot(*(pts - where[b.site_b]).T)
+        nearest = np.sqrt(((pts[:, None, :] - xy[None, :, :]) ** 2).sum(axis=2)).min(axis=1)
+        assert np.abs(da - db).max() <= 2 * px, (b.site_a, b.site_b)
+        assert (np.minimum(da, db) - nearest).max() <= 2 * px
+    # Clearance samples at the cells' centres: the distance to the nearest site.
+    field = client.get_clearance_field(sid, window=(0, 0, 1, 1), size=(40, 30), min_version=v)
+    assert (field.width_px, field.height_px) == (40, 30)
+    centres = np.stack(np.meshgrid((np.arange(40) + 0.5) / 40, (np.arange(30) + 0.5) / 30),
+                       axis=-1).reshape(-1, 2)
+    exact = np.sqrt(((centres[:, None, :] - xy[None, :, :]) ** 2).sum(axis=2)).min(axis=1)
+    # A proven lower bound, within the meshes' error of the distance (float32 rounding aside):
+    # a pixel of the field, as the scene's is one of its own (max_error 1/256 here).
+    assert client.get_scene(sid).max_error == px
+    clearance = np.array(field.clearance)
+    assert (clearance <= exact * (1 + 1e-6)).all()
+    assert (exact - clearance).max() <= 1 / 30
+
+
 def test_no_points_no_call(client):
     r = client.find_nearest("not-even-there", np.zeros((0, 2)))
     assert len(r) == 0 and r.version == 0
