@@ -6,6 +6,7 @@
 #include <google/protobuf/util/json_util.h>
 #include <grpcpp/generic/generic_stub.h>
 
+#include <algorithm>
 #include <atomic>
 #include <boost/asio/ssl.hpp>
 #include <boost/asio/strand.hpp>
@@ -15,6 +16,7 @@
 #include <charconv>
 #include <deque>
 #include <limits>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -23,9 +25,11 @@
 #include <zlib.h>
 
 #include "absl/strings/ascii.h"
+#include "absl/strings/escaping.h"
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
 #include "absl/strings/strip.h"
 #include "server/log.h"
@@ -70,12 +74,9 @@ ConnectCode ToConnect(grpc::StatusCode code) {
 }
 
 // {"code": ..., "message": ...}, the message escaped by protobuf's JSON printer.
+std::string JsonString(const std::string& text);
 std::string ErrorJson(const char* code, const std::string& message) {
-  google::protobuf::Value text;
-  text.set_string_value(message);
-  std::string quoted;
-  (void)google::protobuf::util::MessageToJsonString(text, &quoted);
-  return absl::StrCat("{\"code\":\"", code, "\",\"message\":", quoted, "}");
+  return absl::StrCat("{\"code\":\"", code, "\",\"message\":", JsonString(message), "}");
 }
 
 std::string Bytes(const grpc::ByteBuffer& buffer) {
@@ -136,6 +137,56 @@ absl::StatusOr<std::string> Gunzip(const std::string& in, size_t limit) {
   }
   inflateEnd(&z);
   if (r != Z_STREAM_END) return absl::InvalidArgumentError("the body is not whole gzip");
+  return out;
+}
+
+// A JSON string of `text`, escaped by protobuf's JSON printer.
+std::string JsonString(const std::string& text) {
+  google::protobuf::Value value;
+  value.set_string_value(text);
+  std::string quoted;
+  (void)google::protobuf::util::MessageToJsonString(value, &quoted);
+  return quoted;
+}
+
+// Whether a request header is the call's metadata (as Connect servers pass them on): not the
+// HTTP connection's, the body's or the protocol's own, nor the browser's (cookies included).
+// Names gRPC would refuse (any but lower-case letters, digits, '-', '_' and '.') are not.
+bool IsMetadata(const std::string& name) {
+  static const std::set<std::string> kNot = {
+      "host", "connection", "keep-alive", "proxy-connection", "transfer-encoding", "upgrade",
+      "te", "trailer", "content-type", "content-length", "content-encoding", "accept",
+      "accept-encoding", "accept-language", "user-agent", "origin", "referer", "cookie",
+      "authorization", "expect", "cache-control", "pragma", "priority", "dnt"};
+  if (name.empty() || kNot.count(name) > 0) return false;
+  for (const char* prefix : {"connect-", "grpc-", "access-control-", "sec-", "proxy-"}) {
+    if (absl::StartsWith(name, prefix)) return false;
+  }
+  for (char c : name) {
+    if (!absl::ascii_islower(c) && !absl::ascii_isdigit(c) && c != '-' && c != '_' && c != '.') {
+      return false;
+    }
+  }
+  return true;
+}
+
+// A gRPC metadata value as an HTTP header's: binary ("-bin") in base64.
+std::string HeaderValue(const grpc::string_ref& key, const grpc::string_ref& value) {
+  std::string v(value.data(), value.size());
+  return absl::EndsWith(absl::string_view(key.data(), key.size()), "-bin") ? absl::Base64Escape(v)
+                                                                             : v;
+}
+
+using Metadata = std::vector<std::pair<std::string, std::string>>;
+
+// The service's metadata that an answer carries: not gRPC's own.
+Metadata AnswerMetadata(const std::multimap<grpc::string_ref, grpc::string_ref>& md) {
+  Metadata out;
+  for (const auto& [k, v] : md) {
+    absl::string_view key(k.data(), k.size());
+    if (absl::StartsWith(key, "grpc-") || absl::StartsWith(key, ":")) continue;
+    out.emplace_back(std::string(key), HeaderValue(k, v));
+  }
   return out;
 }
 
@@ -393,14 +444,24 @@ class Session final : public SessionBase {
   void OnHeader(beast::error_code ec) {
     idle_ = false;
     if (ec) return Close();  // the peer went, timed out, or spoke no HTTP
-    // A Connect streaming request is answered 200 even when refused, its error in the
-    // end-of-stream message: streaming clients read no error from an HTTP status.
-    stream_type_.clear();
+    // What an answer follows of the request, whichever path answers it (a refusal of its
+    // body included): its HTTP version, keep-alive and origin.
     {
-      const auto field = header_parser_->get()[http::field::content_type];
+      const auto& req = header_parser_->get();
+      version_ = req.version();
+      keep_alive_ = req.keep_alive() && !server_->stopping();
+      origin_ = std::string(req[http::field::origin]);
+      // A Connect streaming call is answered 200 even when refused, its error in the
+      // end-of-stream message: streaming clients read no error from an HTTP status.
+      stream_type_.clear();
+      const auto target = req.target();
+      const auto field = req[http::field::content_type];
       std::string type = absl::AsciiStrToLower(std::string(field.data(), field.size()));
       type = std::string(absl::StripAsciiWhitespace(type.substr(0, type.find(';'))));
-      if (type == "application/connect+json" || type == "application/connect+proto") {
+      if (req.method() == http::verb::post &&
+          absl::StartsWith(absl::string_view(target.data(), target.size()),
+                           absl::StrCat("/", kService, "/")) &&
+          (type == "application/connect+json" || type == "application/connect+proto")) {
         stream_type_ = type;
       }
     }
@@ -460,10 +521,6 @@ class Session final : public SessionBase {
   // answer comes at once and the connection closes.
   static constexpr uint64_t kDrainBytes = 256ull << 20;
   void Drain(uint64_t length) {
-    const auto& req = header_parser_->get();
-    version_ = req.version();
-    keep_alive_ = req.keep_alive() && !server_->stopping();
-    origin_ = std::string(req[http::field::origin]);
     drain_message_ = TooLarge(absl::StrCat("the request body of ", length, " bytes"));
     if (length > kDrainBytes) {
       keep_alive_ = false;
@@ -535,7 +592,30 @@ class Session final : public SessionBase {
     json_ = call.json;
     content_type_ = call.content_type;
     output_ = call.method->output_type();
-    // What the gRPC call carries of the request: its token and its deadline.
+    // What the gRPC call carries of the request: its token, its deadline and the headers
+    // that are metadata (a "-bin" one's value in base64, as Connect sends binary values).
+    metadata_.clear();
+    for (const auto& field : req) {
+      std::string name = absl::AsciiStrToLower(
+          absl::string_view(field.name_string().data(), field.name_string().size()));
+      if (!IsMetadata(name)) continue;
+      std::string value(field.value().data(), field.value().size());
+      if (absl::EndsWith(name, "-bin")) {
+        std::string raw;
+        if (!absl::Base64Unescape(value, &raw) && !absl::WebSafeBase64Unescape(value, &raw)) {
+          return Error(grpc::StatusCode::INVALID_ARGUMENT,
+                       absl::StrCat("header ", name, " is binary metadata (\"-bin\"): its value "
+                                    "must be base64"));
+        }
+        value = std::move(raw);
+      } else if (!std::all_of(value.begin(), value.end(),
+                              [](char c) { return c >= 0x20 && c <= 0x7e; })) {
+        return Error(grpc::StatusCode::INVALID_ARGUMENT,
+                     absl::StrCat("header ", name, " holds a character metadata may not: only "
+                                  "printable ASCII, or base64 in a \"-bin\" header"));
+      }
+      metadata_.emplace_back(std::move(name), std::move(value));
+    }
     authorization_ = std::string(req[http::field::authorization]);
     deadline_.reset();
     if (call.timeout) deadline_ = std::chrono::system_clock::now() + *call.timeout;
@@ -547,6 +627,7 @@ class Session final : public SessionBase {
 
   void Prepare(grpc::ClientContext* ctx) const {
     if (!authorization_.empty()) ctx->AddMetadata("authorization", authorization_);
+    for (const auto& [name, value] : metadata_) ctx->AddMetadata(name, value);
     if (deadline_) ctx->set_deadline(*deadline_);
   }
 
@@ -563,6 +644,12 @@ class Session final : public SessionBase {
         &call->ctx, path, grpc::StubOptions(), &call->request, &call->response,
         [self = Self(), call](grpc::Status s) {
           net::post(self->stream_.get_executor(), [self, call, s] {
+            // The service's headers as headers, its trailers as "Trailer-" ones (Connect's
+            // unary form), on the answer or the error alike.
+            self->answer_headers_ = AnswerMetadata(call->ctx.GetServerInitialMetadata());
+            for (auto& [name, value] : AnswerMetadata(call->ctx.GetServerTrailingMetadata())) {
+              self->answer_headers_.emplace_back("trailer-" + name, std::move(value));
+            }
             if (!s.ok()) return self->Error(s.error_code(), s.error_message());
             std::string body = Bytes(call->response);
             if (self->json_) {
@@ -627,7 +714,14 @@ class Session final : public SessionBase {
         handle_->call = nullptr;
       }
       auto session = std::move(session_);
-      net::post(session->stream_.get_executor(), [session, s] { session->StreamEnd(s); });
+      // The service's headers and trailers both: the answer's own headers went before the
+      // call began.
+      Metadata trailers = AnswerMetadata(ctx.GetServerInitialMetadata());
+      for (auto& kv : AnswerMetadata(ctx.GetServerTrailingMetadata())) trailers.push_back(kv);
+      net::post(session->stream_.get_executor(), [session, s, trailers = std::move(trailers)] {
+        session->stream_trailers_ = trailers;
+        session->StreamEnd(s);
+      });
       delete this;
     }
 
@@ -715,11 +809,22 @@ class Session final : public SessionBase {
     }
     call_.reset();
     if (broken_) return Close();
-    std::string end = "{}";
+    std::vector<std::string> parts;
     if (!s.ok()) {
       const ConnectCode c = ToConnect(s.error_code());
-      end = absl::StrCat("{\"error\":", ErrorJson(c.name, s.error_message()), "}");
+      parts.push_back(absl::StrCat("\"error\":", ErrorJson(c.name, s.error_message())));
     }
+    if (!stream_trailers_.empty()) {
+      std::map<std::string, std::vector<std::string>> grouped;
+      for (const auto& [name, value] : stream_trailers_) grouped[name].push_back(JsonString(value));
+      std::vector<std::string> fields;
+      for (const auto& [name, values] : grouped) {
+        fields.push_back(absl::StrCat(JsonString(name), ":[", absl::StrJoin(values, ","), "]"));
+      }
+      parts.push_back(absl::StrCat("\"metadata\":{", absl::StrJoin(fields, ","), "}"));
+      stream_trailers_.clear();
+    }
+    const std::string end = absl::StrCat("{", absl::StrJoin(parts, ","), "}");
     auto chunk = std::make_shared<std::string>(Envelope(0x02, end));
     net::async_write(stream_, http::make_chunk(net::buffer(*chunk)),
                      [self = Self(), chunk](beast::error_code ec, size_t) {
@@ -778,7 +883,11 @@ class Session final : public SessionBase {
   void Cors(Response& res) {
     if (!origin_.empty() && server_->Allowed(origin_)) {
       res.set(http::field::access_control_allow_origin, origin_);
-      res.set(http::field::vary, "Origin");
+      // Beside what the answer already varies with (Accept-Encoding).
+      const auto vary = res[http::field::vary];
+      res.set(http::field::vary,
+              vary.empty() ? std::string("Origin")
+                           : absl::StrCat(std::string(vary.data(), vary.size()), ", Origin"));
     }
   }
 
@@ -810,6 +919,8 @@ class Session final : public SessionBase {
       }
     }
     res->body() = std::move(body);
+    for (const auto& [name, value] : answer_headers_) res->insert(name, value);
+    answer_headers_.clear();
     Cors(*res);
     Write(res);
   }
@@ -855,6 +966,9 @@ class Session final : public SessionBase {
   std::string origin_, content_type_, authorization_;
   std::string stream_type_;  // the request's Content-Type where it is a Connect stream's
   bool gzip_answer_ = false;  // the request's Accept-Encoding takes gzip
+  Metadata metadata_;         // the request's headers that are metadata
+  Metadata answer_headers_;   // the service's, for the next answer Send writes
+  Metadata stream_trailers_;  // the service's, for a stream's end
   std::optional<std::chrono::system_clock::time_point> deadline_;
   const google::protobuf::Descriptor* output_ = nullptr;
   std::shared_ptr<CallHandle> call_;

@@ -20,7 +20,10 @@
 
 #include <zlib.h>
 
+#include <grpcpp/generic/async_generic_service.h>
+
 #include "gvd/client.h"
+#include "server/http/http.h"
 #include "tests/support/server_process.h"
 #include "tests/support/test_scenes.h"
 
@@ -400,14 +403,25 @@ TEST_F(HttpTest, OversizeBodiesAreReadThroughAndAnswered) {
   beast::tcp_stream stream(ioc);
   stream.connect(resolver.resolve("127.0.0.1", std::to_string(port())));
   beast::flat_buffer buffer;
-  auto call = [&](const std::string& method, std::string body) {
+  // `chunked`: the body sent in 64 KB chunks with no length, as a streaming client sends it.
+  auto call = [&](const std::string& method, std::string body, bool chunked = false) {
     http::request<http::string_body> req{http::verb::post, "/gvd.v1.Voronoi/" + method, 11};
     req.set(http::field::host, "127.0.0.1");
     req.set(http::field::content_type, "application/json");
     req.keep_alive(true);
-    req.body() = std::move(body);
-    req.prepare_payload();
-    http::write(stream, req);
+    if (chunked) {
+      req.chunked(true);
+      http::request_serializer<http::string_body> head(req);
+      http::write_header(stream, head);
+      for (size_t at = 0; at < body.size(); at += 65536) {
+        net::write(stream, http::make_chunk(net::buffer(body.substr(at, 65536))));
+      }
+      net::write(stream, http::make_chunk_last());
+    } else {
+      req.body() = std::move(body);
+      req.prepare_payload();
+      http::write(stream, req);
+    }
     http::response<http::string_body> res;
     http::read(stream, buffer, res);
     Reply r;
@@ -421,6 +435,12 @@ TEST_F(HttpTest, OversizeBodiesAreReadThroughAndAnswered) {
   EXPECT_EQ(ConnectError(big).first, "resource_exhausted");
   EXPECT_NE(ConnectError(big).second.find("--max-message-bytes"), std::string::npos);
   EXPECT_EQ(call("ListScenes", "{}").status, 200);  // the same connection
+  // Chunked: kept within the limit, read through and refused past it.
+  EXPECT_EQ(call("ListScenes", "{}", /*chunked=*/true).status, 200);
+  Reply chunked = call("CreateScene", "{\"sceneId\": \"x\"" + std::string(5 << 20, ' ') + "}", true);
+  EXPECT_EQ(chunked.status, 429) << chunked.body;
+  EXPECT_NE(ConnectError(chunked).second.find("--max-message-bytes"), std::string::npos);
+  EXPECT_EQ(call("ListScenes", "{}").status, 200);  // the same connection still
 }
 
 // Request bodies compressed with gzip (Content-Encoding, and Connect-Content-Encoding with a
@@ -489,6 +509,11 @@ TEST_F(HttpTest, AnswersAreGzipWhereTheRequestTakesIt) {
     EXPECT_LT(zipped.body.size(), plain.body.size() / 2);
     EXPECT_EQ(Gunzip(zipped.body), plain.body);
   }
+  // A page of an allowed origin: the answer varies with both.
+  Reply cors = Post(port(), "ListSites", list,
+                    {{"Accept-Encoding", "gzip"}, {"Origin", "https://app.example.com"}});
+  EXPECT_EQ(cors.headers["content-encoding"], "gzip");
+  EXPECT_EQ(cors.headers["vary"], "Accept-Encoding, Origin");
   Reply refused = Post(port(), "ListSites", list, {{"Accept-Encoding", "gzip;q=0, deflate"}});
   EXPECT_EQ(refused.headers.count("content-encoding"), 0u);
   EXPECT_EQ(refused.body, plain.body);
@@ -737,6 +762,116 @@ TEST(HttpDrain, ShutdownEndsHttpStreams) {
   EXPECT_EQ(JsonString(watched.end, "code"), "unavailable");
   const int status = server.Wait();
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << server.log();
+}
+
+}  // namespace
+}  // namespace gvd
+
+namespace gvd {
+namespace {
+
+// A stand-in for the service behind the HTTP transport: it answers GetScene (a scene named
+// after what it was sent) and WatchScene (one event), echoing the call's metadata: each
+// client key K as initial metadata "echo-K" and trailing "trailed-K"; "x-fail: yes" makes
+// the call fail NOT_FOUND, trailers still sent.
+class EchoService final : public grpc::CallbackGenericService {
+  class Reactor final : public grpc::ServerGenericBidiReactor {
+   public:
+    explicit Reactor(grpc::GenericCallbackServerContext* ctx) : ctx_(ctx) { StartRead(&request_); }
+    void OnReadDone(bool ok) override {
+      if (!ok) return Finish(grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "no request"));
+      bool fail = false;
+      for (const auto& [k, v] : ctx_->client_metadata()) {
+        const std::string key(k.data(), k.size()), value(v.data(), v.size());
+        if (key.rfind("x-", 0) != 0) continue;
+        if (key == "x-fail") fail = true;
+        ctx_->AddInitialMetadata("echo-" + key, value);
+        ctx_->AddTrailingMetadata("trailed-" + key, value);
+      }
+      if (fail) return Finish(grpc::Status(grpc::StatusCode::NOT_FOUND, "asked to fail"));
+      std::string bytes;
+      if (ctx_->method() == "/gvd.v1.Voronoi/WatchScene") {
+        v1::SceneEvent event;
+        event.set_scene_id("echo");
+        event.set_version(7);
+        bytes = event.SerializeAsString();
+      } else {
+        v1::Scene scene;
+        scene.set_scene_id("echo");
+        bytes = scene.SerializeAsString();
+      }
+      grpc::Slice slice(bytes);
+      response_ = grpc::ByteBuffer(&slice, 1);
+      StartWrite(&response_);
+    }
+    void OnWriteDone(bool ok) override {
+      Finish(ok ? grpc::Status::OK : grpc::Status(grpc::StatusCode::UNKNOWN, "write failed"));
+    }
+    void OnDone() override { delete this; }
+
+   private:
+    grpc::GenericCallbackServerContext* ctx_;
+    grpc::ByteBuffer request_, response_;
+  };
+  grpc::ServerGenericBidiReactor* CreateReactor(grpc::GenericCallbackServerContext* ctx) override {
+    return new Reactor(ctx);
+  }
+};
+
+// Request headers reach the service as metadata (a "-bin" one decoded from base64); the
+// service's headers come back as headers and its trailers as "Trailer-" headers (unary) or
+// in the end-of-stream message's metadata (streams), on errors too. Protocol and browser
+// headers stay out.
+TEST(HttpMetadata, HeadersAndTrailersBothWays) {
+  EchoService service;
+  grpc::ServerBuilder builder;
+  int grpc_port = 0;
+  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &grpc_port);
+  builder.RegisterCallbackGenericService(&service);
+  std::unique_ptr<grpc::Server> grpc_server = builder.BuildAndStart();
+  ASSERT_NE(grpc_server, nullptr);
+  HttpOptions options;
+  options.listen = "127.0.0.1:0";
+  auto http_server = HttpServer::Start(
+      options, grpc::CreateChannel("127.0.0.1:" + std::to_string(grpc_port),
+                                   grpc::InsecureChannelCredentials()));
+  ASSERT_TRUE(http_server.ok()) << http_server.status();
+  const int port = (*http_server)->port();
+
+  const std::map<std::string, std::string> headers = {
+      {"X-Request-Id", "r-42"}, {"x-data-bin", "AAEC/w=="},  // bytes 0, 1, 2, 255
+      {"Cookie", "session=secret"}, {"User-Agent", "test"}};
+  Reply unary = Post(port, "GetScene", R"({"sceneId": "any"})", headers);
+  ASSERT_EQ(unary.status, 200) << unary.body;
+  EXPECT_EQ(JsonString(unary.body, "sceneId"), "echo");
+  EXPECT_EQ(unary.headers["echo-x-request-id"], "r-42");
+  EXPECT_EQ(unary.headers["trailer-trailed-x-request-id"], "r-42");
+  // Binary metadata arrived as its bytes and went back in base64.
+  EXPECT_EQ(unary.headers["echo-x-data-bin"], "AAEC/w==");
+  EXPECT_EQ(unary.headers["trailer-trailed-x-data-bin"], "AAEC/w==");
+  EXPECT_EQ(unary.headers.count("echo-cookie"), 0u);
+  EXPECT_EQ(unary.headers.count("echo-user-agent"), 0u);
+
+  std::map<std::string, std::string> failing = headers;
+  failing["X-Fail"] = "yes";
+  Reply refused = Post(port, "GetScene", R"({"sceneId": "any"})", failing);
+  EXPECT_EQ(refused.status, 404);
+  EXPECT_EQ(ConnectError(refused).first, "not_found");
+  EXPECT_EQ(refused.headers["trailer-trailed-x-fail"], "yes");
+
+  StreamReply stream = Stream(port, "WatchScene", R"({"sceneId": "any"})", headers);
+  EXPECT_EQ(stream.status, 200);
+  ASSERT_EQ(stream.messages.size(), 1u);
+  EXPECT_EQ(Parse<v1::SceneEvent>(stream.messages[0]).version(), 7u);
+  EXPECT_NE(stream.end.find(R"("trailed-x-request-id":["r-42"])"), std::string::npos) << stream.end;
+  EXPECT_NE(stream.end.find(R"("echo-x-data-bin":["AAEC/w=="])"), std::string::npos) << stream.end;
+
+  Reply bad = Post(port, "GetScene", R"({"sceneId": "any"})", {{"x-data-bin", "not base64!"}});
+  EXPECT_EQ(ConnectError(bad).first, "invalid_argument");
+  EXPECT_NE(ConnectError(bad).second.find("x-data-bin"), std::string::npos);
+
+  (*http_server)->Shutdown(std::chrono::milliseconds(100));
+  grpc_server->Shutdown();
 }
 
 }  // namespace
