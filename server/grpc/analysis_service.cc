@@ -354,12 +354,6 @@ grpc::ServerUnaryReactor* VoronoiService::RenderImageAt(const Call& call,
         options->rect = rect;
         auto image = EncodeImage(*f, *options);
         if (!image.ok()) return image.status();
-        if (image->bytes.size() + 4096 > size_t(limits.max_message_bytes)) {
-          return absl::ResourceExhaustedError(absl::StrCat(
-              "the ", options->rect.width(), "x", options->rect.height(), " image is ",
-              image->bytes.size(), " bytes, more than a message holds (--max-message-bytes ",
-              limits.max_message_bytes, ")"));
-        }
         response->set_image(image->bytes.data(), image->bytes.size());
         response->set_mime_type(image->mime_type);
         response->set_width_px(image->width);
@@ -367,6 +361,13 @@ grpc::ServerUnaryReactor* VoronoiService::RenderImageAt(const Call& call,
         response->set_version(f->version());
         for (const std::string& id : image->site_ids) response->add_site_ids(id);
         ToProto(EdgesOf(f->grid(), rect), response->mutable_window());
+        if (const size_t bytes = response->ByteSizeLong(); bytes > size_t(limits.max_message_bytes)) {
+          response->Clear();
+          return absl::ResourceExhaustedError(absl::StrCat(
+              "the ", options->rect.width(), "x", options->rect.height(), " image's answer is ",
+              bytes, " bytes, more than a message holds (--max-message-bytes ",
+              limits.max_message_bytes, ")"));
+        }
         return absl::OkStatus();
       });
 }
