@@ -52,7 +52,23 @@ def check(a, r):
 def test_packed_answers_equal_protobufs_reading(n, closest):
     rng = np.random.default_rng(n)
     r = message(rng, n, closest)
+    # Read by the wire reader itself (FromString would fall back to protobuf on its failure).
+    check(_packed._read_response(memoryview(r.SerializeToString())), r)
     check(PackedAnswers.FromString(r.SerializeToString()), r)
+
+
+def test_what_the_wire_reader_leaves_to_protobuf_is_read_or_refused_by_it():
+    # A site id that is no UTF-8: protobuf refuses it, as the reader does.
+    inner = bytes([1 << 3 | 2, 2, 0xFF, 0xFE])
+    data = bytes([3 << 3 | 2, len(inner)]) + inner
+    with pytest.raises(_packed._Unexpected):
+        _packed._read_response(memoryview(data))
+    with pytest.raises(Exception):
+        PackedAnswers.FromString(data)
+    # The version sent as a fixed64: protobuf's to judge.
+    data = bytes([2 << 3 | 1]) + bytes(8)
+    with pytest.raises(_packed._Unexpected):
+        _packed._read_response(memoryview(data))
 
 
 def test_a_field_split_over_records_is_joined():

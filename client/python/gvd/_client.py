@@ -397,12 +397,24 @@ def _join(parts: List[_Packed], m: int, dims: int, closest: bool) -> NearestResu
     near = np.full((m, dims), np.nan) if closest else None
     grad = np.full((m, dims), np.nan) if closest else None
     version = 0
+    covered = 0
     for part in parts:
         a = part.answers
         version = max(version, a.version)
         lo = part.start + a.offset
         n = a.count
         hi = lo + n
+        if hi > m:
+            raise GvdError(_grpc_code("INTERNAL"), f"answers {lo} to {hi} for {m} points")
+        for number in (_packed.ERROR_BOUND, _packed.EXACT, _packed.FEATURE_INDEX,
+                       _packed.FEATURE_KIND):
+            if number in a.arrays and len(a.arrays[number]) != n:
+                raise GvdError(_grpc_code("INTERNAL"),
+                               f"field {number} holds {len(a.arrays[number])} of {n} answers")
+        if closest and any(len(a.get(k, "<f8")) != n * dims
+                           for k in (_packed.CLOSEST, _packed.GRADIENT)):
+            raise GvdError(_grpc_code("INTERNAL"), "closest points missing from the answers")
+        covered += n
         # The chunk's site indices name its own site_ids: to the call's.
         local = np.array([index.setdefault(s, len(index)) for s in a.site_ids], dtype=np.int64)
         idx = a.get(_packed.SITE, "u8")
@@ -424,6 +436,8 @@ def _join(parts: List[_Packed], m: int, dims: int, closest: bool) -> NearestResu
         if closest:
             near[lo:hi] = a.get(_packed.CLOSEST, "<f8").reshape(n, dims)
             grad[lo:hi] = a.get(_packed.GRADIENT, "<f8").reshape(n, dims)
+    if covered != m:
+        raise GvdError(_grpc_code("INTERNAL"), f"{covered} answers for {m} points")
     ids = [""] * len(index)
     for s, i in index.items():
         ids[i] = s

@@ -54,7 +54,7 @@ class _Unexpected(Exception):
 def _varint(buf: memoryview, i: int) -> Tuple[int, int]:
     shift = value = 0
     while True:
-        if i >= len(buf) or shift > 63:
+        if i >= len(buf) or shift > 63 or (shift == 63 and buf[i] > 1):
             raise _Unexpected()
         b = buf[i]
         i += 1
@@ -84,8 +84,8 @@ def _read_response(buf: memoryview) -> PackedAnswers:
     while i < len(buf):
         key, i = _varint(buf, i)
         number, wire = key >> 3, key & 7
-        if number == 1:  # results: the unpacked form, left to protobuf
-            raise _Unexpected()
+        if number == 1 or (number in (2, 4) and wire != 0) or (number == 3 and wire != 2):
+            raise _Unexpected()  # results (the unpacked form), or a field in a wrong form
         if number in (2, 4) and wire == 0:
             value, i = _varint(buf, i)
             if number == 2:
@@ -125,7 +125,10 @@ def _read_packed(buf: memoryview, out: PackedAnswers, parts: Dict[int, List[memo
         if i + n > len(buf):
             raise _Unexpected()
         if number == SITE_IDS:
-            out.site_ids.append(bytes(buf[i:i + n]).decode("utf-8"))
+            try:
+                out.site_ids.append(bytes(buf[i:i + n]).decode("utf-8"))
+            except UnicodeDecodeError as e:
+                raise _Unexpected() from e
         elif number in _DOUBLES or number in _VARINTS:
             parts.setdefault(number, []).append(buf[i:i + n])
         i += n

@@ -12,7 +12,7 @@ import urllib.parse
 from typing import Iterator, Optional, Sequence, Tuple, Type, TypeVar
 
 import grpc
-from google.protobuf.message import Message
+from google.protobuf.message import DecodeError, Message
 
 SERVICE = "gvd.v1.Voronoi"
 M = TypeVar("M", bound=Message)
@@ -155,7 +155,7 @@ class HttpTransport:
         payload = answer.read()
         if answer.status != 200:
             raise _error(answer.status, payload)
-        return response.FromString(payload)
+        return _parse(method, response, payload)
 
     def stream(self, method: str, request: Message, response: Type[M],
                timeout: Optional[float], body: Optional[bytes] = None) -> Iterator[M]:
@@ -193,7 +193,7 @@ class HttpTransport:
                     if "error" in end:
                         raise _error(200, json.dumps(end["error"]).encode())
                     return
-                yield response.FromString(data)
+                yield _parse(method, response, data)
         finally:
             conn.close()
 
@@ -202,6 +202,15 @@ class HttpTransport:
         if conn is not None:
             conn.close()
             self.local.conn = None
+
+
+def _parse(method: str, response: Type[M], data: bytes) -> M:
+    """An answer's message; INTERNAL where its bytes are not one."""
+    try:
+        return response.FromString(data)
+    except (DecodeError, ValueError) as e:
+        raise GvdError(grpc.StatusCode.INTERNAL, f"{method}: the answer is not a "
+                                                 f"{response.__name__}: {e}") from e
 
 
 def _error(status: int, payload: bytes) -> GvdError:
