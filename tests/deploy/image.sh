@@ -29,7 +29,13 @@ if [[ -n ${GVD_IMAGE:-} ]]; then
   image=$GVD_IMAGE
   "${podman[@]}" image exists "$image" || skip "no image $image (GVD_IMAGE)"
 else
-  # The tag names a digest of the tracked files the Dockerfile's build reads, as they are now.
+  # The tag names a digest of the tracked files the Dockerfile's build reads, as they are now
+  # (untracked ones that it would copy make the checkout no source of record: a skip).
+  git rev-parse --git-dir >/dev/null 2>&1 || skip "not a git checkout: no digest of its source"
+  if [[ -n $(git ls-files --others --exclude-standard -- CMakeLists.txt cmake proto render \
+      server client deploy) ]]; then
+    skip "untracked files where the image's build reads (git status); GVD_IMAGE names an image"
+  fi
   source_digest=$(git ls-files -z -- CMakeLists.txt cmake proto render server client deploy \
     | xargs -0 sha256sum | sha256sum | cut -c1-16)
   image=localhost/gvd:src-$source_digest
@@ -42,9 +48,10 @@ else
     "${podman[@]}" build --pull=never --network=host --isolation=chroot --layers=false \
       -f deploy/Dockerfile -t "$image" .
     for old in $("${podman[@]}" images --format '{{.Repository}}:{{.Tag}}' localhost/gvd); do
-      [[ $old == "$image" || $old != localhost/gvd:src-* ]] || "${podman[@]}" rmi "$old" >/dev/null
+      [[ $old == "$image" || $old != localhost/gvd:src-* ]] \
+        || "${podman[@]}" rmi "$old" >/dev/null 2>&1 || true  # one still in use stays
     done
-    "${podman[@]}" image prune -f >/dev/null
+    "${podman[@]}" image prune -f >/dev/null || true
   fi
 fi
 
@@ -57,16 +64,16 @@ if [[ -n $runtime ]]; then
   runtime_args=(--runtime "$runtime")
   runtime_name=$runtime
 fi
-if ! probe_error=$("${podman[@]}" "${runtime_args[@]}" run -d --name "$probe" --network=host \
-    --entrypoint sleep "$image" 60 2>&1); then
-  "${podman[@]}" rm -f "$probe" >/dev/null 2>&1
+if ! probe_error=$("${podman[@]}" "${runtime_args[@]}" run -d --rm --name "$probe" \
+    --network=host --entrypoint sleep "$image" 60 2>&1); then
+  "${podman[@]}" rm -f -t 0 "$probe" >/dev/null 2>&1 || true
   skip "podman cannot start a container here (runtime $runtime_name: $probe_error);" \
     "set GVD_OCI_RUNTIME"
 fi
 if [[ ${needs_exec:-} == 1 ]] \
     && ! probe_error=$("${podman[@]}" "${runtime_args[@]}" exec "$probe" true 2>&1); then
-  "${podman[@]}" rm -f "$probe" >/dev/null 2>&1
+  "${podman[@]}" rm -f -t 0 "$probe" >/dev/null 2>&1 || true
   skip "podman cannot run a command in a container here (runtime $runtime_name:" \
     "$probe_error); set GVD_OCI_RUNTIME"
 fi
-"${podman[@]}" rm -f "$probe" >/dev/null 2>&1
+"${podman[@]}" rm -f -t 0 "$probe" >/dev/null 2>&1 || true
