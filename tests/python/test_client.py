@@ -74,6 +74,23 @@ def test_points_in_nearest_out(client):
     assert (raster.distances - raster.error_bounds <= dist + 1e-12).all()
 
 
+def test_a_million_points_with_progress(client):
+    sid = f"million-{client.kind}"
+    rng, xy, _, v = random_scene(client, sid, 60, 512, 23, "m")
+    q = rng.random((1_000_000, 2))
+    steps = []
+    r = client.find_nearest(sid, q, min_version=v, progress=lambda done, n: steps.append((done, n)))
+    assert len(r) == len(q) and r.version >= v
+    assert len(steps) >= 10 and steps[-1] == (len(q), len(q))
+    assert all(a[0] < b[0] for a, b in zip(steps, steps[1:]))
+    # Every raster answer within its bound of the exact distance, chunk by chunk.
+    for lo in range(0, len(q), 100_000):
+        _, dist = brute_nearest(xy, q[lo:lo + 100_000])
+        d, bound = r.distances[lo:lo + 100_000], r.error_bounds[lo:lo + 100_000]
+        assert (d - bound <= dist + 1e-12).all() and (dist <= d + 1e-12).all()
+    client.delete_scene(sid)
+
+
 def test_errors_carry_the_servers_code_and_message(client):
     with pytest.raises(gvd.GvdError) as e:
         client.get_scene(f"missing-{client.kind}")
