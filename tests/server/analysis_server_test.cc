@@ -542,16 +542,7 @@ TEST(AnalysisLimitsTest, QueuedAnalysesAreBounded) {
   auto client = Client::Connect(server.address(), patient);
   v1::Scene scene;
   ASSERT_TRUE(client->CreateScene(testing::UnitScene("busy", 1024, 1024), &scene).ok());
-  v1::UpsertSitesRequest u;
-  u.set_scene_id("busy");
-  std::mt19937_64 rng(3);
-  std::uniform_real_distribution<double> unit(0, 1);
-  for (int i = 0; i < 3000; ++i) {
-    v1::Site* site = u.add_sites();
-    site->set_id(std::to_string(i));
-    site->mutable_point()->set_x(unit(rng));
-    site->mutable_point()->set_y(unit(rng));
-  }
+  const v1::UpsertSitesRequest u = testing::RandomPoints("busy", 3000, 3);
   uint64_t v;
   ASSERT_TRUE(client->UpsertSites(u, &v).ok());
   // Each a fraction of a second of refinement or more, while the calls arrive within

@@ -224,12 +224,7 @@ class HttpTest : public testing::SharedServerTest {
 // get the same code and message.
 TEST_F(HttpTest, JsonAndGrpcGiveTheSameAnswersAndErrors) {
   ASSERT_GT(port(), 0);
-  v1::CreateSceneRequest create;
-  create.set_scene_id("both");
-  create.mutable_window()->set_max_x(1);
-  create.mutable_window()->set_max_y(1);
-  create.set_width_px(128);
-  create.set_height_px(128);
+  const v1::CreateSceneRequest create = testing::UnitScene("both", 128, 128);
   Reply r = Post(port(), "CreateScene", Json(create));
   ASSERT_EQ(r.status, 200) << r.body;
   EXPECT_EQ(r.headers["content-type"], "application/json");
@@ -486,14 +481,8 @@ TEST_F(HttpTest, GzipRequestBodies) {
 // Answers are gzip-compressed where the request's Accept-Encoding takes gzip and the body is
 // over 1 KB, and are then the same bytes inflated; not for q=0, small bodies or streams.
 TEST_F(HttpTest, AnswersAreGzipWhereTheRequestTakesIt) {
-  v1::CreateSceneRequest create;
-  create.set_scene_id("gzipped");
-  create.mutable_window()->set_max_x(1);
-  create.mutable_window()->set_max_y(1);
-  create.set_width_px(64);
-  create.set_height_px(64);
   v1::Scene scene;
-  ASSERT_TRUE(client_->CreateScene(create, &scene).ok());
+  ASSERT_TRUE(client_->CreateScene(testing::UnitScene("gzipped", 64, 64), &scene).ok());
   SiteTable sites;
   for (int i = 0; i < 300; ++i) sites.push_back({"site-" + std::to_string(i), PointSite{{i / 300.0, 0.5}}});
   const uint64_t v = Upsert("gzipped", sites);
@@ -536,14 +525,8 @@ TEST_F(HttpTest, AnswersAreGzipWhereTheRequestTakesIt) {
 // Server streams in the Connect protocol: FindNearestStream's chunks as gRPC gives them,
 // WatchScene's events and its end at the scene's deletion, and an error's end.
 TEST_F(HttpTest, ServerStreamsOverHttp) {
-  v1::CreateSceneRequest create;
-  create.set_scene_id("streamed");
-  create.mutable_window()->set_max_x(1);
-  create.mutable_window()->set_max_y(1);
-  create.set_width_px(64);
-  create.set_height_px(64);
   v1::Scene scene;
-  ASSERT_TRUE(client_->CreateScene(create, &scene).ok());
+  ASSERT_TRUE(client_->CreateScene(testing::UnitScene("streamed", 64, 64), &scene).ok());
   const uint64_t v = Upsert("streamed", {{"a", PointSite{{0.2, 0.2}}}, {"b", PointSite{{0.8, 0.7}}}});
   v1::FindNearestRequest find;
   find.set_scene_id("streamed");
@@ -647,22 +630,16 @@ TEST(HttpStreams, LargeChunksArriveWholeAndInOrder) {
   auto client = Client::Connect(server.address(), options);
   v1::Scene scene;
   ASSERT_TRUE(client->CreateScene(testing::UnitScene("large", 64, 64), &scene).ok());
-  v1::UpsertSitesRequest sites;
-  sites.set_scene_id("large");
-  std::mt19937_64 rng(41);
-  std::uniform_real_distribution<double> u(0, 1);
-  for (int i = 0; i < 300; ++i) {
-    auto* site = sites.add_sites();
-    site->set_id("p" + std::to_string(i));
-    site->mutable_point()->set_x(u(rng));
-    site->mutable_point()->set_y(u(rng));
-  }
+  const v1::UpsertSitesRequest sites = testing::RandomPoints("large", 300, 41, "p");
   uint64_t version = 0;
   ASSERT_TRUE(client->UpsertSites(sites, &version).ok());
   v1::FindNearestRequest find;
   find.set_scene_id("large");
   find.set_min_version(version);
   find.set_chunk_size(50000);  // four equal chunks of 1 MB: the last write is a large one
+  std::mt19937_64 rng(41);
+  rng.discard(600);  // past the sites' coordinates
+  std::uniform_real_distribution<double> u(0, 1);
   for (int i = 0; i < 200000; ++i) {
     find.add_xy(u(rng));
     find.add_xy(u(rng));

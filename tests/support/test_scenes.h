@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <optional>
+#include <random>
 #include <string>
 
 #include "gvd/v1/voronoi.pb.h"
@@ -82,6 +83,23 @@ inline v1::CreateSceneRequest UnitScene(const std::string& id, uint32_t width, u
   r.mutable_window()->set_max_y(1);
   r.set_width_px(width);
   r.set_height_px(height);
+  return r;
+}
+
+// An UpsertSitesRequest of n points uniform in the unit square (x then y from one seeded
+// generator), named prefix + their index.
+inline v1::UpsertSitesRequest RandomPoints(const std::string& scene, int n, uint64_t seed,
+                                           const std::string& prefix = "") {
+  v1::UpsertSitesRequest r;
+  r.set_scene_id(scene);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> unit(0, 1);
+  for (int i = 0; i < n; ++i) {
+    v1::Site* site = r.add_sites();
+    site->set_id(prefix + std::to_string(i));
+    site->mutable_point()->set_x(unit(rng));
+    site->mutable_point()->set_y(unit(rng));
+  }
   return r;
 }
 
