@@ -507,6 +507,184 @@ void TileCover::Descend(PixelRect tile, std::span<const uint32_t> parent, uint32
   }
 }
 
+std::unique_ptr<const PointCover> PointCover::Of(const Grid& grid, const SlotTable& sites) {
+  std::vector<uint32_t> slots;
+  slots.reserve(sites.size());
+  for (uint32_t s = 0; s < sites.size(); ++s) {
+    if (!std::isnan(sites.point(s).x)) {
+      slots.push_back(s);
+    } else if (sites.get(s) != nullptr) {
+      return nullptr;  // a live site that is not a plain point
+    }
+  }
+  if (slots.empty()) return nullptr;
+  // Buckets about as wide as the points' mean spacing (a point or two each), at least four
+  // pixels: a tile's search then visits a few dozen buckets.
+  const double spacing = std::sqrt(double(grid.pixel_count()) / double(slots.size()));
+  uint32_t bucket_px = 4;
+  while (bucket_px < spacing && bucket_px < 1024) bucket_px *= 2;
+  std::unique_ptr<PointCover> cover(new PointCover(grid, bucket_px));
+  PointCover& c = *cover;
+  std::vector<uint32_t> bucket(slots.size());
+  c.start_.assign(size_t{c.columns_} * c.rows_ + 1, 0);
+  for (size_t k = 0; k < slots.size(); ++k) {
+    const Vec2 p = sites.point(slots[k]);
+    bucket[k] = c.Row(p.y) * c.columns_ + c.Column(p.x);
+    ++c.start_[bucket[k] + 1];
+  }
+  for (size_t b = 1; b < c.start_.size(); ++b) c.start_[b] += c.start_[b - 1];
+  c.x_.resize(slots.size());
+  c.y_.resize(slots.size());
+  c.slot_.resize(slots.size());
+  std::vector<uint32_t> next(c.start_.begin(), c.start_.end() - 1);
+  for (size_t k = 0; k < slots.size(); ++k) {
+    const uint32_t at = next[bucket[k]]++;
+    const Vec2 p = sites.point(slots[k]);
+    c.x_[at] = p.x;
+    c.y_[at] = p.y;
+    c.slot_[at] = slots[k];
+  }
+  return cover;
+}
+
+PointCover::PointCover(const Grid& grid, uint32_t bucket_px)
+    : grid_(grid),
+      columns_((grid.width + bucket_px - 1) / bucket_px),
+      rows_((grid.height + bucket_px - 1) / bucket_px),
+      bucket_w_(bucket_px * grid.pixel_width()),
+      bucket_h_(bucket_px * grid.pixel_height()) {}
+
+uint32_t PointCover::Column(double x) const {
+  const double f = std::floor((x - grid_.window.min_x) / bucket_w_);
+  return !(f > 0) ? 0 : f >= columns_ - 1 ? columns_ - 1 : static_cast<uint32_t>(f);
+}
+
+uint32_t PointCover::Row(double y) const {
+  const double f = std::floor((y - grid_.window.min_y) / bucket_h_);
+  return !(f > 0) ? 0 : f >= rows_ - 1 ? rows_ - 1 : static_cast<uint32_t>(f);
+}
+
+double PointCover::Cover(PixelRect tile, std::vector<uint32_t>* slots,
+                         std::vector<double>* radii) const {
+  const Vec2 lo = grid_.Center(tile.x0, tile.y0), hi = grid_.Center(tile.x1 - 1, tile.y1 - 1);
+  const Vec2 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2};
+  const double h = Distance(lo, hi) / 2 + Rounding(c);
+  const double slack = 2 * Rounding(c);
+  auto squared = [&](uint32_t k, Vec2 q) {
+    const double dx = x_[k] - q.x, dy = y_[k] - q.y;
+    return dx * dx + dy * dy;
+  };
+  // The point nearest to c, ring by ring of buckets around c's, until no bucket beyond the
+  // rings can hold a nearer one. (One found a hair's breadth from the nearest by rounding
+  // serves as well: any plain point gives a valid U and valid bisectors.)
+  const int64_t cx = Column(c.x), cy = Row(c.y);
+  const int64_t columns = columns_, rows = rows_;
+  double near2 = INFINITY;
+  uint32_t nearest = 0;
+  auto visit = [&](int64_t i, int64_t j) {
+    const size_t b = static_cast<size_t>(j * columns + i);
+    for (uint32_t k = start_[b]; k < start_[b + 1]; ++k) {
+      const double d2 = squared(k, c);
+      if (d2 < near2) {
+        near2 = d2;
+        nearest = k;
+      }
+    }
+  };
+  for (int64_t r = 0;; ++r) {
+    const int64_t i0 = cx - r, i1 = cx + r, j0 = cy - r, j1 = cy + r;
+    for (int64_t j = std::max<int64_t>(j0, 0); j <= std::min(j1, rows - 1); ++j) {
+      if (j == j0 || j == j1) {
+        for (int64_t i = std::max<int64_t>(i0, 0); i <= std::min(i1, columns - 1); ++i) visit(i, j);
+      } else {
+        if (i0 >= 0) visit(i0, j);
+        if (i1 < columns) visit(i1, j);
+      }
+    }
+    // How near c a bucket beyond the rings can come.
+    double beyond = INFINITY;
+    if (i0 > 0) beyond = std::min(beyond, c.x - (grid_.window.min_x + i0 * bucket_w_));
+    if (i1 + 1 < columns) beyond = std::min(beyond, grid_.window.min_x + (i1 + 1) * bucket_w_ - c.x);
+    if (j0 > 0) beyond = std::min(beyond, c.y - (grid_.window.min_y + j0 * bucket_h_));
+    if (j1 + 1 < rows) beyond = std::min(beyond, grid_.window.min_y + (j1 + 1) * bucket_h_ - c.y);
+    if (beyond == INFINITY) break;  // every bucket visited
+    beyond = std::max(beyond, 0.0);
+    if (near2 <= beyond * beyond) break;
+  }
+  // U, from the nearest point (present on all of C); the points whose least value over C,
+  // d - h, can reach it lie within U + h of c (with Keep's rounding slack, and more).
+  const double upper = std::sqrt(near2) + h;
+  const double reach = (upper * (1 + 1e-12) + h) * (1 + 1e-12) + slack;
+  const double reach2 = reach * reach;
+  const Vec2 corners[4] = {lo, {hi.x, lo.y}, {lo.x, hi.y}, hi};
+  // The points within reach, as columns: where they are, then their squared distances from
+  // the corners (loops the compiler vectorizes).
+  thread_local std::vector<double> gx, gy, at[4];
+  thread_local std::vector<uint32_t> gk;
+  const uint32_t ci0 = Column(c.x - reach), ci1 = Column(c.x + reach);
+  const uint32_t cj0 = Row(c.y - reach), cj1 = Row(c.y + reach);
+  size_t n = 0;
+  for (uint32_t j = cj0; j <= cj1; ++j) {
+    const uint32_t from = start_[size_t{j} * columns_ + ci0];
+    const uint32_t to = start_[size_t{j} * columns_ + ci1 + 1];
+    if (gx.size() < n + (to - from)) {
+      for (auto* v : {&gx, &gy}) v->resize(2 * (n + (to - from)));
+      gk.resize(gx.size());
+    }
+    for (uint32_t k = from; k < to; ++k) {
+      const double dx = x_[k] - c.x, dy = y_[k] - c.y;
+      gx[n] = x_[k];
+      gy[n] = y_[k];
+      gk[n] = k;
+      n += dx * dx + dy * dy <= reach2;
+    }
+  }
+  for (auto& a : at) {
+    if (a.size() < n) a.resize(gx.size());
+  }
+  // The point nearest to each corner, among them (any point would do).
+  double witness[5][2] = {{x_[nearest], y_[nearest]}};
+  for (int i = 0; i < 4; ++i) {
+    double* a = at[i].data();
+    const double qx = corners[i].x, qy = corners[i].y;
+    for (size_t m = 0; m < n; ++m) {
+      const double dx = gx[m] - qx, dy = gy[m] - qy;
+      a[m] = dx * dx + dy * dy;
+    }
+    size_t best = 0;
+    for (size_t m = 1; m < n; ++m) best = a[m] < a[best] ? m : best;
+    witness[i + 1][0] = gx[best];
+    witness[i + 1][1] = gy[best];
+  }
+  // The bisector tests of Keep on squared distances: a point is dropped when, for one of
+  // the five witnesses w (the nearest to c and to each corner), at every corner x its squared
+  // distance exceeds (|x w| (1 + 1e-12) + slack)^2 (Keep's test, squared) with room for the
+  // squares' rounding (1e-14, far above their few ulps). So a point dropped here is one that
+  // Keep's tests drop with the same witnesses.
+  double beaten[5][4];
+  for (int w = 0; w < 5; ++w) {
+    for (int i = 0; i < 4; ++i) {
+      const double dx = witness[w][0] - corners[i].x, dy = witness[w][1] - corners[i].y;
+      const double b = std::sqrt(dx * dx + dy * dy) * (1 + 1e-12) + slack;
+      beaten[w][i] = b * b * (1 + 1e-14);
+    }
+  }
+  const double *a0 = at[0].data(), *a1 = at[1].data(), *a2 = at[2].data(), *a3 = at[3].data();
+  for (size_t m = 0; m < n; ++m) {
+    bool dropped = false;
+    for (int w = 0; w < 5; ++w) {
+      dropped |= (a0[m] > beaten[w][0]) & (a1[m] > beaten[w][1]) & (a2[m] > beaten[w][2]) &
+                 (a3[m] > beaten[w][3]);
+    }
+    if (dropped) continue;
+    slots->push_back(slot_[gk[m]]);
+    // Its distance from the farthest centre, as RadiusFor's.
+    radii->push_back(std::sqrt(std::max(std::max(a0[m], a1[m]), std::max(a2[m], a3[m]))) *
+                     (1 + 0x1p-40));
+  }
+  return upper;
+}
+
 namespace {
 
 // The proof of ComputeCoverage, tile by tile: calls keep(slot, radius, leaf) for every site

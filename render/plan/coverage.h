@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <span>
 #include <utility>
@@ -192,6 +193,42 @@ class TileCover {
   const double margin_;
   mutable std::once_flag reach_once_;
   mutable double reach_ = INFINITY;
+};
+
+// The proof above for scenes whose live sites are all plain points (Site::plain), in a
+// kNearest diagram, with a uniform grid of buckets in place of the index and the tests done
+// on squared distances: what the computed full render of a point scene spends its lists on.
+// Per tile: the point nearest to the middle c of its centres (by rings of buckets), which
+// gives U; the points within U + h of c (the buckets that square of side 2 (U + h) meets);
+// of those, the ones not beaten at all four corners by one of five points (the nearest to
+// each corner and to c). A point kept by TileCover::Keep is kept here: the tests here drop a
+// point only where Keep's (on distances, with their rounding slack) would. Points outside
+// the window lie in the buckets at its edge, where they are no nearer than they are.
+// Thread-safe: tiles may be covered concurrently. CONTRACT: the grid and table outlive it.
+class PointCover {
+ public:
+  // Null when the table holds no live site, or one that is not a plain point. O(slots).
+  static std::unique_ptr<const PointCover> Of(const Grid& grid, const SlotTable& sites);
+
+  // As TileCover::Cover for `tile` (a non-empty rectangle of the grid's pixels): appends
+  // every point that can be nearest at one of its centres, and the radius it needs there (its
+  // distance from the farthest centre). Returns U (Keep's).
+  double Cover(PixelRect tile, std::vector<uint32_t>* slots, std::vector<double>* radii) const;
+
+ private:
+  PointCover(const Grid& grid, uint32_t bucket_px);
+  // The bucket column (row) of x (y), clamped to the grid's buckets.
+  uint32_t Column(double x) const;
+  uint32_t Row(double y) const;
+
+  const Grid& grid_;
+  uint32_t columns_ = 0, rows_ = 0;
+  double bucket_w_ = 0, bucket_h_ = 0;  // in the plane
+  // Bucket b holds points [start_[b], start_[b + 1]) of x_, y_, slot_ (row-major buckets,
+  // each in slot order).
+  std::vector<uint32_t> start_;
+  std::vector<double> x_, y_;
+  std::vector<uint32_t> slot_;
 };
 
 // The same radii and clips as ComputeCoverage, as draws in slot order: for a small region of

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <span>
 #include <utility>
 
@@ -14,7 +15,10 @@ Coverage TileCandidates(const Grid& grid, const SlotTable& slots, const SiteInde
   constexpr uint32_t kTile = kScanTile;
   const uint32_t tiles_x = (grid.width + kTile - 1) / kTile;
   const uint32_t tiles_y = (grid.height + kTile - 1) / kTile;
-  const uint32_t top = TopTilePx(grid, index.size(), kTile);
+  // A scene of plain points only: each tile on its own from a uniform grid of the points.
+  // Else tiles of TopTilePx from the index, split down.
+  const std::unique_ptr<const PointCover> points = PointCover::Of(grid, slots);
+  const uint32_t top = points ? kTile : TopTilePx(grid, index.size(), kTile);
   const TileCover cover(grid, slots, index);
   struct Leaf {
     uint32_t tile;  // row-major index of the compute tile
@@ -32,7 +36,8 @@ Coverage TileCandidates(const Grid& grid, const SlotTable& slots, const SiteInde
   const uint32_t rows_count = (grid.height + top - 1) / top;
   std::vector<Row> rows(rows_count);
   ParallelFor(rows_count, 1, [&](size_t begin, size_t end) {
-    std::vector<uint32_t> needed;
+    std::vector<uint32_t> needed, kept_slots;
+    std::vector<double> kept_radii;
     for (size_t ty = begin; ty < end; ++ty) {
       Row& row = rows[ty];
       const TileCover::Leaf leaf = [&](PixelRect rect, std::span<const uint32_t> kept,
@@ -70,8 +75,16 @@ Coverage TileCandidates(const Grid& grid, const SlotTable& slots, const SiteInde
       };
       const uint32_t y0 = static_cast<uint32_t>(ty) * top;
       for (uint32_t x0 = 0; x0 < grid.width; x0 += top) {
-        cover.CoverDown({x0, y0, std::min(x0 + top, grid.width), std::min(y0 + top, grid.height)},
-                        kTile, leaf);
+        const PixelRect rect{x0, y0, std::min(x0 + top, grid.width),
+                             std::min(y0 + top, grid.height)};
+        if (points) {
+          kept_slots.clear();
+          kept_radii.clear();
+          const double upper = points->Cover(rect, &kept_slots, &kept_radii);
+          leaf(rect, kept_slots, kept_radii, upper);
+        } else {
+          cover.CoverDown(rect, kTile, leaf);
+        }
       }
     }
   });

@@ -9,6 +9,7 @@
 
 #include "render/kernel/exact2.h"
 #include "render/plan/distance_mesh.h"
+#include "render/plan/tile_lists.h"
 #include "tests/support/oracle.h"
 
 namespace gvd {
@@ -399,6 +400,91 @@ TEST(Coverage, FillIsASmallMultipleOfTheGrid) {
   }
   EXPECT_LT(discs, 5.0);  // against 20,000 for full cones
   EXPECT_LT(clipped, 3.0);
+}
+
+// A scene of plain points only takes its tiles' lists from PointCover's uniform grid: every
+// point nearest to a pixel centre (ties included, by the oracle's distances) must be in the
+// list of the centre's tile, with a radius and clip that reach the centre.
+void ExpectListed(const Grid& grid, const SiteTable& sites, const std::string& what) {
+  SlotTable slots(sites);
+  SiteIndex index = SiteIndex::Build(slots);
+  ASSERT_NE(PointCover::Of(grid, slots), nullptr) << what;
+  TileLists lists;
+  const Coverage cov = TileCandidates(grid, slots, index, &lists);
+  const uint32_t tiles_x = (grid.width + kScanTile - 1) / kScanTile;
+  std::vector<double> d(sites.size());
+  int failures = 0;
+  for (uint32_t j = 0; j < grid.height && failures < 5; ++j) {
+    for (uint32_t i = 0; i < grid.width && failures < 5; ++i) {
+      const Vec2 p = grid.Center(i, j);
+      double best = INFINITY;
+      for (size_t s = 0; s < sites.size(); ++s) {
+        d[s] = oracle::Distance(p, sites[s].geometry);
+        best = std::min(best, d[s]);
+      }
+      const size_t t = size_t{j / kScanTile} * tiles_x + i / kScanTile;
+      for (size_t s = 0; s < sites.size(); ++s) {
+        if (d[s] != best) continue;
+        bool listed = false;
+        for (uint32_t k = lists.offsets[3 * t]; k < lists.offsets[3 * t + 3]; ++k) {
+          listed = listed || lists.points[k].id == s + 1;
+        }
+        if (!listed || !(d[s] <= cov.radius[s]) || !Holds(cov.clip[s], i, j)) {
+          ++failures;
+          ADD_FAILURE() << what << ": pixel " << i << "," << j << ": nearest point " << s
+                        << " at " << d[s] << (listed ? "" : " is not in its tile's list")
+                        << ", radius " << cov.radius[s];
+        }
+      }
+    }
+  }
+}
+
+TEST(PointCover, RandomPointsAgainstTheOracle) {
+  // Pixels that are not square, a grid that is not a multiple of the tiles, and from one
+  // point to several per pixel.
+  Window w{-3, 1, 5, 4};
+  Grid grid{w, 100, 61};
+  for (size_t n : {1, 2, 10, 300, 3000, 8000}) {
+    ExpectListed(grid, RandomPoints(n, w, n), "points " + std::to_string(n));
+  }
+  // Half of them outside the window, some far.
+  ExpectListed(grid, RandomPoints(400, {-11, -7, 13, 12}, 4), "outside");
+  ExpectListed(grid, RandomPoints(50, {-1e9, -1e9, 1e9, 1e9}, 5), "far");
+}
+
+TEST(PointCover, LatticeTiesCoincidentPointsAndClusters) {
+  // Points on the pixel-centre lattice, at tile corners and on bucket edges: many exact
+  // ties; two coincident points.
+  Grid grid{{0, 0, 64, 64}, 64, 64};
+  SiteTable lattice;
+  for (int y = 0; y <= 64; y += 4) {
+    for (int x = 0; x <= 64; x += 4) lattice.push_back({"", PointSite{{x + 0.5, y + 0.5}}});
+  }
+  for (int y = 0; y <= 64; y += 8) {
+    for (int x = 0; x <= 64; x += 8) lattice.push_back({"", PointSite{{double(x), double(y)}}});
+  }
+  lattice.push_back({"", PointSite{{20.5, 20.5}}});
+  ExpectListed(grid, lattice, "lattice");
+  // All but three points in one bucket, far from most tiles; the window far from the origin.
+  Window w{1e6, 2e6, 1e6 + 1, 2e6 + 1};
+  SiteTable cluster = RandomPoints(2000, {1e6 + 0.01, 2e6 + 0.01, 1e6 + 0.02, 2e6 + 0.02}, 6);
+  cluster.push_back({"", PointSite{{1e6 + 0.9, 2e6 + 0.5}}});
+  cluster.push_back({"", PointSite{{1e6 + 0.5, 2e6 + 0.95}}});
+  cluster.push_back({"", PointSite{{1e6 + 3, 2e6 - 2}}});
+  ExpectListed({w, 90, 70}, cluster, "cluster");
+}
+
+TEST(PointCover, OnlyForScenesOfPlainPoints) {
+  const Grid grid{{0, 0, 1, 1}, 32, 32};
+  SiteTable sites = RandomPoints(20, {0, 0, 1, 1}, 7);
+  EXPECT_NE(PointCover::Of(grid, SlotTable(sites)), nullptr);
+  sites[3].multiplicative = 2;
+  EXPECT_EQ(PointCover::Of(grid, SlotTable(sites)), nullptr);
+  sites[3].multiplicative = 1;
+  sites[5].geometry = SegmentSite{{0.1, 0.1}, {0.2, 0.3}};
+  EXPECT_EQ(PointCover::Of(grid, SlotTable(sites)), nullptr);
+  EXPECT_EQ(PointCover::Of(grid, SlotTable()), nullptr);
 }
 
 TEST(SiteIndex, NearestAndWithinAgreeWithBruteForce) {
