@@ -1,6 +1,7 @@
 #include "render/scene/snapshot.h"
 
 #include <algorithm>
+#include <cstring>
 #include <map>
 
 #include "render/scene/cpu_pool.h"
@@ -70,6 +71,33 @@ IdMap IdMap::With(const std::vector<Change>& changes) const {
   }
   out.leaves_.insert(out.leaves_.end(), leaves_.begin() + shared, leaves_.end());
   return out;
+}
+
+void SortById(std::vector<IdMap::Change>* changes) {
+  // Sorted as (the first 8 bytes of the id, big-endian; its position), full ids compared
+  // only where those bytes are equal, then moved once into place: no string is moved, and
+  // few are compared, per step of the sort.
+  std::vector<IdMap::Change>& c = *changes;
+  struct Key {
+    uint64_t prefix;
+    uint32_t at;
+  };
+  std::vector<Key> keys(c.size());
+  for (size_t k = 0; k < c.size(); ++k) {
+    unsigned char bytes[8] = {};
+    std::memcpy(bytes, c[k].first.data(), std::min<size_t>(8, c[k].first.size()));
+    uint64_t prefix = 0;
+    for (unsigned char b : bytes) prefix = prefix << 8 | b;
+    keys[k] = {prefix, static_cast<uint32_t>(k)};
+  }
+  std::sort(keys.begin(), keys.end(), [&](const Key& a, const Key& b) {
+    if (a.prefix != b.prefix) return a.prefix < b.prefix;
+    return c[a.at].first < c[b.at].first;
+  });
+  std::vector<IdMap::Change> sorted;
+  sorted.reserve(c.size());
+  for (const Key& k : keys) sorted.push_back(std::move(c[k.at]));
+  c = std::move(sorted);
 }
 
 // ---- SiteSnapshot ----
@@ -184,8 +212,7 @@ std::shared_ptr<const BasicSiteSnapshot<K>> BasicSnapshotBuilder<K>::Build(uint6
     s->least_ = table_.least();
   };
   auto ids = [&] {
-    std::sort(id_changes_.begin(), id_changes_.end(),
-              [](const IdMap::Change& a, const IdMap::Change& b) { return a.first < b.first; });
+    SortById(&id_changes_);
     s->ids_ = base_->ids_.With(id_changes_);
   };
   // Bulk changes build the index and the id map side by side; small ones on this thread.

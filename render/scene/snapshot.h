@@ -51,6 +51,9 @@ class IdMap {
   size_t size_ = 0;
 };
 
+// Sorts changes by id, as IdMap::With takes them.
+void SortById(std::vector<IdMap::Change>* changes);
+
 // About how many bytes a site holds in a scene: the site, its id and geometry, the segment
 // tree it has or will have (IndexSegments) or a mesh's triangle tree, and its entries in the
 // slot table, spatial index and id map. What the memory budget (--max-memory) charges for a

@@ -154,6 +154,32 @@ TEST(Snapshot, EveryVersionStaysWhatItWas) {
 
 // A snapshot's ink (the summed length of its sites' segments) across puts, replacements and
 // removals of segments and polylines, against the sum over a model, by std::hypot.
+// Ids sorted for the id map in std::string's order: bytes compared unsigned, a prefix first,
+// whatever the bytes (NULs, bytes above 0x7f) and however long the shared prefix.
+TEST(Snapshot, IdsSortInStringOrder) {
+  std::mt19937_64 rng(12);
+  const std::string alphabet = std::string("a\0\x7f\x80\xff", 5) + "0";
+  std::vector<std::string> ids = {"", std::string(1, '\0'), std::string(9, '\0'), "abcdefgh",
+                                  "abcdefg", "abcdefgh\x01", "abcdefghi", "site-0000001",
+                                  "site-0000010", "site-000001"};
+  for (int k = 0; k < 3000; ++k) {
+    std::string id = rng() % 2 ? "prefix-x" : "";
+    for (size_t n = rng() % 12; n > 0; --n) id += alphabet[rng() % alphabet.size()];
+    ids.push_back(id);
+  }
+  std::sort(ids.begin(), ids.end());
+  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+  std::vector<IdMap::Change> changes;
+  for (size_t k = 0; k < ids.size(); ++k) changes.emplace_back(ids[k], static_cast<uint32_t>(k));
+  std::shuffle(changes.begin(), changes.end(), rng);
+  SortById(&changes);
+  ASSERT_EQ(changes.size(), ids.size());
+  for (size_t k = 0; k < ids.size(); ++k) {
+    EXPECT_EQ(changes[k].first, ids[k]) << k;
+    EXPECT_EQ(changes[k].second, k) << "an id and its slot stay together";
+  }
+}
+
 TEST(Snapshot, InkFollowsEveryChange) {
   std::mt19937_64 rng(21);
   std::uniform_real_distribution<double> u(0, 1);
