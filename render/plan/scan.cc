@@ -40,7 +40,8 @@ void ScanTile(const ScanInput& in, size_t t, uint32_t x0, uint32_t y0, float* be
   std::fill(id, id + kPixels, 0u);
   const uint32_t* at = &lists.offsets[3 * t];  // where each list of the tile starts
   const uint32_t* next = at + 3;               // and ends
-  // Plain points, by squared distance, row by row.
+  // Plain points, by squared distance, row by row. They come in ascending id order, so the
+  // first least value is the lowest id's: no tie needs its ids compared.
   for (uint32_t k = at[0]; k < next[0]; ++k) {
     const TileLists::Point q = lists.points[k];
     for (uint32_t j = 0; j < kTile; ++j) {
@@ -50,7 +51,7 @@ void ScanTile(const ScanInput& in, size_t t, uint32_t x0, uint32_t y0, float* be
       for (uint32_t i = 0; i < kTile; ++i) {
         const float dx = xs[i] - q.x;
         const float dd = dx * dx + dy2;
-        const bool better = dd < row[i] || (dd == row[i] && q.id < row_id[i]);
+        const bool better = dd < row[i];
         row[i] = better ? dd : row[i];
         row_id[i] = better ? q.id : row_id[i];
       }

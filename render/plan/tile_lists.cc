@@ -42,6 +42,7 @@ Coverage TileCandidates(const Grid& grid, const SlotTable& slots, const SiteInde
       Row& row = rows[ty];
       const TileCover::Leaf leaf = [&](PixelRect rect, std::span<const uint32_t> kept,
                                        std::span<const double> radii, double upper) {
+        const size_t first_point = row.points.size();
         for (size_t k = 0; k < kept.size(); ++k) {
           const uint32_t slot = kept[k];
           row.kept.emplace_back(slot, radii[k]);
@@ -67,6 +68,9 @@ Coverage TileCandidates(const Grid& grid, const SlotTable& slots, const SiteInde
           TileCover::NeededSegments(grid, rect, site, upper, &needed);
           for (uint32_t j : needed) row.segments.push_back({slot, j});
         }
+        // By id, so that the scan's first least value is the lowest id's (its tie rule).
+        std::sort(row.points.begin() + static_cast<ptrdiff_t>(first_point), row.points.end(),
+                  [](const TileLists::Point& a, const TileLists::Point& b) { return a.id < b.id; });
         row.leaves.push_back({rect.y0 / kTile * tiles_x + rect.x0 / kTile,
                               {static_cast<uint32_t>(row.points.size()),
                                static_cast<uint32_t>(row.sites.size()),

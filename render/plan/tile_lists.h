@@ -18,7 +18,7 @@ namespace gvd {
 inline constexpr uint32_t kScanTile = 8;
 
 // Candidate lists by tile of kScanTile pixels, row-major. Tile t's plain points
-// (Site::plain) are points[offsets[3t] .. offsets[3t + 3]); the sites it scans whole
+// (Site::plain) are points[offsets[3t] .. offsets[3t + 3]), in ascending id order; the sites it scans whole
 // (polygons restricted to a side whose boundary comes near the tile: the even-odd test needs
 // every edge) are draws[sites[k]] for k in [offsets[3t + 1], offsets[3t + 4]); of the other
 // sites it scans single segments, segments[k] for k in [offsets[3t + 2], offsets[3t + 5]),

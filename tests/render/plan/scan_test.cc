@@ -97,6 +97,34 @@ TEST(ScanTest, TiesAndCoincidentSites) {
   }
 }
 
+TEST(ScanTest, PointScenesThroughTheirUniformGrid) {
+  // Plain points only (PointCover's lists): random ones, some outside the window, points on
+  // the pixel-centre lattice (exact ties along whole rows), and each of some points twice.
+  Generator gen(21);
+  SiteTable sites;
+  for (int k = 0; k < 1500; ++k) {
+    sites.push_back({"r" + std::to_string(k), PointSite{{gen.U(-0.1, 1.1), gen.U(-0.1, 1.1)}}});
+  }
+  for (int k = 0; k < 40; ++k) {
+    const Vec2 p{(2 * (k % 8) + 1) / 16.0, (2 * (k / 8) + 1) / 16.0};
+    sites.push_back({"l" + std::to_string(k), PointSite{p}});
+  }
+  for (int k = 0; k < 300; ++k) {
+    const Site copy{"c" + std::to_string(k), sites[k * 5].geometry};
+    sites.push_back(copy);
+  }
+  const Grid grid{{0, 0, 1, 1}, 96, 80};
+  auto frame = Scan(grid, sites);
+  CheckEveryPixel(*frame, sites, "points");
+  // Of two coincident points, the lower slot wins every pixel (the scan's tie rule).
+  for (uint32_t j = 0; j < grid.height; ++j) {
+    for (uint32_t i = 0; i < grid.width; ++i) {
+      const uint32_t id = frame->id_at(i, j);
+      EXPECT_FALSE(id > 1540 && id <= 1840) << "the copy " << id - 1 << " at " << i << "," << j;
+    }
+  }
+}
+
 TEST(ScanTest, SitesOutsideTheWindowAndHugeWeights) {
   // Sites: points and a polyline far outside the window, a point with a huge additive
   // weight inside it, and one with a huge multiplicative weight.
