@@ -604,7 +604,9 @@ double PointCover::Cover(PixelRect tile, std::vector<uint32_t>* slots,
     // How near c a bucket beyond the rings can come.
     double beyond = INFINITY;
     if (i0 > 0) beyond = std::min(beyond, c.x - (grid_.window.min_x + i0 * bucket_w_));
-    if (i1 + 1 < columns) beyond = std::min(beyond, grid_.window.min_x + (i1 + 1) * bucket_w_ - c.x);
+    if (i1 + 1 < columns) {
+      beyond = std::min(beyond, grid_.window.min_x + (i1 + 1) * bucket_w_ - c.x);
+    }
     if (j0 > 0) beyond = std::min(beyond, c.y - (grid_.window.min_y + j0 * bucket_h_));
     if (j1 + 1 < rows) beyond = std::min(beyond, grid_.window.min_y + (j1 + 1) * bucket_h_ - c.y);
     if (beyond == INFINITY) break;  // every bucket visited

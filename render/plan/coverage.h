@@ -201,9 +201,10 @@ class TileCover {
 // Per tile: the point nearest to the middle c of its centres (by rings of buckets), which
 // gives U; the points within U + h of c (the buckets that square of side 2 (U + h) meets);
 // of those, the ones not beaten at all four corners by one of five points (the nearest to
-// each corner and to c). A point kept by TileCover::Keep is kept here: the tests here drop a
-// point only where Keep's (on distances, with their rounding slack) would. Points outside
-// the window lie in the buckets at its edge, where they are no nearer than they are.
+// each corner and to c). A point is dropped only where Keep's tests (on distances, with
+// their rounding slack) drop it with the same witnesses, so every point that can be nearest
+// at one of the tile's centres is kept. Points outside the window lie in the buckets at its
+// edge, where they are no nearer than they are.
 // Thread-safe: tiles may be covered concurrently. CONTRACT: the grid and table outlive it.
 class PointCover {
  public:

@@ -18,12 +18,12 @@ namespace gvd {
 inline constexpr uint32_t kScanTile = 8;
 
 // Candidate lists by tile of kScanTile pixels, row-major. Tile t's plain points
-// (Site::plain) are points[offsets[3t] .. offsets[3t + 3]), in ascending id order; the sites it scans whole
-// (polygons restricted to a side whose boundary comes near the tile: the even-odd test needs
-// every edge) are draws[sites[k]] for k in [offsets[3t + 1], offsets[3t + 4]); of the other
-// sites it scans single segments, segments[k] for k in [offsets[3t + 2], offsets[3t + 5]),
-// those that can hold their site's nearest point where it can be best there
-// (TileCover::NeededSegments), a site's next to each other.
+// (Site::plain) are points[offsets[3t] .. offsets[3t + 3]), in ascending id order; the sites
+// it scans whole (polygons restricted to a side whose boundary comes near the tile: the
+// even-odd test needs every edge) are draws[sites[k]] for k in [offsets[3t + 1],
+// offsets[3t + 4]); of the other sites it scans single segments, segments[k] for k in
+// [offsets[3t + 2], offsets[3t + 5]), those that can hold their site's nearest point where it
+// can be best there (TileCover::NeededSegments), a site's next to each other.
 struct TileLists {
   struct Point {  // nearest.comp's Point, std430
     float x, y;   // relative to the window's min corner
