@@ -508,16 +508,30 @@ void TileCover::Descend(PixelRect tile, std::span<const uint32_t> parent, uint32
 }
 
 std::unique_ptr<const PointCover> PointCover::Of(const Grid& grid, const SlotTable& sites) {
+  // Squared distances neither underflow nor overflow within the window's scale, nor for
+  // points up to 2^400 away (beyond, the index's path, which measures with hypot).
+  const Window& w = grid.window;
+  if (!(grid.pixel_size() > 0x1p-400) ||
+      !(std::max({std::abs(w.min_x), std::abs(w.max_x), std::abs(w.min_y), std::abs(w.max_y)}) <
+        0x1p400)) {
+    return nullptr;
+  }
   std::vector<uint32_t> slots;
   slots.reserve(sites.size());
+  size_t outside = 0;
   for (uint32_t s = 0; s < sites.size(); ++s) {
-    if (!std::isnan(sites.point(s).x)) {
+    const Vec2 p = sites.point(s);
+    if (!std::isnan(p.x)) {
+      if (!(std::abs(p.x) < 0x1p400 && std::abs(p.y) < 0x1p400)) return nullptr;
+      outside += !w.Contains(p);
       slots.push_back(s);
     } else if (sites.get(s) != nullptr) {
       return nullptr;  // a live site that is not a plain point
     }
   }
-  if (slots.empty()) return nullptr;
+  // Points outside the window crowd the buckets at its edge: where they are many (a window
+  // on part of a scene), the index's path, which finds only those within reach.
+  if (slots.empty() || outside * 4 > slots.size()) return nullptr;
   // Buckets about as wide as the points' mean spacing (a point or two each), at least four
   // pixels: a tile's search then visits a few dozen buckets.
   const double spacing = std::sqrt(double(grid.pixel_count()) / double(slots.size()));

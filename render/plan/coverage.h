@@ -208,7 +208,9 @@ class TileCover {
 // Thread-safe: tiles may be covered concurrently. CONTRACT: the grid and table outlive it.
 class PointCover {
  public:
-  // Null when the table holds no live site, or one that is not a plain point. O(slots).
+  // Null when the table holds no live site, or one that is not a plain point; and where
+  // squared distances could underflow or overflow (a pixel under 2^-400, coordinates over
+  // 2^400), or more than a quarter of the points lie outside the window. O(slots).
   static std::unique_ptr<const PointCover> Of(const Grid& grid, const SlotTable& sites);
 
   // As TileCover::Cover for `tile` (a non-empty rectangle of the grid's pixels): appends

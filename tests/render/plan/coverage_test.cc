@@ -405,13 +405,24 @@ TEST(Coverage, FillIsASmallMultipleOfTheGrid) {
 // A scene of plain points only takes its tiles' lists from PointCover's uniform grid: every
 // point nearest to a pixel centre (ties included, by the oracle's distances) must be in the
 // list of the centre's tile, with a radius and clip that reach the centre.
-void ExpectListed(const Grid& grid, const SiteTable& sites, const std::string& what) {
+// Where PointCover declines the scene (`gridded` false), the index's path must do as well.
+// Each tile's points must also come in ascending id order (the scan's tie rule).
+void ExpectListed(const Grid& grid, const SiteTable& sites, const std::string& what,
+                  bool gridded = true) {
   SlotTable slots(sites);
   SiteIndex index = SiteIndex::Build(slots);
-  ASSERT_NE(PointCover::Of(grid, slots), nullptr) << what;
+  ASSERT_EQ(PointCover::Of(grid, slots) != nullptr, gridded) << what;
   TileLists lists;
   const Coverage cov = TileCandidates(grid, slots, index, &lists);
   const uint32_t tiles_x = (grid.width + kScanTile - 1) / kScanTile;
+  for (size_t t = 0; t + 1 < lists.offsets.size() / 3; ++t) {
+    ASSERT_TRUE(std::is_sorted(lists.points.begin() + lists.offsets[3 * t],
+                               lists.points.begin() + lists.offsets[3 * t + 3],
+                               [](const TileLists::Point& a, const TileLists::Point& b) {
+                                 return a.id < b.id;
+                               }))
+        << what << ": tile " << t << "'s points are not in id order";
+  }
   std::vector<double> d(sites.size());
   int failures = 0;
   for (uint32_t j = 0; j < grid.height && failures < 5; ++j) {
@@ -448,9 +459,15 @@ TEST(PointCover, RandomPointsAgainstTheOracle) {
   for (size_t n : {1, 2, 10, 300, 3000, 8000}) {
     ExpectListed(grid, RandomPoints(n, w, n), "points " + std::to_string(n));
   }
-  // Half of them outside the window, some far.
-  ExpectListed(grid, RandomPoints(400, {-11, -7, 13, 12}, 4), "outside");
-  ExpectListed(grid, RandomPoints(50, {-1e9, -1e9, 1e9, 1e9}, 5), "far");
+  // A fifth of them outside the window (in the buckets at its edge), near or far.
+  auto with = [](SiteTable inside, const SiteTable& outside) {
+    inside.insert(inside.end(), outside.begin(), outside.end());
+    return inside;
+  };
+  ExpectListed(grid, with(RandomPoints(320, w, 4), RandomPoints(80, {-11, -7, 13, 12}, 44)),
+               "outside");
+  ExpectListed(grid, with(RandomPoints(60, w, 5), RandomPoints(15, {-1e9, -1e9, 1e9, 1e9}, 55)),
+               "far");
 }
 
 TEST(PointCover, LatticeTiesCoincidentPointsAndClusters) {
@@ -473,6 +490,18 @@ TEST(PointCover, LatticeTiesCoincidentPointsAndClusters) {
   cluster.push_back({"", PointSite{{1e6 + 0.5, 2e6 + 0.95}}});
   cluster.push_back({"", PointSite{{1e6 + 3, 2e6 - 2}}});
   ExpectListed({w, 90, 70}, cluster, "cluster");
+}
+
+TEST(PointCover, ScalesWhereSquaresWouldUnderOrOverflowAndMostPointsOutside) {
+  // A window of 1e-160 (squared distances underflow), points 1e200 away (they overflow),
+  // and a window on a small part of the scene: the index's path takes them, and lists them
+  // as well.
+  const Window tiny{0, 0, 1e-160, 1e-160};
+  ExpectListed({tiny, 40, 30}, RandomPoints(200, tiny, 8), "tiny", false);
+  SiteTable far = RandomPoints(200, {0, 0, 1, 1}, 9);
+  far.push_back({"", PointSite{{1e200, -1e200}}});
+  ExpectListed({{0, 0, 1, 1}, 40, 30}, far, "far", false);
+  ExpectListed({{0, 0, 1, 1}, 40, 30}, RandomPoints(300, {-2, -2, 3, 3}, 10), "outside", false);
 }
 
 TEST(PointCover, OnlyForScenesOfPlainPoints) {

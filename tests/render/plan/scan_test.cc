@@ -99,14 +99,16 @@ TEST(ScanTest, TiesAndCoincidentSites) {
 
 TEST(ScanTest, PointScenesThroughTheirUniformGrid) {
   // Plain points only (PointCover's lists): random ones, some outside the window, points on
-  // the pixel-centre lattice (exact ties along whole rows), and each of some points twice.
+  // the pixel-centre lattice (ties along whole rows and columns), and each of some points
+  // twice.
   Generator gen(21);
   SiteTable sites;
   for (int k = 0; k < 1500; ++k) {
     sites.push_back({"r" + std::to_string(k), PointSite{{gen.U(-0.1, 1.1), gen.U(-0.1, 1.1)}}});
   }
+  // On pixel centres 8 pixels apart: their bisectors run through pixel centres.
   for (int k = 0; k < 40; ++k) {
-    const Vec2 p{(2 * (k % 8) + 1) / 16.0, (2 * (k / 8) + 1) / 16.0};
+    const Vec2 p{(8 * (k % 8) + 0.5) / 96, (8 * (k / 8) + 0.5) / 80};
     sites.push_back({"l" + std::to_string(k), PointSite{p}});
   }
   for (int k = 0; k < 300; ++k) {
