@@ -92,7 +92,8 @@ void SortById(std::vector<IdMap::Change>* changes) {
   }
   std::sort(keys.begin(), keys.end(), [&](const Key& a, const Key& b) {
     if (a.prefix != b.prefix) return a.prefix < b.prefix;
-    return c[a.at].first < c[b.at].first;
+    const int order = c[a.at].first.compare(c[b.at].first);
+    return order != 0 ? order < 0 : a.at < b.at;  // equal ids keep their order
   });
   std::vector<IdMap::Change> sorted;
   sorted.reserve(c.size());

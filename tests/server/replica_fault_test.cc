@@ -332,14 +332,15 @@ TEST(ReplicaFaults, ThreeReplicasKeepEveryAcknowledgedWrite) {
         site->mutable_point()->set_x(u(rng));
         site->mutable_point()->set_y(u(rng));
       }
-      // Writers 0 and 1 write the same scene through other servers all the while: a batch
-      // overtaken on each of the server's tries is refused whole (ABORTED), and a client
-      // sends it again.
+      // Writers 0 and 1 write the same scene all the while, writer 1 through another
+      // server: a batch overtaken on each of the server's tries is refused whole (ABORTED),
+      // and a client sends it again, after a pause.
       grpc::Status s;
       for (int attempt = 0; attempt < 20; ++attempt) {
         uint64_t version;
         s = client->UpsertSites(r, &version);
         if (s.error_code() != grpc::StatusCode::ABORTED) break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(10 * (attempt + 1)));
       }
       ASSERT_TRUE(s.ok()) << "batch " << batch << ": " << s.error_code() << " "
                           << s.error_message();

@@ -152,8 +152,6 @@ TEST(Snapshot, EveryVersionStaysWhatItWas) {
   }
 }
 
-// A snapshot's ink (the summed length of its sites' segments) across puts, replacements and
-// removals of segments and polylines, against the sum over a model, by std::hypot.
 // Ids sorted for the id map in std::string's order: bytes compared unsigned, a prefix first,
 // whatever the bytes (NULs, bytes above 0x7f) and however long the shared prefix.
 TEST(Snapshot, IdsSortInStringOrder) {
@@ -180,6 +178,8 @@ TEST(Snapshot, IdsSortInStringOrder) {
   }
 }
 
+// A snapshot's ink (the summed length of its sites' segments) across puts, replacements and
+// removals of segments and polylines, against the sum over a model, by std::hypot.
 TEST(Snapshot, InkFollowsEveryChange) {
   std::mt19937_64 rng(21);
   std::uniform_real_distribution<double> u(0, 1);
