@@ -517,7 +517,9 @@ std::unique_ptr<const PointCover> PointCover::Of(const Grid& grid, const SlotTab
     return nullptr;
   }
   std::vector<uint32_t> slots;
+  std::vector<Vec2> points;
   slots.reserve(sites.size());
+  points.reserve(sites.size());
   size_t outside = 0;
   for (uint32_t s = 0; s < sites.size(); ++s) {
     const Vec2 p = sites.point(s);
@@ -525,6 +527,7 @@ std::unique_ptr<const PointCover> PointCover::Of(const Grid& grid, const SlotTab
       if (!(std::abs(p.x) < 0x1p400 && std::abs(p.y) < 0x1p400)) return nullptr;
       outside += !w.Contains(p);
       slots.push_back(s);
+      points.push_back(p);
     } else if (sites.get(s) != nullptr) {
       return nullptr;  // a live site that is not a plain point
     }
@@ -542,7 +545,7 @@ std::unique_ptr<const PointCover> PointCover::Of(const Grid& grid, const SlotTab
   std::vector<uint32_t> bucket(slots.size());
   c.start_.assign(size_t{c.columns_} * c.rows_ + 1, 0);
   for (size_t k = 0; k < slots.size(); ++k) {
-    const Vec2 p = sites.point(slots[k]);
+    const Vec2 p = points[k];
     bucket[k] = c.Row(p.y) * c.columns_ + c.Column(p.x);
     ++c.start_[bucket[k] + 1];
   }
@@ -553,9 +556,8 @@ std::unique_ptr<const PointCover> PointCover::Of(const Grid& grid, const SlotTab
   std::vector<uint32_t> next(c.start_.begin(), c.start_.end() - 1);
   for (size_t k = 0; k < slots.size(); ++k) {
     const uint32_t at = next[bucket[k]]++;
-    const Vec2 p = sites.point(slots[k]);
-    c.x_[at] = p.x;
-    c.y_[at] = p.y;
+    c.x_[at] = points[k].x;
+    c.y_[at] = points[k].y;
     c.slot_[at] = slots[k];
   }
   return cover;
@@ -648,11 +650,10 @@ double PointCover::Cover(PixelRect tile, std::vector<uint32_t>* slots,
       gk.resize(gx.size());
     }
     for (uint32_t k = from; k < to; ++k) {
-      const double dx = x_[k] - c.x, dy = y_[k] - c.y;
       gx[n] = x_[k];
       gy[n] = y_[k];
       gk[n] = k;
-      n += dx * dx + dy * dy <= reach2;
+      n += squared(k, c) <= reach2;
     }
   }
   for (auto& a : at) {
