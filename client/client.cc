@@ -81,9 +81,10 @@ grpc::Status Client::UpsertSites(const v1::UpsertSitesRequest& request, uint64_t
 }
 
 grpc::Status Client::DeleteSites(const std::string& scene_id, const std::vector<std::string>& ids,
-                                 uint64_t* version) {
+                                 uint64_t* version, v1::Durability durability) {
   v1::DeleteSitesRequest request;
   request.set_scene_id(scene_id);
+  request.set_durability(durability);
   for (const auto& id : ids) request.add_ids(id);
   v1::DeleteSitesResponse response;
   grpc::Status s = stub_->DeleteSites(Context().get(), request, &response);

@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 
 #include <atomic>
+#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -53,6 +54,11 @@ ABSL_FLAG(std::string, store, "",
           "postgresql://... (a libpq URL, several hosts and target_session_attrs included) for "
           "replicas: every server on one database accepts writes, holds every scene and "
           "follows the others' changes");
+ABSL_FLAG(uint32_t, relaxed_sync_ms, 100,
+          "<N> how long a write sent with durability RELAXED may stay unsynced in a SQLite "
+          "store, 1 to 60000: it is answered once written, survives a crash of the server at "
+          "once, and a crash or power loss of the machine once synced, within N ms (on "
+          "PostgreSQL, within three of the database's wal_writer_delay)");
 ABSL_FLAG(std::string, egl_device, "auto",
           "<auto|hardware|software> which EGL device renders (by default auto: a GPU if there "
           "is one, else Mesa's software rasterizer)");
@@ -136,6 +142,7 @@ struct Flags {
   std::string log_level;
   uint32_t software_render_threads = 0;
   uint32_t grace_ms = 5000;
+  uint32_t relaxed_sync_ms = 100;
   std::string tokens, tls_cert, tls_key, tls_client_ca, metrics_listen, http_listen;
   std::vector<std::string> cors_origins;
   gvd::ServerLimits limits;
@@ -196,6 +203,10 @@ Flags ParseFlags(int argc, char** argv) {
   }
   f.render_threads = Count<int>("render-threads", FLAGS_render_threads);
   f.grace_ms = Count<uint32_t>("shutdown-grace-ms", FLAGS_shutdown_grace_ms);
+  f.relaxed_sync_ms = Count<uint32_t>("relaxed-sync-ms", FLAGS_relaxed_sync_ms);
+  if (f.relaxed_sync_ms > 60000) {
+    Die(absl::StrCat("--relaxed-sync-ms needs 1 to 60000, not ", f.relaxed_sync_ms));
+  }
   f.tokens = absl::GetFlag(FLAGS_tokens);
   f.tls_cert = absl::GetFlag(FLAGS_tls_cert);
   f.tls_key = absl::GetFlag(FLAGS_tls_key);
@@ -316,7 +327,11 @@ int main(int argc, char** argv) {
     store = gvd::PostgresStore::Open(flags.postgres);
   } else {
     if (flags.data != ":memory:") MakeParents(flags.data);
-    store = gvd::SqliteStore::Open(flags.data, gvd::LegacyRecords(flags.limits));
+    auto sqlite = gvd::SqliteStore::Open(flags.data, gvd::LegacyRecords(flags.limits));
+    if (sqlite.ok()) {
+      (*sqlite)->set_relaxed_sync(std::chrono::milliseconds(flags.relaxed_sync_ms));
+    }
+    store = std::move(sqlite);
   }
   if (!store.ok()) {
     gvd::Log(gvd::LogLevel::kError, "store_failed", {{"error", store.status().ToString()}});

@@ -45,6 +45,13 @@ struct StoredScene {
   std::vector<Site3> sites3;
 };
 
+// When a commit counts as made: kSync, durable before the call returns (it survives a power
+// loss); kRelaxed, written to the store before the call returns (it survives a crash of the
+// server) and durable a bounded time later (the engine's: SqliteStore's flusher, the
+// database's WAL writer), for interactive edits that would otherwise wait on a disk flush
+// each.
+enum class Durability : uint8_t { kSync, kRelaxed };
+
 // One accepted write of one scene: the sites it puts (inserted or replaced) and the ids it
 // removes, and the version it brings the scene to. A view: valid during the call it is
 // passed to.
@@ -61,6 +68,7 @@ struct ChangeSet {
   // The incarnation of the scene it was made for (StoredScene::incarnation): the engine
   // refuses it (ABORTED) when the scene's id now names another one. 0: not checked.
   uint64_t incarnation = 0;
+  Durability durability = Durability::kSync;
 
   uint64_t base() const { return follows != 0 ? follows : version - 1; }
 
@@ -103,8 +111,9 @@ struct SceneChanges {
   }
 };
 
-// Every call is atomic and durable when it returns OK: after a crash, a reload sees all of it
-// or (when it failed) none of it. Thread-safe: calls may come from any thread; writes to one
+// Every call is atomic and durable when it returns OK (a relaxed commit: written, and durable
+// within the engine's bound): after a crash, a reload sees all of it or (when it failed) none
+// of it. Thread-safe: calls may come from any thread; writes to one
 // scene come one at a time and in version order (its writer lock), writes to different scenes
 // may overlap.
 class SceneStore {

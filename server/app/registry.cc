@@ -325,17 +325,20 @@ absl::Status SceneRegistry::DeleteScene(const std::string& id) {
 }
 
 absl::StatusOr<uint64_t> SceneRegistry::UpsertSites(const std::string& scene_id,
-                                                    std::vector<Site> sites) {
-  return Upsert<Scene>(scene_id, std::move(sites));
+                                                    std::vector<Site> sites,
+                                                    Durability durability) {
+  return Upsert<Scene>(scene_id, std::move(sites), durability);
 }
 
 absl::StatusOr<uint64_t> SceneRegistry::UpsertSites3(const std::string& scene_id,
-                                                     std::vector<Site3> sites) {
-  return Upsert<Scene3>(scene_id, std::move(sites));
+                                                     std::vector<Site3> sites,
+                                                     Durability durability) {
+  return Upsert<Scene3>(scene_id, std::move(sites), durability);
 }
 
 template <class S, class Write>
-absl::StatusOr<uint64_t> SceneRegistry::Retrying(const std::string& scene_id, Write write) {
+absl::StatusOr<uint64_t> SceneRegistry::Retrying(const std::string& scene_id,
+                                                 Durability durability, Write write) {
   for (int attempt = 1;; ++attempt) {
     auto scene = FindOf<S>(scene_id);
     if (!scene.ok()) return scene.status();
@@ -351,6 +354,7 @@ absl::StatusOr<uint64_t> SceneRegistry::Retrying(const std::string& scene_id, Wr
     auto commit = [&](const ChangeSet& c) {
       ChangeSet named = c;
       named.incarnation = incarnation;
+      named.durability = durability;
       return Durably([&] { return store_->Commit(named); });
     };
     auto version = write(*scene, commit);
@@ -379,7 +383,8 @@ absl::StatusOr<uint64_t> SceneRegistry::Retrying(const std::string& scene_id, Wr
 
 template <class S>
 absl::StatusOr<uint64_t> SceneRegistry::Upsert(const std::string& scene_id,
-                                               std::vector<typename S::Site> sites) {
+                                               std::vector<typename S::Site> sites,
+                                               Durability durability) {
   // What the sites add, reserved until the scene's snapshot holds them (sites they replace
   // are not subtracted: a reservation may only overstate).
   uint64_t added = 0;
@@ -391,19 +396,20 @@ absl::StatusOr<uint64_t> SceneRegistry::Upsert(const std::string& scene_id,
   }
   MemoryBudget::Reservation reserved(&memory_, added);
   const bool retried = store_->shared();  // then each try takes a copy
-  return Retrying<S>(scene_id, [&](const std::shared_ptr<S>& scene, const auto& commit) {
+  return Retrying<S>(scene_id, durability, [&](const std::shared_ptr<S>& scene, const auto& commit) {
     return scene->Upsert(retried ? sites : std::move(sites), limits_.max_sites_per_scene,
                          commit);
   });
 }
 
 absl::StatusOr<uint64_t> SceneRegistry::DeleteSites(const std::string& scene_id,
-                                                    const std::vector<std::string>& ids) {
+                                                    const std::vector<std::string>& ids,
+                                                    Durability durability) {
   auto remove = [&](const auto& scene, const auto& commit) -> absl::StatusOr<uint64_t> {
     return scene->Delete(ids, commit);
   };
-  if (Find3(scene_id).ok()) return Retrying<Scene3>(scene_id, remove);
-  return Retrying<Scene>(scene_id, remove);
+  if (Find3(scene_id).ok()) return Retrying<Scene3>(scene_id, durability, remove);
+  return Retrying<Scene>(scene_id, durability, remove);
 }
 
 absl::StatusOr<uint64_t> SceneRegistry::Apply(const ChangeSet& committed) {

@@ -96,16 +96,20 @@ class SceneRegistry {
   // waiters fail with NOT_FOUND and its watchers are told. NOT_FOUND when there is none.
   absl::Status DeleteScene(const std::string& id);
 
-  // Inserts or replaces sites, atomically; returns the scene's new version.
+  // Inserts or replaces sites, atomically; returns the scene's new version once the change
+  // is durable (Durability says when that is).
   // CONTRACT: sites are valid and their ids distinct.
-  absl::StatusOr<uint64_t> UpsertSites(const std::string& scene_id, std::vector<Site> sites);
+  absl::StatusOr<uint64_t> UpsertSites(const std::string& scene_id, std::vector<Site> sites,
+                                       Durability durability = Durability::kSync);
   // The same for a 3D scene's sites.
-  absl::StatusOr<uint64_t> UpsertSites3(const std::string& scene_id, std::vector<Site3> sites);
+  absl::StatusOr<uint64_t> UpsertSites3(const std::string& scene_id, std::vector<Site3> sites,
+                                        Durability durability = Durability::kSync);
   // Removes sites of a scene of either dimension, atomically; NOT_FOUND naming the first
   // unknown id.
   // CONTRACT: ids are distinct.
   absl::StatusOr<uint64_t> DeleteSites(const std::string& scene_id,
-                                       const std::vector<std::string>& ids);
+                                       const std::vector<std::string>& ids,
+                                       Durability durability = Durability::kSync);
   // Publishes a change that is durable already, committed elsewhere (another server on the
   // same store): the write path's last step. Scene::Apply says when it is refused.
   absl::StatusOr<uint64_t> Apply(const ChangeSet& committed);
@@ -183,7 +187,7 @@ class SceneRegistry {
   absl::StatusOr<std::shared_ptr<S>> FindOf(const std::string& id) const;
   template <class S>
   absl::StatusOr<uint64_t> Upsert(const std::string& scene_id,
-                                  std::vector<typename S::Site> sites);
+                                  std::vector<typename S::Site> sites, Durability durability);
   template <class S>
   absl::StatusOr<uint64_t> ApplyTo(const std::shared_ptr<S>& scene, const ChangeSet& committed);
   // Holds a stored scene if it fits --max-memory (true), else lists it unloaded.
@@ -191,10 +195,11 @@ class SceneRegistry {
   // The bytes the loaded scenes hold (the budget's own figure). Takes mu_.
   uint64_t ScenesMemory() const;
   // Runs a write (`write(scene, commit)`, commit being the Persist that names the scene's
-  // incarnation) on the scene `scene_id` of kind S, catching the scene up and trying again
+  // incarnation and the durability asked for) on the scene `scene_id` of kind S, catching the scene up and trying again
   // when another server wrote it first.
   template <class S, class Write>
-  absl::StatusOr<uint64_t> Retrying(const std::string& scene_id, Write write);
+  absl::StatusOr<uint64_t> Retrying(const std::string& scene_id, Durability durability,
+                                    Write write);
   // Catch-up's steps, under follow_mu_: one scene to its head; a scene from the store.
   // `head` is the scene's head as just read, or null to read the store for it.
   absl::Status Follow(const std::string& id, const SceneHead* head);

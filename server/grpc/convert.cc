@@ -394,6 +394,20 @@ Status ToSites3(const v1::UpsertSitesRequest& r, const ServerLimits& limits,
   return ToSitesWith(r, limits, sites, ToSite3);
 }
 
+Status ToDurability(v1::Durability durability, Durability* out) {
+  switch (durability) {
+    case v1::DURABILITY_UNSPECIFIED:
+    case v1::SYNC:
+      *out = Durability::kSync;
+      return Status::OK;
+    case v1::RELAXED:
+      *out = Durability::kRelaxed;
+      return Status::OK;
+    default:
+      return Invalid(absl::StrCat("durability is ", durability, "; it must be SYNC or RELAXED"));
+  }
+}
+
 Status ToSiteIds(const v1::DeleteSitesRequest& r, const ServerLimits& limits,
                  std::vector<std::string>* ids) {
   if (r.ids_size() == 0) return Invalid("ids is empty");

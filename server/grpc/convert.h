@@ -63,6 +63,9 @@ grpc::Status ToSite3(const v1::Site& site, const FieldPath& field, const ServerL
 grpc::Status ToSites3(const v1::UpsertSitesRequest& request, const ServerLimits& limits,
                       std::vector<Site3>* sites);
 
+// A write's `durability` field: SYNC when unspecified.
+grpc::Status ToDurability(v1::Durability durability, Durability* out);
+
 // Checks ids non-empty and distinct.
 grpc::Status ToSiteIds(const v1::DeleteSitesRequest& request, const ServerLimits& limits,
                        std::vector<std::string>* ids);

@@ -344,13 +344,18 @@ grpc::ServerUnaryReactor* VoronoiService::UpsertSites(grpc::CallbackServerContex
                                                       v1::UpsertSitesResponse* response) {
   Call call = Begin(ctx, "UpsertSites", Access::kWrite, &request->scene_id(), /*three_d=*/true);
   if (!call.ok()) return call.Finish(ctx);
+  Durability durability;
+  if (auto s = ToDurability(request->durability(), &durability); !s.ok()) {
+    return call.Finish(ctx, s);
+  }
   if (call.scene3) {
     std::vector<Site3> sites;
     if (auto s = ToSites3(*request, limits_, &sites); !s.ok()) return call.Finish(ctx, s);
     return LaneReactor::Start(call.scope, registry_->commits(), "--max-queued-writes",
                               [this, id = request->scene_id(), sites = std::move(sites),
-                               response]() mutable {
-                                auto version = registry_->UpsertSites3(id, std::move(sites));
+                               durability, response]() mutable {
+                                auto version =
+                                    registry_->UpsertSites3(id, std::move(sites), durability);
                                 if (!version.ok()) return ToGrpc(version.status());
                                 response->set_version(*version);
                                 return Status::OK;
@@ -360,8 +365,9 @@ grpc::ServerUnaryReactor* VoronoiService::UpsertSites(grpc::CallbackServerContex
   if (auto s = ToSites(*request, limits_, &sites); !s.ok()) return call.Finish(ctx, s);
   return LaneReactor::Start(call.scope, registry_->commits(), "--max-queued-writes",
                             [this, id = request->scene_id(), sites = std::move(sites),
-                             response]() mutable {
-                              auto version = registry_->UpsertSites(id, std::move(sites));
+                             durability, response]() mutable {
+                              auto version =
+                                  registry_->UpsertSites(id, std::move(sites), durability);
                               if (!version.ok()) return ToGrpc(version.status());
                               response->set_version(*version);
                               return Status::OK;
@@ -375,9 +381,14 @@ grpc::ServerUnaryReactor* VoronoiService::DeleteSites(grpc::CallbackServerContex
   if (!call.ok()) return call.Finish(ctx);
   std::vector<std::string> ids;
   if (auto s = ToSiteIds(*request, limits_, &ids); !s.ok()) return call.Finish(ctx, s);
+  Durability durability;
+  if (auto s = ToDurability(request->durability(), &durability); !s.ok()) {
+    return call.Finish(ctx, s);
+  }
   return LaneReactor::Start(call.scope, registry_->commits(), "--max-queued-writes",
-                            [this, id = request->scene_id(), ids = std::move(ids), response] {
-                              auto version = registry_->DeleteSites(id, ids);
+                            [this, id = request->scene_id(), ids = std::move(ids), durability,
+                             response] {
+                              auto version = registry_->DeleteSites(id, ids, durability);
                               if (!version.ok()) return ToGrpc(version.status());
                               response->set_version(*version);
                               return Status::OK;

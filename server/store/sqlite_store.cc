@@ -1,7 +1,9 @@
 #include "server/store/sqlite_store.h"
 
 #include <sqlite3.h>
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <cerrno>
 #include <chrono>
@@ -10,6 +12,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "render/scene/codec.h"
+#include "server/log.h"
 #include "server/store/rows.h"
 
 namespace gvd {
@@ -206,6 +209,17 @@ absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string
 }
 
 SqliteStore::~SqliteStore() {
+  {
+    std::lock_guard<std::mutex> lock(flush_mu_);
+    stopping_ = true;
+    flush_cv_.notify_all();
+  }
+  if (flusher_.joinable()) flusher_.join();
+  if (relaxed_written_ != relaxed_synced_) {
+    if (auto s = SyncWal(); !s.ok()) {
+      Log(LogLevel::kError, "store_sync_failed", {{"store", path_}, {"error", s.ToString()}});
+    }
+  }
   for (const auto& [sql, stmt] : statements_) sqlite3_finalize(stmt);
   sqlite3_close(db_);
 }
@@ -232,9 +246,19 @@ absl::Status SqliteStore::Exec(const char* sql) {
 }
 
 template <class Body>
-absl::Status SqliteStore::Transaction(Body body) {
+absl::Status SqliteStore::Transaction(Body body, Durability durability) {
   std::lock_guard<std::mutex> lock(mu_);
   auto start = std::chrono::steady_clock::now();
+  // In WAL mode, synchronous=NORMAL commits without syncing the WAL; FULL syncs it, and with
+  // it every relaxed commit written before.
+  const bool relaxed = durability == Durability::kRelaxed && path_ != ":memory:";
+  if (relaxed != relaxed_connection_) {
+    if (auto s = Step(relaxed ? "PRAGMA synchronous=NORMAL" : "PRAGMA synchronous=FULL");
+        !s.ok()) {
+      return s;
+    }
+    relaxed_connection_ = relaxed;
+  }
   if (auto s = Step("BEGIN IMMEDIATE"); !s.ok()) return s;
   absl::Status s = body();
   if (s.ok()) s = Step("COMMIT");
@@ -244,7 +268,77 @@ absl::Status SqliteStore::Transaction(Body body) {
   }
   last_commit_seconds_ =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  {
+    std::lock_guard<std::mutex> flush(flush_mu_);
+    if (!relaxed) {
+      relaxed_synced_ = relaxed_written_;
+    } else if (relaxed_written_++ == relaxed_synced_) {
+      oldest_unsynced_ = std::chrono::steady_clock::now();
+      if (!flusher_.joinable()) flusher_ = std::thread([this] { Flusher(); });
+      flush_cv_.notify_all();
+    }
+  }
   return absl::OkStatus();
+}
+
+void SqliteStore::Flusher() {
+  std::unique_lock<std::mutex> lock(flush_mu_);
+  while (!stopping_) {
+    if (relaxed_synced_ == relaxed_written_) {
+      flush_cv_.wait(lock);
+      continue;
+    }
+    // Synced within relaxed_sync_ of the first unsynced commit: a sync commit in between
+    // does it instead.
+    const uint64_t synced = relaxed_synced_;
+    if (flush_cv_.wait_until(lock, oldest_unsynced_ + relaxed_sync_,
+                             [&] { return stopping_ || relaxed_synced_ != synced; })) {
+      continue;
+    }
+    const uint64_t written = relaxed_written_;
+    lock.unlock();
+    absl::Status s = SyncWal();
+    lock.lock();
+    if (s.ok()) {
+      relaxed_synced_ = std::max(relaxed_synced_, written);
+      if (relaxed_synced_ != relaxed_written_) oldest_unsynced_ = std::chrono::steady_clock::now();
+    } else {
+      // Tried again a period later; sync commits meanwhile fail on the same disk.
+      Log(LogLevel::kError, "store_sync_failed", {{"store", path_}, {"error", s.ToString()}});
+      oldest_unsynced_ = std::chrono::steady_clock::now();
+    }
+  }
+}
+
+absl::Status SqliteStore::SyncWal() {
+  // The WAL keeps its file for the connection's life (a checkpoint rewrites it from the
+  // start), so syncing the file through a descriptor of its own syncs what SQLite wrote.
+  const char* wal = sqlite3_filename_wal(sqlite3_db_filename(db_, "main"));
+  const int fd = open(wal, O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    if (errno == ENOENT) return absl::OkStatus();  // none yet: nothing written to sync
+    return absl::UnavailableError(
+        absl::StrCat("store ", path_, ": cannot open its WAL ", wal, ": ", std::strerror(errno)));
+  }
+  const int rc = fdatasync(fd);
+  const int err = errno;
+  close(fd);
+  if (rc != 0) {
+    return absl::UnavailableError(
+        absl::StrCat("store ", path_, ": syncing its WAL ", wal, ": ", std::strerror(err)));
+  }
+  return absl::OkStatus();
+}
+
+uint64_t SqliteStore::relaxed_unsynced() const {
+  std::lock_guard<std::mutex> lock(flush_mu_);
+  return relaxed_written_ - relaxed_synced_;
+}
+
+void SqliteStore::set_relaxed_sync(std::chrono::milliseconds period) {
+  std::lock_guard<std::mutex> lock(flush_mu_);
+  relaxed_sync_ = period;
+  flush_cv_.notify_all();
 }
 
 double SqliteStore::last_commit_seconds() const {
@@ -395,6 +489,11 @@ absl::Status SqliteStore::Commit(const ChangeSet& changes) {
     committing_ = true;             // lead: take every waiter so far, this one included
     group.swap(waiting_);
   }
+  // One sync change set makes the whole transaction sync.
+  Durability durability = Durability::kRelaxed;
+  for (const Waiter* w : group) {
+    if (w->changes->durability == Durability::kSync) durability = Durability::kSync;
+  }
   absl::Status s = Transaction([&]() -> absl::Status {
     for (Waiter* w : group) {
       if (auto st = Step("SAVEPOINT change_set"); !st.ok()) return st;
@@ -406,7 +505,7 @@ absl::Status SqliteStore::Commit(const ChangeSet& changes) {
       if (auto st = Step("RELEASE change_set"); !st.ok()) return st;
     }
     return absl::OkStatus();
-  });
+  }, durability);
   {
     std::lock_guard<std::mutex> lock(group_mu_);
     for (Waiter* w : group) {

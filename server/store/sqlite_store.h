@@ -1,16 +1,19 @@
 // SceneStore on SQLite: one database file in WAL mode with synchronous=FULL, durable before
-// each call returns. Commits of change sets that arrive while another is being made durable
+// each call returns (a relaxed commit: written before it returns, synced by a thread of the
+// store's within set_relaxed_sync's period). Commits of change sets that arrive while another is being made durable
 // share the next transaction (group commit: one fsync for all of them), each in a savepoint
 // of its own, so that one that fails rolls back alone. Sites and settings are kept in the core's byte
 // form (core/codec.h), so every site kind the core gains is stored without a schema change.
 #pragma once
 
+#include <chrono>
 #include <condition_variable>
 #include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <string_view>
+#include <thread>
 #include <unordered_map>
 
 #include "absl/status/statusor.h"
@@ -51,6 +54,12 @@ class SqliteStore final : public SceneStore {
   // How much history is kept (rows.h); set before the store is shared.
   void set_retention(Retention retention) { retention_ = retention; }
 
+  // How long a relaxed commit may stay unsynced (it survives a crash of the server at once,
+  // a crash of the machine once synced). 100 ms unless set.
+  void set_relaxed_sync(std::chrono::milliseconds period);
+  // Relaxed transactions committed and not yet synced.
+  uint64_t relaxed_unsynced() const;
+
   // Seconds the last transaction took (BEGIN to durable COMMIT).
   double last_commit_seconds() const;
   // Transactions that committed change sets, and the change sets they committed.
@@ -69,9 +78,14 @@ class SqliteStore final : public SceneStore {
   // Runs a cached statement that takes no parameters and returns no rows.
   absl::Status Step(const char* sql);
   absl::Status Migrate(const Legacy& legacy);
-  // Runs `body` inside BEGIN IMMEDIATE ... COMMIT, rolling back if it fails.
+  // Runs `body` inside BEGIN IMMEDIATE ... COMMIT, rolling back if it fails; a relaxed one
+  // commits without syncing, and the flusher syncs it.
   template <class Body>
-  absl::Status Transaction(Body body);
+  absl::Status Transaction(Body body, Durability durability = Durability::kSync);
+  // Syncs the relaxed commits at most relaxed_sync_ after the first of them unsynced.
+  void Flusher();
+  // fdatasync of the WAL file.
+  absl::Status SyncWal();
   // One change set's writes, inside the open transaction. CONTRACT: mu_ held.
   absl::Status Write(const ChangeSet& changes);
   // Why a change set's conditional update matched no scene: NOT_FOUND or ABORTED.
@@ -99,6 +113,18 @@ class SqliteStore final : public SceneStore {
   std::unordered_map<std::string, sqlite3_stmt*> statements_;  // by SQL text
   double last_commit_seconds_ = 0;
   Retention retention_;
+  bool relaxed_connection_ = false;  // the connection's synchronous=NORMAL. Guarded by mu_.
+
+  // Relaxed commits: counts of those committed and of those known synced, when the first
+  // unsynced one committed, and the thread that syncs them (started by the first).
+  mutable std::mutex flush_mu_;
+  std::condition_variable flush_cv_;
+  uint64_t relaxed_written_ = 0;
+  uint64_t relaxed_synced_ = 0;
+  std::chrono::steady_clock::time_point oldest_unsynced_;
+  std::chrono::milliseconds relaxed_sync_{100};
+  bool stopping_ = false;
+  std::thread flusher_;
 };
 
 }  // namespace gvd

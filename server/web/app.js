@@ -670,7 +670,9 @@ async function write(method, request) {
   }
 }
 
-// A dragged point is sent as it moves, one upsert in flight (the newest position waits).
+// A dragged point is sent as it moves, one upsert in flight (the newest position waits), each
+// RELAXED: answered once written, without waiting for the disk (synced within the server's
+// --relaxed-sync-ms).
 let moving = false;
 let nextMove = null;
 
@@ -680,7 +682,10 @@ async function move(id, site, to) {
     return;
   }
   moving = true;
-  await write('UpsertSites', { sites: [{ ...site, id, point: { x: to[0], y: to[1] } }] });
+  await write('UpsertSites', {
+    sites: [{ ...site, id, point: { x: to[0], y: to[1] } }],
+    durability: 'RELAXED',
+  });
   moving = false;
   if (nextMove) {
     const args = nextMove;

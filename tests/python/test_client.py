@@ -122,6 +122,28 @@ def test_sites_of_every_kind_and_pick(client):
     assert {s["id"] for s in client.list_sites(sid)} == {"seg", "poly", "json"}
 
 
+def test_relaxed_writes_are_seen_at_once(client):
+    """A RELAXED move is answered and queried like a SYNC one (over gRPC and over HTTP/JSON,
+    where the enum goes by name); a durability the API does not have is refused here."""
+    sid = f"relaxed-{client.kind}"
+    rng, xy, ids, v = random_scene(client, sid, 200, 128, 31, "r")
+    for k in range(20):
+        to = rng.random((1, 2))
+        v = client.upsert_points(sid, ["r0"], to, durability="relaxed")
+        xy[0] = to[0]
+        q = np.vstack([to, rng.random((50, 2))])
+        r = client.find_nearest(sid, q, min_version=v, exact=True)
+        best, dist = brute_nearest(xy, q)
+        assert np.array_equal(r.distances, dist)
+        assert r.site_ids[0] == "r0"
+    v2 = client.delete_sites(sid, ["r1"], durability="relaxed")
+    assert v2 == v + 1
+    assert len(client.list_sites(sid)) == 199
+    with pytest.raises(ValueError, match="durability"):
+        client.upsert_points(sid, ["r0"], xy[:1], durability="fast")
+    client.delete_scene(sid)
+
+
 def test_watch_sees_a_write_and_the_deletion(client):
     sid = f"watched-{client.kind}"
     client.create_scene(sid, window=(0, 0, 1, 1), size=(32, 32))

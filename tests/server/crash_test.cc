@@ -1,6 +1,7 @@
-// Durability: a writer streams upserts, moves and deletes; the real server is killed with
-// SIGKILL at random moments and restarted on the same store. Every acknowledged update must be
-// there after the restart, and the request in flight at the kill entirely or not at all.
+// Durability: a writer streams upserts, moves and deletes, each SYNC or RELAXED at random; the
+// real server is killed with SIGKILL at random moments and restarted on the same store. Every
+// acknowledged update must be there after the restart, RELAXED ones too (they were written to
+// the store before the answer), and the request in flight at the kill entirely or not at all.
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 #include <sys/stat.h>
@@ -140,15 +141,17 @@ TEST(CrashTest, AcknowledgedUpdatesSurviveSigkill) {
           std::lock_guard<std::mutex> lock(mu);
           in_flight = op;
         }
+        const v1::Durability durability = r() % 2 ? v1::RELAXED : v1::SYNC;
         grpc::Status s;
         uint64_t version = 0;
         if (remove) {
           std::vector<std::string> ids;
           for (const auto& [id, p] : op.changes) ids.push_back(id);
-          s = client->DeleteSites(op.scene, ids, &version);
+          s = client->DeleteSites(op.scene, ids, &version, durability);
         } else {
           v1::UpsertSitesRequest req;
           req.set_scene_id(op.scene);
+          req.set_durability(durability);
           for (const auto& [id, p] : op.changes) {
             auto* site = req.add_sites();
             site->set_id(id);

@@ -201,6 +201,20 @@ TEST_F(SitesServerTest, BadSitesAreRefusedByName) {
        }),
        StatusCode::INVALID_ARGUMENT, "overflows a double"},
   };
+  // A durability no release has: refused by name, whatever the sites.
+  {
+    v1::UpsertSitesRequest r;
+    r.set_scene_id("bad");
+    r.set_durability(static_cast<v1::Durability>(7));
+    SetPoint({1, 1}, r.add_sites()->mutable_point());
+    r.mutable_sites(0)->set_id("fine");
+    uint64_t version;
+    cases.push_back({client_->UpsertSites(r, &version), StatusCode::INVALID_ARGUMENT,
+                     "durability is 7; it must be SYNC or RELAXED"});
+    cases.push_back({client_->DeleteSites("bad", {"keep"}, &version,
+                                          static_cast<v1::Durability>(9)),
+                     StatusCode::INVALID_ARGUMENT, "durability is 9"});
+  }
   for (const Case& c : cases) {
     EXPECT_EQ(c.status.error_code(), c.code) << c.message << ": " << c.status.error_message();
     EXPECT_NE(c.status.error_message().find(c.message), std::string::npos)

@@ -44,7 +44,7 @@ class Client {
 
   grpc::Status UpsertSites(const v1::UpsertSitesRequest& request, uint64_t* version);
   grpc::Status DeleteSites(const std::string& scene_id, const std::vector<std::string>& ids,
-                           uint64_t* version);
+                           uint64_t* version, v1::Durability durability = v1::SYNC);
   grpc::Status ListSites(const v1::ListSitesRequest& request, v1::ListSitesResponse* response);
   // Every site of the scene, following page tokens.
   grpc::Status ListAllSites(const std::string& scene_id, std::vector<v1::Site>* sites);

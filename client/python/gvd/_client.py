@@ -121,18 +121,20 @@ class Client:
     # ---- sites ----
 
     def upsert_points(self, scene_id: str, ids: Sequence[str], xy: ArrayLike, *,
-                      progress: Optional[Progress] = None) -> int:
+                      progress: Optional[Progress] = None, durability: str = "sync") -> int:
         """Puts point sites: ids[i] at xy[i] (an (n, 2) array, or (n, 3) in a 3D scene),
         replacing sites of those ids. Returns the scene's version that includes them. More
         than 100,000 go in several calls, each its own version (progress(done, n) after
-        each)."""
+        each). durability="relaxed" is answered once the change is written, before it is
+        synced (gvd.v1.Durability: for interactive edits such as drags)."""
         xy = _points(xy, "xy")
         if len(ids) != len(xy):
             raise ValueError(f"{len(ids)} ids for {len(xy)} points")
         version = 0
         for start in range(0, len(xy), MAX_SITES_PER_CALL):
             chunk = xy[start:start + MAX_SITES_PER_CALL]
-            request = pb.UpsertSitesRequest(scene_id=scene_id)
+            request = pb.UpsertSitesRequest(scene_id=scene_id,
+                                            durability=_durability(durability))
             three = chunk.shape[1] == 3
             for sid, p in zip(ids[start:start + len(chunk)], chunk.tolist()):
                 site = request.sites.add(id=str(sid))
@@ -146,26 +148,29 @@ class Client:
         return version
 
     def upsert_sites(self, scene_id: str, sites: Iterable[Union[Mapping[str, Any], pb.Site]], *,
-                     progress: Optional[Progress] = None) -> int:
+                     progress: Optional[Progress] = None, durability: str = "sync") -> int:
         """Puts sites of any kind, each a gvd.v1.Site or a dict in the API's JSON form
         ({"id": "a", "segment": {"a": {"x": 0, "y": 0}, "b": {"x": 1, "y": 1}}}) or
         GeoJSON-like ({"id": "a", "type": "LineString", "coordinates": [[0, 0], [1, 1]]}).
-        Returns the version that includes them (several calls past 100,000 sites)."""
+        Returns the version that includes them (several calls past 100,000 sites).
+        durability as in upsert_points."""
         messages = [s if isinstance(s, pb.Site) else site_from_dict(s) for s in sites]
         version = 0
         for start in range(0, len(messages), MAX_SITES_PER_CALL):
             request = pb.UpsertSitesRequest(scene_id=scene_id,
-                                            sites=messages[start:start + MAX_SITES_PER_CALL])
+                                            sites=messages[start:start + MAX_SITES_PER_CALL],
+                                            durability=_durability(durability))
             version = self._transport.unary("UpsertSites", request, pb.UpsertSitesResponse,
                                             self.timeout).version
             if progress:
                 progress(min(start + MAX_SITES_PER_CALL, len(messages)), len(messages))
         return version
 
-    def delete_sites(self, scene_id: str, ids: Sequence[str]) -> int:
+    def delete_sites(self, scene_id: str, ids: Sequence[str], *, durability: str = "sync") -> int:
         """Removes sites by id (NOT_FOUND if one is not there, and then none is removed).
-        Returns the version without them."""
-        request = pb.DeleteSitesRequest(scene_id=scene_id, ids=[str(i) for i in ids])
+        Returns the version without them. durability as in upsert_points."""
+        request = pb.DeleteSitesRequest(scene_id=scene_id, ids=[str(i) for i in ids],
+                                        durability=_durability(durability))
         return self._transport.unary("DeleteSites", request, pb.DeleteSitesResponse,
                                      self.timeout).version
 
@@ -347,6 +352,12 @@ def _window(w: Sequence[float]) -> pb.Window:
     if len(w) == 6:
         return pb.Window(min_x=w[0], min_y=w[1], min_z=w[2], max_x=w[3], max_y=w[4], max_z=w[5])
     raise ValueError(f"a window is (min_x, min_y, max_x, max_y) or its 3D form, not {tuple(w)}")
+
+
+def _durability(name: str) -> int:
+    if name not in ("sync", "relaxed"):
+        raise ValueError(f'durability must be "sync" or "relaxed", not {name!r}')
+    return pb.SYNC if name == "sync" else pb.RELAXED
 
 
 def _points(a: ArrayLike, name: str) -> np.ndarray:

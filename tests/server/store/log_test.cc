@@ -241,7 +241,8 @@ TEST_P(LogStore, ASceneMadeAgainIsANewIncarnation) {
 }
 
 // Writers on several servers race for one scene: every version is given once, in order, and
-// the stored state is the acknowledged changes applied in version order.
+// the stored state is the acknowledged changes applied in version order, whether each was
+// committed sync or relaxed.
 TEST_P(LogStore, RacingWritersGetDistinctOrderedVersions) {
   Engine engine(GetParam(), Retention());
   constexpr int kServers = 3, kWrites = 40;
@@ -260,7 +261,9 @@ TEST_P(LogStore, RacingWritersGetDistinctOrderedVersions) {
         ASSERT_TRUE(head.ok()) << head.status();
         std::vector<std::shared_ptr<const Site>> put = {std::make_shared<const Site>(
             RandomSite(rng, static_cast<int>(rng()), "id" + std::to_string(rng() % 8)))};
-        absl::Status s = stores[i]->Commit({"s", head->version + 1, put, {}});
+        ChangeSet change{"s", head->version + 1, put, {}};
+        change.durability = rng() % 2 ? Durability::kRelaxed : Durability::kSync;
+        absl::Status s = stores[i]->Commit(change);
         if (s.ok()) {
           std::lock_guard<std::mutex> lock(mu);
           EXPECT_TRUE(acknowledged.emplace(head->version + 1, put).second);

@@ -12,7 +12,7 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
-#include <limits>
+#include <chrono>
 #include <limits>
 #include <map>
 #include <memory>
@@ -354,6 +354,150 @@ TEST(Store, ConcurrentWritersShareTransactionsAndFailAlone) {
     std::printf("%llu change sets in %llu transactions\n",
                 static_cast<unsigned long long>(stats.change_sets),
                 static_cast<unsigned long long>(stats.transactions));
+  }
+  auto store = SqliteStore::Open(dir.path() + "/data");
+  ASSERT_TRUE(store.ok()) << store.status();
+  ExpectStoreHolds(**store, model);
+}
+
+// A VFS over the process's default one that counts the syncs of WAL files: the oracle of
+// which commits waited for the disk.
+class WalSyncCounter {
+ public:
+  WalSyncCounter() {
+    real_ = sqlite3_vfs_find(nullptr);
+    vfs_ = *real_;
+    vfs_.zName = "gvd-test-wal-sync-counter";
+    vfs_.szOsFile = static_cast<int>(sizeof(File)) + real_->szOsFile;
+    vfs_.pAppData = this;
+    vfs_.xOpen = [](sqlite3_vfs* v, const char* name, sqlite3_file* f, int flags,
+                    int* out) {
+      auto* self = static_cast<WalSyncCounter*>(v->pAppData);
+      auto* file = reinterpret_cast<File*>(f);
+      file->real = reinterpret_cast<sqlite3_file*>(file + 1);
+      file->wal = (flags & SQLITE_OPEN_WAL) != 0;
+      file->owner = self;
+      const int rc = self->real_->xOpen(self->real_, name, file->real, flags, out);
+      // A file whose open failed is not closed: no methods, as in the real VFS.
+      f->pMethods = rc == SQLITE_OK && file->real->pMethods ? &self->methods_ : nullptr;
+      if (f->pMethods) self->methods_ = Forwarding(file->real->pMethods);
+      return rc;
+    };
+    sqlite3_vfs_register(&vfs_, /*makeDflt=*/1);
+  }
+  ~WalSyncCounter() {
+    sqlite3_vfs_register(real_, 1);
+    sqlite3_vfs_unregister(&vfs_);
+  }
+  int wal_syncs() const { return wal_syncs_; }
+
+ private:
+  struct File {
+    sqlite3_file base;
+    sqlite3_file* real;
+    bool wal;
+    WalSyncCounter* owner;
+  };
+  static sqlite3_file* R(sqlite3_file* f) { return reinterpret_cast<File*>(f)->real; }
+  // Every method passes to the real file's; xSync also counts.
+  static sqlite3_io_methods Forwarding(const sqlite3_io_methods* m) {
+    sqlite3_io_methods io = *m;
+    io.xClose = [](sqlite3_file* f) { return R(f)->pMethods->xClose(R(f)); };
+    io.xRead = [](sqlite3_file* f, void* b, int n, sqlite3_int64 o) {
+      return R(f)->pMethods->xRead(R(f), b, n, o);
+    };
+    io.xWrite = [](sqlite3_file* f, const void* b, int n, sqlite3_int64 o) {
+      return R(f)->pMethods->xWrite(R(f), b, n, o);
+    };
+    io.xTruncate = [](sqlite3_file* f, sqlite3_int64 n) {
+      return R(f)->pMethods->xTruncate(R(f), n);
+    };
+    io.xSync = [](sqlite3_file* f, int flags) {
+      auto* file = reinterpret_cast<File*>(f);
+      if (file->wal) ++file->owner->wal_syncs_;
+      return R(f)->pMethods->xSync(R(f), flags);
+    };
+    io.xFileSize = [](sqlite3_file* f, sqlite3_int64* n) {
+      return R(f)->pMethods->xFileSize(R(f), n);
+    };
+    io.xLock = [](sqlite3_file* f, int l) { return R(f)->pMethods->xLock(R(f), l); };
+    io.xUnlock = [](sqlite3_file* f, int l) { return R(f)->pMethods->xUnlock(R(f), l); };
+    io.xCheckReservedLock = [](sqlite3_file* f, int* r) {
+      return R(f)->pMethods->xCheckReservedLock(R(f), r);
+    };
+    io.xFileControl = [](sqlite3_file* f, int op, void* a) {
+      return R(f)->pMethods->xFileControl(R(f), op, a);
+    };
+    io.xSectorSize = [](sqlite3_file* f) { return R(f)->pMethods->xSectorSize(R(f)); };
+    io.xDeviceCharacteristics = [](sqlite3_file* f) {
+      return R(f)->pMethods->xDeviceCharacteristics(R(f));
+    };
+    io.xShmMap = [](sqlite3_file* f, int i, int n, int w, void volatile** p) {
+      return R(f)->pMethods->xShmMap(R(f), i, n, w, p);
+    };
+    io.xShmLock = [](sqlite3_file* f, int o, int n, int fl) {
+      return R(f)->pMethods->xShmLock(R(f), o, n, fl);
+    };
+    io.xShmBarrier = [](sqlite3_file* f) { R(f)->pMethods->xShmBarrier(R(f)); };
+    io.xShmUnmap = [](sqlite3_file* f, int d) { return R(f)->pMethods->xShmUnmap(R(f), d); };
+    io.xFetch = [](sqlite3_file* f, sqlite3_int64 o, int n, void** p) {
+      return R(f)->pMethods->xFetch(R(f), o, n, p);
+    };
+    io.xUnfetch = [](sqlite3_file* f, sqlite3_int64 o, void* p) {
+      return R(f)->pMethods->xUnfetch(R(f), o, p);
+    };
+    return io;
+  }
+
+  sqlite3_vfs* real_;
+  sqlite3_vfs vfs_;
+  sqlite3_io_methods methods_{};
+  std::atomic<int> wal_syncs_{0};
+};
+
+// A relaxed commit is written without a sync of the WAL and synced by the store's flusher
+// within its period, or by the next sync commit; a sync commit syncs before it returns. All
+// of them are there after a reopen.
+TEST(Store, RelaxedCommitsSkipTheSyncAndAreSyncedWithinTheirPeriod) {
+  TempDir dir;
+  WalSyncCounter syncs;
+  StoreModel model;
+  std::mt19937_64 rng(29);
+  {
+    auto opened = SqliteStore::Open(dir.path() + "/data");
+    ASSERT_TRUE(opened.ok()) << opened.status();
+    SqliteStore& store = **opened;
+    store.set_relaxed_sync(std::chrono::hours(1));  // no flush in the first part
+    ASSERT_TRUE(store.CreateScene(Settings("s"), 1).ok());
+    uint64_t version = 1;
+    auto commit = [&](Durability durability) {
+      std::vector<std::shared_ptr<const Site>> put = {std::make_shared<const Site>(
+          RandomSite(rng, static_cast<int>(rng()), "id" + std::to_string(rng() % 50)))};
+      ChangeSet change{"s", ++version, put, {}};
+      change.durability = durability;
+      ASSERT_TRUE(store.Commit(change).ok());
+      model.sites["s"][put[0]->id] = *put[0];
+      model.versions["s"] = version;
+    };
+    const int before = syncs.wal_syncs();
+    for (int i = 0; i < 5; ++i) commit(Durability::kRelaxed);
+    EXPECT_EQ(syncs.wal_syncs(), before) << "a relaxed commit synced the WAL";
+    EXPECT_EQ(store.relaxed_unsynced(), 5u);
+    commit(Durability::kSync);
+    EXPECT_GT(syncs.wal_syncs(), before) << "a sync commit returned before syncing the WAL";
+    EXPECT_EQ(store.relaxed_unsynced(), 0u) << "the sync commit synced the relaxed ones before it";
+    const int after_sync = syncs.wal_syncs();
+    commit(Durability::kSync);
+    EXPECT_GT(syncs.wal_syncs(), after_sync);
+
+    // The flusher: with a short period, the relaxed commits are synced without a sync commit.
+    store.set_relaxed_sync(std::chrono::milliseconds(5));
+    for (int i = 0; i < 3; ++i) commit(Durability::kRelaxed);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    while (store.relaxed_unsynced() != 0 && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    EXPECT_EQ(store.relaxed_unsynced(), 0u) << "the flusher never synced the relaxed commits";
   }
   auto store = SqliteStore::Open(dir.path() + "/data");
   ASSERT_TRUE(store.ok()) << store.status();
