@@ -192,6 +192,8 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
 
   // 3. Each window: cleared ones get every site that can be best there, with the coverage
   //    proof restricted to the window; the others only their new sites.
+  //    The proof runs sparse: its cost follows the window and the sites near it, not the
+  //    scene's size.
   std::vector<std::vector<SiteDraw>> draws(windows.size());
   uint32_t tile_px = 0;
   for (size_t w = 0; w < windows.size(); ++w) {
@@ -199,15 +201,9 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
       draws[w] = std::move(windows[w].added);
       continue;
     }
-    Coverage cov = ComputeCoverage(grid_, slots, drawn_->index(), windows[w].rect,
-                                   DefaultTilePx(grid_, drawn_->size(), drawn_->ink()),
-                                   params_.diagram, params_.mode == RenderMode::kMesh);
-    tile_px = cov.tile_px;
-    for (uint32_t s = 0; s < slots.size(); ++s) {
-      if (cov.radius[s] < 0) continue;
-      SiteDraw& d = draws[w].emplace_back(SiteDraw{s, cov.radius[s], cov.clip[s]});
-      if (s < cov.pieces.size()) d.pieces = std::move(cov.pieces[s]);
-    }
+    tile_px = DefaultTilePx(grid_, drawn_->size(), drawn_->ink());
+    draws[w] = SparseCoverage(grid_, slots, drawn_->index(), windows[w].rect, tile_px,
+                              params_.diagram, params_.mode == RenderMode::kMesh);
   }
   double coverage_seconds = Seconds(start);
   double fill = 0, max_value = 0;
