@@ -1,5 +1,7 @@
 #include "render/gl/render_loop.h"
 
+#include <pthread.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -12,6 +14,11 @@
 #include "render/gl/scene_raster.h"
 
 namespace gvd {
+namespace {
+
+constexpr int kRenderNice = 10;
+
+}  // namespace
 
 RenderLoop::~RenderLoop() { Stop(); }
 
@@ -91,6 +98,12 @@ std::shared_ptr<Scene> RenderLoop::Take(int lane) {
 }
 
 void RenderLoop::Run(int lane, DevicePreference preference) {
+  // Calls come before renders: a render thread runs at nice 10 (Linux sets it per thread), so
+  // that a call's thread woken while a render holds the CPU (a full one takes many
+  // milliseconds) runs first rather than after the render's time slice. Frames still come as
+  // soon as no call wants the CPU; the weight is relative to this process's other threads.
+  pthread_setname_np(pthread_self(), "gvd-render");
+  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kRenderNice);
   std::unique_ptr<GlContext> context;
   std::unique_ptr<Rasterizer> rasterizer;
   {
