@@ -7,6 +7,7 @@
 #include <atomic>
 #include <nanoflann.hpp>
 #include <random>
+#include <set>
 #include <thread>
 
 #include "gvd/client.h"
@@ -190,7 +191,8 @@ void BM_Large4096(benchmark::State& state) {
 BENCHMARK(BM_Large4096)->DenseRange(0, 2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // 2. One-site add (0), move (1) and delete (2) in a scene of 100,000 points at 1024 x 1024:
-// the time until the new frame exists (publishing it is a pointer swap).
+// the time until the new frame exists (publishing it is a pointer swap). range(1) sites
+// change at once (the changes a render finds gathered while it was busy).
 void BM_UpdateOneSite(benchmark::State& state) {
   Gl& gl = Gl::Get();
   if (!gl.context) return state.SkipWithError("no EGL context");
@@ -209,14 +211,19 @@ void BM_UpdateOneSite(benchmark::State& state) {
   RenderStats stats;
   uint64_t pixels = 0, drawn = 0;
   int next = 0;
+  const int count = static_cast<int>(state.range(1));
   for (auto _ : state) {
     std::vector<SiteChange> change;
-    if (kind == 0) {
-      change.push_back({"new" + std::to_string(next++), PointSite{{u(rng), u(rng)}}});
-    } else if (kind == 1) {
-      change.push_back({sites[rng() % sites.size()].id, PointSite{{u(rng), u(rng)}}});
-    } else {
-      change.push_back({sites[next++].id, std::nullopt});
+    std::set<std::string> changed;
+    while (static_cast<int>(change.size()) < count) {
+      if (kind == 0) {
+        change.push_back({"new" + std::to_string(next++), PointSite{{u(rng), u(rng)}}});
+      } else if (kind == 1) {
+        const std::string& id = sites[rng() % sites.size()].id;
+        if (changed.insert(id).second) change.push_back({id, PointSite{{u(rng), u(rng)}}});
+      } else {
+        change.push_back({sites[next++ % sites.size()].id, std::nullopt});
+      }
     }
     snapshot = Advance(snapshot, std::move(change), &free_slots);
     auto frame = scene->Apply(*gl.rasterizer, snapshot, &stats);
@@ -228,7 +235,13 @@ void BM_UpdateOneSite(benchmark::State& state) {
   state.counters["sites_drawn"] = double(drawn) / state.iterations();
   state.SetLabel(kind == 0 ? "add" : kind == 1 ? "move" : "delete");
 }
-BENCHMARK(BM_UpdateOneSite)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_UpdateOneSite)
+    ->ArgsProduct({{0, 1, 2}, {1}})
+    ->Args({1, 64})
+    ->Args({1, 256})
+    ->Args({1, 1024})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 // 3. Queries on 100,000 sites at 1024 x 1024.
 constexpr size_t kQuerySites = 100000;
@@ -283,57 +296,77 @@ void BM_NanoflannNearest(benchmark::State& state) {
 }
 BENCHMARK(BM_NanoflannNearest);
 
-// An in-process gvd-server on a loopback port with a 100,000-site scene "bench".
-struct LoopbackServer {
+// A gvd-server in this process on a loopback port, its store in `dir` (":memory:" or a
+// directory), holding one scene over the unit square, `px` pixels a side, of `points` random
+// points named by their index.
+struct InProcessServer {
   RenderLoop renderer;
   std::unique_ptr<SqliteStore> store;
   std::unique_ptr<SceneRegistry> registry;
   std::unique_ptr<VoronoiService> service;
   std::unique_ptr<grpc::Server> server;
   std::string address;
-  uint64_t version = 0;
+  uint64_t version = 0;  // the scene's, once it holds the points (and has rendered them)
 
-  static LoopbackServer* Get() {
-    static LoopbackServer* s = [] {
-      auto* ls = new LoopbackServer();
-      if (!ls->renderer.Start(DevicePreference::kAuto).ok()) return (LoopbackServer*)nullptr;
-      ls->store = std::move(*SqliteStore::Open(":memory:"));
-      ls->registry = std::make_unique<SceneRegistry>(ls->store.get(), &ls->renderer, ServerLimits{});
-      (void)ls->registry->Load();
-      ls->service = std::make_unique<VoronoiService>(ls->registry.get());
-      grpc::ServerBuilder builder;
-      int port = 0;
-      builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
-      builder.SetMaxReceiveMessageSize(256 << 20);
-      builder.SetMaxSendMessageSize(256 << 20);
-      builder.RegisterService(ls->service.get());
-      ls->server = builder.BuildAndStart();
-      ls->address = "127.0.0.1:" + std::to_string(port);
-      auto client = Client::Connect(ls->address);
-      v1::CreateSceneRequest c;
-      c.set_scene_id("bench");
-      c.mutable_window()->set_max_x(1);
-      c.mutable_window()->set_max_y(1);
-      c.set_width_px(1024);
-      c.set_height_px(1024);
-      v1::Scene scene;
-      (void)client->CreateScene(c, &scene);
-      v1::UpsertSitesRequest u;
-      u.set_scene_id("bench");
-      for (const Site& s : RandomSites(kQuerySites, kUnit, 2)) {
-        auto* site = u.add_sites();
-        site->set_id(s.id);
-        site->mutable_point()->set_x(std::get<PointSite>(s.geometry).p.x);
-        site->mutable_point()->set_y(std::get<PointSite>(s.geometry).p.y);
-      }
-      (void)client->UpsertSites(u, &ls->version);
-      v1::FindNearestRequest warm;
-      warm.set_scene_id("bench");
-      warm.set_min_version(ls->version);
-      warm.add_points();
-      v1::FindNearestResponse r;
-      (void)client->FindNearest(warm, &r);  // waits for the first render
-      return ls;
+  ~InProcessServer() {
+    if (server) server->Shutdown(std::chrono::system_clock::now());
+    renderer.Stop();
+  }
+
+  // False when no EGL context or store could be made.
+  bool Start(const std::string& dir, const std::string& scene_id, uint32_t px, size_t points,
+             uint64_t seed) {
+    if (!renderer.Start(DevicePreference::kAuto).ok()) return false;
+    auto opened = SqliteStore::Open(dir);
+    if (!opened.ok()) return false;
+    store = std::move(*opened);
+    registry = std::make_unique<SceneRegistry>(store.get(), &renderer, ServerLimits{});
+    (void)registry->Load();
+    service = std::make_unique<VoronoiService>(registry.get());
+    grpc::ServerBuilder builder;
+    int port = 0;
+    builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+    builder.SetMaxReceiveMessageSize(256 << 20);
+    builder.SetMaxSendMessageSize(256 << 20);
+    builder.RegisterService(service.get());
+    server = builder.BuildAndStart();
+    address = "127.0.0.1:" + std::to_string(port);
+    auto client = Client::Connect(address);
+    v1::CreateSceneRequest c;
+    c.set_scene_id(scene_id);
+    c.mutable_window()->set_max_x(1);
+    c.mutable_window()->set_max_y(1);
+    c.set_width_px(px);
+    c.set_height_px(px);
+    v1::Scene scene;
+    if (!client->CreateScene(c, &scene).ok()) return false;
+    version = scene.version();
+    if (points == 0) return true;
+    v1::UpsertSitesRequest u;
+    u.set_scene_id(scene_id);
+    for (const Site& s : RandomSites(points, kUnit, seed)) {
+      auto* site = u.add_sites();
+      site->set_id(s.id);
+      site->mutable_point()->set_x(std::get<PointSite>(s.geometry).p.x);
+      site->mutable_point()->set_y(std::get<PointSite>(s.geometry).p.y);
+    }
+    if (!client->UpsertSites(u, &version).ok()) return false;
+    v1::FindNearestRequest warm;
+    warm.set_scene_id(scene_id);
+    warm.set_min_version(version);
+    warm.add_points();
+    v1::FindNearestResponse r;
+    return client->FindNearest(warm, &r).ok();  // waits for the first render
+  }
+};
+
+// The 100,000-site scene "bench" at 1024 x 1024, its store in memory, shared by the
+// benchmarks that only read it (and BM_LatencyUnderWriter's writer).
+struct LoopbackServer {
+  static InProcessServer* Get() {
+    static InProcessServer* s = [] {
+      auto* server = new InProcessServer();
+      return server->Start(":memory:", "bench", 1024, kQuerySites, 2) ? server : nullptr;
     }();
     return s;
   }
@@ -341,7 +374,7 @@ struct LoopbackServer {
 
 // Over loopback gRPC: batch size = range(0), packed points; range(1) = exact.
 void BM_GrpcFindNearest(benchmark::State& state) {
-  LoopbackServer* ls = LoopbackServer::Get();
+  InProcessServer* ls = LoopbackServer::Get();
   if (!ls) return state.SkipWithError("no EGL context");
   auto client = Client::Connect(ls->address);
   const size_t batch = state.range(0);
@@ -368,7 +401,7 @@ BENCHMARK(BM_GrpcFindNearest)
 // Pick over loopback (paper sec. 7.2, selection under a cursor): one point per call, exact,
 // in the 100,000-site scene.
 void BM_GrpcPick(benchmark::State& state) {
-  LoopbackServer* ls = LoopbackServer::Get();
+  InProcessServer* ls = LoopbackServer::Get();
   if (!ls) return state.SkipWithError("no EGL context");
   auto client = Client::Connect(ls->address);
   std::vector<Vec2> points = RandomPoints(4096, 8);
@@ -386,37 +419,32 @@ void BM_GrpcPick(benchmark::State& state) {
 }
 BENCHMARK(BM_GrpcPick)->Unit(benchmark::kMicrosecond)->UseRealTime();
 
-// Durability's cost: one-site upserts over loopback, one at a time, each acknowledged only
-// once committed, to a store in memory (range 0) or on disk (range 1: WAL, synchronous=FULL).
+// A directory for a store on disk, removed with it.
+struct StoreDir {
+  std::string root = [] {
+    char t[] = "/tmp/gvd-bench-XXXXXX";
+    return std::string(mkdtemp(t));
+  }();
+  std::string path() const { return root + "/store"; }
+  ~StoreDir() { std::system(("rm -rf " + root).c_str()); }
+};
+
+// Durability's cost: one-site upserts over loopback, one at a time, each acknowledged once
+// committed, to a store in memory (range 0) or on disk (WAL): SYNC (range 1, synced before
+// the answer) or RELAXED (range 2, synced within 100 ms).
 void BM_GrpcUpsert(benchmark::State& state) {
-  const bool disk = state.range(0) != 0;
-  char dir_template[] = "/tmp/gvd-bench-XXXXXX";
-  std::string dir = disk ? std::string(mkdtemp(dir_template)) + "/store" : ":memory:";
-  RenderLoop renderer;
-  if (!renderer.Start(DevicePreference::kAuto).ok()) return state.SkipWithError("no EGL context");
-  auto store = SqliteStore::Open(dir);
-  if (!store.ok()) return state.SkipWithError("no store");
-  SceneRegistry registry(store->get(), &renderer, ServerLimits{});
-  (void)registry.Load();
-  VoronoiService service(&registry);
-  grpc::ServerBuilder builder;
-  int port = 0;
-  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
-  builder.RegisterService(&service);
-  auto server = builder.BuildAndStart();
-  auto client = Client::Connect("127.0.0.1:" + std::to_string(port));
-  v1::CreateSceneRequest c;
-  c.set_scene_id("durable");
-  c.mutable_window()->set_max_x(1);
-  c.mutable_window()->set_max_y(1);
-  c.set_width_px(256);
-  c.set_height_px(256);
-  v1::Scene scene;
-  (void)client->CreateScene(c, &scene);
+  const int mode = static_cast<int>(state.range(0));
+  StoreDir dir;
+  InProcessServer server;
+  if (!server.Start(mode == 0 ? ":memory:" : dir.path(), "durable", 256, 0, 0)) {
+    return state.SkipWithError("no EGL context or store");
+  }
+  auto client = Client::Connect(server.address);
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> u(0, 1);
   v1::UpsertSitesRequest r;
   r.set_scene_id("durable");
+  r.set_durability(mode == 2 ? v1::RELAXED : v1::SYNC);
   auto* site = r.add_sites();
   double commit = 0;
   for (auto _ : state) {
@@ -425,21 +453,64 @@ void BM_GrpcUpsert(benchmark::State& state) {
     site->mutable_point()->set_y(u(rng));
     uint64_t v;
     if (!client->UpsertSites(r, &v).ok()) return state.SkipWithError("upsert failed");
-    commit += (*store)->last_commit_seconds();
+    commit += server.store->last_commit_seconds();
   }
   state.counters["commit_us"] = commit / state.iterations() * 1e6;
   state.SetItemsProcessed(state.iterations());
-  state.SetLabel(disk ? "disk" : "memory");
-  server->Shutdown(std::chrono::system_clock::now());
-  renderer.Stop();
-  if (disk) std::system(("rm -rf " + dir.substr(0, dir.rfind('/'))).c_str());
+  state.SetLabel(mode == 0 ? "memory" : mode == 1 ? "disk, SYNC" : "disk, RELAXED");
 }
-BENCHMARK(BM_GrpcUpsert)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond)->UseRealTime();
+BENCHMARK(BM_GrpcUpsert)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond)->UseRealTime();
+
+// A one-site move until a query sees it, over loopback from the C++ client, in a scene of
+// 100,000 points at 1024 x 1024 stored on disk: UpsertSites of one point, SYNC (range 0) or
+// RELAXED (range 1), then FindNearest at its new position with the version it returned.
+void BM_GrpcMove(benchmark::State& state) {
+  const bool relaxed = state.range(0) != 0;
+  StoreDir dir;
+  InProcessServer server;
+  if (!server.Start(dir.path(), "moves", 1024, kQuerySites, 4)) {
+    return state.SkipWithError("no EGL context or store");
+  }
+  auto client = Client::Connect(server.address);
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(0, 1);
+  v1::UpsertSitesRequest move;
+  move.set_scene_id("moves");
+  move.set_durability(relaxed ? v1::RELAXED : v1::SYNC);
+  auto* site = move.add_sites();
+  site->set_id(RandomSites(1, kUnit, 4)[0].id);
+  v1::FindNearestRequest ask;
+  ask.set_scene_id("moves");
+  auto* at = ask.add_points();
+  v1::FindNearestResponse answer;
+  std::vector<double> micros;
+  for (auto _ : state) {
+    const double x = u(rng), y = u(rng);
+    auto t0 = std::chrono::steady_clock::now();
+    site->mutable_point()->set_x(x);
+    site->mutable_point()->set_y(y);
+    uint64_t v;
+    if (!client->UpsertSites(move, &v).ok()) return state.SkipWithError("upsert failed");
+    ask.set_min_version(v);
+    at->set_x(x);
+    at->set_y(y);
+    if (!client->FindNearest(ask, &answer).ok()) return state.SkipWithError("query failed");
+    micros.push_back(
+        std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+  }
+  std::sort(micros.begin(), micros.end());
+  state.counters["p50_us"] = micros[micros.size() / 2];
+  state.counters["p99_us"] = micros[micros.size() * 99 / 100];
+  state.SetLabel(relaxed ? "RELAXED" : "SYNC");
+}
+BENCHMARK(BM_GrpcMove)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond)->UseRealTime();
 
 // 4. Single-point FindNearest latency over loopback while another client moves one site
-// after another as fast as the server takes them.
+// after another: as fast as the server takes them (range 0 = 0), or range(0) moves a second
+// (1: next to no writer; a drag in a user interface sends 60 to 120).
 void BM_LatencyUnderWriter(benchmark::State& state) {
-  LoopbackServer* ls = LoopbackServer::Get();
+  const int64_t per_second = state.range(0);
+  InProcessServer* ls = LoopbackServer::Get();
   if (!ls) return state.SkipWithError("no EGL context");
   std::atomic<bool> stop{false};
   std::atomic<uint64_t> moves{0};
@@ -450,7 +521,12 @@ void BM_LatencyUnderWriter(benchmark::State& state) {
     v1::UpsertSitesRequest r;
     r.set_scene_id("bench");
     auto* site = r.add_sites();
+    auto next = std::chrono::steady_clock::now();
     while (!stop) {
+      if (per_second > 0) {
+        next += std::chrono::microseconds(1000000 / per_second);
+        std::this_thread::sleep_until(next);
+      }
       site->set_id(std::to_string(rng() % kQuerySites));
       site->mutable_point()->set_x(u(rng));
       site->mutable_point()->set_y(u(rng));
@@ -483,7 +559,7 @@ void BM_LatencyUnderWriter(benchmark::State& state) {
   state.counters["p99_us"] = micros[micros.size() * 99 / 100];
   state.counters["moves_per_s"] = moves / seconds;
 }
-BENCHMARK(BM_LatencyUnderWriter)->Iterations(20000)->UseRealTime();
+BENCHMARK(BM_LatencyUnderWriter)->Arg(0)->Arg(1)->Arg(120)->Iterations(20000)->UseRealTime();
 
 }  // namespace
 }  // namespace gvd
