@@ -95,7 +95,13 @@ void Frame::PixelOf(Vec2 p, uint32_t* i, uint32_t* j) const {
 
 std::optional<NearestAnswer> Frame::Nearest(Vec2 q, FeatureHit* feature) const {
   std::optional<NearestAnswer> a = Nearest(q);
-  if (a && a->found) *feature = NearestFeature(q, *sites().get(a->site_index));
+  if (!a || !a->found) return a;
+  // A plain point is its own nearest feature, read from the slot table's column.
+  if (const Vec2 p = sites().point(a->site_index); !std::isnan(p.x)) {
+    *feature = {SegmentDistance(q, p, p), FeatureKind::kVertex, 0, p};  // as NearestFeature
+  } else {
+    *feature = NearestFeature(q, *sites().get(a->site_index));
+  }
   return a;
 }
 

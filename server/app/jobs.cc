@@ -181,14 +181,20 @@ void BasicNearestJob<S>::AnswerFrom(const std::shared_ptr<const Frame>& frame) {
           if (query_.closest) closest_[i] = Point(NAN);
           return true;
         }
-        const typename S::Site& site = *frame_->sites().get(a->site_index);
-        if (const auto point = K::PointOf(site)) {
+        // A point's feature is itself (vertex 0); a plain point's comes from the slot table's
+        // column, without reaching the site (a cache miss an answer in a large scene).
+        const auto& slots = frame_->sites();
+        const typename S::Site* site = slots.get(a->site_index);
+        if (const Point plain = slots.point(a->site_index); !std::isnan(plain.x)) {
           f = {};
-          f.closest = *point;  // vertex 0
+          f.closest = plain;
+        } else if (const auto point = K::PointOf(*site)) {
+          f = {};
+          f.closest = *point;
         } else if (want_feature && !have_feature) {
-          f = K::Feature(q, site);
+          f = K::Feature(q, *site);
         }
-        rows_[i] = {&site.id, a->site_index, a->distance, a->error_bound,
+        rows_[i] = {&site->id, a->site_index, a->distance, a->error_bound,
                     a->error_bound == 0, f.kind, f.index};
         if (query_.closest) closest_[i] = f.closest;
         return true;
