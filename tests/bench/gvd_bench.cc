@@ -210,6 +210,7 @@ void BM_UpdateOneSite(benchmark::State& state) {
   const int kind = state.range(0);
   RenderStats stats;
   uint64_t pixels = 0, drawn = 0;
+  double coverage = 0, draw = 0, readback = 0;
   int next = 0;
   const int count = static_cast<int>(state.range(1));
   for (auto _ : state) {
@@ -230,9 +231,15 @@ void BM_UpdateOneSite(benchmark::State& state) {
     if (!frame.ok()) return state.SkipWithError("render failed");
     pixels += stats.pixels;
     drawn += stats.sites_drawn;
+    coverage += stats.coverage_seconds;
+    draw += stats.draw_seconds;
+    readback += stats.readback_seconds;
   }
   state.counters["pixels"] = double(pixels) / state.iterations();
   state.counters["sites_drawn"] = double(drawn) / state.iterations();
+  state.counters["coverage_ms"] = coverage * 1e3 / state.iterations();
+  state.counters["draw_ms"] = draw * 1e3 / state.iterations();
+  state.counters["readback_ms"] = readback * 1e3 / state.iterations();
   state.SetLabel(kind == 0 ? "add" : kind == 1 ? "move" : "delete");
 }
 BENCHMARK(BM_UpdateOneSite)
