@@ -424,9 +424,7 @@ absl::Status PostgresStore::Commit(const ChangeSet& changes) {
   auto c = Take();
   if (!c.ok()) return c.status();
   // The conditional append, in one statement: the scene moves from the version the change
-  // follows, and only then are its rows written and the followers told. A relaxed change
-  // commits without waiting for its WAL flush (synchronous_commit off for the statement's
-  // transaction): the database's WAL writer flushes it within three wal_writer_delay.
+  // follows, and only then are its rows written and the followers told.
   auto r = (*c)->Run(
       "WITH head AS (UPDATE gvd_scene SET version = $2 WHERE id = $1 AND version = $3 "
       "  AND ($7 = 0 OR incarnation = $7) RETURNING id), "
@@ -435,11 +433,9 @@ absl::Status PostgresStore::Commit(const ChangeSet& changes) {
       "  ON CONFLICT (scene, id) DO UPDATE SET version = EXCLUDED.version, site = EXCLUDED.site), "
       "gone AS (UPDATE gvd_site SET version = $2, site = ''::bytea "
       "  WHERE scene = (SELECT id FROM head) AND id = ANY($6::bytea[])) "
-      "SELECT pg_notify('gvd_changes', id), set_config('synchronous_commit', $8, true) "
-      "FROM head",
+      "SELECT pg_notify('gvd_changes', id) FROM head",
       {Text(scene), Int8(changes.version), Int8(changes.base()), ByteaArray(put_ids),
-       ByteaArray(put_sites), ByteaArray(removed), Int8(changes.incarnation),
-       Text(changes.durability == Durability::kRelaxed ? "off" : "on")},
+       ByteaArray(put_sites), ByteaArray(removed), Int8(changes.incarnation)},
       options_.deadline, absl::StrCat("committing to scene \"", scene, "\""));
   if (!r.ok()) return r.status();
   if (r->rows() == 0) {

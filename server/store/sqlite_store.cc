@@ -152,6 +152,7 @@ absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string
     return s;
   }
   std::unique_ptr<SqliteStore> store(new SqliteStore(db, path));
+  if (persistent) store->wal_path_ = sqlite3_filename_wal(sqlite3_db_filename(db, "main"));
   sqlite3_busy_timeout(db, 5000);
   // Foreign keys stay off: checking each site row's scene made a bulk insert four to six
   // times slower once the table held other scenes' rows. The store keeps the reference
@@ -215,11 +216,12 @@ SqliteStore::~SqliteStore() {
     flush_cv_.notify_all();
   }
   if (flusher_.joinable()) flusher_.join();
-  if (relaxed_written_ != relaxed_synced_) {
+  if (relaxed_written_ != relaxed_synced_ && !sync_failed_.load()) {
     if (auto s = SyncWal(); !s.ok()) {
       Log(LogLevel::kError, "store_sync_failed", {{"store", path_}, {"error", s.ToString()}});
     }
   }
+  if (wal_fd_ >= 0) close(wal_fd_);
   for (const auto& [sql, stmt] : statements_) sqlite3_finalize(stmt);
   sqlite3_close(db_);
 }
@@ -250,15 +252,18 @@ absl::Status SqliteStore::Transaction(Body body, Durability durability) {
   std::lock_guard<std::mutex> lock(mu_);
   auto start = std::chrono::steady_clock::now();
   // In WAL mode, synchronous=NORMAL commits without syncing the WAL; FULL syncs it, and with
-  // it every relaxed commit written before.
-  const bool relaxed = durability == Durability::kRelaxed && path_ != ":memory:";
+  // it every relaxed commit written before. After a failed sync of the WAL every commit is a
+  // sync one: the store no longer vouches for what it has not synced itself.
+  const bool relaxed =
+      durability == Durability::kRelaxed && !wal_path_.empty() && !sync_failed_.load();
   if (relaxed != relaxed_connection_) {
-    if (auto s = Step(relaxed ? "PRAGMA synchronous=NORMAL" : "PRAGMA synchronous=FULL");
+    if (auto s = Exec(relaxed ? "PRAGMA synchronous=NORMAL" : "PRAGMA synchronous=FULL");
         !s.ok()) {
       return s;
     }
     relaxed_connection_ = relaxed;
   }
+  const int64_t changes_before = sqlite3_total_changes64(db_);
   if (auto s = Step("BEGIN IMMEDIATE"); !s.ok()) return s;
   absl::Status s = body();
   if (s.ok()) s = Step("COMMIT");
@@ -268,10 +273,12 @@ absl::Status SqliteStore::Transaction(Body body, Durability durability) {
   }
   last_commit_seconds_ =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  // A transaction that changed nothing wrote nothing to the WAL, and so synced nothing.
+  const bool wrote = sqlite3_total_changes64(db_) != changes_before;
   {
     std::lock_guard<std::mutex> flush(flush_mu_);
     if (!relaxed) {
-      relaxed_synced_ = relaxed_written_;
+      if (wrote && !sync_failed_.load()) relaxed_synced_ = relaxed_written_;
     } else if (relaxed_written_++ == relaxed_synced_) {
       oldest_unsynced_ = std::chrono::steady_clock::now();
       if (!flusher_.joinable()) flusher_ = std::thread([this] { Flusher(); });
@@ -283,51 +290,58 @@ absl::Status SqliteStore::Transaction(Body body, Durability durability) {
 
 void SqliteStore::Flusher() {
   std::unique_lock<std::mutex> lock(flush_mu_);
-  while (!stopping_) {
+  while (!stopping_ && !sync_failed_.load()) {
     if (relaxed_synced_ == relaxed_written_) {
       flush_cv_.wait(lock);
       continue;
     }
-    // Synced within relaxed_sync_ of the first unsynced commit: a sync commit in between
-    // does it instead.
-    const uint64_t synced = relaxed_synced_;
-    if (flush_cv_.wait_until(lock, oldest_unsynced_ + relaxed_sync_,
-                             [&] { return stopping_ || relaxed_synced_ != synced; })) {
+    // Synced within relaxed_sync_ of the first unsynced commit (the deadline read anew at
+    // each wake-up: the period may change), unless a sync commit does it first.
+    if (std::chrono::steady_clock::now() < oldest_unsynced_ + relaxed_sync_) {
+      flush_cv_.wait_until(lock, oldest_unsynced_ + relaxed_sync_);
       continue;
     }
     const uint64_t written = relaxed_written_;
+    const auto started = std::chrono::steady_clock::now();
     lock.unlock();
     absl::Status s = SyncWal();
     lock.lock();
-    if (s.ok()) {
-      relaxed_synced_ = std::max(relaxed_synced_, written);
-      if (relaxed_synced_ != relaxed_written_) oldest_unsynced_ = std::chrono::steady_clock::now();
-    } else {
-      // Tried again a period later; sync commits meanwhile fail on the same disk.
+    if (!s.ok()) {
+      // Sticky: what the failed sync held may be lost, so none of it is counted synced, and
+      // every later commit is a sync one, which fails while the disk does.
+      sync_failed_ = true;
       Log(LogLevel::kError, "store_sync_failed", {{"store", path_}, {"error", s.ToString()}});
-      oldest_unsynced_ = std::chrono::steady_clock::now();
+      break;
     }
+    ++flusher_syncs_;
+    relaxed_synced_ = std::max(relaxed_synced_, written);
+    // Those written during the sync are no older than its start.
+    if (relaxed_synced_ != relaxed_written_) oldest_unsynced_ = started;
   }
 }
 
 absl::Status SqliteStore::SyncWal() {
   // The WAL keeps its file for the connection's life (a checkpoint rewrites it from the
-  // start), so syncing the file through a descriptor of its own syncs what SQLite wrote.
-  const char* wal = sqlite3_filename_wal(sqlite3_db_filename(db_, "main"));
-  const int fd = open(wal, O_RDONLY | O_CLOEXEC);
-  if (fd < 0) {
-    if (errno == ENOENT) return absl::OkStatus();  // none yet: nothing written to sync
-    return absl::UnavailableError(
-        absl::StrCat("store ", path_, ": cannot open its WAL ", wal, ": ", std::strerror(errno)));
+  // start), so syncing the file through a descriptor of our own syncs what SQLite wrote. The
+  // descriptor stays open from the first sync on, so that a write-back error after it is
+  // reported to it.
+  if (wal_fd_ < 0) {
+    wal_fd_ = open(wal_path_.c_str(), O_RDONLY | O_CLOEXEC);
+    if (wal_fd_ < 0) {
+      return absl::UnavailableError(absl::StrCat("store ", path_, ": cannot open its WAL ",
+                                                 wal_path_, ": ", std::strerror(errno)));
+    }
   }
-  const int rc = fdatasync(fd);
-  const int err = errno;
-  close(fd);
-  if (rc != 0) {
-    return absl::UnavailableError(
-        absl::StrCat("store ", path_, ": syncing its WAL ", wal, ": ", std::strerror(err)));
+  if (fdatasync(wal_fd_) != 0) {
+    return absl::UnavailableError(absl::StrCat("store ", path_, ": syncing its WAL ", wal_path_,
+                                               ": ", std::strerror(errno)));
   }
   return absl::OkStatus();
+}
+
+uint64_t SqliteStore::flusher_syncs() const {
+  std::lock_guard<std::mutex> lock(flush_mu_);
+  return flusher_syncs_;
 }
 
 uint64_t SqliteStore::relaxed_unsynced() const {

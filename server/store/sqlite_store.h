@@ -6,6 +6,7 @@
 // form (core/codec.h), so every site kind the core gains is stored without a schema change.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <functional>
@@ -57,8 +58,11 @@ class SqliteStore final : public SceneStore {
   // How long a relaxed commit may stay unsynced (it survives a crash of the server at once,
   // a crash of the machine once synced). 100 ms unless set.
   void set_relaxed_sync(std::chrono::milliseconds period);
-  // Relaxed transactions committed and not yet synced.
+  // Relaxed transactions committed and not known synced (after a failed sync of the WAL,
+  // those it held stay counted).
   uint64_t relaxed_unsynced() const;
+  // The WAL syncs the flusher made.
+  uint64_t flusher_syncs() const;
 
   // Seconds the last transaction took (BEGIN to durable COMMIT).
   double last_commit_seconds() const;
@@ -123,8 +127,12 @@ class SqliteStore final : public SceneStore {
   uint64_t relaxed_synced_ = 0;
   std::chrono::steady_clock::time_point oldest_unsynced_;
   std::chrono::milliseconds relaxed_sync_{100};
+  uint64_t flusher_syncs_ = 0;
   bool stopping_ = false;
   std::thread flusher_;
+  std::string wal_path_;  // the WAL's file; empty in memory
+  int wal_fd_ = -1;       // the flusher's descriptor of it, once opened
+  std::atomic<bool> sync_failed_{false};  // a sync of the WAL failed: no more relaxed commits
 };
 
 }  // namespace gvd
