@@ -58,7 +58,7 @@ ABSL_FLAG(uint32_t, relaxed_sync_ms, 100,
           "<N> how long a write sent with durability RELAXED may stay unsynced in a SQLite "
           "store, 1 to 60000: it is answered once written, survives a crash of the server at "
           "once, and a crash or power loss of the machine once synced, within N ms (on "
-          "PostgreSQL, within three of the database's wal_writer_delay)");
+          "PostgreSQL it is committed as SYNC)");
 ABSL_FLAG(std::string, egl_device, "auto",
           "<auto|hardware|software> which EGL device renders (by default auto: a GPU if there "
           "is one, else Mesa's software rasterizer)");

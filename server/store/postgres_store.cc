@@ -424,7 +424,10 @@ absl::Status PostgresStore::Commit(const ChangeSet& changes) {
   auto c = Take();
   if (!c.ok()) return c.status();
   // The conditional append, in one statement: the scene moves from the version the change
-  // follows, and only then are its rows written and the followers told.
+  // follows, and only then are its rows written and the followers told. A relaxed change is
+  // committed as a sync one (the database's synchronous_commit): replicas apply a commit as
+  // soon as they are told of it, and one the database then lost (a relaxed commit, at a crash
+  // of the database) would leave them ahead of it.
   auto r = (*c)->Run(
       "WITH head AS (UPDATE gvd_scene SET version = $2 WHERE id = $1 AND version = $3 "
       "  AND ($7 = 0 OR incarnation = $7) RETURNING id), "
