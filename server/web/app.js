@@ -670,21 +670,21 @@ async function write(method, request) {
   }
 }
 
-// A dragged point is sent as it moves, one upsert in flight (the newest position waits), each
-// RELAXED: answered once written, without waiting for the disk (synced within the server's
-// --relaxed-sync-ms).
+// A dragged point is sent as it moves, one upsert in flight (the newest position waits):
+// RELAXED while it moves (answered once written, without waiting for the disk; synced within
+// the server's --relaxed-sync-ms), SYNC where it is dropped, the position that stays.
 let moving = false;
 let nextMove = null;
 
-async function move(id, site, to) {
+async function move(id, site, to, durability = 'RELAXED') {
   if (moving) {
-    nextMove = [id, site, to];
+    nextMove = [id, site, to, durability];
     return;
   }
   moving = true;
   await write('UpsertSites', {
     sites: [{ ...site, id, point: { x: to[0], y: to[1] } }],
-    durability: 'RELAXED',
+    durability,
   });
   moving = false;
   if (nextMove) {
@@ -797,7 +797,7 @@ overlay.addEventListener('pointerup', async (e) => {
   if (press.drag && press.moved) {
     const to = toScene(cx, cy);
     drawOverlay();
-    await move(press.drag.id, press.drag.site, to);
+    await move(press.drag.id, press.drag.site, to, 'SYNC');
     state.hover = null;
     return;
   }
