@@ -12,6 +12,7 @@
 #include "absl/strings/str_cat.h"
 #include "render/gl/rasterizer.h"
 #include "render/gl/scene_raster.h"
+#include "render/scene/cpu_pool.h"
 
 namespace gvd {
 namespace {
@@ -24,6 +25,9 @@ RenderLoop::~RenderLoop() { Stop(); }
 
 absl::Status RenderLoop::Start(DevicePreference preference) {
   if (const char* hold = std::getenv(kHoldRendersVariable)) hold_path_ = hold;
+  // The CPU pool is made here, at the caller's priority: made first by a render thread, its
+  // threads would inherit the render's nice 10, and they answer queries too.
+  CpuPool::Process();
   for (int lane = 0; lane < lanes_; ++lane) {
     threads_.emplace_back([this, lane, preference] { Run(lane, preference); });
   }
