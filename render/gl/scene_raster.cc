@@ -179,10 +179,11 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
   for (uint32_t s : placed) tally_.Live(*slots.get(s));
 
   // Each window costs about the same wherever it is (0.4 ms at 100,000 points on the 2-core
-  // machine); a full render grows with the scene (75 ms there, so about n / 512 windows'
-  // worth, leaving room for windows that merge). Past that, or past a few dozen in a small
-  // scene, drawing everything is cheaper. (A fixed cap sent every update that gathered more
-  // than a few dozen changes to a full render, however large the scene.)
+  // machine, on one core); a full render grows with the scene (66-73 ms there, on every
+  // core), so that n / 512 windows take about as long as a full render and half its CPU.
+  // Past that, or past a few dozen in a small scene, drawing everything is cheaper. (A fixed
+  // cap sent every update that gathered more than a few dozen changes to a full render,
+  // however large the scene.)
   const size_t max_windows = std::max<size_t>(64, drawn_->size() / 512);
   if (placed.size() + dirty.size() > max_windows) return RenderAll(rasterizer, stats);
 

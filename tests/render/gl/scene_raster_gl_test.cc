@@ -148,7 +148,7 @@ TEST_F(SceneRasterGLTest, ManyChangesInALargeSceneRedrawWindows) {
   std::uniform_real_distribution<double> ux(0, 4), uy(0, 3);
   std::map<std::string, Vec2> sites;
   std::vector<SiteChange> initial;
-  constexpr int kSites = 36000;  // past 512 times the 64 windows a small scene is held to
+  constexpr int kSites = 36000;  // n / 512 = 70 windows, past the 64 a small scene is held to
   for (int i = 0; i < kSites; ++i) {
     const std::string id = "s" + std::to_string(i);
     sites[id] = {ux(rng), uy(rng)};
@@ -159,7 +159,9 @@ TEST_F(SceneRasterGLTest, ManyChangesInALargeSceneRedrawWindows) {
   snapshot = Advance(snapshot, std::move(initial), &free_slots);
   ASSERT_TRUE((*raster)->Apply(*rasterizer_, snapshot).ok());
   for (int round = 0; round < 2 && !HasFailure(); ++round) {
-    // 34 moves: up to 68 windows (each move's old reach and its new place).
+    // 34 moves: 68 windows (each move's old reach and its new place: with these sites, each
+    // moved one held pixels), more than 64; more moves would merge into windows over half
+    // the grid, which is redrawn whole.
     std::vector<SiteChange> moves;
     std::set<std::string> moved;
     while (moves.size() < 34) {
