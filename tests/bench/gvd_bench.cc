@@ -19,6 +19,7 @@
 #include "server/app/registry.h"
 #include "server/grpc/service.h"
 #include "server/store/sqlite_store.h"
+#include "tests/support/stored_sites.h"
 
 #ifdef GVD_BENCH_OPENCV
 #include <opencv2/imgproc.hpp>
@@ -426,24 +427,14 @@ void BM_GrpcPick(benchmark::State& state) {
 }
 BENCHMARK(BM_GrpcPick)->Unit(benchmark::kMicrosecond)->UseRealTime();
 
-// A directory for a store on disk, removed with it.
-struct StoreDir {
-  std::string root = [] {
-    char t[] = "/tmp/gvd-bench-XXXXXX";
-    return std::string(mkdtemp(t));
-  }();
-  std::string path() const { return root + "/store"; }
-  ~StoreDir() { std::system(("rm -rf " + root).c_str()); }
-};
-
 // Durability's cost: one-site upserts over loopback, one at a time, each acknowledged once
 // committed, to a store in memory (range 0) or on disk (WAL): SYNC (range 1, synced before
 // the answer) or RELAXED (range 2, synced within 100 ms).
 void BM_GrpcUpsert(benchmark::State& state) {
   const int mode = static_cast<int>(state.range(0));
-  StoreDir dir;
+  testing::TempDir dir;  // the store on disk goes in dir/store
   InProcessServer server;
-  if (!server.Start(mode == 0 ? ":memory:" : dir.path(), "durable", 256, 0, 0)) {
+  if (!server.Start(mode == 0 ? ":memory:" : dir.path() + "/store", "durable", 256, 0, 0)) {
     return state.SkipWithError("no EGL context or store");
   }
   auto client = Client::Connect(server.address);
@@ -473,9 +464,9 @@ BENCHMARK(BM_GrpcUpsert)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond)-
 // RELAXED (range 1), then FindNearest at its new position with the version it returned.
 void BM_GrpcMove(benchmark::State& state) {
   const bool relaxed = state.range(0) != 0;
-  StoreDir dir;
+  testing::TempDir dir;  // the store on disk goes in dir/store
   InProcessServer server;
-  if (!server.Start(dir.path(), "moves", 1024, kQuerySites, 4)) {
+  if (!server.Start(dir.path() + "/store", "moves", 1024, kQuerySites, 4)) {
     return state.SkipWithError("no EGL context or store");
   }
   auto client = Client::Connect(server.address);
