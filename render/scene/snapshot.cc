@@ -1,10 +1,10 @@
 #include "render/scene/snapshot.h"
 
 #include <algorithm>
-#include <cstring>
 #include <map>
 
 #include "render/scene/cpu_pool.h"
+#include "render/scene/id_order.h"
 #include "render/kernel/mesh_regions.h"
 #include "render/kernel/segment_tree.h"
 
@@ -74,30 +74,13 @@ IdMap IdMap::With(const std::vector<Change>& changes) const {
 }
 
 void SortById(std::vector<IdMap::Change>* changes) {
-  // Sorted as (the first 8 bytes of the id, big-endian; its position), full ids compared
-  // only where those bytes are equal, then moved once into place: no string is moved, and
-  // few are compared, per step of the sort.
+  // Each change moved once into place: no string is moved per step of the sort.
   std::vector<IdMap::Change>& c = *changes;
-  struct Key {
-    uint64_t prefix;
-    uint32_t at;
-  };
-  std::vector<Key> keys(c.size());
-  for (size_t k = 0; k < c.size(); ++k) {
-    unsigned char bytes[8] = {};
-    std::memcpy(bytes, c[k].first.data(), std::min<size_t>(8, c[k].first.size()));
-    uint64_t prefix = 0;
-    for (unsigned char b : bytes) prefix = prefix << 8 | b;
-    keys[k] = {prefix, static_cast<uint32_t>(k)};
-  }
-  std::sort(keys.begin(), keys.end(), [&](const Key& a, const Key& b) {
-    if (a.prefix != b.prefix) return a.prefix < b.prefix;
-    const int order = c[a.at].first.compare(c[b.at].first);
-    return order != 0 ? order < 0 : a.at < b.at;  // equal ids keep their order
-  });
+  const std::vector<uint32_t> order =
+      IdOrder(c.size(), [&](size_t k) -> std::string_view { return c[k].first; });
   std::vector<IdMap::Change> sorted;
   sorted.reserve(c.size());
-  for (const Key& k : keys) sorted.push_back(std::move(c[k.at]));
+  for (uint32_t k : order) sorted.push_back(std::move(c[k]));
   c = std::move(sorted);
 }
 

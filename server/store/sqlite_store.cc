@@ -12,6 +12,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "render/scene/codec.h"
+#include "render/scene/id_order.h"
 #include "server/log.h"
 #include "server/store/rows.h"
 
@@ -563,11 +564,18 @@ absl::Status SqliteStore::Write(const ChangeSet& changes) {
     put.Int(4, changes.version);
     return put.Run();
   };
-  for (const auto& site : changes.put) {
-    if (!store(*site)) return SqliteError(db_, "storing a site");
-  }
-  for (const auto& site : changes.put3) {
-    if (!store(*site)) return SqliteError(db_, "storing a site");
+  // The rows go in in id order: the B-tree then fills its pages one after another instead of
+  // splitting pages all over the table (a bulk load of random ids takes half the time).
+  auto store_all = [&](const auto& sites) {
+    const std::vector<uint32_t> order =
+        IdOrder(sites.size(), [&](size_t k) -> std::string_view { return sites[k]->id; });
+    for (uint32_t k : order) {
+      if (!store(*sites[k])) return false;
+    }
+    return true;
+  };
+  if (!store_all(changes.put) || !store_all(changes.put3)) {
+    return SqliteError(db_, "storing a site");
   }
   for (const std::string& id : changes.removed) {
     del.Int(1, changes.version);

@@ -5,6 +5,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include <atomic>
+#include <cstdio>
 #include <nanoflann.hpp>
 #include <random>
 #include <set>
@@ -458,6 +459,45 @@ void BM_GrpcUpsert(benchmark::State& state) {
   state.SetLabel(mode == 0 ? "memory" : mode == 1 ? "disk, SYNC" : "disk, RELAXED");
 }
 BENCHMARK(BM_GrpcUpsert)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond)->UseRealTime();
+
+// The store's part of a bulk load: one change set putting 100,000 points into a new scene
+// of a store on disk (WAL, SYNC), from the commit's start until it is durable. Their ids are
+// the points' indices in decimal (range 0, as the bench's loads name them) or 32 random hex
+// digits (range 1, as UUIDs would).
+void BM_StoreBulkCommit(benchmark::State& state) {
+  const bool random_ids = state.range(0) == 1;
+  testing::TempDir dir;
+  auto opened = SqliteStore::Open(dir.path() + "/store");
+  if (!opened.ok()) return state.SkipWithError("no store");
+  std::unique_ptr<SqliteStore> store = std::move(*opened);
+  std::mt19937_64 rng(5);
+  std::vector<std::shared_ptr<const Site>> put;
+  for (const Site& s : RandomSites(100000, kUnit, 5)) {
+    Site site = s;
+    if (random_ids) {
+      char hex[33];
+      std::snprintf(hex, sizeof hex, "%016llx%016llx", static_cast<unsigned long long>(rng()),
+                    static_cast<unsigned long long>(rng()));
+      site.id = hex;
+    }
+    put.push_back(std::make_shared<const Site>(std::move(site)));
+  }
+  int scenes = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    SceneSettings settings;
+    settings.id = "load" + std::to_string(scenes++);
+    settings.grid = {kUnit, 1024, 1024};
+    settings.eps = 1e-3;
+    if (!store->CreateScene(settings, 1).ok()) return state.SkipWithError("no scene");
+    state.ResumeTiming();
+    ChangeSet change{settings.id, 2, put, {}};
+    if (!store->Commit(change).ok()) return state.SkipWithError("commit failed");
+  }
+  state.SetItemsProcessed(state.iterations() * put.size());
+  state.SetLabel(random_ids ? "random hex ids" : "decimal ids");
+}
+BENCHMARK(BM_StoreBulkCommit)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // A one-site move until a query sees it, over loopback from the C++ client, in a scene of
 // 100,000 points at 1024 x 1024 stored on disk: UpsertSites of one point, SYNC (range 0) or
