@@ -8,7 +8,7 @@ Starts GVD_SERVER on loopback with its default flags and a store on disk (acknow
 committed), then measures:
   - bulk load: one UpsertSites of N points into a new scene (serialized beforehand), until
     acknowledged, and until a FindNearest with min_version is answered (the frame is
-    published);
+    published); their ids decimal, then (into another scene) 32 random hex digits;
   - one-site move: UpsertSites of one point, then FindNearest with min_version at the new
     position (the round trip to a published frame), repeated, SYNC and RELAXED, beside the
     disk's floor (a 4 KiB append and fdatasync, in a loop);
@@ -64,6 +64,7 @@ class Voronoi:
             "/gvd.v1.Voronoi/UpsertSites", request_serializer=lambda body: body,
             response_deserializer=pb.UpsertSitesResponse.FromString)
         self.FindNearest = call("FindNearest", pb.FindNearestRequest, pb.FindNearestResponse)
+        self.DeleteScene = call("DeleteScene", pb.DeleteSceneRequest, pb.DeleteSceneResponse)
         self.WatchScene = channel.unary_stream(
             "/gvd.v1.Voronoi/WatchScene", request_serializer=pb.WatchSceneRequest.SerializeToString,
             response_deserializer=pb.SceneEvent.FromString)
@@ -190,17 +191,30 @@ def main():
 
         # Bulk load, until acknowledged and until a query can read the frame (the request
         # serialized beforehand).
-        t0 = time.perf_counter()
-        version = api.UpsertSitesBytes(body).version
-        acked = time.perf_counter() - t0
-        probe = pb.FindNearestRequest(scene_id="load", min_version=version)
-        probe.points.add(x=0.5, y=0.5)
-        api.FindNearest(probe, timeout=600)
-        queryable = time.perf_counter() - t0
+        def bulk_load(scene_id, body):
+            t0 = time.perf_counter()
+            version = api.UpsertSitesBytes(body).version
+            acked = time.perf_counter() - t0
+            probe = pb.FindNearestRequest(scene_id=scene_id, min_version=version)
+            probe.points.add(x=0.5, y=0.5)
+            api.FindNearest(probe, timeout=600)
+            return acked, time.perf_counter() - t0
+        acked, queryable = bulk_load("load", body)
         cv_full, _ = best(opencv_labels(points, args.size), 5)
         kd_build, tree = best(lambda: cKDTree(points), 5)
         rows.append(("bulk load, until acknowledged", acked, None))
         rows.append(("bulk load, until queryable", queryable, cv_full))
+        # The same points named by 32 random hex digits, as UUIDs would name them, into a
+        # scene of their own, dropped afterwards.
+        create.scene_id = "load-hex"
+        api.CreateScene(create)
+        upsert.scene_id = "load-hex"
+        for site in upsert.sites:
+            site.id = rng.bytes(16).hex()
+        acked, queryable = bulk_load("load-hex", upsert.SerializeToString())
+        rows.append(("bulk load, random hex ids, until acknowledged", acked, None))
+        rows.append(("bulk load, random hex ids, until queryable", queryable, cv_full))
+        api.DeleteScene(pb.DeleteSceneRequest(scene_id="load-hex"))
         rows.append(("scipy cKDTree build", kd_build, None))
 
         # One-site moves, each until a query at the new position sees it: SYNC (answered once
