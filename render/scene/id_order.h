@@ -6,16 +6,20 @@
 #include <cstdint>
 #include <cstring>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 namespace gvd {
 
-// The positions 0..n-1 ordered by id_at(position) (a std::string_view, or what converts to
-// one), equal ids in their positions' order. Sorted as (the first 8 bytes of the id,
+// The positions 0..n-1 ordered by id_at(position), a std::string_view of an id that outlives
+// the call, equal ids in their positions' order. Sorted as (the first 8 bytes of the id,
 // big-endian; its position), full ids compared only where those bytes are equal: no string
 // is moved, and few are compared, per step of the sort.
 template <class IdAt>
 std::vector<uint32_t> IdOrder(size_t n, IdAt&& id_at) {
+  // A view, not a string returned by value: the keys read the ids after id_at returns.
+  static_assert(std::is_same_v<std::invoke_result_t<IdAt&, size_t>, std::string_view>,
+                "id_at must return a std::string_view");
   struct Key {
     uint64_t prefix;
     uint32_t at;

@@ -205,12 +205,13 @@ def main():
         rows.append(("bulk load, until acknowledged", acked, None))
         rows.append(("bulk load, until queryable", queryable, cv_full))
         # The same points named by 32 random hex digits, as UUIDs would name them, into a
-        # scene of their own, dropped afterwards.
+        # scene of their own, dropped afterwards (the ids from a generator of their own).
         create.scene_id = "load-hex"
         api.CreateScene(create)
         upsert.scene_id = "load-hex"
+        ids = np.random.default_rng(2)  # the moves' positions below stay as they were
         for site in upsert.sites:
-            site.id = rng.bytes(16).hex()
+            site.id = ids.bytes(16).hex()
         acked, queryable = bulk_load("load-hex", upsert.SerializeToString())
         rows.append(("bulk load, random hex ids, until acknowledged", acked, None))
         rows.append(("bulk load, random hex ids, until queryable", queryable, cv_full))

@@ -10,9 +10,10 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 root=$PWD
 jobs=$(nproc)
-# -O1 with line tables only: the build type's own -O2 -g would come after CMAKE_CXX_FLAGS and
-# win, and compiles these builds in about twice the time; line tables are all the sanitizers'
-# stack traces use.
+# -O1 and -g1: the build type's own -O2 -g would come after CMAKE_CXX_FLAGS and win, and
+# compiles these builds in about twice the time (one test file under ASan: 71 s against 30 s).
+# -g1 keeps line tables, function names and inlined frames: what the sanitizers' stack traces
+# and TSan's suppressions by function name read.
 opt="-O1 -g1 -DNDEBUG"
 
 cmake -S . -B build/asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGVD_WERROR=OFF \

@@ -13,6 +13,7 @@
 
 #include <gtest/gtest.h>
 
+#include "render/scene/id_order.h"
 #include "render/scene/snapshot.h"
 #include "render/scene/scene.h"
 #include "tests/support/oracle.h"
@@ -176,6 +177,21 @@ TEST(Snapshot, IdsSortInStringOrder) {
     EXPECT_EQ(changes[k].first, ids[k]) << k;
     EXPECT_EQ(changes[k].second, k) << "an id and its slot stay together";
   }
+}
+
+// Equal ids keep their positions' order (the store's last put of an id is written last).
+TEST(Snapshot, EqualIdsKeepTheirOrder) {
+  std::mt19937_64 rng(14);
+  std::vector<std::string> ids;
+  for (int k = 0; k < 2000; ++k) ids.push_back("id-" + std::to_string(rng() % 300));
+  const std::vector<uint32_t> order =
+      IdOrder(ids.size(), [&](size_t k) -> std::string_view { return ids[k]; });
+  ASSERT_EQ(order.size(), ids.size());
+  std::vector<uint32_t> expected(ids.size());
+  for (uint32_t k = 0; k < ids.size(); ++k) expected[k] = k;
+  std::stable_sort(expected.begin(), expected.end(),
+                   [&](uint32_t a, uint32_t b) { return ids[a] < ids[b]; });
+  EXPECT_EQ(order, expected);
 }
 
 // A snapshot's ink (the summed length of its sites' segments) across puts, replacements and

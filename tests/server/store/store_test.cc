@@ -701,6 +701,38 @@ TEST(Store, ChangeSetsNameWhatAWriteDid) {
   EXPECT_EQ(removed, (std::vector<std::string>{"a", "c"}));
 }
 
+// The rows of a change set are written in id order, not in the order they were put: where
+// one id is put twice (a change set the scene core would not make), the later one is kept,
+// as when the rows went in as put; and ids out of order, differing past their first 8 bytes,
+// are all kept.
+TEST(Store, ALaterPutOfAnIdInOneChangeSetWins) {
+  TempDir dir;
+  std::mt19937_64 rng(31);
+  const std::vector<std::string> ids = {"same-prefix-b", "a", "same-prefix-a", "a", "z", "a"};
+  std::vector<std::shared_ptr<const Site>> put;
+  for (const std::string& id : ids) {
+    put.push_back(std::make_shared<const Site>(RandomSite(rng, static_cast<int>(rng()), id)));
+  }
+  {
+    auto store = SqliteStore::Open(dir.path() + "/data");
+    ASSERT_TRUE(store.ok()) << store.status();
+    ASSERT_TRUE((*store)->CreateScene(Settings("d"), 1).ok());
+    ASSERT_TRUE((*store)->Commit({"d", 2, put, {}}).ok());
+  }
+  auto store = SqliteStore::Open(dir.path() + "/data");
+  ASSERT_TRUE(store.ok()) << store.status();
+  auto scenes = (*store)->Load();
+  ASSERT_TRUE(scenes.ok()) << scenes.status();
+  ASSERT_EQ(scenes->size(), 1u);
+  std::map<std::string, const Site*> stored;
+  for (const Site& site : scenes->front().sites) stored[site.id] = &site;
+  ASSERT_EQ(stored.size(), 4u);
+  EXPECT_TRUE(SameSite(*stored["a"], *put[5])) << "the last of a's three puts";
+  EXPECT_TRUE(SameSite(*stored["same-prefix-a"], *put[2]));
+  EXPECT_TRUE(SameSite(*stored["same-prefix-b"], *put[0]));
+  EXPECT_TRUE(SameSite(*stored["z"], *put[4]));
+}
+
 // ---- 3D scenes ----
 
 bool SameVec3(Vec3 a, Vec3 b) { return SameBits(a.x, b.x) && SameBits(a.y, b.y) && SameBits(a.z, b.z); }
