@@ -565,8 +565,8 @@ absl::Status SqliteStore::Write(const ChangeSet& changes) {
     return put.Run();
   };
   // The rows go in in id order: the B-tree then fills its pages one after another instead of
-  // splitting pages all over the table (a bulk load of random ids commits in a third of the
-  // time).
+  // splitting pages all over the table (a bulk load of random ids commits in less than half
+  // the time).
   auto store_all = [&](const auto& sites) {
     const std::vector<uint32_t> order =
         IdOrder(sites.size(), [&](size_t k) -> std::string_view { return sites[k]->id; });
