@@ -35,7 +35,7 @@ std::vector<uint32_t> IdOrder(size_t n, IdAt&& id_at) {
   }
   std::sort(keys.begin(), keys.end(), [&](const Key& a, const Key& b) {
     if (a.prefix != b.prefix) return a.prefix < b.prefix;
-    const int order = std::string_view(id_at(a.at)).compare(std::string_view(id_at(b.at)));
+    const int order = id_at(a.at).compare(id_at(b.at));
     return order != 0 ? order < 0 : a.at < b.at;  // equal ids keep their order
   });
   std::vector<uint32_t> order(n);
