@@ -349,7 +349,7 @@ class HttpServer::Impl {
  public:
   Impl(HttpOptions options, std::shared_ptr<grpc::Channel> channel)
       : options_(std::move(options)), channel_(std::move(channel)), stub_(channel_),
-        acceptor_(ioc_) {}
+        acceptor_(net::make_strand(ioc_)) {}
 
   absl::Status Start();
   void Shutdown(std::chrono::milliseconds grace);
@@ -385,7 +385,7 @@ class HttpServer::Impl {
   grpc::GenericStub stub_;
   net::io_context ioc_;
   std::optional<ssl::context> tls_;
-  tcp::acceptor acceptor_;
+  tcp::acceptor acceptor_;  // on a strand of its own: its handler and Shutdown's close
   std::vector<std::thread> threads_;
   std::optional<net::executor_work_guard<net::io_context::executor_type>> work_;
   int port_ = 0;
@@ -1049,7 +1049,8 @@ void HttpServer::Impl::Accept() {
 
 void HttpServer::Impl::Shutdown(std::chrono::milliseconds grace) {
   stopping_ = true;
-  net::post(ioc_, [this] {
+  // On the acceptor's strand, where its accept handler runs, not beside it.
+  net::post(acceptor_.get_executor(), [this] {
     beast::error_code ec;
     acceptor_.close(ec);
   });
