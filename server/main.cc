@@ -59,6 +59,11 @@ ABSL_FLAG(uint32_t, relaxed_sync_ms, 100,
           "store, 1 to 60000: it is answered once written, survives a crash of the server at "
           "once, and a crash or power loss of the machine once synced, within N ms (on "
           "PostgreSQL it is committed as SYNC)");
+ABSL_FLAG(uint32_t, store_pack_sites, 4096,
+          "<N> a write of N sites or more is committed to a SQLite store as one row (a pack), "
+          "folded into a row per site off the acknowledgement's path");
+ABSL_FLAG(uint32_t, store_fold_after_ms, 500,
+          "<N> packs are folded once none has been written for N ms, 1 to 60000");
 ABSL_FLAG(std::string, egl_device, "auto",
           "<auto|hardware|software> which EGL device renders (by default auto: a GPU if there "
           "is one, else Mesa's software rasterizer)");
@@ -143,6 +148,8 @@ struct Flags {
   uint32_t software_render_threads = 0;
   uint32_t grace_ms = 5000;
   uint32_t relaxed_sync_ms = 100;
+  uint32_t store_pack_sites = 4096;
+  uint32_t store_fold_after_ms = 500;
   std::string tokens, tls_cert, tls_key, tls_client_ca, metrics_listen, http_listen;
   std::vector<std::string> cors_origins;
   gvd::ServerLimits limits;
@@ -206,6 +213,11 @@ Flags ParseFlags(int argc, char** argv) {
   f.relaxed_sync_ms = Count<uint32_t>("relaxed-sync-ms", FLAGS_relaxed_sync_ms);
   if (f.relaxed_sync_ms > 60000) {
     Die(absl::StrCat("--relaxed-sync-ms needs 1 to 60000, not ", f.relaxed_sync_ms));
+  }
+  f.store_pack_sites = Count<uint32_t>("store-pack-sites", FLAGS_store_pack_sites);
+  f.store_fold_after_ms = Count<uint32_t>("store-fold-after-ms", FLAGS_store_fold_after_ms);
+  if (f.store_fold_after_ms > 60000) {
+    Die(absl::StrCat("--store-fold-after-ms needs 1 to 60000, not ", f.store_fold_after_ms));
   }
   f.tokens = absl::GetFlag(FLAGS_tokens);
   f.tls_cert = absl::GetFlag(FLAGS_tls_cert);
@@ -330,6 +342,10 @@ int main(int argc, char** argv) {
     auto sqlite = gvd::SqliteStore::Open(flags.data, gvd::LegacyRecords(flags.limits));
     if (sqlite.ok()) {
       (*sqlite)->set_relaxed_sync(std::chrono::milliseconds(flags.relaxed_sync_ms));
+      gvd::SqliteStore::Packing packing;
+      packing.min_sites = flags.store_pack_sites;
+      packing.fold_after = std::chrono::milliseconds(flags.store_fold_after_ms);
+      (*sqlite)->set_packing(packing);
     }
     store = std::move(sqlite);
   }

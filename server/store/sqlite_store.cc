@@ -8,6 +8,9 @@
 #include <cerrno>
 #include <chrono>
 #include <cstring>
+#include <unordered_map>
+#include <utility>
+#include <vector>
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
@@ -94,8 +97,9 @@ std::string ColumnText(sqlite3_stmt* s, int i) {
 // messages) is converted by Migrate.
 // The version of kSchema, recorded in the file (PRAGMA user_version). Version 2 made the
 // state a log (store.h): each site row carries the version that last wrote it, a removed
-// site leaves a tombstone (no bytes), and a scene has an incarnation and a horizon.
-constexpr int kSchemaVersion = 2;
+// site leaves a tombstone (no bytes), and a scene has an incarnation and a horizon. Version 3
+// added packs: a large change set's sites in one row, folded into site rows later.
+constexpr int kSchemaVersion = 3;
 constexpr const char* kSchema[] = {
     "CREATE TABLE IF NOT EXISTS scene ("
     "  id TEXT PRIMARY KEY,"
@@ -109,6 +113,16 @@ constexpr const char* kSchema[] = {
     "  site BLOB NOT NULL,"  // EncodeSite; empty: a tombstone
     "  version INTEGER NOT NULL DEFAULT 0,"
     "  PRIMARY KEY (scene, id)) WITHOUT ROWID",
+    // A change set's puts written as one row (EncodePack), all of its version. A site's state
+    // is the newest of its row and its entries in packs (Latest); the folder moves a pack's
+    // entries into site rows a chunk a transaction, and drops the pack with its last chunk.
+    // A fold cut short starts again from the pack's first entry (a fold is idempotent), so
+    // the row is never rewritten: only appended, and deleted.
+    "CREATE TABLE IF NOT EXISTS site_pack ("
+    "  scene TEXT NOT NULL,"
+    "  version INTEGER NOT NULL,"
+    "  sites BLOB NOT NULL,"
+    "  PRIMARY KEY (scene, version))",
 };
 // Added to a store of schema version 1 (or 0, the same schema unrecorded), each column when
 // missing: a conversion cut short is finished at the next start.
@@ -129,6 +143,53 @@ constexpr const char* kTombstoneIndex =
     "CREATE INDEX IF NOT EXISTS site_tombstone ON site (scene, version) WHERE site = x''";
 // A new incarnation: random, positive.
 constexpr const char* kNewIncarnation = "((random() & 0x7fffffffffffffff) | 1)";
+
+// A pack: for each site put, its id's and its EncodeSite bytes' lengths (4 bytes each, little
+// endian) each followed by the bytes, in the change set's order (of two puts of one id the
+// later wins).
+void PutLength(std::string* out, size_t n) {
+  for (int b = 0; b < 4; ++b) out->push_back(static_cast<char>((n >> (8 * b)) & 0xff));
+}
+template <class Sites>
+void AddToPack(const Sites& sites, std::string* out) {
+  for (const auto& site : sites) {
+    const std::string bytes = EncodeSite(*site);
+    PutLength(out, site->id.size());
+    out->append(site->id);
+    PutLength(out, bytes.size());
+    out->append(bytes);
+  }
+}
+std::string EncodePack(const ChangeSet& changes) {
+  std::string out;
+  AddToPack(changes.put, &out);
+  AddToPack(changes.put3, &out);
+  return out;
+}
+// Calls visit(id, bytes) for each entry of a pack, in order; false when its framing is damaged.
+template <class Visit>
+bool ForEachInPack(std::string_view pack, Visit visit) {
+  auto take = [&](std::string_view* field) {
+    if (pack.size() < 4) return false;
+    size_t n = 0;
+    for (int b = 0; b < 4; ++b) n |= static_cast<size_t>(static_cast<unsigned char>(pack[b])) << (8 * b);
+    pack.remove_prefix(4);
+    if (pack.size() < n) return false;
+    *field = pack.substr(0, n);
+    pack.remove_prefix(n);
+    return true;
+  };
+  while (!pack.empty()) {
+    std::string_view id, bytes;
+    if (!take(&id) || !take(&bytes)) return false;
+    visit(id, bytes);
+  }
+  return true;
+}
+absl::Status DamagedPack(std::string_view scene_id, uint64_t version) {
+  return absl::DataLossError(absl::StrCat("store: scene \"", std::string(scene_id),
+                                          "\": the pack of version ", version, " is damaged"));
+}
 
 }  // namespace
 
@@ -207,10 +268,156 @@ absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string
       return s;
     }
   }
+  {
+    // Packs left by the last run are folded by this one.
+    Statement packs(store->Prepared("SELECT 1 FROM site_pack LIMIT 1"));
+    if (!packs.ok()) return SqliteError(db, "reading packs");
+    const int rc = sqlite3_step(packs.get());
+    if (rc == SQLITE_ROW) store->WantFold();
+    else if (rc != SQLITE_DONE) return SqliteError(db, "reading packs");
+  }
   return store;
 }
 
+void SqliteStore::set_packing(Packing packing) {
+  std::lock_guard<std::mutex> lock(mu_);
+  std::lock_guard<std::mutex> fold(fold_mu_);
+  packing_ = packing;
+  fold_cv_.notify_all();
+}
+
+void SqliteStore::WantFold() {
+  std::lock_guard<std::mutex> lock(fold_mu_);
+  fold_wanted_ = true;
+  last_pack_ = std::chrono::steady_clock::now();
+  if (!folder_.joinable()) folder_ = std::thread([this] { Folder(); });
+  fold_cv_.notify_all();
+}
+
+void SqliteStore::Folder() {
+  std::unique_lock<std::mutex> lock(fold_mu_);
+  while (!fold_stopping_) {
+    if (!fold_wanted_) {
+      fold_cv_.wait(lock);
+      continue;
+    }
+    // A bulk load's render and the next change sets go first: the pack waits until none
+    // has been written for fold_after.
+    const auto due = last_pack_ + packing_.fold_after;
+    if (std::chrono::steady_clock::now() < due) {
+      fold_cv_.wait_until(lock, due);
+      continue;
+    }
+    fold_wanted_ = false;  // a pack written from here on sets it again
+    lock.unlock();
+    uint64_t folded = 0;
+    absl::StatusOr<bool> more = FoldSome(&folded);
+    lock.lock();
+    if (!more.ok()) {
+      // The packs stay, read as they are; the fold is tried again a period later.
+      Log(LogLevel::kError, "store_fold_failed", {{"store", path_}, {"error", more.status().ToString()}});
+      fold_wanted_ = true;
+      last_pack_ = std::chrono::steady_clock::now();
+    } else if (*more) {
+      fold_wanted_ = true;
+    }
+  }
+}
+
+absl::StatusOr<uint64_t> SqliteStore::FoldPacks(uint64_t chunks) {
+  uint64_t folded = 0;
+  for (uint64_t chunk = 0; chunk < chunks; ++chunk) {
+    absl::StatusOr<bool> more = FoldSome(&folded);
+    if (!more.ok()) return more.status();
+    if (!*more) break;
+  }
+  return folded;
+}
+
+absl::StatusOr<bool> SqliteStore::FoldSome(uint64_t* folded) {
+  bool found = false;
+  absl::Status s = Transaction([&]() -> absl::Status {
+    std::string scene;
+    uint64_t version = 0;
+    {
+      Statement p(Prepared("SELECT scene, version FROM site_pack ORDER BY scene, version LIMIT 1"));
+      if (!p.ok()) return SqliteError(db_, "reading packs");
+      const int rc = sqlite3_step(p.get());
+      if (rc == SQLITE_DONE) return absl::OkStatus();
+      if (rc != SQLITE_ROW) return SqliteError(db_, "reading packs");
+      scene = ColumnText(p.get(), 0);
+      version = static_cast<uint64_t>(sqlite3_column_int64(p.get(), 1));
+    }
+    found = true;
+    if (!fold_cursor_ || fold_cursor_->scene != scene || fold_cursor_->version != version) {
+      auto cursor = std::make_unique<FoldCursor>();
+      cursor->scene = scene;
+      cursor->version = version;
+      Statement p(Prepared("SELECT sites FROM site_pack WHERE scene = ? AND version = ?"));
+      if (!p.ok()) return SqliteError(db_, "reading packs");
+      p.Text(1, scene);
+      p.Int(2, version);
+      if (sqlite3_step(p.get()) != SQLITE_ROW) return SqliteError(db_, "reading packs");
+      cursor->pack = std::string(ColumnBlob(p.get(), 0));
+      if (!ForEachInPack(cursor->pack, [&](std::string_view id, std::string_view bytes) {
+            cursor->entries.emplace_back(id, bytes);
+          })) {
+        return DamagedPack(scene, version);
+      }
+      // In id order, as Write stores rows; of two entries of one id the later stays later.
+      const auto& entries = cursor->entries;
+      cursor->order =
+          IdOrder(entries.size(), [&](size_t k) -> std::string_view { return entries[k].first; });
+      fold_cursor_ = std::move(cursor);
+    }
+    const auto& entries = fold_cursor_->entries;
+    const std::vector<uint32_t>& order = fold_cursor_->order;
+    const uint64_t done = fold_cursor_->done;
+    // Latest's rule: the pack's put replaces an older row and a put of its own version, not a
+    // newer row nor a removal of its own version.
+    Statement put(Prepared(
+        "INSERT INTO site (scene, id, site, version) VALUES (?, ?, ?, ?) "
+        "ON CONFLICT (scene, id) DO UPDATE SET site = excluded.site, version = excluded.version "
+        "WHERE excluded.version > site.version OR (excluded.version = site.version AND site.site <> x'')"));
+    if (!put.ok()) return SqliteError(db_, "folding a pack");
+    const uint64_t end = std::min<uint64_t>(order.size(), done + packing_.fold_chunk);
+    for (uint64_t k = done; k < end; ++k) {
+      const auto& [id, bytes] = entries[order[k]];
+      put.Text(1, scene);
+      put.Text(2, id);
+      put.Blob(3, bytes);
+      put.Int(4, version);
+      if (!put.Run()) return SqliteError(db_, "folding a pack");
+    }
+    *folded += end - done;
+    if (end == order.size()) {
+      Statement drop(Prepared("DELETE FROM site_pack WHERE scene = ? AND version = ?"));
+      if (!drop.ok()) return SqliteError(db_, "folding a pack");
+      drop.Text(1, scene);
+      drop.Int(2, version);
+      if (!drop.Run()) return SqliteError(db_, "folding a pack");
+      fold_cursor_.reset();
+    } else {
+      fold_cursor_->done = end;
+    }
+    return absl::OkStatus();
+  });
+  if (!s.ok()) {
+    // What this chunk wrote was rolled back: the pack is folded again from its start.
+    std::lock_guard<std::mutex> lock(mu_);
+    fold_cursor_.reset();
+    return s;
+  }
+  return found;
+}
+
 SqliteStore::~SqliteStore() {
+  {
+    std::lock_guard<std::mutex> lock(fold_mu_);
+    fold_stopping_ = true;
+    fold_cv_.notify_all();
+  }
+  if (folder_.joinable()) folder_.join();  // a pack left unfolded is folded after the next start
   {
     std::lock_guard<std::mutex> lock(flush_mu_);
     stopping_ = true;
@@ -435,21 +642,75 @@ absl::StatusOr<std::vector<StoredScene>> SqliteStore::Load() {
     scenes.push_back(std::move(scene));
   }
   if (rc != SQLITE_DONE) return SqliteError(db_, "reading scenes");
-  Statement sites(Prepared("SELECT site FROM site WHERE scene = ?"));
-  if (!sites.ok()) return SqliteError(db_, "reading sites");
   for (StoredScene& scene : scenes) {
-    sites.Text(1, scene.settings.id);
-    while ((rc = sqlite3_step(sites.get())) == SQLITE_ROW) {
-      const std::string_view bytes = ColumnBlob(sites.get(), 0);
-      if (IsTombstone(bytes)) continue;
-      if (auto s = DecodeInto(scene.settings, bytes, &scene.sites, &scene.sites3); !s.ok()) {
-        return s;
-      }
-    }
-    sqlite3_reset(sites.get());
-    if (rc != SQLITE_DONE) return SqliteError(db_, "reading sites");
+    absl::Status read = Latest(scene.settings.id, [&](std::string_view, uint64_t, std::string_view bytes) {
+      if (IsTombstone(bytes)) return absl::OkStatus();
+      return DecodeInto(scene.settings, bytes, &scene.sites, &scene.sites3);
+    });
+    if (!read.ok()) return read;
   }
   return scenes;
+}
+
+template <class Visit>
+absl::Status SqliteStore::Latest(std::string_view scene_id, Visit visit) {
+  // The scene's packs, oldest first, and the newest entry of each id in them.
+  std::vector<std::pair<uint64_t, std::string>> packs;
+  {
+    Statement p(Prepared("SELECT version, sites FROM site_pack WHERE scene = ? ORDER BY version"));
+    if (!p.ok()) return SqliteError(db_, "reading packs");
+    p.Text(1, scene_id);
+    int rc;
+    while ((rc = sqlite3_step(p.get())) == SQLITE_ROW) {
+      packs.emplace_back(static_cast<uint64_t>(sqlite3_column_int64(p.get(), 0)),
+                         std::string(ColumnBlob(p.get(), 1)));
+    }
+    if (rc != SQLITE_DONE) return SqliteError(db_, "reading packs");
+  }
+  struct Entry {
+    uint64_t version;
+    std::string_view bytes;
+  };
+  std::unordered_map<std::string_view, Entry> newest;
+  for (const auto& [version, pack] : packs) {
+    const uint64_t v = version;
+    if (!ForEachInPack(pack, [&](std::string_view id, std::string_view bytes) {
+          newest.insert_or_assign(id, Entry{v, bytes});
+        })) {
+      return DamagedPack(scene_id, version);
+    }
+  }
+  Statement rows(Prepared("SELECT id, site, version FROM site WHERE scene = ?"));
+  if (!rows.ok()) return SqliteError(db_, "reading sites");
+  rows.Text(1, scene_id);
+  int rc;
+  while ((rc = sqlite3_step(rows.get())) == SQLITE_ROW) {
+    const std::string_view id = ColumnBlob(rows.get(), 0);
+    const std::string_view bytes = ColumnBlob(rows.get(), 1);
+    const uint64_t version = static_cast<uint64_t>(sqlite3_column_int64(rows.get(), 2));
+    if (auto it = newest.find(id); it != newest.end()) {
+      // A pack's put is newer than a row of an older version, and than a put of its own
+      // version (the pack's fold wrote it); a removal of its own version came after it.
+      if (it->second.version > version || (it->second.version == version && !IsTombstone(bytes))) {
+        continue;
+      }
+      newest.erase(it);
+    }
+    if (auto s = visit(id, version, bytes); !s.ok()) return s;
+  }
+  if (rc != SQLITE_DONE) return SqliteError(db_, "reading sites");
+  // Then the packs' entries that no row overtook, in the packs' order.
+  absl::Status status;
+  for (const auto& [version, pack] : packs) {
+    const uint64_t v = version;
+    ForEachInPack(pack, [&](std::string_view id, std::string_view bytes) {
+      if (!status.ok()) return;
+      auto it = newest.find(id);
+      if (it != newest.end() && it->second.bytes.data() == bytes.data()) status = visit(id, v, bytes);
+    });
+    if (!status.ok()) return status;
+  }
+  return absl::OkStatus();
 }
 
 absl::StatusOr<uint64_t> SqliteStore::CreateScene(const SceneSettings& settings,
@@ -487,6 +748,10 @@ absl::Status SqliteStore::DeleteRows(std::string_view scene_id) {
   Statement sites(Prepared("DELETE FROM site WHERE scene = ?"));
   sites.Text(1, scene_id);
   if (!sites.ok() || !sites.Run()) return SqliteError(db_, "deleting the scene's sites");
+  fold_cursor_.reset();
+  Statement packs(Prepared("DELETE FROM site_pack WHERE scene = ?"));
+  packs.Text(1, scene_id);
+  if (!packs.ok() || !packs.Run()) return SqliteError(db_, "deleting the scene's packs");
   Statement s(Prepared("DELETE FROM scene WHERE id = ?"));
   s.Text(1, scene_id);
   if (!s.ok() || !s.Run()) return SqliteError(db_, "deleting the scene");
@@ -545,7 +810,10 @@ SqliteStore::GroupStats SqliteStore::group_stats() const {
 absl::Status SqliteStore::Write(const ChangeSet& changes) {
   Statement put(Prepared(
       "INSERT OR REPLACE INTO site (scene, id, site, version) VALUES (?, ?, ?, ?)"));
-  Statement del(Prepared("UPDATE site SET site = x'', version = ? WHERE scene = ? AND id = ?"));
+  // A tombstone is a row of its own: the site removed may live in a pack only.
+  Statement del(Prepared(
+      "INSERT INTO site (scene, id, site, version) VALUES (?, ?, x'', ?) "
+      "ON CONFLICT (scene, id) DO UPDATE SET site = x'', version = excluded.version"));
   Statement version(Prepared(
       "UPDATE scene SET version = ? WHERE id = ? AND version = ? AND (? = 0 OR incarnation = ?)"));
   if (!put.ok() || !del.ok() || !version.ok()) return SqliteError(db_, "storing sites");
@@ -575,18 +843,29 @@ absl::Status SqliteStore::Write(const ChangeSet& changes) {
     }
     return true;
   };
-  if (!store_all(changes.put) || !store_all(changes.put3)) {
+  if (changes.put.size() + changes.put3.size() >= packing_.min_sites) {
+    // One row for all of them, appended: the folder makes them site rows later.
+    Statement pack(Prepared("INSERT INTO site_pack (scene, version, sites) VALUES (?, ?, ?)"));
+    if (!pack.ok()) return SqliteError(db_, "storing a pack");
+    pack.Text(1, changes.scene_id);
+    pack.Int(2, changes.version);
+    pack.Blob(3, EncodePack(changes));
+    if (!pack.Run()) return SqliteError(db_, "storing a pack");
+    WantFold();
+  } else if (!store_all(changes.put) || !store_all(changes.put3)) {
     return SqliteError(db_, "storing a site");
   }
   for (const std::string& id : changes.removed) {
-    del.Int(1, changes.version);
-    del.Text(2, changes.scene_id);
-    del.Text(3, id);
+    del.Text(1, changes.scene_id);
+    del.Text(2, id);
+    del.Int(3, changes.version);
     if (!del.Run()) return SqliteError(db_, "deleting a site");
   }
   if (retention_.CompactsAt(changes.version)) {
+    // A tombstone newer than a pack not yet folded stays: it hides the pack's put of its site.
     Statement drop(Prepared(
-        "DELETE FROM site WHERE scene = ? AND site = x'' AND version <= ?"));
+        "DELETE FROM site WHERE scene = ?1 AND site = x'' AND version <= ?2 AND version < "
+        "coalesce((SELECT min(version) FROM site_pack WHERE scene = ?1), ?2 + 1)"));
     Statement horizon(Prepared("UPDATE scene SET horizon = ? WHERE id = ?"));
     drop.Text(1, changes.scene_id);
     drop.Int(2, retention_.HorizonAt(changes.version));
@@ -653,21 +932,16 @@ absl::StatusOr<SceneChanges> SqliteStore::ReadChanges(std::string_view scene_id,
     horizon = static_cast<uint64_t>(sqlite3_column_int64(s.get(), 3));
   }
   out.complete = after == 0 || after < horizon;
-  Statement sites(Prepared("SELECT id, site, version FROM site WHERE scene = ?"));
-  if (!sites.ok()) return SqliteError(db_, "reading sites");
-  sites.Text(1, scene_id);
-  int rc;
-  while ((rc = sqlite3_step(sites.get())) == SQLITE_ROW) {
-    const uint64_t version = static_cast<uint64_t>(sqlite3_column_int64(sites.get(), 2));
-    const std::string_view bytes = ColumnBlob(sites.get(), 1);
-    if (!out.complete && version <= after) continue;
+  absl::Status read = Latest(scene_id, [&](std::string_view id, uint64_t version,
+                                           std::string_view bytes) {
+    if (!out.complete && version <= after) return absl::OkStatus();
     if (IsTombstone(bytes)) {
-      if (!out.complete) out.removed.push_back(ColumnText(sites.get(), 0));
-      continue;
+      if (!out.complete) out.removed.emplace_back(id);
+      return absl::OkStatus();
     }
-    if (auto s = DecodeInto(out.settings, bytes, &out.put, &out.put3); !s.ok()) return s;
-  }
-  if (rc != SQLITE_DONE) return SqliteError(db_, "reading sites");
+    return DecodeInto(out.settings, bytes, &out.put, &out.put3);
+  });
+  if (!read.ok()) return read;
   return out;
 }
 

@@ -16,6 +16,8 @@
 #include <string_view>
 #include <thread>
 #include <unordered_map>
+#include <utility>
+#include <vector>
 
 #include "absl/status/statusor.h"
 #include "render/scene/store.h"
@@ -54,6 +56,20 @@ class SqliteStore final : public SceneStore {
   std::string Describe() const override { return path_; }
   // How much history is kept (rows.h); set before the store is shared.
   void set_retention(Retention retention) { retention_ = retention; }
+
+  // Large change sets: one of at least `min_sites` puts is written as one row (a pack, one
+  // sequential append) rather than a row per site, and a thread of the store's folds the
+  // packs into site rows, `fold_chunk` sites a transaction, once no pack has been written for
+  // `fold_after`. Set before the store is shared.
+  struct Packing {
+    size_t min_sites = 4096;
+    std::chrono::milliseconds fold_after{500};
+    size_t fold_chunk = 8192;
+  };
+  void set_packing(Packing packing);
+  // Folds packs now, in at most `chunks` transactions (of fold_chunk sites each), and returns
+  // how many sites it folded.
+  absl::StatusOr<uint64_t> FoldPacks(uint64_t chunks = UINT64_MAX);
 
   // How long a relaxed commit may stay unsynced (it survives a crash of the server at once,
   // a crash of the machine once synced). 100 ms unless set.
@@ -97,6 +113,17 @@ class SqliteStore final : public SceneStore {
   absl::Status Refused(const ChangeSet& changes);
   // Deletes a scene's rows. CONTRACT: mu_ held, in a transaction.
   absl::Status DeleteRows(std::string_view scene_id);
+  // Calls visit(id, version, bytes) for each site of the scene that has a row or a pack
+  // entry, once, with the newest of them (bytes empty: a tombstone). CONTRACT: mu_ held.
+  template <class Visit>
+  absl::Status Latest(std::string_view scene_id, Visit visit);
+  // Folds the next fold_chunk sites of a pack into site rows, in one transaction; false when
+  // no pack was left. Returns through `folded` how many it folded.
+  absl::StatusOr<bool> FoldSome(uint64_t* folded);
+  // Tells the folder a pack was written (or found at the start).
+  void WantFold();
+  // Folds packs once they have rested fold_after.
+  void Folder();
 
   // Group commit: the change sets waiting for the next transaction, and whether one is under
   // way (its leader commits every waiter it took).
@@ -133,6 +160,28 @@ class SqliteStore final : public SceneStore {
   std::string wal_path_;  // the WAL's file; empty in memory
   int wal_fd_ = -1;       // the flusher's descriptor of it, once opened
   std::atomic<bool> sync_failed_{false};  // a sync of the WAL failed: no more relaxed commits
+
+  // The pack being folded, parsed and put in id order once for all its chunks. Guarded by
+  // mu_; dropped with its scene's rows (a scene made again may have a pack of its version)
+  // and when a chunk's transaction fails.
+  struct FoldCursor {
+    std::string scene;
+    uint64_t version = 0;
+    std::string pack;
+    std::vector<std::pair<std::string_view, std::string_view>> entries;  // into pack
+    std::vector<uint32_t> order;  // of entries, by id
+    uint64_t done = 0;            // entries of `order` folded, in transactions committed
+  };
+  std::unique_ptr<FoldCursor> fold_cursor_;
+
+  // The folder: whether a pack may wait, since when, and its thread (started by the first).
+  Packing packing_;  // guarded by mu_ and fold_mu_ (either, to read)
+  std::mutex fold_mu_;
+  std::condition_variable fold_cv_;
+  bool fold_wanted_ = false;
+  bool fold_stopping_ = false;
+  std::chrono::steady_clock::time_point last_pack_;
+  std::thread folder_;
 };
 
 }  // namespace gvd

@@ -70,7 +70,10 @@ TEST(CrashTest, AcknowledgedUpdatesSurviveSigkill) {
 
   const int kRounds = 12;
   for (int round = 0; round <= kRounds; ++round) {
-    testing::ServerProcess server(GVD_SERVER_PATH, {"--data", data});
+    // Writes of 8 sites or more as packs, folded 1 ms after the last: the kills land before,
+    // during and after their folds.
+    testing::ServerProcess server(GVD_SERVER_PATH, {"--data", data, "--store-pack-sites", "8",
+                                                    "--store-fold-after-ms", "1"});
     ASSERT_TRUE(server.error().empty()) << server.error();
     auto client = Client::Connect(server.address());
     ASSERT_TRUE(client->WaitForConnected(std::chrono::seconds(10)));

@@ -61,6 +61,14 @@ class Engine {
     EXPECT_TRUE(s.ok()) << s.status();
     if (!s.ok()) return nullptr;
     (*s)->set_retention(retention_);
+    if (kind_ == "sqlite_packs") {
+      // Change sets of two puts or more as packs, folded two sites at a time as they come.
+      SqliteStore::Packing packing;
+      packing.min_sites = 2;
+      packing.fold_after = std::chrono::milliseconds(0);
+      packing.fold_chunk = 2;
+      (*s)->set_packing(packing);
+    }
     return std::move(*s);
   }
 
@@ -289,7 +297,7 @@ TEST_P(LogStore, RacingWritersGetDistinctOrderedVersions) {
   std::printf("%zu acknowledged, %d refused\n", acknowledged.size(), refused.load());
 }
 
-INSTANTIATE_TEST_SUITE_P(Engines, LogStore, ::testing::Values("sqlite", "postgres"),
+INSTANTIATE_TEST_SUITE_P(Engines, LogStore, ::testing::Values("sqlite", "sqlite_packs", "postgres"),
                          [](const auto& info) { return info.param; });
 
 }  // namespace

@@ -15,6 +15,7 @@
 #include <chrono>
 #include <limits>
 #include <map>
+#include <set>
 #include <memory>
 #include <random>
 #include <string>
@@ -199,16 +200,23 @@ void ExpectStoreHolds(SqliteStore& store, const StoreModel& model) {
 }
 
 // Random creates, change sets and deletes, checked against the model after each reopen: what
-// a call acknowledged is there, a refused call left nothing behind.
-TEST(Store, KeepsWhatWasCommittedAcrossReopens) {
+// a call acknowledged is there, a refused call left nothing behind. With `packing`, and with
+// `fold` true folding at random moments besides what its folder does.
+void CheckCommitsAcrossReopens(uint64_t seed, const SqliteStore::Packing* packing, bool fold) {
   TempDir dir;
-  std::mt19937_64 rng(13);
+  std::mt19937_64 rng(seed);
   StoreModel model;
   for (int round = 0; round < 4; ++round) {
     auto store = SqliteStore::Open(dir.path() + "/data");
     ASSERT_TRUE(store.ok()) << store.status();
+    if (packing) (*store)->set_packing(*packing);
     ExpectStoreHolds(**store, model);
     for (int op = 0; op < 60; ++op) {
+      if (fold && rng() % 8 == 0) {
+        auto folded = (*store)->FoldPacks();
+        ASSERT_TRUE(folded.ok()) << folded.status();
+        ExpectStoreHolds(**store, model);
+      }
       const std::string scene = "s" + std::to_string(rng() % 4);
       const bool exists = model.versions.count(scene) > 0;
       if (!exists) {
@@ -252,6 +260,33 @@ TEST(Store, KeepsWhatWasCommittedAcrossReopens) {
       EXPECT_FALSE((*store)->CreateScene(Settings(model.versions.begin()->first), 1).ok());
     }
     ExpectStoreHolds(**store, model);
+  }
+}
+
+TEST(Store, KeepsWhatWasCommittedAcrossReopens) { CheckCommitsAcrossReopens(13, nullptr, false); }
+
+// The same with change sets of four puts or more written as packs: read before their fold,
+// folded at random moments, folded by the store's own folder a chunk of three sites at a
+// time while the writes go on, and left unfolded across a reopen.
+TEST(Store, PackedChangeSetsReadTheSameBeforeAndAfterTheirFold) {
+  SqliteStore::Packing never;
+  never.min_sites = 4;
+  never.fold_after = std::chrono::hours(1);
+  {
+    SCOPED_TRACE("folded by FoldPacks only");
+    CheckCommitsAcrossReopens(17, &never, true);
+  }
+  {
+    SCOPED_TRACE("never folded");
+    CheckCommitsAcrossReopens(19, &never, false);
+  }
+  SqliteStore::Packing busy;
+  busy.min_sites = 4;
+  busy.fold_after = std::chrono::milliseconds(0);
+  busy.fold_chunk = 3;
+  {
+    SCOPED_TRACE("folded by the folder as they come");
+    CheckCommitsAcrossReopens(23, &busy, true);
   }
 }
 
@@ -593,7 +628,7 @@ TEST(Store, ASchemaVersion1StoreBecomesALog) {
   }
   auto store = SqliteStore::Open(dir.path() + "/data");
   ASSERT_TRUE(store.ok()) << store.status();
-  EXPECT_EQ(UserVersion(file), 2);
+  EXPECT_EQ(UserVersion(file), 3);
   StoreModel model;
   model.versions["a"] = 7;
   model.sites["a"] = {{"p", p}};
@@ -620,7 +655,7 @@ TEST(Store, DamagedForeignAndNewerFilesAreRefusedByName) {
     ASSERT_TRUE(store.ok()) << store.status();
     ASSERT_TRUE((*store)->CreateScene(Settings("a"), 1).ok());
   }
-  EXPECT_EQ(UserVersion(file), 2);  // recorded in every store
+  EXPECT_EQ(UserVersion(file), 3);  // recorded in every store
   std::system(("cp " + file + " " + dir.path() + "/good").c_str());
 
   std::mt19937_64 rng(5);
@@ -705,7 +740,8 @@ TEST(Store, ChangeSetsNameWhatAWriteDid) {
 // one id is put twice (a change set the scene core would not make), the later one is kept,
 // as when the rows went in as put; and ids out of order, differing past their first 8 bytes,
 // are all kept.
-TEST(Store, ALaterPutOfAnIdInOneChangeSetWins) {
+// `fold_chunks`: how many chunks of the pack to fold before reading.
+void CheckALaterPutWins(const SqliteStore::Packing& packing, uint64_t fold_chunks) {
   TempDir dir;
   std::mt19937_64 rng(31);
   const std::vector<std::string> ids = {"same-prefix-b", "a", "same-prefix-a", "a", "z", "a"};
@@ -716,21 +752,128 @@ TEST(Store, ALaterPutOfAnIdInOneChangeSetWins) {
   {
     auto store = SqliteStore::Open(dir.path() + "/data");
     ASSERT_TRUE(store.ok()) << store.status();
+    (*store)->set_packing(packing);
     ASSERT_TRUE((*store)->CreateScene(Settings("d"), 1).ok());
     ASSERT_TRUE((*store)->Commit({"d", 2, put, {}}).ok());
+    if (fold_chunks > 0) {
+      auto folded = (*store)->FoldPacks(fold_chunks);
+      ASSERT_TRUE(folded.ok()) << folded.status();
+      EXPECT_EQ(*folded, std::min<uint64_t>(put.size(), fold_chunks * packing.fold_chunk));
+    }
   }
   auto store = SqliteStore::Open(dir.path() + "/data");
   ASSERT_TRUE(store.ok()) << store.status();
-  auto scenes = (*store)->Load();
-  ASSERT_TRUE(scenes.ok()) << scenes.status();
-  ASSERT_EQ(scenes->size(), 1u);
-  std::map<std::string, const Site*> stored;
-  for (const Site& site : scenes->front().sites) stored[site.id] = &site;
-  ASSERT_EQ(stored.size(), 4u);
-  EXPECT_TRUE(SameSite(*stored["a"], *put[5])) << "the last of a's three puts";
-  EXPECT_TRUE(SameSite(*stored["same-prefix-a"], *put[2]));
-  EXPECT_TRUE(SameSite(*stored["same-prefix-b"], *put[0]));
-  EXPECT_TRUE(SameSite(*stored["z"], *put[4]));
+  // Read after the restart, and again once what was left of the pack is folded (a fold cut
+  // short by the restart starts again from the pack's first site).
+  for (int pass = 0; pass < 2; ++pass) {
+    SCOPED_TRACE(pass == 0 ? "after the restart" : "folded after the restart");
+    if (pass == 1) {
+      ASSERT_TRUE((*store)->FoldPacks().ok());
+    }
+    auto scenes = (*store)->Load();
+    ASSERT_TRUE(scenes.ok()) << scenes.status();
+    ASSERT_EQ(scenes->size(), 1u);
+    std::map<std::string, const Site*> stored;
+    for (const Site& site : scenes->front().sites) stored[site.id] = &site;
+    ASSERT_EQ(stored.size(), 4u);
+    EXPECT_TRUE(SameSite(*stored["a"], *put[5])) << "the last of a's three puts";
+    EXPECT_TRUE(SameSite(*stored["same-prefix-a"], *put[2]));
+    EXPECT_TRUE(SameSite(*stored["same-prefix-b"], *put[0]));
+    EXPECT_TRUE(SameSite(*stored["z"], *put[4]));
+  }
+}
+
+TEST(Store, ALaterPutOfAnIdInOneChangeSetWins) {
+  SqliteStore::Packing rows, packed;
+  packed.min_sites = 2;
+  packed.fold_after = std::chrono::hours(1);
+  {
+    SCOPED_TRACE("rows");
+    CheckALaterPutWins(rows, 0);
+  }
+  {
+    SCOPED_TRACE("a pack");
+    CheckALaterPutWins(packed, 0);
+  }
+  {
+    SCOPED_TRACE("a pack folded");
+    CheckALaterPutWins(packed, 1);
+  }
+  // Folded a site at a time, in id order: a's first put and then its second are rows while
+  // its last is still in the pack (read after the restart, the rest folded by then or not).
+  packed.fold_chunk = 1;
+  for (uint64_t chunks : {1u, 2u}) {
+    SCOPED_TRACE(::testing::Message() << "a pack, " << chunks << " of its sites folded");
+    CheckALaterPutWins(packed, chunks);
+  }
+}
+
+// A removal newer than a pack not yet folded hides the pack's put of its site: compaction
+// keeps its tombstone until the pack is folded, and a follower reading from any version
+// sees the site removed.
+TEST(Store, ATombstoneOutlivesTheUnfoldedPackItHides) {
+  TempDir dir;
+  std::mt19937_64 rng(37);
+  auto store = SqliteStore::Open(dir.path() + "/data");
+  ASSERT_TRUE(store.ok()) << store.status();
+  SqliteStore::Packing packing;
+  packing.min_sites = 3;
+  packing.fold_after = std::chrono::hours(1);
+  (*store)->set_packing(packing);
+  (*store)->set_retention(Retention{2, 1});  // every commit drops tombstones 2 versions old
+  ASSERT_TRUE((*store)->CreateScene(Settings("t"), 1).ok());
+  std::vector<std::shared_ptr<const Site>> put;
+  for (const char* id : {"a", "b", "c"}) {
+    put.push_back(std::make_shared<const Site>(RandomSite(rng, static_cast<int>(rng()), id)));
+  }
+  ASSERT_TRUE((*store)->Commit({"t", 2, put, {}}).ok());  // a pack
+  const std::vector<std::string> removed = {"a"};
+  ASSERT_TRUE((*store)->Commit({"t", 3, {}, removed}).ok());
+  // A follower at version 1 (before the pack) and one at version 2 (after it).
+  auto sorted_ids = [](const SceneChanges& c) {
+    std::set<std::string> out;
+    for (const auto& site : c.put) out.insert(site->id);
+    return out;
+  };
+  for (uint64_t after : {1u, 2u}) {
+    auto changes = (*store)->ReadChanges("t", after);
+    ASSERT_TRUE(changes.ok()) << changes.status();
+    ASSERT_FALSE(changes->complete) << after;
+    const std::set<std::string> put_after = after == 1 ? std::set<std::string>{"b", "c"}
+                                                         : std::set<std::string>{};
+    EXPECT_EQ(sorted_ids(*changes), put_after) << after;
+    EXPECT_EQ(changes->removed, removed) << after;
+  }
+  for (uint64_t v = 4; v < 12; ++v) {
+    std::vector<std::shared_ptr<const Site>> one = {
+        std::make_shared<const Site>(RandomSite(rng, static_cast<int>(rng()), "d"))};
+    ASSERT_TRUE((*store)->Commit({"t", v, one, {}}).ok());
+  }
+  auto ids = [&]() {
+    std::set<std::string> out;
+    auto scenes = (*store)->Load();
+    EXPECT_TRUE(scenes.ok()) << scenes.status();
+    if (scenes.ok()) {
+      for (const Site& site : scenes->front().sites) out.insert(site.id);
+    }
+    return out;
+  };
+  const std::set<std::string> want = {"b", "c", "d"};
+  EXPECT_EQ(ids(), want);
+  // A follower from before the horizon (9) reads the whole state.
+  for (uint64_t after : {0u, 2u, 3u}) {
+    auto changes = (*store)->ReadChanges("t", after);
+    ASSERT_TRUE(changes.ok()) << changes.status();
+    EXPECT_TRUE(changes->complete) << after;
+    EXPECT_EQ(sorted_ids(*changes), want) << after;
+  }
+  auto folded = (*store)->FoldPacks();
+  ASSERT_TRUE(folded.ok()) << folded.status();
+  EXPECT_EQ(*folded, 3u);
+  EXPECT_EQ(ids(), want);
+  // Once folded, the tombstone is dropped by the next compaction, and "a" stays removed.
+  ASSERT_TRUE((*store)->Commit({"t", 12, {}, std::vector<std::string>{"b"}}).ok());
+  EXPECT_EQ(ids(), (std::set<std::string>{"c", "d"}));
 }
 
 // ---- 3D scenes ----
