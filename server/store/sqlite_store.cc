@@ -117,12 +117,15 @@ constexpr const char* kSchema[] = {
     // is the newest of its row and its entries in packs (Latest); the folder moves a pack's
     // entries into site rows a chunk a transaction, and drops the pack with its last chunk.
     // A fold cut short starts again from the pack's first entry (a fold is idempotent), so
-    // the row is never rewritten: only appended, and deleted.
+    // the row is never rewritten: only appended, and deleted. Its id is never reused (a fold
+    // part way through a pack knows it by its id: another connection may have deleted the
+    // scene and written a pack of the same version for the scene made again).
     "CREATE TABLE IF NOT EXISTS site_pack ("
+    "  id INTEGER PRIMARY KEY AUTOINCREMENT,"
     "  scene TEXT NOT NULL,"
     "  version INTEGER NOT NULL,"
     "  sites BLOB NOT NULL,"
-    "  PRIMARY KEY (scene, version))",
+    "  UNIQUE (scene, version))",
 };
 // Added to a store of schema version 1 (or 0, the same schema unrecorded), each column when
 // missing: a conversion cut short is finished at the next start.
@@ -268,14 +271,17 @@ absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string
       return s;
     }
   }
+  bool packs_left = false;
   {
-    // Packs left by the last run are folded by this one.
     Statement packs(store->Prepared("SELECT 1 FROM site_pack LIMIT 1"));
     if (!packs.ok()) return SqliteError(db, "reading packs");
     const int rc = sqlite3_step(packs.get());
-    if (rc == SQLITE_ROW) store->WantFold();
-    else if (rc != SQLITE_DONE) return SqliteError(db, "reading packs");
+    if (rc != SQLITE_ROW && rc != SQLITE_DONE) return SqliteError(db, "reading packs");
+    packs_left = rc == SQLITE_ROW;
   }
+  // Packs left by the last run are folded by this one. Last: from here the store is shared
+  // with its folder.
+  if (packs_left) store->WantFold();
   return store;
 }
 
@@ -288,8 +294,9 @@ void SqliteStore::set_packing(Packing packing) {
 
 void SqliteStore::WantFold() {
   std::lock_guard<std::mutex> lock(fold_mu_);
-  fold_wanted_ = true;
   last_pack_ = std::chrono::steady_clock::now();
+  if (!fold_wanted_) wanted_since_ = last_pack_;
+  fold_wanted_ = true;
   if (!folder_.joinable()) folder_ = std::thread([this] { Folder(); });
   fold_cv_.notify_all();
 }
@@ -302,8 +309,11 @@ void SqliteStore::Folder() {
       continue;
     }
     // A bulk load's render and the next change sets go first: the pack waits until none
-    // has been written for fold_after.
-    const auto due = last_pack_ + packing_.fold_after;
+    // has been written for fold_after, or ten times that since the first (packs that keep
+    // coming are folded too), and a fold that failed waits for its retry.
+    const auto due = std::max(std::min(last_pack_ + packing_.fold_after,
+                                       wanted_since_ + 10 * packing_.fold_after),
+                              fold_retry_at_);
     if (std::chrono::steady_clock::now() < due) {
       fold_cv_.wait_until(lock, due);
       continue;
@@ -314,12 +324,17 @@ void SqliteStore::Folder() {
     absl::StatusOr<bool> more = FoldSome(&folded);
     lock.lock();
     if (!more.ok()) {
-      // The packs stay, read as they are; the fold is tried again a period later.
-      Log(LogLevel::kError, "store_fold_failed", {{"store", path_}, {"error", more.status().ToString()}});
+      // The packs stay, read as they are; the fold is tried again after 1 s, then after twice
+      // as long each time it fails, up to a minute (a damaged pack keeps failing, and is
+      // DATA_LOSS to every read of its scene).
+      Log(LogLevel::kError, "store_fold_failed", {{"store", path_}, {"error", more.status().ToString()},
+                                                  {"retry_ms", std::to_string(fold_backoff_.count())}});
       fold_wanted_ = true;
-      last_pack_ = std::chrono::steady_clock::now();
-    } else if (*more) {
-      fold_wanted_ = true;
+      fold_retry_at_ = std::chrono::steady_clock::now() + fold_backoff_;
+      fold_backoff_ = std::min(2 * fold_backoff_, std::chrono::milliseconds(60000));
+    } else {
+      fold_backoff_ = std::chrono::milliseconds(1000);
+      if (*more) fold_wanted_ = true;
     }
   }
 }
@@ -338,25 +353,25 @@ absl::StatusOr<bool> SqliteStore::FoldSome(uint64_t* folded) {
   bool found = false;
   absl::Status s = Transaction([&]() -> absl::Status {
     std::string scene;
-    uint64_t version = 0;
+    uint64_t id = 0, version = 0;
     {
-      Statement p(Prepared("SELECT scene, version FROM site_pack ORDER BY scene, version LIMIT 1"));
+      // The oldest pack first.
+      Statement p(Prepared("SELECT id, scene, version FROM site_pack ORDER BY id LIMIT 1"));
       if (!p.ok()) return SqliteError(db_, "reading packs");
       const int rc = sqlite3_step(p.get());
       if (rc == SQLITE_DONE) return absl::OkStatus();
       if (rc != SQLITE_ROW) return SqliteError(db_, "reading packs");
-      scene = ColumnText(p.get(), 0);
-      version = static_cast<uint64_t>(sqlite3_column_int64(p.get(), 1));
+      id = static_cast<uint64_t>(sqlite3_column_int64(p.get(), 0));
+      scene = ColumnText(p.get(), 1);
+      version = static_cast<uint64_t>(sqlite3_column_int64(p.get(), 2));
     }
     found = true;
-    if (!fold_cursor_ || fold_cursor_->scene != scene || fold_cursor_->version != version) {
+    if (!fold_cursor_ || fold_cursor_->id != id) {
       auto cursor = std::make_unique<FoldCursor>();
-      cursor->scene = scene;
-      cursor->version = version;
-      Statement p(Prepared("SELECT sites FROM site_pack WHERE scene = ? AND version = ?"));
+      cursor->id = id;
+      Statement p(Prepared("SELECT sites FROM site_pack WHERE id = ?"));
       if (!p.ok()) return SqliteError(db_, "reading packs");
-      p.Text(1, scene);
-      p.Int(2, version);
+      p.Int(1, id);
       if (sqlite3_step(p.get()) != SQLITE_ROW) return SqliteError(db_, "reading packs");
       cursor->pack = std::string(ColumnBlob(p.get(), 0));
       if (!ForEachInPack(cursor->pack, [&](std::string_view id, std::string_view bytes) {
@@ -391,10 +406,9 @@ absl::StatusOr<bool> SqliteStore::FoldSome(uint64_t* folded) {
     }
     *folded += end - done;
     if (end == order.size()) {
-      Statement drop(Prepared("DELETE FROM site_pack WHERE scene = ? AND version = ?"));
+      Statement drop(Prepared("DELETE FROM site_pack WHERE id = ?"));
       if (!drop.ok()) return SqliteError(db_, "folding a pack");
-      drop.Text(1, scene);
-      drop.Int(2, version);
+      drop.Int(1, id);
       if (!drop.Run()) return SqliteError(db_, "folding a pack");
       fold_cursor_.reset();
     } else {

@@ -161,12 +161,10 @@ class SqliteStore final : public SceneStore {
   int wal_fd_ = -1;       // the flusher's descriptor of it, once opened
   std::atomic<bool> sync_failed_{false};  // a sync of the WAL failed: no more relaxed commits
 
-  // The pack being folded, parsed and put in id order once for all its chunks. Guarded by
-  // mu_; dropped with its scene's rows (a scene made again may have a pack of its version)
-  // and when a chunk's transaction fails.
+  // The pack being folded (by its row's id, never reused), parsed and put in id order once
+  // for all its chunks. Guarded by mu_; dropped when a chunk's transaction fails.
   struct FoldCursor {
-    std::string scene;
-    uint64_t version = 0;
+    uint64_t id = 0;
     std::string pack;
     std::vector<std::pair<std::string_view, std::string_view>> entries;  // into pack
     std::vector<uint32_t> order;  // of entries, by id
@@ -180,7 +178,10 @@ class SqliteStore final : public SceneStore {
   std::condition_variable fold_cv_;
   bool fold_wanted_ = false;
   bool fold_stopping_ = false;
-  std::chrono::steady_clock::time_point last_pack_;
+  std::chrono::steady_clock::time_point last_pack_;     // the last pack written
+  std::chrono::steady_clock::time_point wanted_since_;  // the first not yet folded
+  std::chrono::steady_clock::time_point fold_retry_at_;  // after a failed fold
+  std::chrono::milliseconds fold_backoff_{1000};
   std::thread folder_;
 };
 

@@ -876,6 +876,54 @@ TEST(Store, ATombstoneOutlivesTheUnfoldedPackItHides) {
   EXPECT_EQ(ids(), (std::set<std::string>{"c", "d"}));
 }
 
+// A fold part way through a pack, in one connection, while another deletes the scene, makes
+// it again and writes a pack of the same version: the first goes on with the new pack from
+// its start, and the old pack's sites do not come back.
+TEST(Store, AFoldPartWayThroughAPackKnowsItFromANewOneOfItsVersion) {
+  TempDir dir;
+  std::mt19937_64 rng(41);
+  auto a = SqliteStore::Open(dir.path() + "/data");
+  auto b = SqliteStore::Open(dir.path() + "/data");
+  ASSERT_TRUE(a.ok() && b.ok());
+  SqliteStore::Packing packing;
+  packing.min_sites = 2;
+  packing.fold_after = std::chrono::hours(1);
+  packing.fold_chunk = 2;
+  (*a)->set_packing(packing);
+  (*b)->set_packing(packing);
+  auto sites = [&](const std::vector<std::string>& ids) {
+    std::vector<std::shared_ptr<const Site>> out;
+    for (const std::string& id : ids) {
+      out.push_back(std::make_shared<const Site>(RandomSite(rng, static_cast<int>(rng()), id)));
+    }
+    return out;
+  };
+  ASSERT_TRUE((*a)->CreateScene(Settings("s"), 1).ok());
+  ASSERT_TRUE((*a)->Commit({"s", 2, sites({"old1", "old2", "old3", "old4"}), {}}).ok());
+  auto folded = (*a)->FoldPacks(1);
+  ASSERT_TRUE(folded.ok()) << folded.status();
+  EXPECT_EQ(*folded, 2u);
+  ASSERT_TRUE((*b)->DeleteScene("s").ok());
+  ASSERT_TRUE((*b)->CreateScene(Settings("s"), 1).ok());
+  const auto fresh = sites({"new1", "new2", "new3", "new4", "new5"});
+  ASSERT_TRUE((*b)->Commit({"s", 2, fresh, {}}).ok());
+  folded = (*a)->FoldPacks();
+  ASSERT_TRUE(folded.ok()) << folded.status();
+  EXPECT_EQ(*folded, fresh.size());
+  for (SqliteStore* store : {a->get(), b->get()}) {
+    auto scenes = store->Load();
+    ASSERT_TRUE(scenes.ok()) << scenes.status();
+    ASSERT_EQ(scenes->size(), 1u);
+    std::map<std::string, const Site*> stored;
+    for (const Site& site : scenes->front().sites) stored[site.id] = &site;
+    ASSERT_EQ(stored.size(), fresh.size());
+    for (const auto& site : fresh) {
+      ASSERT_TRUE(stored.count(site->id)) << site->id;
+      EXPECT_TRUE(SameSite(*stored[site->id], *site)) << site->id;
+    }
+  }
+}
+
 // ---- 3D scenes ----
 
 bool SameVec3(Vec3 a, Vec3 b) { return SameBits(a.x, b.x) && SameBits(a.y, b.y) && SameBits(a.z, b.z); }
