@@ -31,6 +31,7 @@ enum Tag3 : uint8_t { kPoint3 = 6, kSegment3 = 7, kTriangle3 = 8, kMesh3 = 9 };
 
 class Writer {
  public:
+  explicit Writer(std::string out = {}) : out_(std::move(out)) {}  // appends to `out`
   template <class T>
   void Put(T v) {
     static_assert(std::is_trivially_copyable_v<T>);
@@ -93,13 +94,17 @@ class Reader {
     in_.remove_prefix(n * sizeof(T));
     return values;
   }
-  std::string GetString() {
+  std::string GetString() { return std::string(GetView()); }
+  // A string, as a view into what is read.
+  std::string_view GetView() {
     uint32_t n = Get<uint32_t>();
     if (!Need(n)) return {};
-    std::string s(in_.substr(0, n));
+    std::string_view s = in_.substr(0, n);
     in_.remove_prefix(n);
     return s;
   }
+  // Whether everything was read, or a read failed.
+  bool AtEnd() const { return !ok_ || in_.empty(); }
   std::vector<Vec2> GetPoints() {
     uint32_t n = Get<uint32_t>();
     if (!Need(uint64_t{n} * 16)) return {};
@@ -398,6 +403,31 @@ absl::StatusOr<SceneSettings> DecodeSettings(std::string_view bytes) {
     return absl::DataLossError("a stored scene is damaged");
   }
   return s;
+}
+
+void AppendToPack(const Site& site, std::string* pack) {
+  Writer w(std::move(*pack));
+  w.Put(std::string_view(site.id));
+  w.Put(std::string_view(EncodeSite(site)));
+  *pack = w.Take();
+}
+
+void AppendToPack(const Site3& site, std::string* pack) {
+  Writer w(std::move(*pack));
+  w.Put(std::string_view(site.id));
+  w.Put(std::string_view(EncodeSite(site)));
+  *pack = w.Take();
+}
+
+absl::StatusOr<std::vector<PackEntry>> PackEntries(std::string_view pack) {
+  Reader r(pack);
+  std::vector<PackEntry> entries;
+  while (!r.AtEnd()) {
+    const std::string_view id = r.GetView();
+    entries.push_back({id, r.GetView()});
+  }
+  if (auto s = r.Done("pack"); !s.ok()) return s;
+  return entries;
 }
 
 }  // namespace gvd

@@ -6,6 +6,7 @@
 
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "absl/status/statusor.h"
 #include "render/scene/settings.h"
@@ -22,6 +23,17 @@ std::string EncodeSite(const Site3& site);
 absl::StatusOr<Site3> DecodeSite3(std::string_view bytes);
 
 std::string EncodeSettings(const SceneSettings& settings);
+
+// A pack: the sites of one change set in one record, each entry the site's id and its
+// EncodeSite bytes, both written as the codec writes strings (a 32-bit length, then the
+// bytes), in the order appended.
+void AppendToPack(const Site& site, std::string* pack);
+void AppendToPack(const Site3& site, std::string* pack);
+struct PackEntry {
+  std::string_view id, site;  // into the pack
+};
+// A pack's entries in order; DATA_LOSS when its framing is damaged.
+absl::StatusOr<std::vector<PackEntry>> PackEntries(std::string_view pack);
 absl::StatusOr<SceneSettings> DecodeSettings(std::string_view bytes);
 
 }  // namespace gvd

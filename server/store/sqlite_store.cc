@@ -147,47 +147,12 @@ constexpr const char* kTombstoneIndex =
 // A new incarnation: random, positive.
 constexpr const char* kNewIncarnation = "((random() & 0x7fffffffffffffff) | 1)";
 
-// A pack: for each site put, its id's and its EncodeSite bytes' lengths (4 bytes each, little
-// endian) each followed by the bytes, in the change set's order (of two puts of one id the
-// later wins).
-void PutLength(std::string* out, size_t n) {
-  for (int b = 0; b < 4; ++b) out->push_back(static_cast<char>((n >> (8 * b)) & 0xff));
-}
-template <class Sites>
-void AddToPack(const Sites& sites, std::string* out) {
-  for (const auto& site : sites) {
-    const std::string bytes = EncodeSite(*site);
-    PutLength(out, site->id.size());
-    out->append(site->id);
-    PutLength(out, bytes.size());
-    out->append(bytes);
-  }
-}
+// A change set's puts as a pack (codec.h), in its order (of two puts of one id the later wins).
 std::string EncodePack(const ChangeSet& changes) {
   std::string out;
-  AddToPack(changes.put, &out);
-  AddToPack(changes.put3, &out);
+  for (const auto& site : changes.put) AppendToPack(*site, &out);
+  for (const auto& site : changes.put3) AppendToPack(*site, &out);
   return out;
-}
-// Calls visit(id, bytes) for each entry of a pack, in order; false when its framing is damaged.
-template <class Visit>
-bool ForEachInPack(std::string_view pack, Visit visit) {
-  auto take = [&](std::string_view* field) {
-    if (pack.size() < 4) return false;
-    size_t n = 0;
-    for (int b = 0; b < 4; ++b) n |= static_cast<size_t>(static_cast<unsigned char>(pack[b])) << (8 * b);
-    pack.remove_prefix(4);
-    if (pack.size() < n) return false;
-    *field = pack.substr(0, n);
-    pack.remove_prefix(n);
-    return true;
-  };
-  while (!pack.empty()) {
-    std::string_view id, bytes;
-    if (!take(&id) || !take(&bytes)) return false;
-    visit(id, bytes);
-  }
-  return true;
 }
 absl::Status DamagedPack(std::string_view scene_id, uint64_t version) {
   return absl::DataLossError(absl::StrCat("store: scene \"", std::string(scene_id),
@@ -374,15 +339,13 @@ absl::StatusOr<bool> SqliteStore::FoldSome(uint64_t* folded) {
       p.Int(1, id);
       if (sqlite3_step(p.get()) != SQLITE_ROW) return SqliteError(db_, "reading packs");
       cursor->pack = std::string(ColumnBlob(p.get(), 0));
-      if (!ForEachInPack(cursor->pack, [&](std::string_view id, std::string_view bytes) {
-            cursor->entries.emplace_back(id, bytes);
-          })) {
-        return DamagedPack(scene, version);
-      }
+      auto entries = PackEntries(cursor->pack);
+      if (!entries.ok()) return DamagedPack(scene, version);
+      cursor->entries = std::move(*entries);
       // In id order, as Write stores rows; of two entries of one id the later stays later.
-      const auto& entries = cursor->entries;
-      cursor->order =
-          IdOrder(entries.size(), [&](size_t k) -> std::string_view { return entries[k].first; });
+      cursor->order = IdOrder(cursor->entries.size(), [&](size_t k) -> std::string_view {
+        return cursor->entries[k].id;
+      });
       fold_cursor_ = std::move(cursor);
     }
     const auto& entries = fold_cursor_->entries;
@@ -397,10 +360,10 @@ absl::StatusOr<bool> SqliteStore::FoldSome(uint64_t* folded) {
     if (!put.ok()) return SqliteError(db_, "folding a pack");
     const uint64_t end = std::min<uint64_t>(order.size(), done + packing_.fold_chunk);
     for (uint64_t k = done; k < end; ++k) {
-      const auto& [id, bytes] = entries[order[k]];
+      const PackEntry& entry = entries[order[k]];
       put.Text(1, scene);
-      put.Text(2, id);
-      put.Blob(3, bytes);
+      put.Text(2, entry.id);
+      put.Blob(3, entry.site);
       put.Int(4, version);
       if (!put.Run()) return SqliteError(db_, "folding a pack");
     }
@@ -669,15 +632,20 @@ absl::StatusOr<std::vector<StoredScene>> SqliteStore::Load() {
 template <class Visit>
 absl::Status SqliteStore::Latest(std::string_view scene_id, Visit visit) {
   // The scene's packs, oldest first, and the newest entry of each id in them.
-  std::vector<std::pair<uint64_t, std::string>> packs;
+  struct Pack {
+    uint64_t version;
+    std::string bytes;
+    std::vector<PackEntry> entries;  // into bytes
+  };
+  std::vector<Pack> packs;
   {
     Statement p(Prepared("SELECT version, sites FROM site_pack WHERE scene = ? ORDER BY version"));
     if (!p.ok()) return SqliteError(db_, "reading packs");
     p.Text(1, scene_id);
     int rc;
     while ((rc = sqlite3_step(p.get())) == SQLITE_ROW) {
-      packs.emplace_back(static_cast<uint64_t>(sqlite3_column_int64(p.get(), 0)),
-                         std::string(ColumnBlob(p.get(), 1)));
+      packs.push_back({static_cast<uint64_t>(sqlite3_column_int64(p.get(), 0)),
+                       std::string(ColumnBlob(p.get(), 1)), {}});
     }
     if (rc != SQLITE_DONE) return SqliteError(db_, "reading packs");
   }
@@ -686,13 +654,11 @@ absl::Status SqliteStore::Latest(std::string_view scene_id, Visit visit) {
     std::string_view bytes;
   };
   std::unordered_map<std::string_view, Entry> newest;
-  for (const auto& [version, pack] : packs) {
-    const uint64_t v = version;
-    if (!ForEachInPack(pack, [&](std::string_view id, std::string_view bytes) {
-          newest.insert_or_assign(id, Entry{v, bytes});
-        })) {
-      return DamagedPack(scene_id, version);
-    }
+  for (Pack& pack : packs) {  // the vector is whole: its strings no longer move
+    auto entries = PackEntries(pack.bytes);
+    if (!entries.ok()) return DamagedPack(scene_id, pack.version);
+    pack.entries = std::move(*entries);
+    for (const PackEntry& e : pack.entries) newest.insert_or_assign(e.id, Entry{pack.version, e.site});
   }
   Statement rows(Prepared("SELECT id, site, version FROM site WHERE scene = ?"));
   if (!rows.ok()) return SqliteError(db_, "reading sites");
@@ -714,15 +680,12 @@ absl::Status SqliteStore::Latest(std::string_view scene_id, Visit visit) {
   }
   if (rc != SQLITE_DONE) return SqliteError(db_, "reading sites");
   // Then the packs' entries that no row overtook, in the packs' order.
-  absl::Status status;
-  for (const auto& [version, pack] : packs) {
-    const uint64_t v = version;
-    ForEachInPack(pack, [&](std::string_view id, std::string_view bytes) {
-      if (!status.ok()) return;
-      auto it = newest.find(id);
-      if (it != newest.end() && it->second.bytes.data() == bytes.data()) status = visit(id, v, bytes);
-    });
-    if (!status.ok()) return status;
+  for (const Pack& pack : packs) {
+    for (const PackEntry& e : pack.entries) {
+      auto it = newest.find(e.id);
+      if (it == newest.end() || it->second.bytes.data() != e.site.data()) continue;
+      if (auto s = visit(e.id, pack.version, e.site); !s.ok()) return s;
+    }
   }
   return absl::OkStatus();
 }

@@ -16,10 +16,10 @@
 #include <string_view>
 #include <thread>
 #include <unordered_map>
-#include <utility>
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "render/scene/codec.h"
 #include "render/scene/store.h"
 #include "server/store/rows.h"
 
@@ -166,7 +166,7 @@ class SqliteStore final : public SceneStore {
   struct FoldCursor {
     uint64_t id = 0;
     std::string pack;
-    std::vector<std::pair<std::string_view, std::string_view>> entries;  // into pack
+    std::vector<PackEntry> entries;  // into pack
     std::vector<uint32_t> order;  // of entries, by id
     uint64_t done = 0;            // entries of `order` folded, in transactions committed
   };
