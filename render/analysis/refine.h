@@ -14,7 +14,7 @@
 
 namespace gvd {
 
-// Renders the frame's sites at each grid (gl/zoom.h), same slots. The refinement calls it
+// Renders the frame's sites at each grid (render/gl/zoom.h), same slots. The refinement calls it
 // with batches of grids, one level of zoom at a time. Give it EXACT mode: near four nearly
 // equidistant sites a mesh's error, even at a zoom's finer eps, blurs which is nearest over
 // a band much wider than the structure sought.

@@ -13,7 +13,7 @@
 namespace gvd {
 
 // Sites outside a zoom window keep their regions inside it, so each window's coverage is
-// proven from all of the frame's sites (geometry/coverage.h), and each fan's triangle count
+// proven from all of the frame's sites (render/plan/coverage.h), and each fan's triangle count
 // follows from how far it must reach at the window's eps: the paper's warning that "the
 // maximum distance to a site must be adjusted" when zooming. A fan that would need more than
 // kMaxConeSegments widens the frame's reported bound instead (SiteShape::excess).

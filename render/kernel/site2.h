@@ -58,7 +58,7 @@ using Geometry = std::variant<PointSite, SegmentSite, PolylineSite, PolygonSite,
 // the 3D kernel's (site3.h).
 enum class FeatureKind : uint8_t { kVertex, kEdge, kCurve, kFace };
 
-class SegmentTree;  // geometry/segment_tree.h
+class SegmentTree;  // render/kernel/segment_tree.h
 
 struct Site {
   std::string id;

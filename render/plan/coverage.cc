@@ -78,7 +78,7 @@ std::vector<PieceRegion> Regions(const Site& site) {
 }
 
 // For each segment of the site (ForEachSegment order), the pieces of its mesh (ForEachPiece
-// order, geometry/mesh.h) whose feature is part of it: its two half-tents and the fans at
+// order, render/plan/distance_mesh.h) whose feature is part of it: its two half-tents and the fans at
 // its ends (kNone where there is none), so that a site with a segment tree finds its pieces
 // near a point from the segments near it.
 constexpr uint32_t kNone = UINT32_MAX;

@@ -22,7 +22,7 @@
 
 namespace gvd {
 
-// One piece of a site's mesh (ForEachPiece, geometry/mesh.h), drawn on its own: it must
+// One piece of a site's mesh (ForEachPiece, render/plan/distance_mesh.h), drawn on its own: it must
 // cover every pixel centre within `radius` of its feature that lies in `clip` and where the
 // feature holds the site's nearest point; radius < 0: none. A half-tent need only cover
 // those whose projections on its edge ab lie from `from` to `to` (distances from a).
@@ -106,7 +106,7 @@ uint32_t TopTilePx(const Grid& grid, size_t n, uint32_t leaf_px);
 // any such sites give valid bounds, so taking them from the parent's list instead of the
 // index can only keep more sites, never fewer. The clip of a site is the union of the
 // smallest tiles that keep it, so it holds every pixel centre where the site is best.
-// tests/coverage_test.cc checks radii and clips pixel by pixel against the oracle.
+// tests/render/plan/coverage_test.cc checks radii and clips pixel by pixel against the oracle.
 // CONTRACT: index holds exactly the live slots of the table, at least one.
 Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteIndex& index,
                          PixelRect region, uint32_t tile_px = 0,

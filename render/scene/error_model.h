@@ -14,7 +14,7 @@ namespace gvd {
 //   v_B(p) <= h_B(p) <= min(overestimate * v_B(p), v_B(p) + max_excess)
 // (a fan's spokes lie on the cone, sec. 4.1.1; a tent is exact; a >= 0), and each pixel
 // centre is covered by the pieces of every site best there among those present
-// (geometry/coverage.h). The stored value D(p) is the least (kNearest) or greatest (kFarthest)
+// (render/plan/coverage.h). The stored value D(p) is the least (kNearest) or greatest (kFarthest)
 // height drawn there, up to the rasterizer's arithmetic: slack(D) = absolute_slack +
 // relative_slack * D. A site that is a candidate at q is present at the pixel centres around
 // q, and its value changes by at most lipschitz per unit of distance.

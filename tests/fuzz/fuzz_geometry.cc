@@ -1,4 +1,4 @@
-// Fuzz target: the cone counts of sec. 4.1.1, the coverage proof of geometry/coverage.h and the
+// Fuzz target: the cone counts of sec. 4.1.1, the coverage proof of render/plan/coverage.h and the
 // structure of id images (analysis/analysis.h), on small scenes made from the bytes. Checks
 // the properties themselves, against the oracle.
 #include <cmath>

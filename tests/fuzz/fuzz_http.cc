@@ -1,5 +1,5 @@
 // Fuzz target: bytes as an HTTP/1.1 request to the Connect transport: Boost.Beast parses them
-// as gvd-server's sessions do, then DecodeConnectCall (server/http.h) turns the path, the
+// as gvd-server's sessions do, then DecodeConnectCall (server/http/http.h) turns the path, the
 // headers and the body into a call. Whatever the input: no crash; a refusal has a code and a
 // message; an accepted call names a method of gvd.v1.Voronoi and carries a request that
 // parses as that method's input, and a JSON request, written back as JSON and decoded again,

@@ -1,6 +1,6 @@
 // Fuzz target: bytes parsed as each request type (the first byte picks it), then the server's
 // validation and scene logic. Whatever the input: no crash, and whatever is accepted keeps the
-// scene consistent, with exact answers within the tolerance of the tests' oracle (tests/oracle.h).
+// scene consistent, with exact answers within the tolerance of the tests' oracle (tests/support/oracle.h).
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>

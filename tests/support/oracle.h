@@ -1,5 +1,5 @@
 // The tests' own oracle for distances, sides, site values, best sites and nearest features:
-// written apart from geometry/exact.h (which answers queries) so that a test cannot agree
+// written apart from render/kernel/exact2.h (which answers queries) so that a test cannot agree
 // with the code it judges by construction. It computes in long double (64-bit mantissa,
 // 15-bit exponent: no overflow or underflow of squares for any finite double input) with
 // the plainest formulas, and rounds once at the end; production answers are compared with

@@ -22,7 +22,7 @@ inline double Unrestricted(Vec2 p, const Site& s) {
 
 // Whether the site may be drawn at p: within max_distance + margin (the margin widened by
 // what a fan's corners and float arithmetic add), and on its polygon's side or within
-// margin of the boundary (geometry/geometry.h).
+// margin of the boundary (render/kernel/grid2.h: DrawMargin).
 inline bool MayBeDrawn(Vec2 p, const Site& s, const Frame& f) {
   const double margin = DrawMargin(f.grid()) * (1 + 1e-5);
   double d = oracle::Distance(p, s.geometry);

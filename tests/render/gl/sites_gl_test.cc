@@ -61,7 +61,7 @@ TEST_F(SitesGLTest, EachKindAgainstTheOracle) {
   }
 }
 
-// Sites long enough for their segment trees (geometry/segment_tree.h), through which the
+// Sites long enough for their segment trees (render/kernel/segment_tree.h), through which the
 // coverage finds the pieces and segments near each tile: random walks, scribbles crossing
 // the window and one another, many-sided polygons of each side, a finely flattened curve,
 // weights and max_distance, among points and short sites.

@@ -1,5 +1,5 @@
 // The coverage radii, clips and pieces against the oracle, pixel by pixel: every pixel centre
-// lies within the radius and clip of each of its exact best sites (geometry/coverage.h states
+// lies within the radius and clip of each of its exact best sites (render/plan/coverage.h states
 // the proof).
 #include "render/plan/coverage.h"
 
@@ -15,7 +15,7 @@
 namespace gvd {
 namespace {
 
-// A site's value as drawn (geometry/coverage.h): present DrawMargin beyond its max_distance
+// A site's value as drawn (render/plan/coverage.h): present DrawMargin beyond its max_distance
 // and beyond the boundary of the side of a polygon it excludes; +infinity elsewhere.
 double DrawnValue(Vec2 q, const Site& s, double margin) {
   const double d = oracle::Distance(q, s.geometry);
@@ -229,7 +229,7 @@ TEST(Coverage, SitesOfEveryKind) {
   }
 }
 
-// Sites long enough for their segment trees (geometry/segment_tree.h), which coverage then
+// Sites long enough for their segment trees (render/kernel/segment_tree.h), which coverage then
 // searches for the pieces and segments near each tile: random walks, scribbles crossing the
 // window and one another, many-sided polygons (each side), with small sites and points
 // among them.
