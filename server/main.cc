@@ -31,7 +31,9 @@
 #include "server/log.h"
 #include "server/app/memory.h"
 #include "server/metrics.h"
+#include "server/render_telemetry.h"
 #include "render/gl/render_loop.h"
+#include "render/plan/volume_renderer.h"
 #include "server/app/registry.h"
 #include "server/grpc/service.h"
 #include "server/http/web_app.h"
@@ -298,29 +300,12 @@ int main(int argc, char** argv) {
   // llvmpipe reads this when the context is made.
   setenv("LP_NUM_THREADS", absl::StrCat(flags.software_render_threads).c_str(), /*overwrite=*/0);
 
+  // The renderers, both sides of the render seam, reporting through the same logs and
+  // metrics: the GL render threads of 2D scenes and the CPU render thread of 3D ones.
   gvd::Metrics metrics;
-  gvd::RenderLoop renderer(flags.render_threads);
-  renderer.set_observer({
-      [&metrics](const gvd::Scene& scene, uint64_t version, const gvd::RenderStats& stats,
-                 double seconds) {
-        metrics.ObserveRender(stats, seconds);
-        const gvd::PixelRect& w = stats.window;
-        gvd::Log(gvd::LogLevel::kDebug, "rendered",
-                 {{"scene", scene.id()}, {"version", absl::StrCat(version)},
-                  {"sites", absl::StrCat(scene.site_count())},
-                  {"full", stats.full ? "true" : "false"},
-                  {"window", absl::StrCat(w.x0, ",", w.y0, ",", w.x1, ",", w.y1)},
-                  {"sites_drawn", absl::StrCat(stats.sites_drawn)},
-                  {"coverage_ms", absl::StrCat(stats.coverage_seconds * 1e3)},
-                  {"draw_ms", absl::StrCat(stats.draw_seconds * 1e3)},
-                  {"readback_ms", absl::StrCat(stats.readback_seconds * 1e3)},
-                  {"total_ms", absl::StrCat(seconds * 1e3)}});
-      },
-      [](const gvd::Scene& scene, uint64_t version, const absl::Status& error) {
-        gvd::Log(gvd::LogLevel::kError, "render_failed",
-                 {{"scene", scene.id()}, {"version", absl::StrCat(version)},
-                  {"error", error.ToString()}});
-      }});
+  gvd::RenderTelemetry render_telemetry(&metrics);
+  gvd::RenderLoop renderer(flags.render_threads, &render_telemetry);
+  gvd::VolumeRenderer volumes(&render_telemetry);
   if (auto s = renderer.Start(*preference); !s.ok()) {
     gvd::Log(gvd::LogLevel::kError, "no_render_context", {{"error", s.ToString()}});
     return 1;
@@ -377,7 +362,8 @@ int main(int argc, char** argv) {
             {"client_certificates", flags.tls_client_ca.empty() ? "not required" : "required"},
             {"tokens", auth ? absl::StrCat(auth->size()) : "off"}});
   auto registry =
-      std::make_unique<gvd::SceneRegistry>(store->get(), &renderer, flags.limits, &metrics);
+      std::make_unique<gvd::SceneRegistry>(store->get(), gvd::Renderers{&renderer, &volumes},
+                                            flags.limits, &metrics);
   gvd::VoronoiService service(registry.get(), auth ? &*auth : nullptr, &metrics);
   metrics.SetMemoryLimit(flags.limits.max_memory);
   gvd::Log(gvd::LogLevel::kInfo, "memory_budget",
@@ -398,6 +384,7 @@ int main(int argc, char** argv) {
   // commits), and last the store, closed cleanly.
   auto stop = [&] {
     renderer.Stop();
+    volumes.Stop();
     metrics.StopSampling();
     registry.reset();
     store->reset();

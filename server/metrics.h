@@ -8,7 +8,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "render/gl/render_stats.h"
+#include "render/scene/render_stats.h"
 
 namespace prometheus {
 class Exposer;

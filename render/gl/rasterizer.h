@@ -11,7 +11,7 @@
 #include "absl/status/statusor.h"
 #include "render/gl/context.h"
 #include "render/gl/objects.h"
-#include "render/gl/render_stats.h"
+#include "render/scene/render_stats.h"
 #include "render/kernel/grid2.h"
 #include "render/plan/coverage.h"
 #include "render/plan/site_shape.h"

@@ -55,13 +55,15 @@ void RenderLoop::Stop() {
 void RenderLoop::MarkDirty(std::shared_ptr<Scene> scene) {
   {
     std::lock_guard<std::mutex> lock(mu_);
-    if (stopping_ || !queued_.insert(scene.get()).second) return;
-    queue_.push_back(std::move(scene));
+    if (!stopping_) {
+      if (dirty_.Push(std::move(scene))) cv_.notify_all();
+      return;
+    }
   }
-  cv_.notify_all();
+  scene->FailWaiters(absl::UnavailableError("the server is shutting down"));
 }
 
-absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> RenderLoop::Zoom(
+absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> RenderLoop::RenderWindows(
     std::shared_ptr<const Frame> base, RenderMode mode, std::vector<Grid> grids) {
   std::promise<absl::StatusOr<std::vector<std::shared_ptr<const Frame>>>> done;
   auto result = done.get_future();
@@ -84,21 +86,20 @@ absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> RenderLoop::Zoom(
 }
 
 std::shared_ptr<Scene> RenderLoop::Take(int lane) {
-  for (auto it = queue_.begin(); it != queue_.end(); ++it) {
-    const Scene* scene = it->get();
-    if (rendering_.count(scene)) continue;
+  std::shared_ptr<Scene> taken = dirty_.TakeFirst([&](const Scene* scene) {
+    if (rendering_.count(scene)) return false;
     auto owner = owner_.find(scene);
-    if (owner != owner_.end() && owner->second != lane && !busy_[owner->second]) continue;
-    std::shared_ptr<Scene> taken = std::move(*it);
-    queue_.erase(it);
-    queued_.erase(scene);
-    if (owner != owner_.end() && owner->second != lane) taken_from_[owner->second].push_back(scene);
-    owner_[scene] = lane;
-    rendering_.insert(scene);
-    busy_[lane] = true;
-    return taken;
+    return owner == owner_.end() || owner->second == lane || busy_[owner->second];
+  });
+  if (!taken) return nullptr;
+  const Scene* scene = taken.get();
+  if (auto owner = owner_.find(scene); owner != owner_.end() && owner->second != lane) {
+    taken_from_[owner->second].push_back(scene);
   }
-  return nullptr;
+  owner_[scene] = lane;
+  rendering_.insert(scene);
+  busy_[lane] = true;
+  return taken;
 }
 
 void RenderLoop::Run(int lane, DevicePreference preference) {
@@ -161,9 +162,7 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
       if (stopping_) {
         if (scene) {
           rendering_.erase(scene.get());
-          if (queued_.insert(scene.get()).second) {
-            queue_.push_front(std::move(scene));  // its waiters fail with the rest below
-          }
+          dirty_.PushFront(std::move(scene));  // its waiters fail with the rest below
         }
         break;
       }
@@ -186,7 +185,7 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
       std::unique_lock<std::mutex> lock(mu_);
       rendering_.erase(scene.get());
       busy_[lane] = false;
-      if (queued_.insert(scene.get()).second) queue_.push_front(std::move(scene));
+      dirty_.PushFront(std::move(scene));
       cv_.wait_for(lock, std::chrono::milliseconds(5),
                    [this] { return stopping_ || !tasks_.empty(); });
       continue;
@@ -237,14 +236,16 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
     double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (!frame.ok()) {
       rasters.erase(scene.get());  // the next render starts from scratch
-      if (observer_.failed) observer_.failed(*scene, sites->version(), frame.status());
+      if (observer_) observer_->Failed(scene->id(), sites->version(), frame.status());
       scene->FailWaiters(absl::UnavailableError(
           absl::StrCat("rendering scene \"", scene->id(), "\" failed: ", frame.status().message())));
       finish(scene.get());
       continue;
     }
     // Reported before publishing: publishing releases the queries waiting for this frame.
-    if (observer_.rendered) observer_.rendered(*scene, sites->version(), render_stats, seconds);
+    if (observer_) {
+      observer_->Rendered(scene->id(), sites->version(), sites->size(), render_stats, seconds);
+    }
     scene->AddRenderSeconds(seconds);
     scene->Publish(*frame);
     finish(scene.get());
@@ -255,8 +256,7 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
   std::deque<std::function<void(Rasterizer*, ZoomRenderer*)>> tasks;
   {
     std::lock_guard<std::mutex> lock(mu_);
-    left.swap(queue_);
-    queued_.clear();
+    left = dirty_.TakeAll();
     tasks.swap(tasks_);
   }
   for (auto& s : left) s->FailWaiters(absl::UnavailableError("the server is shutting down"));

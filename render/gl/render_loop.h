@@ -1,7 +1,7 @@
-// The render threads: each alone owns a GL context of its own. They drain one queue of scenes
-// marked dirty by updates, render each at its latest version, and publish the frame. Bursts
-// of updates to one scene coalesce into one render; a scene is rendered by one thread at a
-// time.
+// The render threads of 2D scenes, the GL side of the render seam (render/scene/renderer.h):
+// each alone owns a GL context of its own. They drain one queue of scenes marked dirty by
+// updates, render each at its latest version, and publish the frame. Bursts of updates to one
+// scene coalesce into one render; a scene is rendered by one thread at a time.
 #pragma once
 
 #include <condition_variable>
@@ -19,59 +19,49 @@
 #include "absl/status/status.h"
 #include "render/gl/context.h"
 #include "render/gl/zoom.h"
-#include "render/gl/render_stats.h"
+#include "render/scene/render_stats.h"
+#include "render/scene/renderer.h"
 #include "render/scene/scene.h"
 
 namespace gvd {
 
 // Threads: `lanes` threads of its own, the only ones that touch GL; they render, read back
 // and publish frames, and run the zoom tasks handed to them. Its public calls are
-// thread-safe (mu_ guards the queues) and never wait for a render, except Zoom, which waits
-// for its own task and must not be called from a render thread.
+// thread-safe (mu_ guards the queues) and never wait for a render, except RenderWindows,
+// which waits for its own task and must not be called from a render thread.
 //
 // Fairness: a scene's GPU state lives on the lane that rendered it last, which renders it
 // again. While that lane is busy with another scene, an idle lane takes the scene over
 // (rendering it whole on its own context, and the first lane drops its state): so one huge
 // render holds up only its own scene, and with L lanes every other scene's update waits at
 // most for the renders already under way on the other L - 1 lanes, never for the huge one.
-class RenderLoop {
+class RenderLoop final : public Renderer {
  public:
-  explicit RenderLoop(int lanes = 2)
-      : lanes_(lanes < 1 ? 1 : lanes), busy_(lanes_, false), taken_from_(lanes_) {}
-  ~RenderLoop();  // stops the thread
+  // `observer` (may be null) hears of every render; it must outlive the loop.
+  explicit RenderLoop(int lanes = 2, RenderObserver* observer = nullptr)
+      : lanes_(lanes < 1 ? 1 : lanes), observer_(observer), busy_(lanes_, false),
+        taken_from_(lanes_) {}
+  ~RenderLoop() override;  // stops the threads
   RenderLoop(const RenderLoop&) = delete;
   RenderLoop& operator=(const RenderLoop&) = delete;
 
   // Starts the threads and waits until each has a GL context and compiled shaders; returns
   // why one could not. Call once.
   absl::Status Start(DevicePreference preference);
-  // Finishes the render in progress, fails the scenes still queued, and joins the thread.
-  void Stop();
+  // Finishes the render in progress, fails the scenes still queued, and joins the threads.
+  void Stop() override;
 
   // The device the context runs on. Valid after Start succeeded.
   const DeviceInfo& device() const { return device_; }
 
   // Queues a render of the scene at its latest version. Thread-safe; never blocks on a render.
-  void MarkDirty(std::shared_ptr<Scene> scene);
+  void MarkDirty(std::shared_ptr<Scene> scene) override;
 
-  // Renders zoom windows of `base` (gl/zoom.h) on the render thread, between scene
-  // renders, and waits for them. Thread-safe; never call it from the render thread. Fails
+  // Renders zoom windows of `base` (render/gl/zoom.h) on a render thread, between scene
+  // renders, and waits for them. Thread-safe; never call it from a render thread. Fails
   // with Unavailable once the loop stops.
-  absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> Zoom(std::shared_ptr<const Frame> base,
-                                                                 RenderMode mode,
-                                                                 std::vector<Grid> grids);
-
-  // What the render threads report, on the render thread that did it: each render about to
-  // be published (before the waiters for its frame resume), and each render that failed
-  // (its waiters fail with the error). Either may be empty.
-  struct Observer {
-    std::function<void(const Scene& scene, uint64_t version, const RenderStats& stats,
-                       double seconds)>
-        rendered;
-    std::function<void(const Scene& scene, uint64_t version, const absl::Status& error)> failed;
-  };
-  // Call before Start.
-  void set_observer(Observer observer) { observer_ = std::move(observer); }
+  absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> RenderWindows(
+      std::shared_ptr<const Frame> base, RenderMode mode, std::vector<Grid> grids) override;
 
   int lanes() const { return lanes_; }
 
@@ -91,7 +81,7 @@ class RenderLoop {
   const int lanes_;
   std::vector<std::thread> threads_;
   DeviceInfo device_;
-  Observer observer_;
+  RenderObserver* const observer_;
   std::string hold_path_;  // see kHoldRendersVariable; empty: no hold
 
   mutable std::mutex mu_;
@@ -99,8 +89,7 @@ class RenderLoop {
   int started_ = 0;  // lanes that have tried to make their context
   bool stopping_ = false;
   absl::Status start_status_;  // the first lane's failure, if any
-  std::deque<std::shared_ptr<Scene>> queue_;
-  std::set<const Scene*> queued_;
+  DirtyQueue<Scene> dirty_;
   std::map<const Scene*, int> owner_;      // the lane holding each scene's GPU state
   std::set<const Scene*> rendering_;       // scenes a lane is rendering now
   std::vector<bool> busy_;                 // per lane: rendering a scene

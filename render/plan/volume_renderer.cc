@@ -4,9 +4,24 @@
 #include <utility>
 
 namespace gvd {
+namespace {
 
-VolumeRenderer::VolumeRenderer(Observer observer)
-    : observer_(std::move(observer)), thread_([this] { Run(); }) {}
+// A volume render's figures as the seam reports them: the voxels rendered, and the mean
+// candidate list a voxel scanned (each voxel of a brick scans the brick's list).
+RenderStats StatsOf(const VolumeScanStats& scan, bool full) {
+  RenderStats stats;
+  stats.full = full;
+  stats.computed = true;
+  stats.pixels = scan.voxels;
+  stats.candidates_per_pixel =
+      scan.bricks == 0 ? 0 : static_cast<double>(scan.pairs) / static_cast<double>(scan.bricks);
+  return stats;
+}
+
+}  // namespace
+
+VolumeRenderer::VolumeRenderer(RenderObserver* observer)
+    : observer_(observer), thread_([this] { Run(); }) {}
 
 VolumeRenderer::~VolumeRenderer() { Stop(); }
 
@@ -14,12 +29,25 @@ void VolumeRenderer::MarkDirty(std::shared_ptr<Scene3> scene) {
   {
     std::lock_guard<std::mutex> lock(mu_);
     if (!stopping_) {
-      if (queued_.insert(scene.get()).second) queue_.push_back(std::move(scene));
-      cv_.notify_one();
+      if (dirty_.Push(std::move(scene))) cv_.notify_one();
       return;
     }
   }
   scene->FailWaiters(absl::UnavailableError("the server is stopping; no more 3D renders"));
+}
+
+absl::StatusOr<std::vector<std::shared_ptr<const Volume>>> VolumeRenderer::RenderWindows(
+    std::shared_ptr<const Volume> base, RenderMode, std::vector<Grid3> grids) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (stopping_) return absl::UnavailableError("the server is stopping; no more 3D renders");
+  }
+  std::vector<std::shared_ptr<const Volume>> out;
+  out.reserve(grids.size());
+  for (const Grid3& grid : grids) {
+    out.push_back(ScanVolume(grid, base->diagram(), base->snapshot_ptr()));
+  }
+  return out;
 }
 
 void VolumeRenderer::Stop() {
@@ -28,8 +56,7 @@ void VolumeRenderer::Stop() {
     std::lock_guard<std::mutex> lock(mu_);
     if (stopping_ && !thread_.joinable()) return;
     stopping_ = true;
-    left.swap(queue_);
-    queued_.clear();
+    left = dirty_.TakeAll();
   }
   cv_.notify_all();
   if (thread_.joinable()) thread_.join();
@@ -38,19 +65,23 @@ void VolumeRenderer::Stop() {
   }
 }
 
-void VolumeRenderer::RenderNow(Scene3& scene, const Observer& observer) {
+void VolumeRenderer::RenderNow(Scene3& scene, RenderObserver* observer) {
   const auto started = std::chrono::steady_clock::now();
   auto snapshot = scene.snapshot();
   auto base = scene.frame();
   if (base->version() >= snapshot->version()) return;  // rendered already
   VolumeScanStats stats;
   // A first render, from a volume of no sites, is a full one; later ones follow the change.
-  auto volume = base->empty() ? ScanVolume(base->grid(), base->diagram(), snapshot, &stats)
-                              : UpdateVolume(*base, snapshot, &stats);
+  const bool full = base->empty();
+  auto volume = full ? ScanVolume(base->grid(), base->diagram(), snapshot, &stats)
+                     : UpdateVolume(*base, snapshot, &stats);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   scene.AddRenderSeconds(seconds);
-  if (observer) observer(scene, volume->version(), stats, seconds);
+  if (observer) {
+    observer->Rendered(scene.id(), volume->version(), snapshot->size(), StatsOf(stats, full),
+                       seconds);
+  }
   scene.Publish(std::move(volume));
 }
 
@@ -59,11 +90,9 @@ void VolumeRenderer::Run() {
     std::shared_ptr<Scene3> scene;
     {
       std::unique_lock<std::mutex> lock(mu_);
-      cv_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
+      cv_.wait(lock, [&] { return stopping_ || !dirty_.empty(); });
       if (stopping_) return;
-      scene = std::move(queue_.front());
-      queue_.pop_front();
-      queued_.erase(scene.get());
+      scene = dirty_.TakeFirst([](const Scene3*) { return true; });
     }
     // A scene deleted meanwhile is not rendered; its waiters were failed by its deletion.
     if (!scene->deleted()) RenderNow(*scene, observer_);

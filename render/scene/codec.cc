@@ -162,7 +162,7 @@ bool WeightsKeepContract(const S& site) {
          std::isfinite(site.multiplicative) && site.multiplicative > 0 && site.max_distance > 0;
 }
 
-// Whether a decoded site keeps the contracts of Site and its geometry (geometry/site.h), as
+// Whether a decoded site keeps the contracts of Site and its geometry (render/kernel/site2.h), as
 // every accepted site did: a stored one that does not was damaged after it was written.
 bool KeepsContract(const Site& site) {
   if (!WeightsKeepContract(site)) return false;
@@ -216,7 +216,8 @@ std::string EncodeSite(const Site3& site) {
   return w.Take();
 }
 
-absl::StatusOr<Site3> DecodeSite3(std::string_view bytes) {
+template <>
+absl::StatusOr<Site3> DecodeSite<Site3>(std::string_view bytes) {
   Reader r(bytes);
   Site3 site;
   GetHeader(r, &site);
@@ -305,7 +306,8 @@ std::string EncodeSite(const Site& site) {
   return w.Take();
 }
 
-absl::StatusOr<Site> DecodeSite(std::string_view bytes) {
+template <>
+absl::StatusOr<Site> DecodeSite<Site>(std::string_view bytes) {
   Reader r(bytes);
   Site site;
   GetHeader(r, &site);

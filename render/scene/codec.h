@@ -15,12 +15,17 @@
 
 namespace gvd {
 
+// A site of either dimension (Site, or Site3: a mesh is stored as its vertices and
+// triangles, and its edge tables and tree are made again when it is read). DecodeSite<S>
+// reads S's byte form only: another kind's is DATA_LOSS.
 std::string EncodeSite(const Site& site);
-absl::StatusOr<Site> DecodeSite(std::string_view bytes);
-// A 3D site (site3.h); a mesh is stored as its vertices and triangles, and its edge tables
-// and tree are made again when it is read.
 std::string EncodeSite(const Site3& site);
-absl::StatusOr<Site3> DecodeSite3(std::string_view bytes);
+template <class S>
+absl::StatusOr<S> DecodeSite(std::string_view bytes);
+template <>
+absl::StatusOr<Site> DecodeSite<Site>(std::string_view bytes);
+template <>
+absl::StatusOr<Site3> DecodeSite<Site3>(std::string_view bytes);
 
 std::string EncodeSettings(const SceneSettings& settings);
 

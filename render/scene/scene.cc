@@ -52,12 +52,7 @@ absl::StatusOr<uint64_t> BasicScene<K>::Write(const std::function<absl::Status(B
     builder.Abandon();
     return status;
   }
-  ChangeSet change{id(), base->version() + 1, {}, builder.removed()};
-  if constexpr (std::is_same_v<Site, Site3>) {
-    change.put3 = builder.put();
-  } else {
-    change.put = builder.put();
-  }
+  ChangeSet change{id(), base->version() + 1, SitesPut<Site>(builder.put()), builder.removed()};
   // A bulk change builds the next snapshot while the store makes it durable (the snapshot
   // is dropped if the store refuses); a small one builds only what the store took.
   constexpr size_t kBulk = 4096;

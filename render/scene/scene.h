@@ -10,6 +10,7 @@
 #include <mutex>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <typeindex>
 #include <vector>
 
@@ -19,7 +20,7 @@
 #include "render/scene/settings.h"
 #include "render/scene/snapshot.h"
 #include "render/scene/volume.h"
-#include "render/scene/store.h"
+#include "render/scene/change.h"
 #include "render/kernel/grid2.h"
 #include "render/kernel/kernel2.h"
 #include "render/kernel/kernel3.h"
@@ -37,6 +38,7 @@ struct SceneFrames;
 template <>
 struct SceneFrames<Kernel2> {
   using Frame = gvd::Frame;
+  using Grid = gvd::Grid;
   static std::shared_ptr<const Frame> Empty(const SceneSettings& s,
                                             std::shared_ptr<const SiteSnapshot> sites) {
     return Frame::Empty(s.grid, s.eps, std::move(sites));
@@ -58,6 +60,7 @@ struct SceneFrames<Kernel2> {
 template <>
 struct SceneFrames<Kernel3> {
   using Frame = Volume;
+  using Grid = Grid3;
   static std::shared_ptr<const Frame> Empty(const SceneSettings& s,
                                             std::shared_ptr<const SiteSnapshot3> sites) {
     return Volume::Empty(s.grid3(), s.diagram, std::move(sites));
@@ -306,5 +309,8 @@ using Scene = BasicScene<Kernel2>;
 using FrameCallback = Scene::FrameCallback;
 extern template class BasicScene<Kernel3>;
 using Scene3 = BasicScene<Kernel3>;
+// The scene that holds sites of type SiteT: Scene for Site, Scene3 for Site3.
+template <class SiteT>
+using SceneOfSites = std::conditional_t<std::is_same_v<SiteT, Site3>, Scene3, Scene>;
 
 }  // namespace gvd

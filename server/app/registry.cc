@@ -33,9 +33,9 @@ std::string SizeOf(const SceneSettings& s) {
 
 }  // namespace
 
-SceneRegistry::SceneRegistry(SceneStore* store, RenderLoop* renderer, ServerLimits limits,
+SceneRegistry::SceneRegistry(SceneStore* store, Renderers renderers, ServerLimits limits,
                              Metrics* metrics)
-    : store_(store), renderer_(renderer), limits_(limits), metrics_(metrics),
+    : store_(store), renderers_(renderers), limits_(limits), metrics_(metrics),
       memory_(limits.max_memory, [this] { return ScenesMemory(); }),
       commit_threads_(kCommitThreads, "gvd-commit"),
       commits_(commit_threads_, /*priority=*/0, SIZE_MAX, limits.max_queued_writes),
@@ -46,7 +46,11 @@ SceneRegistry::SceneRegistry(SceneStore* store, RenderLoop* renderer, ServerLimi
 SceneRegistry::~SceneRegistry() {
   stop_following_ = true;
   if (follower_.joinable()) follower_.join();
-  volumes_.Stop();
+  // The renderers stop first, while answers_ can still take the waiters their last renders
+  // resume; writes that commits_ drains below still mark their scenes dirty, and a stopped
+  // renderer fails those scenes' waiters on the calling thread.
+  if (renderers_.plane) renderers_.plane->Stop();
+  if (renderers_.space) renderers_.space->Stop();
 }
 
 Executor SceneRegistry::executor() {
@@ -64,37 +68,22 @@ absl::Status SceneRegistry::Durably(StoreCall store_call) const {
   return s;
 }
 
-void SceneRegistry::Published(const std::shared_ptr<Scene>& scene) {
-  if (renderer_) renderer_->MarkDirty(scene);
-}
-
-void SceneRegistry::Published(const std::shared_ptr<Scene3>& scene) {
-  // 3D scenes render on the CPU, whether or not the server has a GL renderer.
-  if (!scene->deleted()) volumes_.MarkDirty(scene);
-}
-
-template <>
-std::map<std::string, std::shared_ptr<Scene>>& SceneRegistry::Scenes<Scene>() {
-  return scenes_;
-}
-template <>
-std::map<std::string, std::shared_ptr<Scene3>>& SceneRegistry::Scenes<Scene3>() {
-  return scenes3_;
-}
-template <>
-const std::map<std::string, std::shared_ptr<Scene>>& SceneRegistry::Scenes<Scene>() const {
-  return scenes_;
-}
-template <>
-const std::map<std::string, std::shared_ptr<Scene3>>& SceneRegistry::Scenes<Scene3>() const {
-  return scenes3_;
+void SceneRegistry::Published(const SceneHandle& scene) {
+  scene.Visit([&](const auto& s) {
+    using S = typename std::decay_t<decltype(s)>::element_type;
+    if constexpr (std::is_same_v<S, Scene>) {
+      // A deleted scene is marked too: its render thread releases the scene's GPU state.
+      if (renderers_.plane) renderers_.plane->MarkDirty(s);
+    } else {
+      if (renderers_.space && !s->deleted()) renderers_.space->MarkDirty(s);
+    }
+  });
 }
 
 uint64_t SceneRegistry::ScenesMemory() const {
   std::lock_guard<std::mutex> lock(mu_);
   uint64_t sum = 0;
-  for (const auto& [id, scene] : scenes_) sum += scene->memory_bytes();
-  for (const auto& [id, scene] : scenes3_) sum += scene->memory_bytes();
+  for (const auto& [id, scene] : scenes_) sum += scene.memory_bytes();
   return sum;
 }
 
@@ -113,7 +102,7 @@ absl::Status SceneRegistry::Load() {
   std::sort(stored->begin(), stored->end(),
             [](const StoredScene& a, const StoredScene& b) { return a.settings.id < b.settings.id; });
   for (StoredScene& s : *stored) {
-    const size_t count = s.settings.three_d() ? s.sites3.size() : s.sites.size();
+    const size_t count = s.site_count();
     if (Adopt(std::move(s))) {
       sites += count;
     } else {
@@ -129,12 +118,38 @@ absl::Status SceneRegistry::Load() {
   return absl::OkStatus();
 }
 
+namespace {
+
+// The stored scene's sites, as S's (none when the store read none).
+template <class S>
+std::vector<typename S::Site> SitesOf(StoredScene& s) {
+  auto* sites = std::get_if<std::vector<typename S::Site>>(&s.sites);
+  return sites ? std::move(*sites) : std::vector<typename S::Site>();
+}
+
+// What a stored scene holds once loaded as S: its raster and its sites.
+template <class S>
+uint64_t LoadedBytes(const StoredScene& s) {
+  uint64_t bytes = S::RasterBytes(s.settings);
+  if (const auto* sites = std::get_if<std::vector<typename S::Site>>(&s.sites)) {
+    for (const auto& site : *sites) bytes += SiteBytes(site);
+  }
+  return bytes;
+}
+
+// A scene restored from the store, as S.
+template <class S>
+SceneHandle Restored(StoredScene& s, Executor executor) {
+  return std::make_shared<S>(std::move(s.settings), s.version, SitesOf<S>(s), std::move(executor));
+}
+
+}  // namespace
+
 bool SceneRegistry::Adopt(StoredScene s) {
-  const bool three_d = s.settings.three_d();
-  const size_t count = three_d ? s.sites3.size() : s.sites.size();
-  uint64_t bytes = three_d ? Scene3::RasterBytes(s.settings) : Scene::RasterBytes(s.settings);
-  for (const Site& site : s.sites) bytes += SiteBytes(site);
-  for (const Site3& site : s.sites3) bytes += SiteBytes(site);
+  const size_t count = s.site_count();
+  const uint64_t bytes = ForDimension(s.settings, [&](auto type) {
+    return LoadedBytes<typename decltype(type)::type>(s);
+  });
   absl::Status fits = memory_.Reserve(
       bytes, absl::StrCat("scene \"", s.settings.id, "\" (", SizeOf(s.settings), ", ", count,
                           " sites)"));
@@ -143,110 +158,78 @@ bool SceneRegistry::Adopt(StoredScene s) {
         {{"scene", s.settings.id}, {"reason", std::string(fits.message())}});
     std::string id = s.settings.id;
     std::lock_guard<std::mutex> lock(mu_);
-    if (scenes_.count(id) || scenes3_.count(id) || creating_.count(id)) return false;
+    if (scenes_.count(id) || creating_.count(id)) return false;
     incarnations_[id] = s.incarnation;
     unloaded_[id] = {std::move(s.settings), s.version, count, bytes, std::string(fits.message())};
     return false;
   }
   MemoryBudget::Reservation reserved(&memory_, bytes);
+  const uint64_t incarnation = s.incarnation;
   // Stored sites were validated when they were accepted: they go straight to a snapshot.
-  auto load = [&](auto scene) {
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      // A scene made here meanwhile (a replica's create that won) is the one kept.
-      if (scenes_.count(scene->id()) || scenes3_.count(scene->id()) ||
-          creating_.count(scene->id())) {
-        return;
-      }
-      Scenes<typename decltype(scene)::element_type>()[scene->id()] = scene;
-      incarnations_[scene->id()] = s.incarnation;
-    }
-    Published(scene);
-  };
-  if (three_d) {
-    load(std::make_shared<Scene3>(std::move(s.settings), s.version, std::move(s.sites3),
-                                  executor()));
-  } else {
-    load(std::make_shared<Scene>(std::move(s.settings), s.version, std::move(s.sites),
-                                 executor()));
+  const SceneHandle scene = ForDimension(s.settings, [&](auto type) {
+    return Restored<typename decltype(type)::type>(s, executor());
+  });
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    // A scene made here meanwhile (a replica's create that won) is the one kept.
+    if (scenes_.count(scene.id()) || creating_.count(scene.id())) return true;
+    scenes_.emplace(scene.id(), scene);
+    incarnations_[scene.id()] = incarnation;
   }
+  Published(scene);
   return true;
 }
 
-absl::StatusOr<std::shared_ptr<Scene>> SceneRegistry::CreateScene(SceneSettings settings) {
-  return Create<Scene>(std::move(settings));
-}
-
-absl::StatusOr<std::shared_ptr<Scene3>> SceneRegistry::CreateScene3(SceneSettings settings) {
-  return Create<Scene3>(std::move(settings));
-}
-
-template <class S>
-absl::StatusOr<std::shared_ptr<S>> SceneRegistry::Create(SceneSettings settings) {
+absl::StatusOr<SceneHandle> SceneRegistry::CreateScene(SceneSettings settings) {
   // The raster's bytes, reserved until the scene is in its map (then it counts them).
-  const uint64_t raster = S::RasterBytes(settings);
+  const uint64_t raster = ForDimension(
+      settings, [&](auto type) { return decltype(type)::type::RasterBytes(settings); });
   if (auto s = memory_.Reserve(raster, absl::StrCat("scene \"", settings.id, "\" of ",
                                                     SizeOf(settings)));
       !s.ok()) {
     return s;
   }
   MemoryBudget::Reservation reserved(&memory_, raster);
-  auto scene = std::make_shared<S>(std::move(settings), executor());
+  const SceneHandle scene = ForDimension(settings, [&](auto type) -> SceneHandle {
+    return std::make_shared<typename decltype(type)::type>(std::move(settings), executor());
+  });
   {
     std::lock_guard<std::mutex> lock(mu_);
-    const size_t held = scenes_.size() + scenes3_.size() + creating_.size();
-    if (scenes_.count(scene->id()) || scenes3_.count(scene->id()) ||
-        creating_.count(scene->id()) || unloaded_.count(scene->id())) {
-      return absl::AlreadyExistsError(absl::StrCat("scene \"", scene->id(), "\" already exists"));
+    const size_t held = scenes_.size() + creating_.size();
+    if (scenes_.count(scene.id()) || creating_.count(scene.id()) || unloaded_.count(scene.id())) {
+      return absl::AlreadyExistsError(absl::StrCat("scene \"", scene.id(), "\" already exists"));
     }
     if (held >= limits_.max_scenes) {
       return absl::ResourceExhaustedError(absl::StrCat(
           "the server holds ", held, " scenes; the limit (--max-scenes) is ", limits_.max_scenes));
     }
-    creating_.insert(scene->id());  // reserved: the commit runs without the lock
+    creating_.insert(scene.id());  // reserved: the commit runs without the lock
   }
   absl::StatusOr<uint64_t> incarnation;
   absl::Status stored = Durably([&] {
-    incarnation = store_->CreateScene(scene->settings(), scene->version());
+    incarnation = store_->CreateScene(scene.settings(), scene.version());
     return incarnation.status();
   });
   {
     std::lock_guard<std::mutex> lock(mu_);
-    creating_.erase(scene->id());
+    creating_.erase(scene.id());
     if (stored.ok()) {
-      Scenes<S>().emplace(scene->id(), scene);
-      incarnations_[scene->id()] = *incarnation;
+      scenes_.emplace(scene.id(), scene);
+      incarnations_[scene.id()] = *incarnation;
     }
   }
   if (!stored.ok()) return stored;
-  const SceneSettings& made = scene->settings();
+  const SceneSettings& made = scene.settings();
   Log(LogLevel::kInfo, "scene_created",
-      {{"scene", scene->id()}, {"width_px", absl::StrCat(made.grid.width)},
+      {{"scene", scene.id()}, {"width_px", absl::StrCat(made.grid.width)},
        {"height_px", absl::StrCat(made.grid.height)}, {"depth_px", absl::StrCat(made.depth)},
        {"max_error", FormatNumber(made.eps)}});
   return scene;
 }
 
-absl::StatusOr<std::shared_ptr<Scene>> SceneRegistry::Find(const std::string& id) const {
-  return FindOf<Scene>(id);
-}
-
-absl::StatusOr<std::shared_ptr<Scene3>> SceneRegistry::Find3(const std::string& id) const {
-  return FindOf<Scene3>(id);
-}
-
-template <class S>
-absl::StatusOr<std::shared_ptr<S>> SceneRegistry::FindOf(const std::string& id) const {
-  constexpr bool kThreeD = std::is_same_v<S, Scene3>;
+absl::StatusOr<SceneHandle> SceneRegistry::Find(const std::string& id) const {
   std::lock_guard<std::mutex> lock(mu_);
-  const auto& mine = Scenes<S>();
-  auto it = mine.find(id);
-  if (it != mine.end()) return it->second;
-  if (kThreeD ? scenes_.count(id) > 0 : scenes3_.count(id) > 0) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        "scene \"", id, "\" is a ", kThreeD ? "2D" : "3D",
-        " scene; this call needs a ", kThreeD ? "3D" : "2D", " one"));
-  }
+  if (auto it = scenes_.find(id); it != scenes_.end()) return it->second;
   if (auto u = unloaded_.find(id); u != unloaded_.end()) {
     return absl::FailedPreconditionError(
         absl::StrCat("scene \"", id, "\" is stored but not loaded: ", u->second.reason));
@@ -256,10 +239,7 @@ absl::StatusOr<std::shared_ptr<S>> SceneRegistry::FindOf(const std::string& id) 
 
 absl::StatusOr<SceneEntry> SceneRegistry::Describe(const std::string& id) const {
   std::lock_guard<std::mutex> lock(mu_);
-  if (auto u = unloaded_.find(id); u != unloaded_.end()) return SceneEntry{nullptr, u->second};
-  if (auto it = scenes3_.find(id); it != scenes3_.end()) {
-    return SceneEntry{nullptr, std::nullopt, it->second};
-  }
+  if (auto u = unloaded_.find(id); u != unloaded_.end()) return SceneEntry{std::nullopt, u->second};
   auto it = scenes_.find(id);
   if (it == scenes_.end()) {
     return absl::NotFoundError(absl::StrCat("scene \"", id, "\" does not exist"));
@@ -272,8 +252,7 @@ std::vector<SceneEntry> SceneRegistry::List() const {
   {
     std::lock_guard<std::mutex> lock(mu_);
     for (const auto& [id, scene] : scenes_) out.push_back({scene, std::nullopt});
-    for (const auto& [id, scene] : scenes3_) out.push_back({nullptr, std::nullopt, scene});
-    for (const auto& [id, scene] : unloaded_) out.push_back({nullptr, scene});
+    for (const auto& [id, scene] : unloaded_) out.push_back({std::nullopt, scene});
   }
   std::sort(out.begin(), out.end(),
             [](const SceneEntry& a, const SceneEntry& b) { return a.id() < b.id(); });
@@ -297,50 +276,34 @@ absl::Status SceneRegistry::DeleteScene(const std::string& id) {
     Log(LogLevel::kInfo, "scene_deleted", {{"scene", id}, {"loaded", "false"}});
     return absl::OkStatus();
   }
-  auto retire = [&](const auto& scene) -> absl::Status {
-    using S = typename std::decay_t<decltype(scene)>::element_type;
-    // The commit holds only the scene's writer lock: writes to the scene wait and then find
-    // it deleted, and other scenes' lookups go on.
-    absl::Status deleted =
-        scene->Retire([&] { return Durably([&] { return store_->DeleteScene(id); }); });
-    if (!deleted.ok()) return deleted;
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      auto& scenes = Scenes<S>();
-      auto it = scenes.find(id);
-      if (it != scenes.end() && it->second == scene) {
-        scenes.erase(it);
-        incarnations_.erase(id);
-      }
+  auto found = Find(id);
+  if (!found.ok()) return found.status();
+  const SceneHandle scene = *found;
+  // The commit holds only the scene's writer lock: writes to the scene wait and then find it
+  // deleted, and other scenes' lookups go on.
+  absl::Status deleted = scene.Visit([&](const auto& s) {
+    return s->Retire([&] { return Durably([&] { return store_->DeleteScene(id); }); });
+  });
+  if (!deleted.ok()) return deleted;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = scenes_.find(id);
+    if (it != scenes_.end() && it->second == scene) {
+      scenes_.erase(it);
+      incarnations_.erase(id);
     }
-    scene->FailWaiters(absl::NotFoundError(absl::StrCat("scene \"", id, "\" was deleted")));
-    Published(scene);  // lets the render thread release the scene's target
-    Log(LogLevel::kInfo, "scene_deleted", {{"scene", id}});
-    return absl::OkStatus();
-  };
-  if (auto scene3 = Find3(id); scene3.ok()) return retire(*scene3);
-  auto scene = Find(id);
-  if (!scene.ok()) return scene.status();
-  return retire(*scene);
+  }
+  scene.FailWaiters(absl::NotFoundError(absl::StrCat("scene \"", id, "\" was deleted")));
+  Published(scene);  // lets the render thread release the scene's target
+  Log(LogLevel::kInfo, "scene_deleted", {{"scene", id}});
+  return absl::OkStatus();
 }
 
-absl::StatusOr<uint64_t> SceneRegistry::UpsertSites(const std::string& scene_id,
-                                                    std::vector<Site> sites,
-                                                    Durability durability) {
-  return Upsert<Scene>(scene_id, std::move(sites), durability);
-}
-
-absl::StatusOr<uint64_t> SceneRegistry::UpsertSites3(const std::string& scene_id,
-                                                     std::vector<Site3> sites,
-                                                     Durability durability) {
-  return Upsert<Scene3>(scene_id, std::move(sites), durability);
-}
-
-template <class S, class Write>
+template <class Write>
 absl::StatusOr<uint64_t> SceneRegistry::Retrying(const std::string& scene_id,
                                                  Durability durability, Write write) {
   for (int attempt = 1;; ++attempt) {
-    auto scene = FindOf<S>(scene_id);
+    auto scene = Find(scene_id);
     if (!scene.ok()) return scene.status();
     uint64_t incarnation = 0;
     {
@@ -381,10 +344,22 @@ absl::StatusOr<uint64_t> SceneRegistry::Retrying(const std::string& scene_id,
   }
 }
 
-template <class S>
+absl::StatusOr<uint64_t> SceneRegistry::UpsertSites(const std::string& scene_id,
+                                                    std::vector<Site> sites,
+                                                    Durability durability) {
+  return Upsert(scene_id, std::move(sites), durability);
+}
+
+absl::StatusOr<uint64_t> SceneRegistry::UpsertSites(const std::string& scene_id,
+                                                    std::vector<Site3> sites,
+                                                    Durability durability) {
+  return Upsert(scene_id, std::move(sites), durability);
+}
+
+template <class SiteT>
 absl::StatusOr<uint64_t> SceneRegistry::Upsert(const std::string& scene_id,
-                                               std::vector<typename S::Site> sites,
-                                               Durability durability) {
+                                               std::vector<SiteT> sites, Durability durability) {
+  using S = SceneOfSites<SiteT>;
   // What the sites add, reserved until the scene's snapshot holds them (sites they replace
   // are not subtracted: a reservation may only overstate).
   uint64_t added = 0;
@@ -396,41 +371,39 @@ absl::StatusOr<uint64_t> SceneRegistry::Upsert(const std::string& scene_id,
   }
   MemoryBudget::Reservation reserved(&memory_, added);
   const bool retried = store_->shared();  // then each try takes a copy
-  return Retrying<S>(scene_id, durability, [&](const std::shared_ptr<S>& scene, const auto& commit) {
-    return scene->Upsert(retried ? sites : std::move(sites), limits_.max_sites_per_scene,
-                         commit);
-  });
+  return Retrying(scene_id, durability,
+                  [&](const SceneHandle& handle, const auto& commit) -> absl::StatusOr<uint64_t> {
+                    auto scene = handle.As<S>();
+                    if (!scene.ok()) return scene.status();
+                    return (*scene)->Upsert(retried ? sites : std::move(sites),
+                                            limits_.max_sites_per_scene, commit);
+                  });
 }
 
 absl::StatusOr<uint64_t> SceneRegistry::DeleteSites(const std::string& scene_id,
                                                     const std::vector<std::string>& ids,
                                                     Durability durability) {
-  auto remove = [&](const auto& scene, const auto& commit) -> absl::StatusOr<uint64_t> {
-    return scene->Delete(ids, commit);
-  };
-  if (Find3(scene_id).ok()) return Retrying<Scene3>(scene_id, durability, remove);
-  return Retrying<Scene>(scene_id, durability, remove);
+  return Retrying(scene_id, durability, [&](const SceneHandle& scene, const auto& commit) {
+    return scene.Visit([&](const auto& s) { return s->Delete(ids, commit); });
+  });
 }
 
 absl::StatusOr<uint64_t> SceneRegistry::Apply(const ChangeSet& committed) {
-  const std::string id(committed.scene_id);
-  if (auto scene3 = Find3(id); scene3.ok()) return ApplyTo(*scene3, committed);
-  auto scene = Find(id);
+  auto scene = Find(std::string(committed.scene_id));
   if (!scene.ok()) return scene.status();
-  return ApplyTo(*scene, committed);
+  return scene->Visit([&](const auto& s) { return ApplyTo(s, committed); });
 }
 
 template <class S>
 absl::StatusOr<uint64_t> SceneRegistry::ApplyTo(const std::shared_ptr<S>& scene,
                                                 const ChangeSet& committed) {
-  constexpr bool kThreeD = std::is_same_v<S, Scene3>;
-  if (kThreeD ? !committed.put.empty() : !committed.put3.empty()) {
+  using SiteT = typename S::Site;
+  if (committed.template PutsOther<SiteT>()) {
     return absl::FailedPreconditionError(absl::StrCat(
-        "a change to scene \"", scene->id(), "\" puts ", kThreeD ? "2D" : "3D",
-        " sites; it is a ", kThreeD ? "3D" : "2D", " scene"));
+        "a change to scene \"", scene->id(), "\" puts sites of the other dimension than its own"));
   }
   uint64_t added = 0;
-  for (const auto& site : committed.template Put<typename S::Site>()) added += SiteBytes(*site);
+  for (const auto& site : committed.template Put<SiteT>()) added += SiteBytes(*site);
   // Committed elsewhere, so it is not refused for memory: the reservation only keeps the
   // budget's figure honest until the snapshot holds the sites.
   MemoryBudget::Reservation reserved(
@@ -449,9 +422,8 @@ absl::Status SceneRegistry::CatchUp() {
   std::vector<WaitMark> marks;
   {
     std::lock_guard<std::mutex> lock(mu_);
-    for (const auto& [id, scene] : scenes_) marks.push_back({id, scene, nullptr, scene->waiter_mark()});
-    for (const auto& [id, scene] : scenes3_) marks.push_back({id, nullptr, scene, scene->waiter_mark()});
-    for (const WaitMark& m : marks) held.emplace_back(m.id, incarnations_[m.id]);
+    for (const auto& [id, scene] : scenes_) marks.push_back({scene, scene.waiter_mark()});
+    for (const WaitMark& m : marks) held.emplace_back(m.scene.id(), incarnations_[m.scene.id()]);
     for (const auto& [id, scene] : unloaded_) held.emplace_back(id, incarnations_[id]);
   }
   auto heads = store_->Heads();
@@ -488,89 +460,92 @@ absl::Status SceneRegistry::CatchUp() {
 }
 
 absl::Status SceneRegistry::Follow(const std::string& id, const SceneHead* head) {
-  std::shared_ptr<Scene> scene;
-  std::shared_ptr<Scene3> scene3;
+  std::optional<SceneHandle> scene;
   uint64_t incarnation = 0;
   {
     std::lock_guard<std::mutex> lock(mu_);
     // A scene being made here is this server's own; one left unloaded stays so.
     if (creating_.count(id) || unloaded_.count(id)) return absl::OkStatus();
     if (auto it = scenes_.find(id); it != scenes_.end()) scene = it->second;
-    if (auto it = scenes3_.find(id); it != scenes3_.end()) scene3 = it->second;
     if (auto it = incarnations_.find(id); it != incarnations_.end()) incarnation = it->second;
   }
-  const bool held = scene || scene3;
-  const uint64_t local = scene ? scene->version() : scene3 ? scene3->version() : 0;
-  if (held && head && head->incarnation == incarnation && head->version <= local) {
+  const uint64_t local = scene ? scene->version() : 0;
+  if (scene && head && head->incarnation == incarnation && head->version <= local) {
     return absl::OkStatus();
   }
   auto changes = store_->ReadChanges(id, local);
   if (changes.status().code() == absl::StatusCode::kNotFound) {
-    if (held) Forget(id, incarnation);
+    if (scene) Forget(id, incarnation);
     return absl::OkStatus();
   }
   if (!changes.ok()) return changes.status();
-  if (held && changes->incarnation != incarnation) {
+  if (scene && changes->incarnation != incarnation) {
     // Deleted and made again elsewhere: the scene held here is another one.
     Forget(id, incarnation);
     changes = store_->ReadChanges(id, 0);
     if (changes.status().code() == absl::StatusCode::kNotFound) return absl::OkStatus();
     if (!changes.ok()) return changes.status();
-  } else if (held) {
-    return scene ? Advance(scene, *changes, local) : Advance(scene3, *changes, local);
+  } else if (scene) {
+    return Advance(*scene, *changes, local);
   }
   StoredScene stored{std::move(changes->settings), changes->version, changes->incarnation};
-  for (const auto& site : changes->put) stored.sites.push_back(*site);
-  for (const auto& site : changes->put3) stored.sites3.push_back(*site);
+  std::visit(
+      [&](const auto& put) {
+        using SiteT = std::remove_const_t<typename std::decay_t<decltype(put)>::value_type::element_type>;
+        std::vector<SiteT> sites;
+        sites.reserve(put.size());
+        for (const auto& site : put) sites.push_back(*site);
+        stored.sites = std::move(sites);
+      },
+      changes->put);
   Adopt(std::move(stored));
   return absl::OkStatus();
 }
 
-template <class S>
-absl::Status SceneRegistry::Advance(const std::shared_ptr<S>& scene, const SceneChanges& changes,
+absl::Status SceneRegistry::Advance(const SceneHandle& scene, const SceneChanges& changes,
                                     uint64_t after) {
-  auto snapshot = scene->snapshot();
-  // Nothing new, or the scene moved meanwhile (a write here): the next catch-up reads again.
-  if (changes.version <= after || snapshot->version() != after) return absl::OkStatus();
-  std::vector<std::string> removed;
-  if (changes.complete) {
-    // The scene's whole state: whatever else is held goes.
-    std::set<std::string_view> kept;
-    for (const auto& site : changes.View(after).template Put<typename S::Site>()) {
-      kept.insert(site->id);
+  return scene.Visit([&](const auto& s) -> absl::Status {
+    using SiteT = typename std::decay_t<decltype(*s)>::Site;
+    auto snapshot = s->snapshot();
+    // Nothing new, or the scene moved meanwhile (a write here): the next catch-up reads again.
+    if (changes.version <= after || snapshot->version() != after) return absl::OkStatus();
+    std::vector<std::string> removed;
+    if (changes.complete) {
+      // The scene's whole state: whatever else is held goes.
+      std::set<std::string_view> kept;
+      for (const auto& site : changes.View(after).template Put<SiteT>()) kept.insert(site->id);
+      snapshot->ids().ForEachAfter("", [&](const auto& entry) {
+        if (!kept.count(entry.id)) removed.push_back(entry.id);
+        return true;
+      });
+    } else {
+      // A site put and removed after `after` was never held here.
+      for (const std::string& id : changes.removed) {
+        if (snapshot->Find(id)) removed.push_back(id);
+      }
     }
-    snapshot->ids().ForEachAfter("", [&](const auto& entry) {
-      if (!kept.count(entry.id)) removed.push_back(entry.id);
-      return true;
-    });
-  } else {
-    // A site put and removed after `after` was never held here.
-    for (const std::string& id : changes.removed) {
-      if (snapshot->Find(id)) removed.push_back(id);
+    ChangeSet net = changes.View(after);
+    net.removed = removed;
+    auto applied = ApplyTo(s, net);
+    if (!applied.ok() && applied.status().code() != absl::StatusCode::kFailedPrecondition &&
+        applied.status().code() != absl::StatusCode::kNotFound) {
+      return applied.status();
     }
-  }
-  ChangeSet net = changes.View(after);
-  net.removed = removed;
-  auto applied = ApplyTo(scene, net);
-  if (!applied.ok() && applied.status().code() != absl::StatusCode::kFailedPrecondition &&
-      applied.status().code() != absl::StatusCode::kNotFound) {
-    return applied.status();
-  }
-  if (applied.ok()) {
-    // The store held this version when it was read: the store version reported is never
-    // below the one held (a write's retry reads the log without reading the heads).
-    std::lock_guard<std::mutex> lock(mu_);
-    if (auto head = heads_.find(scene->id());
-        head != heads_.end() && head->second.first == changes.incarnation) {
-      head->second.second = std::max(head->second.second, changes.version);
+    if (applied.ok()) {
+      // The store held this version when it was read: the store version reported is never
+      // below the one held (a write's retry reads the log without reading the heads).
+      std::lock_guard<std::mutex> lock(mu_);
+      if (auto head = heads_.find(s->id());
+          head != heads_.end() && head->second.first == changes.incarnation) {
+        head->second.second = std::max(head->second.second, changes.version);
+      }
     }
-  }
-  return absl::OkStatus();
+    return absl::OkStatus();
+  });
 }
 
 void SceneRegistry::Forget(const std::string& id, uint64_t incarnation) {
-  std::shared_ptr<Scene> scene;
-  std::shared_ptr<Scene3> scene3;
+  std::optional<SceneHandle> scene;
   {
     std::lock_guard<std::mutex> lock(mu_);
     // Only the scene that was judged gone: one made here meanwhile under the id stays.
@@ -580,48 +555,37 @@ void SceneRegistry::Forget(const std::string& id, uint64_t incarnation) {
       scene = it->second;
       scenes_.erase(it);
     }
-    if (auto it = scenes3_.find(id); it != scenes3_.end()) {
-      scene3 = it->second;
-      scenes3_.erase(it);
-    }
     unloaded_.erase(id);
     incarnations_.erase(id);
   }
-  auto retire = [&](const auto& s) {
-    if (!s || !s->Retire().ok()) return;
-    s->FailWaiters(absl::NotFoundError(absl::StrCat("scene \"", id, "\" was deleted")));
-    Published(s);
-  };
-  retire(scene);
-  retire(scene3);
+  if (scene && scene->Visit([](const auto& s) { return s->Retire().ok(); })) {
+    scene->FailWaiters(absl::NotFoundError(absl::StrCat("scene \"", id, "\" was deleted")));
+    Published(*scene);
+  }
   Log(LogLevel::kInfo, "scene_deleted", {{"scene", id}, {"by", "another server"}});
 }
 
 void SceneRegistry::FailWaitsBeyondHeads(const std::vector<WaitMark>& marks) {
   for (const WaitMark& m : marks) {
+    const std::string& id = m.scene.id();
     uint64_t head = 0;
     {
       std::lock_guard<std::mutex> lock(mu_);
-      auto h = heads_.find(m.id);
+      auto h = heads_.find(id);
       // The marks are of the scene objects held before the heads were read: a scene made
       // again since has waiters of its own, not judged by these heads.
-      auto held = incarnations_.find(m.id);
+      auto held = incarnations_.find(id);
       if (h == heads_.end() || held == incarnations_.end() || held->second != h->second.first) {
         continue;
       }
-      auto s = scenes_.find(m.id);
-      auto s3 = scenes3_.find(m.id);
-      if (m.scene ? s == scenes_.end() || s->second != m.scene
-                  : s3 == scenes3_.end() || s3->second != m.scene3) {
-        continue;
-      }
+      auto s = scenes_.find(id);
+      if (s == scenes_.end() || !(s->second == m.scene)) continue;
       head = h->second.second;
     }
-    const absl::Status beyond = absl::OutOfRangeError(absl::StrCat(
-        "min_version is ahead of scene \"", m.id, "\", which is at version ", head,
-        " in the store"));
-    if (m.scene) m.scene->FailWaitersBeyond(head, m.mark, beyond);
-    if (m.scene3) m.scene3->FailWaitersBeyond(head, m.mark, beyond);
+    m.scene.FailWaitersBeyond(head, m.mark,
+                              absl::OutOfRangeError(absl::StrCat(
+                                  "min_version is ahead of scene \"", id,
+                                  "\", which is at version ", head, " in the store")));
   }
 }
 
@@ -660,29 +624,23 @@ SceneRegistry::StoreLag SceneRegistry::Lag(const std::string& id) const {
 
 absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> SceneRegistry::Zoom(
     std::shared_ptr<const Frame> base, RenderMode mode, std::vector<Grid> grids) {
-  if (renderer_ == nullptr) return absl::UnavailableError("the server renders nothing");
-  return renderer_->Zoom(std::move(base), mode, std::move(grids));
+  if (renderers_.plane == nullptr) return absl::UnavailableError("the server renders nothing");
+  return renderers_.plane->RenderWindows(std::move(base), mode, std::move(grids));
 }
 
 std::vector<Metrics::SceneSample> SceneRegistry::Sample() const {
-  std::vector<std::shared_ptr<Scene>> scenes;
-  std::vector<std::shared_ptr<Scene3>> scenes3;
+  std::vector<SceneHandle> scenes;
   {
     std::lock_guard<std::mutex> lock(mu_);
     for (const auto& [id, scene] : scenes_) scenes.push_back(scene);
-    for (const auto& [id, scene] : scenes3_) scenes3.push_back(scene);
   }
   std::vector<Metrics::SceneSample> out;
-  auto sample = [&](const auto& s) {
-    double lag = static_cast<double>(s->version() - s->frame()->version());
-    out.push_back({s->id(), static_cast<double>(s->site_count()), lag, s->frame_age_seconds(),
-                   static_cast<double>(s->memory_bytes()), s->render_seconds()});
-  };
-  for (const auto& s : scenes) sample(s);
-  for (const auto& s : scenes3) sample(s);
-  std::sort(out.begin(), out.end(),
-            [](const Metrics::SceneSample& a, const Metrics::SceneSample& b) { return a.scene < b.scene; });
-  return out;
+  for (const SceneHandle& s : scenes) {
+    const double lag = static_cast<double>(s.version() - s.frame_version());
+    out.push_back({s.id(), static_cast<double>(s.site_count()), lag, s.frame_age_seconds(),
+                   static_cast<double>(s.memory_bytes()), s.render_seconds()});
+  }
+  return out;  // in id order, as the map holds them
 }
 
 }  // namespace gvd

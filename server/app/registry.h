@@ -1,7 +1,6 @@
-// The application core: every scene the server holds and every way they change, with no
-// transport. The gRPC handlers (and through them the HTTP transport) translate requests into
-// these calls and their statuses into codes; a replica's follower will call Apply with the
-// changes other servers commit.
+// The application core's scenes: every scene the server holds, of either dimension, and
+// every way they change, with no transport. A replica's follower calls Apply with the changes
+// other servers commit.
 #pragma once
 
 #include <atomic>
@@ -20,14 +19,14 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
-#include "render/gl/render_loop.h"
-#include "render/plan/volume_renderer.h"
 #include "render/scene/cpu_pool.h"
+#include "render/scene/renderer.h"
 #include "render/scene/scene.h"
-#include "render/scene/store.h"
 #include "server/app/limits.h"
 #include "server/app/memory.h"
+#include "server/app/scene_handle.h"
 #include "server/metrics.h"
+#include "server/store/store.h"
 
 namespace gvd {
 
@@ -41,15 +40,18 @@ struct UnloadedScene {
   std::string reason;
 };
 
-// A scene as listed: loaded (`scene` set, or `scene3` for a 3D one) or stored but not loaded
-// (`unloaded` set).
+// A scene as listed: loaded (`scene` set) or stored but not loaded (`unloaded` set).
 struct SceneEntry {
-  std::shared_ptr<Scene> scene;
+  std::optional<SceneHandle> scene;
   std::optional<UnloadedScene> unloaded;
-  std::shared_ptr<Scene3> scene3 = nullptr;
-  const std::string& id() const {
-    return scene ? scene->id() : scene3 ? scene3->id() : unloaded->settings.id;
-  }
+  const std::string& id() const { return scene ? scene->id() : unloaded->settings.id; }
+};
+
+// What renders the registry's scenes: the seam's two sides (render/scene/renderer.h). Either
+// may be null: then no frame of that dimension ever comes (a test's registry, say).
+struct Renderers {
+  Renderer* plane = nullptr;   // 2D scenes
+  Renderer3* space = nullptr;  // 3D scenes
 };
 
 // Thread-safe. Threading rules:
@@ -65,11 +67,12 @@ struct SceneEntry {
 // (Scene::Install, the step Apply shares) and the render threads are told.
 class SceneRegistry {
  public:
-  // `store` and `renderer` must outlive the registry; `renderer` may be null (nothing is
-  // rendered: frames never come), `metrics` too. Until Load() has run the registry is empty
-  // and loaded() is false.
-  SceneRegistry(SceneStore* store, RenderLoop* renderer, ServerLimits limits,
+  // `store` and the renderers must outlive the registry; `metrics` may be null. Until Load()
+  // has run the registry is empty and loaded() is false.
+  SceneRegistry(SceneStore* store, Renderers renderers, ServerLimits limits,
                 Metrics* metrics = nullptr);
+  // Stops the renderers first (their threads publish frames whose waiters resume on this
+  // registry's lanes), then finishes what the lanes hold.
   ~SceneRegistry();
   SceneRegistry(const SceneRegistry&) = delete;
   SceneRegistry& operator=(const SceneRegistry&) = delete;
@@ -79,15 +82,11 @@ class SceneRegistry {
   absl::Status Load();
   bool loaded() const;
 
-  // A new scene at version 1 with no sites. ALREADY_EXISTS for an id stored or being
-  // created; RESOURCE_EXHAUSTED past --max-scenes or --max-memory. CreateScene makes 2D
-  // scenes, CreateScene3 3D ones (settings.three_d()).
-  absl::StatusOr<std::shared_ptr<Scene>> CreateScene(SceneSettings settings);
-  absl::StatusOr<std::shared_ptr<Scene3>> CreateScene3(SceneSettings settings);
-  // The loaded scene; NOT_FOUND naming it, FAILED_PRECONDITION for an unloaded one, or for a
-  // scene of the other dimension (naming what it is).
-  absl::StatusOr<std::shared_ptr<Scene>> Find(const std::string& id) const;
-  absl::StatusOr<std::shared_ptr<Scene3>> Find3(const std::string& id) const;
+  // A new scene at version 1 with no sites, of the dimension its settings say. ALREADY_EXISTS
+  // for an id stored or being created; RESOURCE_EXHAUSTED past --max-scenes or --max-memory.
+  absl::StatusOr<SceneHandle> CreateScene(SceneSettings settings);
+  // The loaded scene; NOT_FOUND naming it, FAILED_PRECONDITION for an unloaded one.
+  absl::StatusOr<SceneHandle> Find(const std::string& id) const;
   // The scene, loaded or not; NOT_FOUND naming it.
   absl::StatusOr<SceneEntry> Describe(const std::string& id) const;
   // Every scene, loaded or not, in id order.
@@ -96,16 +95,15 @@ class SceneRegistry {
   // waiters fail with NOT_FOUND and its watchers are told. NOT_FOUND when there is none.
   absl::Status DeleteScene(const std::string& id);
 
-  // Inserts or replaces sites, atomically; returns the scene's new version once the change
-  // is durable (Durability says when that is).
+  // Inserts or replaces sites (a 2D scene's Site or a 3D scene's Site3), atomically; returns
+  // the scene's new version once the change is durable (Durability says when that is).
+  // FAILED_PRECONDITION when the scene is of the other dimension.
   // CONTRACT: sites are valid and their ids distinct.
   absl::StatusOr<uint64_t> UpsertSites(const std::string& scene_id, std::vector<Site> sites,
                                        Durability durability = Durability::kSync);
-  // The same for a 3D scene's sites.
-  absl::StatusOr<uint64_t> UpsertSites3(const std::string& scene_id, std::vector<Site3> sites,
-                                        Durability durability = Durability::kSync);
-  // Removes sites of a scene of either dimension, atomically; NOT_FOUND naming the first
-  // unknown id.
+  absl::StatusOr<uint64_t> UpsertSites(const std::string& scene_id, std::vector<Site3> sites,
+                                       Durability durability = Durability::kSync);
+  // Removes sites, atomically; NOT_FOUND naming the first unknown id.
   // CONTRACT: ids are distinct.
   absl::StatusOr<uint64_t> DeleteSites(const std::string& scene_id,
                                        const std::vector<std::string>& ids,
@@ -158,7 +156,8 @@ class SceneRegistry {
   // Runs `job` on answers() (frames' waiters resume there).
   Executor executor();
 
-  // Renders zoom windows of a frame (render/gl/zoom.h); UNAVAILABLE without a renderer.
+  // Renders zoom windows of a frame (Renderer::RenderWindows); UNAVAILABLE without a
+  // renderer.
   absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> Zoom(
       std::shared_ptr<const Frame> base, RenderMode mode, std::vector<Grid> grids);
 
@@ -172,22 +171,13 @@ class SceneRegistry {
   // Runs one store call, timing it for the metrics.
   template <class StoreCall>
   absl::Status Durably(StoreCall store_call) const;
-  // The write path's end for a scene whose snapshot changed: renders it.
-  void Published(const std::shared_ptr<Scene>& scene);
-  void Published(const std::shared_ptr<Scene3>& scene);
-  // The scenes of one dimension (guarded by mu_).
-  template <class S>
-  std::map<std::string, std::shared_ptr<S>>& Scenes();
-  template <class S>
-  const std::map<std::string, std::shared_ptr<S>>& Scenes() const;
-  // The shared steps of CreateScene, Find, UpsertSites and Apply, for either dimension.
-  template <class S>
-  absl::StatusOr<std::shared_ptr<S>> Create(SceneSettings settings);
-  template <class S>
-  absl::StatusOr<std::shared_ptr<S>> FindOf(const std::string& id) const;
-  template <class S>
-  absl::StatusOr<uint64_t> Upsert(const std::string& scene_id,
-                                  std::vector<typename S::Site> sites, Durability durability);
+  // The write path's end for a scene whose snapshot changed: its renderer renders it.
+  void Published(const SceneHandle& scene);
+  // UpsertSites of either dimension's sites.
+  template <class SiteT>
+  absl::StatusOr<uint64_t> Upsert(const std::string& scene_id, std::vector<SiteT> sites,
+                                  Durability durability);
+  // Apply's steps on a scene of S's dimension.
   template <class S>
   absl::StatusOr<uint64_t> ApplyTo(const std::shared_ptr<S>& scene, const ChangeSet& committed);
   // Holds a stored scene if it fits --max-memory (true), else lists it unloaded.
@@ -195,33 +185,29 @@ class SceneRegistry {
   // The bytes the loaded scenes hold (the budget's own figure). Takes mu_.
   uint64_t ScenesMemory() const;
   // Runs a write (`write(scene, commit)`, commit being the Persist that names the scene's
-  // incarnation and the durability asked for) on the scene `scene_id` of kind S, catching the scene up and trying again
-  // when another server wrote it first.
-  template <class S, class Write>
+  // incarnation and the durability asked for) on the scene `scene_id`, catching the scene up
+  // and trying again when another server wrote it first.
+  template <class Write>
   absl::StatusOr<uint64_t> Retrying(const std::string& scene_id, Durability durability,
                                     Write write);
   // Catch-up's steps, under follow_mu_: one scene to its head; a scene from the store.
   // `head` is the scene's head as just read, or null to read the store for it.
   absl::Status Follow(const std::string& id, const SceneHead* head);
-  template <class S>
-  absl::Status Advance(const std::shared_ptr<S>& scene, const SceneChanges& changes,
-                       uint64_t after);
+  absl::Status Advance(const SceneHandle& scene, const SceneChanges& changes, uint64_t after);
   // Drops a scene deleted in the store by another server: the one of `incarnation`, if it
   // is still the one held under the id.
   void Forget(const std::string& id, uint64_t incarnation);
   // A held scene object and the first waiter token it had not given when the heads were
   // read.
   struct WaitMark {
-    std::string id;
-    std::shared_ptr<Scene> scene;
-    std::shared_ptr<Scene3> scene3;
+    SceneHandle scene;
     uint64_t mark = 0;
   };
   // Fails the waits of versions beyond the store's heads (registered before their marks).
   void FailWaitsBeyondHeads(const std::vector<WaitMark>& marks);
 
   SceneStore* const store_;
-  RenderLoop* const renderer_;
+  const Renderers renderers_;
   const ServerLimits limits_;
   Metrics* const metrics_;
 
@@ -230,8 +216,7 @@ class SceneRegistry {
   // Guards everything below; never held across a store call.
   mutable std::mutex mu_;
   bool loaded_ = false;
-  std::map<std::string, std::shared_ptr<Scene>> scenes_;
-  std::map<std::string, std::shared_ptr<Scene3>> scenes3_;
+  std::map<std::string, SceneHandle> scenes_;
   // Ids of scenes being created (reserved, not yet committed): they count against
   // --max-scenes and refuse a second create, but are not found until committed.
   std::set<std::string> creating_;
@@ -248,11 +233,6 @@ class SceneRegistry {
   std::atomic<bool> stop_following_{false};
   std::thread follower_;
 
-  // The render thread of 3D scenes (on the CPU). It outlives the lanes, as writes that
-  // commits_ drains at destruction still mark their scenes dirty; the destructor stops it
-  // first, while answers_ can still take the waiters its last render resumes (after Stop,
-  // MarkDirty fails the waiters on the calling thread).
-  VolumeRenderer volumes_;
   // The threads that wait on the store. Declared before the lanes, which go first.
   CpuPool commit_threads_;
   // Declared last: answers_ goes first, finishing what is queued (which may still queue

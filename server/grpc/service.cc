@@ -221,15 +221,13 @@ VoronoiService::Call VoronoiService::Begin(grpc::CallbackServerContext* ctx, con
   call.status = Admit(ctx, access == Access::kWrite);
   if (call.ok() && scene_id != nullptr) {
     call.status = ValidateSceneId(*scene_id, limits_);
-    if (call.ok() && three_d) {
-      if (auto scene3 = registry_->Find3(*scene_id); scene3.ok()) {
-        call.scene3 = *scene3;
-        return call;
-      }
-    }
     if (call.ok()) {
-      auto scene = registry_->Find(*scene_id);
-      if (scene.ok()) {
+      auto found = registry_->Find(*scene_id);
+      if (!found.ok()) {
+        call.status = ToGrpc(found.status());
+      } else if (three_d && found->three_d()) {
+        call.scene3 = *found->As<Scene3>();
+      } else if (auto scene = found->As<Scene>(); scene.ok()) {
         call.scene = *scene;
       } else {
         call.status = ToGrpc(scene.status());
@@ -248,15 +246,9 @@ grpc::ServerUnaryReactor* VoronoiService::CreateScene(grpc::CallbackServerContex
   if (auto s = ToSceneSettings(*request, limits_, &settings); !s.ok()) return call.Finish(ctx, s);
   return LaneReactor::Start(call.scope, registry_->commits(), "--max-queued-writes",
                             [this, settings = std::move(settings), response]() mutable {
-                              if (settings.three_d()) {
-                                auto scene = registry_->CreateScene3(std::move(settings));
-                                if (!scene.ok()) return ToGrpc(scene.status());
-                                ToProto(**scene, response);
-                                return Status::OK;
-                              }
                               auto scene = registry_->CreateScene(std::move(settings));
                               if (!scene.ok()) return ToGrpc(scene.status());
-                              ToProto(**scene, response);
+                              scene->Visit([&](const auto& s) { ToProto(*s, response); });
                               return Status::OK;
                             });
 }
@@ -274,8 +266,8 @@ grpc::ServerUnaryReactor* VoronoiService::GetScene(grpc::CallbackServerContext* 
     return call.Finish(ctx, Status::OK);
   }
   const SceneRegistry::StoreLag lag = registry_->Lag(request->scene_id());
-  if (entry->scene3) {
-    ToProto(*entry->scene3, response);
+  if (entry->scene->three_d()) {
+    entry->scene->Visit([&](const auto& s) { ToProto(*s, response); });
     ToProto(lag, response);
     return call.Finish(ctx, Status::OK);
   }
@@ -283,7 +275,7 @@ grpc::ServerUnaryReactor* VoronoiService::GetScene(grpc::CallbackServerContext* 
   // number and the first kHiddenIds ids, computed once per frame on the CPU pool (a scan of
   // the frame's pixels).
   return LaneReactor::Start(
-      call.scope, registry_->answers(), "", [scene = entry->scene, response, lag] {
+      call.scope, registry_->answers(), "", [scene = *entry->scene->As<Scene>(), response, lag] {
         constexpr size_t kHiddenIds = 16;
         ToProto(*scene, response);
         ToProto(lag, response);
@@ -308,10 +300,8 @@ grpc::ServerUnaryReactor* VoronoiService::ListScenes(grpc::CallbackServerContext
   for (const SceneEntry& entry : registry_->List()) {
     if (entry.unloaded) {
       Describe(*entry.unloaded, response->add_scenes());
-    } else if (entry.scene3) {
-      ToProto(*entry.scene3, response->add_scenes());
     } else {
-      ToProto(*entry.scene, response->add_scenes());
+      entry.scene->Visit([&](const auto& s) { ToProto(*s, response->add_scenes()); });
     }
     if (!entry.unloaded) ToProto(registry_->Lag(entry.id()), response->mutable_scenes()->Mutable(
                                                                 response->scenes_size() - 1));
@@ -355,7 +345,7 @@ grpc::ServerUnaryReactor* VoronoiService::UpsertSites(grpc::CallbackServerContex
                               [this, id = request->scene_id(), sites = std::move(sites),
                                durability, response]() mutable {
                                 auto version =
-                                    registry_->UpsertSites3(id, std::move(sites), durability);
+                                    registry_->UpsertSites(id, std::move(sites), durability);
                                 if (!version.ok()) return ToGrpc(version.status());
                                 response->set_version(*version);
                                 return Status::OK;

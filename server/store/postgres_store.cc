@@ -346,7 +346,7 @@ absl::StatusOr<std::vector<StoredScene>> PostgresStore::Load() {
     const std::string_view scene = sites->bytes(i, 0);
     while (k < out.size() && out[k].settings.id < scene) ++k;
     if (k == out.size() || out[k].settings.id != scene) continue;  // a scene being deleted
-    if (auto s = DecodeInto(out[k].settings, sites->bytes(i, 1), &out[k].sites, &out[k].sites3);
+    if (auto s = DecodeInto(out[k].settings, sites->bytes(i, 1), &out[k].sites);
         !s.ok()) {
       return s;
     }
@@ -409,15 +409,13 @@ absl::Status PostgresStore::InTransaction(Lease& c, const char* mode, Body body)
 absl::Status PostgresStore::Commit(const ChangeSet& changes) {
   std::vector<std::string> encoded;
   std::vector<std::string_view> put_ids, put_sites, removed;
-  encoded.reserve(changes.put.size() + changes.put3.size());
-  for (const auto& site : changes.put) {
-    encoded.push_back(EncodeSite(*site));
-    put_ids.push_back(site->id);
-  }
-  for (const auto& site : changes.put3) {
-    encoded.push_back(EncodeSite(*site));
-    put_ids.push_back(site->id);
-  }
+  encoded.reserve(changes.put_count());
+  std::visit([&](const auto& sites) {
+    for (const auto& site : sites) {
+      encoded.push_back(EncodeSite(*site));
+      put_ids.push_back(site->id);
+    }
+  }, changes.put);
   for (const std::string& bytes : encoded) put_sites.push_back(bytes);
   for (const std::string& id : changes.removed) removed.push_back(id);
   const std::string scene(changes.scene_id);
@@ -511,7 +509,7 @@ absl::StatusOr<SceneChanges> PostgresStore::ReadChanges(std::string_view scene_i
       if (!out.complete) out.removed.emplace_back(r->bytes(i, 4));
       continue;
     }
-    if (auto s = DecodeInto(out.settings, bytes, &out.put, &out.put3); !s.ok()) return s;
+    if (auto s = DecodeInto(out.settings, bytes, &out.put); !s.ok()) return s;
   }
   return out;
 }

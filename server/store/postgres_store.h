@@ -22,7 +22,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "render/scene/store.h"
+#include "server/store/store.h"
 #include "server/store/rows.h"
 
 struct pg_conn;

@@ -6,12 +6,14 @@
 #include <memory>
 #include <string>
 #include <string_view>
+#include <type_traits>
+#include <variant>
 #include <vector>
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "render/scene/codec.h"
-#include "render/scene/store.h"
+#include "server/store/store.h"
 
 namespace gvd {
 
@@ -43,8 +45,9 @@ inline absl::Status StaleChange(const ChangeSet& changes, uint64_t stored, uint6
       changes.base(), ": another server wrote to it first"));
 }
 
-// Decodes a site row of `settings`' scene into `put` (or `put3` for a 3D scene): vectors of
-// sites, or of shared pointers to them. DATA_LOSS naming the scene when its bytes are damaged.
+// Decodes a site row of `settings`' scene into `sites` (AnySites or AnySharedSites), whose
+// alternative it sets to the scene's dimension. DATA_LOSS naming the scene when its bytes
+// are damaged.
 template <class T>
 void Add(std::vector<T>* out, T site) {
   out->push_back(std::move(site));
@@ -53,23 +56,24 @@ template <class T>
 void Add(std::vector<std::shared_ptr<const T>>* out, T site) {
   out->push_back(std::make_shared<const T>(std::move(site)));
 }
-template <class Sites, class Sites3>
-absl::Status DecodeInto(const SceneSettings& settings, std::string_view bytes, Sites* put,
-                        Sites3* put3) {
-  auto fail = [&](const absl::Status& status) {
-    return absl::DataLossError(
-        absl::StrCat("store: a site of scene \"", settings.id, "\": ", status.message()));
-  };
-  if (settings.three_d()) {
-    auto site = DecodeSite3(bytes);
-    if (!site.ok()) return fail(site.status());
-    Add(put3, std::move(*site));
-  } else {
-    auto site = DecodeSite(bytes);
-    if (!site.ok()) return fail(site.status());
-    Add(put, std::move(*site));
-  }
-  return absl::OkStatus();
+template <class AnyOf>
+absl::Status DecodeInto(const SceneSettings& settings, std::string_view bytes, AnyOf* sites) {
+  if (settings.three_d() && sites->index() != 1) sites->template emplace<1>();
+  return std::visit(
+      [&](auto& out) -> absl::Status {
+        using T = std::decay_t<decltype(out)>;
+        using S = std::conditional_t<std::is_same_v<T, std::vector<Site3>> ||
+                                         std::is_same_v<T, SharedSites<Site3>>,
+                                     Site3, Site>;
+        auto site = DecodeSite<S>(bytes);
+        if (!site.ok()) {
+          return absl::DataLossError(absl::StrCat("store: a site of scene \"", settings.id,
+                                                  "\": ", site.status().message()));
+        }
+        Add(&out, std::move(*site));
+        return absl::OkStatus();
+      },
+      *sites);
 }
 
 }  // namespace gvd

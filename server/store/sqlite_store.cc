@@ -150,8 +150,9 @@ constexpr const char* kNewIncarnation = "((random() & 0x7fffffffffffffff) | 1)";
 // A change set's puts as a pack (codec.h), in its order (of two puts of one id the later wins).
 std::string EncodePack(const ChangeSet& changes) {
   std::string out;
-  for (const auto& site : changes.put) AppendToPack(*site, &out);
-  for (const auto& site : changes.put3) AppendToPack(*site, &out);
+  std::visit([&](const auto& sites) {
+    for (const auto& site : sites) AppendToPack(*site, &out);
+  }, changes.put);
   return out;
 }
 absl::Status DamagedPack(std::string_view scene_id, uint64_t version) {
@@ -622,7 +623,7 @@ absl::StatusOr<std::vector<StoredScene>> SqliteStore::Load() {
   for (StoredScene& scene : scenes) {
     absl::Status read = Latest(scene.settings.id, [&](std::string_view, uint64_t, std::string_view bytes) {
       if (IsTombstone(bytes)) return absl::OkStatus();
-      return DecodeInto(scene.settings, bytes, &scene.sites, &scene.sites3);
+      return DecodeInto(scene.settings, bytes, &scene.sites);
     });
     if (!read.ok()) return read;
   }
@@ -820,7 +821,7 @@ absl::Status SqliteStore::Write(const ChangeSet& changes) {
     }
     return true;
   };
-  if (changes.put.size() + changes.put3.size() >= packing_.min_sites) {
+  if (changes.put_count() >= packing_.min_sites) {
     // One row for all of them, appended: the folder makes them site rows later.
     Statement pack(Prepared("INSERT INTO site_pack (scene, version, sites) VALUES (?, ?, ?)"));
     if (!pack.ok()) return SqliteError(db_, "storing a pack");
@@ -829,7 +830,7 @@ absl::Status SqliteStore::Write(const ChangeSet& changes) {
     pack.Blob(3, EncodePack(changes));
     if (!pack.Run()) return SqliteError(db_, "storing a pack");
     WantFold();
-  } else if (!store_all(changes.put) || !store_all(changes.put3)) {
+  } else if (!std::visit(store_all, changes.put)) {
     return SqliteError(db_, "storing a site");
   }
   for (const std::string& id : changes.removed) {
@@ -916,7 +917,7 @@ absl::StatusOr<SceneChanges> SqliteStore::ReadChanges(std::string_view scene_id,
       if (!out.complete) out.removed.emplace_back(id);
       return absl::OkStatus();
     }
-    return DecodeInto(out.settings, bytes, &out.put, &out.put3);
+    return DecodeInto(out.settings, bytes, &out.put);
   });
   if (!read.ok()) return read;
   return out;

@@ -3,7 +3,7 @@
 // store's within set_relaxed_sync's period). Commits of change sets that arrive while another is being made durable
 // share the next transaction (group commit: one fsync for all of them), each in a savepoint
 // of its own, so that one that fails rolls back alone. Sites and settings are kept in the core's byte
-// form (core/codec.h), so every site kind the core gains is stored without a schema change.
+// form (render/scene/codec.h), so every site kind the core gains is stored without a schema change.
 #pragma once
 
 #include <atomic>
@@ -20,7 +20,7 @@
 
 #include "absl/status/statusor.h"
 #include "render/scene/codec.h"
-#include "render/scene/store.h"
+#include "server/store/store.h"
 #include "server/store/rows.h"
 
 struct sqlite3;

@@ -329,7 +329,7 @@ struct InProcessServer {
     auto opened = SqliteStore::Open(dir);
     if (!opened.ok()) return false;
     store = std::move(*opened);
-    registry = std::make_unique<SceneRegistry>(store.get(), &renderer, ServerLimits{});
+    registry = std::make_unique<SceneRegistry>(store.get(), Renderers{&renderer}, ServerLimits{});
     (void)registry->Load();
     service = std::make_unique<VoronoiService>(registry.get());
     grpc::ServerBuilder builder;

@@ -1,9 +1,9 @@
 // Fuzz target: bytes as the store keeps a site or a scene's settings (the first byte picks
-// which), through the decoders the store reads them with (core/codec.h). Whatever the input:
+// which), through the decoders the store reads them with (render/scene/codec.h). Whatever the input:
 // no crash; a refusal is DATA_LOSS; what is accepted encodes back to the very same bytes and
 // keeps the contracts of Site and SceneSettings (checked here, field by field). An accepted
 // site then joins a small scene as a loaded one would, and an exact query there agrees with
-// the tests' oracle (tests/oracle.h).
+// the tests' oracle (tests/support/oracle.h).
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -78,7 +78,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     Check(std::isfinite(settings->eps) && settings->eps > 0 && settings->cone_triangles >= 3);
     return 0;
   }
-  auto site = gvd::DecodeSite(bytes);
+  auto site = gvd::DecodeSite<gvd::Site>(bytes);
   if (!site.ok()) {
     Check(site.status().code() == absl::StatusCode::kDataLoss);
     return 0;

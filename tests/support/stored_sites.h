@@ -11,8 +11,22 @@
 #include <vector>
 
 #include "render/kernel/site2.h"
+#include "server/store/store.h"
 
 namespace gvd::testing {
+
+// What a store read holds of SiteT's: a stored scene's sites, and the sites a change read
+// from the log puts; none where they are of the other dimension.
+template <class SiteT = Site>
+std::vector<SiteT> SitesOf(const StoredScene& scene) {
+  const auto* sites = std::get_if<std::vector<SiteT>>(&scene.sites);
+  return sites ? *sites : std::vector<SiteT>();
+}
+template <class SiteT = Site>
+SharedSites<SiteT> PutOf(const SceneChanges& changes) {
+  const auto* sites = std::get_if<SharedSites<SiteT>>(&changes.put);
+  return sites ? *sites : SharedSites<SiteT>();
+}
 
 inline bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 

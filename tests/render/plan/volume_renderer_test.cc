@@ -53,12 +53,20 @@ void ExpectSameVoxels(const Volume& a, const Volume& b) {
 }
 
 TEST(Scene3, RendersEachVersionAndAnswersExactly) {
-  std::vector<VolumeScanStats> renders;
-  std::mutex mu;
-  VolumeRenderer renderer([&](const Scene3&, uint64_t, const VolumeScanStats& stats, double) {
-    std::lock_guard<std::mutex> lock(mu);
-    renders.push_back(stats);
-  });
+  // What the renderer reports through the render seam.
+  struct Reports final : RenderObserver {
+    void Rendered(const std::string&, uint64_t, size_t, const RenderStats& stats,
+                  double) override {
+      std::lock_guard<std::mutex> lock(mu);
+      renders.push_back(stats);
+    }
+    void Failed(const std::string&, uint64_t, const absl::Status&) override {}
+    std::mutex mu;
+    std::vector<RenderStats> renders;
+  } reports;
+  std::vector<RenderStats>& renders = reports.renders;
+  std::mutex& mu = reports.mu;
+  VolumeRenderer renderer(&reports);
   auto scene = std::make_shared<Scene3>(Settings3());
   EXPECT_EQ(scene->settings().grid3().voxel_count(), 16u * 12 * 10);
   std::vector<Site3> sites = {
@@ -84,7 +92,31 @@ TEST(Scene3, RendersEachVersionAndAnswersExactly) {
   {
     std::lock_guard<std::mutex> lock(mu);
     ASSERT_EQ(renders.size(), 2u);
-    EXPECT_LT(renders[1].bricks, renders[0].bricks);
+    EXPECT_TRUE(renders[0].full);
+    EXPECT_FALSE(renders[1].full);
+    EXPECT_EQ(renders[0].pixels, scene->settings().grid3().voxel_count());
+    EXPECT_LT(renders[1].pixels, renders[0].pixels);
+  }
+
+  // A box of space at a resolution of its own (a zoom window): each voxel centre holds the
+  // value of the best site there, as the oracle measures it.
+  const Grid3 zoom{{1, 1, 0, 5, 4, 2}, 8, 6, 4};
+  auto windows = renderer.RenderWindows(volume, RenderMode::kExact, {zoom});
+  ASSERT_TRUE(windows.ok()) << windows.status();
+  ASSERT_EQ(windows->size(), 1u);
+  const Volume& window = *(*windows)[0];
+  EXPECT_EQ(window.version(), *v2);
+  const std::vector<Site3> moved = {{"a", PointSite3{{1.2, 1, 0}}}, sites[1], sites[2], sites[3]};
+  for (uint32_t k = 0; k < zoom.depth; ++k) {
+    for (uint32_t j = 0; j < zoom.height; ++j) {
+      for (uint32_t i = 0; i < zoom.width; ++i) {
+        const Vec3 c = zoom.Center(i, j, k);
+        Real best = INFINITY;
+        for (const Site3& s : moved) best = std::min(best, oracle3::ToGeometry(c, s.geometry));
+        ASSERT_NE(window.id_at(i, j, k), 0u);
+        EXPECT_NEAR(window.distance_at(i, j, k), double(best), 1e-5 * (1 + double(best)));
+      }
+    }
   }
 
   // Exact answers at 3D points, inside the box and out of it, with their features.

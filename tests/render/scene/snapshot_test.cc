@@ -418,7 +418,7 @@ TEST(SceneCore, RefusedWritesChangeNothing) {
   for (int i = 0; i < 5000; ++i) bulk.push_back({"bulk" + std::to_string(i), PointSite{{0.5, 0.5}}});
   bool stored = false;
   auto refused = scene.Upsert(bulk, 10000, [&](const ChangeSet& c) {
-    stored = c.put.size() == bulk.size();
+    stored = c.put_count() == bulk.size();
     return absl::UnavailableError("disk");
   });
   EXPECT_TRUE(stored);

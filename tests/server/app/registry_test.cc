@@ -1,5 +1,5 @@
-// The application core in process, with no transport (this binary links no gRPC: ctest's
-// app_links_no_grpc checks): scenes created, written, read at a version, deleted; the write
+// The application core in process, with no transport (this binary links no gRPC and no GL:
+// ctest's app_links_no_grpc and app_links_no_gl check): scenes created, written, read at a version, deleted; the write
 // path's refusals (budget, limits, a failing store) leave nothing half applied; the store
 // keeps what was acknowledged; a change committed elsewhere enters through Apply. Answers
 // are judged by the tests' own oracle (tests/support/oracle.h).
@@ -16,10 +16,11 @@
 #include <string>
 #include <vector>
 
-#include "render/gl/render_loop.h"
 #include "server/app/jobs.h"
+#include "render/plan/volume_renderer.h"
 #include "server/app/registry.h"
 #include "server/store/sqlite_store.h"
+#include "tests/server/app/registry_support.h"
 #include "tests/support/meshes3.h"
 #include "tests/support/oracle.h"
 #include "tests/support/oracle3.h"
@@ -27,24 +28,6 @@
 
 namespace gvd {
 namespace {
-
-SceneSettings Settings(const std::string& id, uint32_t side = 64) {
-  SceneSettings s;
-  s.id = id;
-  s.grid = {{0, 0, 1, 1}, side, side};
-  s.eps = s.grid.pixel_size();
-  s.cone_triangles = 3;  // a count the store takes; nothing here draws a mesh
-  return s;
-}
-
-Site Point(const std::string& id, double x, double y) { return {id, PointSite{{x, y}}}; }
-
-// Waits for a job and returns its status.
-absl::Status RunJob(const std::shared_ptr<FrameJob>& job) {
-  std::promise<absl::Status> done;
-  job->Start([&](const absl::Status& s) { done.set_value(s); });
-  return done.get_future().get();
-}
 
 using testing::TempDir;
 
@@ -72,102 +55,18 @@ class FlakyStore final : public SceneStore {
   int committed_ = 0;
 };
 
-// The render threads on the EGL device, as the server runs them (llvmpipe without a GPU):
-// null, after skipping, when no context can be made, unless GVD_REQUIRE_GL is set.
-std::unique_ptr<RenderLoop> StartRenderer() {
-  auto renderer = std::make_unique<RenderLoop>(1);
-  absl::Status s = renderer->Start(DevicePreference::kAuto);
-  if (s.ok()) return renderer;
-  const char* required = std::getenv("GVD_REQUIRE_GL");
-  if (required != nullptr && *required != '\0' && std::string(required) != "0") {
-    ADD_FAILURE() << "no EGL context, and GVD_REQUIRE_GL is set: " << s;
-  } else {
-    GTEST_LOG_(INFO) << "no EGL context: " << s;
-  }
-  return nullptr;
-}
-
 // A registry on a store in memory with no renderer: no frame ever comes.
 struct InMemory {
   std::unique_ptr<SqliteStore> store = std::move(*SqliteStore::Open(":memory:"));
-  SceneRegistry registry{store.get(), nullptr, ServerLimits{}};
+  SceneRegistry registry{store.get(), {}, ServerLimits{}};
   InMemory() { EXPECT_TRUE(registry.Load().ok()); }
 };
-
-TEST(SceneRegistry, CreateWriteReadAtAVersionDelete) {
-  auto renderer = StartRenderer();
-  if (!renderer) GTEST_SKIP() << "no EGL context";
-  auto store = SqliteStore::Open(":memory:");
-  ASSERT_TRUE(store.ok());
-  SceneRegistry registry(store->get(), renderer.get(), ServerLimits{});
-  EXPECT_FALSE(registry.loaded());
-  ASSERT_TRUE(registry.Load().ok());
-  EXPECT_TRUE(registry.loaded());
-
-  auto scene = registry.CreateScene(Settings("s"));
-  ASSERT_TRUE(scene.ok()) << scene.status();
-  EXPECT_EQ((*scene)->version(), 1u);
-  EXPECT_EQ(registry.CreateScene(Settings("s")).status().code(),
-            absl::StatusCode::kAlreadyExists);
-
-  // Sites: 200 random points, then a move of one of them.
-  std::mt19937_64 rng(7);
-  std::uniform_real_distribution<double> u(0, 1);
-  std::vector<Site> sites;
-  for (int i = 0; i < 200; ++i) sites.push_back(Point("p" + std::to_string(i), u(rng), u(rng)));
-  auto v2 = registry.UpsertSites("s", sites);
-  ASSERT_TRUE(v2.ok()) << v2.status();
-  EXPECT_EQ(*v2, 2u);
-  sites[17] = Point("p17", 0.5, 0.5);
-  auto v3 = registry.UpsertSites("s", {sites[17]});
-  ASSERT_TRUE(v3.ok()) << v3.status();
-  EXPECT_EQ(*v3, 3u);
-
-  // A read at version 3 waits for its frame, then answers as the oracle does.
-  std::vector<Vec2> points;
-  for (int i = 0; i < 2000; ++i) points.push_back({u(rng), u(rng)});
-  auto version = registry.ReadVersion(**scene, 3);
-  ASSERT_TRUE(version.ok());
-  auto job = NearestJob::Make(&registry, *scene, {points, false, false, true, *version}, nullptr);
-  ASSERT_TRUE(RunJob(job).ok());
-  EXPECT_GE(job->version(), 3u);
-  ASSERT_EQ(job->rows().size(), points.size());
-  for (size_t i = 0; i < points.size(); ++i) {
-    const oracle::Best best = oracle::BestSite(points[i], sites);
-    const AnswerRow& row = job->rows()[i];
-    ASSERT_NE(row.site_id, nullptr);
-    // The site answered is within the bound of the best, and its distance is exact.
-    EXPECT_LE(row.distance - row.error_bound, best.value + oracle::Tolerance(points[i], best.value));
-    const Site& answered = *std::find_if(sites.begin(), sites.end(),
-                                         [&](const Site& s) { return s.id == *row.site_id; });
-    EXPECT_NEAR(row.distance, oracle::Distance(points[i], answered.geometry),
-                oracle::Tolerance(points[i], row.distance));
-  }
-  // A version not reached is OUT_OF_RANGE, naming it.
-  auto ahead = registry.ReadVersion(**scene, 9);
-  EXPECT_EQ(ahead.status().code(), absl::StatusCode::kOutOfRange);
-  EXPECT_NE(ahead.status().message().find("min_version 9"), std::string::npos);
-
-  // Deleting an unknown id changes nothing: NOT_FOUND, naming it.
-  auto refused = registry.DeleteSites("s", {"p1", "nobody"});
-  EXPECT_EQ(refused.status().code(), absl::StatusCode::kNotFound);
-  EXPECT_NE(refused.status().message().find("\"nobody\""), std::string::npos);
-  EXPECT_EQ((*scene)->version(), 3u);
-  EXPECT_EQ((*scene)->site_count(), 200u);
-
-  ASSERT_TRUE(registry.DeleteScene("s").ok());
-  EXPECT_EQ(registry.Find("s").status().code(), absl::StatusCode::kNotFound);
-  EXPECT_EQ(registry.DeleteScene("s").code(), absl::StatusCode::kNotFound);
-  EXPECT_EQ(registry.UpsertSites("s", {Point("a", 0, 0)}).status().code(),
-            absl::StatusCode::kNotFound);
-  renderer->Stop();
-}
 
 TEST(SceneRegistry, AWaitingReadFailsWhenItsSceneIsDeleted) {
   // No renderer: no frame ever comes, so the read waits until the scene goes.
   InMemory in_memory;
   SceneRegistry& registry = in_memory.registry;
-  auto scene = registry.CreateScene(Settings("s"));
+  auto scene = As(registry.CreateScene(Settings("s")));
   ASSERT_TRUE(scene.ok());
   ASSERT_TRUE(registry.UpsertSites("s", {Point("a", 0.2, 0.2)}).ok());
   auto job = NearestJob::Make(&registry, *scene, {{{0.5, 0.5}}, false, false, true, 2}, nullptr);
@@ -188,7 +87,7 @@ TEST(SceneRegistry, ExactAnswersNeedNoFrame) {
   for (Diagram diagram : {Diagram::kNearest, Diagram::kFarthest}) {
     SceneSettings settings = Settings(diagram == Diagram::kNearest ? "near" : "far");
     settings.diagram = diagram;
-    auto scene = registry.CreateScene(settings);
+    auto scene = As(registry.CreateScene(settings));
     ASSERT_TRUE(scene.ok());
     std::vector<Site> sites = {Point("a", 0.1, 0.1), Point("b", 0.9, 0.2),
                                {"seg", SegmentSite{{0.2, 0.8}, {0.7, 0.9}}, 0.05, 1.5},
@@ -220,7 +119,7 @@ TEST(SceneRegistry, BudgetAndLimitsRefuseBeforeAnythingIsStored) {
   limits.max_sites_per_scene = 3;
   // Two 64x64 rasters and a few sites fit; a 512x512 raster does not.
   limits.max_memory = 2 * Scene::RasterBytes(Settings("x")) + 8000;
-  SceneRegistry registry(store->get(), nullptr, limits);
+  SceneRegistry registry(store->get(), {}, limits);
   ASSERT_TRUE(registry.Load().ok());
 
   auto big = registry.CreateScene(Settings("big", 512));
@@ -252,17 +151,18 @@ TEST(SceneRegistry, BudgetAndLimitsRefuseBeforeAnythingIsStored) {
   ASSERT_EQ(stored->size(), 2u);
   EXPECT_EQ((*stored)[0].settings.id, "a");
   EXPECT_EQ((*stored)[0].version, 2u);
-  ASSERT_EQ((*stored)[0].sites.size(), 1u);
-  EXPECT_EQ((*stored)[0].sites[0].id, "p");
+  const std::vector<Site> sites = testing::SitesOf((*stored)[0]);
+  ASSERT_EQ(sites.size(), 1u);
+  EXPECT_EQ(sites[0].id, "p");
   EXPECT_EQ((*stored)[1].version, 1u);
-  EXPECT_TRUE((*stored)[1].sites.empty());
+  EXPECT_EQ((*stored)[1].site_count(), 0u);
 }
 
 TEST(SceneRegistry, AFailedCommitChangesNothing) {
   FlakyStore store(/*allowed=*/2);  // the scene and one write
-  SceneRegistry registry(&store, nullptr, ServerLimits{});
+  SceneRegistry registry(&store, {}, ServerLimits{});
   ASSERT_TRUE(registry.Load().ok());
-  auto scene = registry.CreateScene(Settings("s"));
+  auto scene = As(registry.CreateScene(Settings("s")));
   ASSERT_TRUE(scene.ok());
   ASSERT_TRUE(registry.UpsertSites("s", {Point("a", 0.1, 0.1)}).ok());
   const uint64_t used = registry.memory_used();
@@ -285,7 +185,7 @@ TEST(SceneRegistry, LoadsWhatFitsAndKeepsTheRestStored) {
   {
     auto store = SqliteStore::Open(dir.path() + "/data");
     ASSERT_TRUE(store.ok());
-    SceneRegistry registry(store->get(), nullptr, ServerLimits{});
+    SceneRegistry registry(store->get(), {}, ServerLimits{});
     ASSERT_TRUE(registry.Load().ok());
     ASSERT_TRUE(registry.CreateScene(Settings("a")).ok());
     ASSERT_TRUE(registry.CreateScene(Settings("b")).ok());
@@ -295,7 +195,7 @@ TEST(SceneRegistry, LoadsWhatFitsAndKeepsTheRestStored) {
   ASSERT_TRUE(store.ok());
   ServerLimits limits;
   limits.max_memory = Scene::RasterBytes(Settings("x")) + 100;  // one empty scene fits
-  SceneRegistry registry(store->get(), nullptr, limits);
+  SceneRegistry registry(store->get(), {}, limits);
   ASSERT_TRUE(registry.Load().ok()) << registry.Load();
   EXPECT_TRUE(registry.Find("a").ok());
   auto b = registry.Find("b");
@@ -317,7 +217,7 @@ TEST(SceneRegistry, LoadsWhatFitsAndKeepsTheRestStored) {
 TEST(SceneRegistry, AChangeCommittedElsewhereEntersThroughApply) {
   InMemory in_memory;
   SceneRegistry& registry = in_memory.registry;
-  auto scene = registry.CreateScene(Settings("s"));
+  auto scene = As(registry.CreateScene(Settings("s")));
   ASSERT_TRUE(scene.ok());
   ASSERT_TRUE(registry.UpsertSites("s", {Point("a", 0.1, 0.1), Point("b", 0.2, 0.2)}).ok());
   // Version 3, as another server would have committed it: b moved, a removed.
@@ -346,90 +246,6 @@ TEST(SceneRegistry, AChangeCommittedElsewhereEntersThroughApply) {
   auto next = registry.UpsertSites("s", {Point("c", 0.5, 0.5)});
   ASSERT_TRUE(next.ok());
   EXPECT_EQ(*next, 4u);
-}
-
-}  // namespace
-}  // namespace gvd
-
-namespace gvd {
-namespace {
-
-// The name of the thread that calls it.
-std::string ThreadName() {
-  char name[32] = {};
-  pthread_getname_np(pthread_self(), name, sizeof name);
-  return name;
-}
-
-// A `cancelled` predicate that notes the threads that poll it: the threads a job's work runs
-// on (answers poll it as they go, an encode before it starts).
-struct Poller {
-  std::mutex mu;
-  std::set<std::string> threads;
-  std::function<bool()> Fn() {
-    return [this] {
-      std::lock_guard<std::mutex> lock(mu);
-      threads.insert(ThreadName());
-      return false;
-    };
-  }
-};
-
-TEST(SceneRegistry, LargeBatchesAndImagesRunOnTheCpuPool) {
-  auto renderer = StartRenderer();
-  if (!renderer) GTEST_SKIP() << "no EGL context";
-  // This thread stands for a transport's: what runs here is what would block it.
-  pthread_setname_np(pthread_self(), "transport");
-  auto store = SqliteStore::Open(":memory:");
-  ASSERT_TRUE(store.ok());
-  SceneRegistry registry(store->get(), renderer.get(), ServerLimits{});
-  ASSERT_TRUE(registry.Load().ok());
-  SceneSettings far = Settings("far");
-  far.diagram = Diagram::kFarthest;
-  auto near_scene = registry.CreateScene(Settings("near"));
-  auto far_scene = registry.CreateScene(far);
-  ASSERT_TRUE(near_scene.ok() && far_scene.ok());
-  std::vector<Site> sites = {Point("a", 0.2, 0.3), Point("b", 0.7, 0.6), Point("c", 0.4, 0.9)};
-  ASSERT_TRUE(registry.UpsertSites("near", sites).ok());
-  ASSERT_TRUE(registry.UpsertSites("far", sites).ok());
-  std::vector<Vec2> one = {{0.5, 0.5}};
-  std::vector<Vec2> many(NearestJob::kInlinePoints + 1, Vec2{0.5, 0.5});
-  // Wait for both frames, so that the raster answers below find them ready on this thread.
-  for (const auto& scene : {*near_scene, *far_scene}) {
-    ASSERT_TRUE(RunJob(NearestJob::Make(&registry, scene, {one, false, false, true, 2}, nullptr)).ok());
-  }
-  struct Case {
-    const char* what;
-    std::function<std::shared_ptr<FrameJob>(std::function<bool()>)> job;
-    const char* thread;  // where its work must run
-  };
-  const Case cases[] = {
-      {"a raster batch past kInlinePoints",
-       [&](auto c) { return NearestJob::Make(&registry, *near_scene, {many, false, false, true, 2}, c); },
-       "gvd-cpu"},
-      {"an exact batch past kInlineExactPoints",
-       [&](auto c) { return NearestJob::Make(&registry, *near_scene, {many, true, false, true, 2}, c); },
-       "gvd-cpu"},
-      {"one exact answer in a FARTHEST scene (every site scored)",
-       [&](auto c) { return NearestJob::Make(&registry, *far_scene, {one, true, false, true, 2}, c); },
-       "gvd-cpu"},
-      {"an image",
-       [&](auto c) {
-         ImageOptions options;
-         options.rect = (*near_scene)->settings().grid.all();
-         return ImageJob::Make(&registry, *near_scene, 2, options, c);
-       },
-       "gvd-cpu"},
-      {"one exact answer in a NEAREST scene of points (O(log n))",
-       [&](auto c) { return NearestJob::Make(&registry, *near_scene, {one, true, false, true, 2}, c); },
-       "transport"},
-  };
-  for (const Case& c : cases) {
-    Poller poller;
-    ASSERT_TRUE(RunJob(c.job(poller.Fn())).ok()) << c.what;
-    EXPECT_EQ(poller.threads, std::set<std::string>{c.thread}) << c.what;
-  }
-  renderer->Stop();
 }
 
 // ---- 3D scenes ----
@@ -471,16 +287,17 @@ TEST(SceneRegistry, A3DSceneFromCreateToReload) {
   {
     auto store = SqliteStore::Open(dir.path() + "/data");
     ASSERT_TRUE(store.ok());
-    SceneRegistry registry(store->get(), nullptr, ServerLimits{});
+    VolumeRenderer volumes;
+    SceneRegistry registry(store->get(), {nullptr, &volumes}, ServerLimits{});
     ASSERT_TRUE(registry.Load().ok());
     ASSERT_TRUE(registry.CreateScene(Settings("flat")).ok());
-    auto scene = registry.CreateScene3(Settings3("space"));
+    auto scene = As<Scene3>(registry.CreateScene(Settings3("space")));
     ASSERT_TRUE(scene.ok()) << scene.status();
     EXPECT_EQ(registry.CreateScene(Settings("space")).status().code(), absl::StatusCode::kAlreadyExists);
-    EXPECT_EQ(registry.Find("space").status().code(), absl::StatusCode::kFailedPrecondition);
-    EXPECT_EQ(registry.Find3("flat").status().code(), absl::StatusCode::kFailedPrecondition);
-    EXPECT_EQ(registry.UpsertSites3("flat", sites).status().code(), absl::StatusCode::kFailedPrecondition);
-    auto version = registry.UpsertSites3("space", sites);
+    EXPECT_EQ(As<Scene>(registry.Find("space")).status().code(), absl::StatusCode::kFailedPrecondition);
+    EXPECT_EQ(As<Scene3>(registry.Find("flat")).status().code(), absl::StatusCode::kFailedPrecondition);
+    EXPECT_EQ(registry.UpsertSites("flat", sites).status().code(), absl::StatusCode::kFailedPrecondition);
+    auto version = registry.UpsertSites("space", sites);
     ASSERT_TRUE(version.ok()) << version.status();
 
     auto job = NearestJob3::Make(&registry, *scene, {points, false, false, true, *version, true}, nullptr);
@@ -514,9 +331,10 @@ TEST(SceneRegistry, A3DSceneFromCreateToReload) {
   // Reloaded: the scene and its sites are back, and render again.
   auto store = SqliteStore::Open(dir.path() + "/data");
   ASSERT_TRUE(store.ok());
-  SceneRegistry registry(store->get(), nullptr, ServerLimits{});
+  VolumeRenderer volumes;
+  SceneRegistry registry(store->get(), {nullptr, &volumes}, ServerLimits{});
   ASSERT_TRUE(registry.Load().ok());
-  auto scene = registry.Find3("space");
+  auto scene = As<Scene3>(registry.Find("space"));
   ASSERT_TRUE(scene.ok()) << scene.status();
   EXPECT_EQ((*scene)->version(), 3u);
   EXPECT_EQ((*scene)->settings().depth, 10u);
@@ -528,7 +346,7 @@ TEST(SceneRegistry, A3DSceneFromCreateToReload) {
     EXPECT_LE(job->rows()[i].distance - oracle(points[i]), job->rows()[i].error_bound + 1e-9);
   }
   ASSERT_TRUE(registry.DeleteScene("space").ok());
-  EXPECT_EQ(registry.Find3("space").status().code(), absl::StatusCode::kNotFound);
+  EXPECT_EQ(registry.Find("space").status().code(), absl::StatusCode::kNotFound);
 }
 
 }  // namespace

@@ -18,6 +18,7 @@
 
 #include "server/app/registry.h"
 #include "server/store/postgres_store.h"
+#include "tests/server/app/registry_support.h"
 #include "tests/support/postgres.h"
 #include "tests/support/stored_sites.h"
 
@@ -26,15 +27,6 @@ namespace {
 
 using testing::SameSite;
 using testing::SharedPostgres;
-
-SceneSettings Settings(const std::string& id, uint32_t side = 32) {
-  SceneSettings s;
-  s.id = id;
-  s.grid = {{0, 0, 1, 1}, side, side};
-  s.eps = s.grid.pixel_size();
-  s.cone_triangles = 3;
-  return s;
-}
 
 
 // One server: its own connections to the shared database, its own registry (no renderer).
@@ -45,7 +37,7 @@ struct Replica {
     auto s = PostgresStore::Open(url);
     EXPECT_TRUE(s.ok()) << s.status();
     store = std::move(*s);
-    registry = std::make_unique<SceneRegistry>(store.get(), nullptr, ServerLimits());
+    registry = std::make_unique<SceneRegistry>(store.get(), Renderers{}, ServerLimits());
     EXPECT_TRUE(registry->Load().ok());
     if (follow) registry->StartFollowing();
   }
@@ -72,7 +64,7 @@ bool Eventually(const std::function<bool()>& done) {
 
 uint64_t VersionOn(const Replica& r, const std::string& id) {
   auto scene = r.registry->Find(id);
-  return scene.ok() ? (*scene)->version() : 0;
+  return scene.ok() ? scene->version() : 0;
 }
 
 // Three servers write one scene at once, over the same site ids: each acknowledged write has
@@ -132,7 +124,7 @@ TEST(Replicas, InterleavedWritesConvergeInVersionOrder) {
     SCOPED_TRACE(i);
     ASSERT_TRUE(Eventually([&] { return VersionOn(*replicas[i], "s") == head; }))
         << VersionOn(*replicas[i], "s") << " of " << head;
-    auto snapshot = (*replicas[i]->registry->Find("s"))->snapshot();
+    auto snapshot = (*As(replicas[i]->registry->Find("s")))->snapshot();
     ASSERT_EQ(snapshot->size(), want.size());
     for (const auto& [id, site] : want) {
       auto slot = snapshot->Find(id);
@@ -152,7 +144,7 @@ TEST(Replicas, AReadAtAVersionWaitsForTheLog) {
   Replica& b = *replicas[1];
   ASSERT_TRUE(a.registry->CreateScene(Settings("s")).ok());
   ASSERT_TRUE(Eventually([&] { return b.registry->Find("s").ok(); }));
-  auto on_b = *b.registry->Find("s");
+  auto on_b = *As(b.registry->Find("s"));
   for (int k = 0; k < 20; ++k) {
     auto written = a.registry->UpsertSites("s", {{"p" + std::to_string(k), PointSite{{0.5, 0.5}}}});
     ASSERT_TRUE(written.ok()) << written.status();
@@ -197,9 +189,9 @@ TEST(Replicas, DeletionsAndNewIncarnationsReachEveryServer) {
   ASSERT_TRUE(b.registry->CreateScene(Settings("s", 16)).ok());
   ASSERT_TRUE(Eventually([&] {
     auto scene = a.registry->Find("s");
-    return scene.ok() && (*scene)->settings().grid.width == 16;
+    return scene.ok() && scene->settings().grid.width == 16;
   }));
-  EXPECT_EQ((*a.registry->Find("s"))->site_count(), 0u);
+  EXPECT_EQ(a.registry->Find("s")->site_count(), 0u);
   // Deleted and made again between two reads of the follower: the incarnation tells.
   ASSERT_TRUE(b.registry->UpsertSites("s", {{"q", PointSite{{0.5, 0.5}}}}).ok());
   ASSERT_TRUE(Eventually([&] { return VersionOn(a, "s") == 2; }));
@@ -209,7 +201,7 @@ TEST(Replicas, DeletionsAndNewIncarnationsReachEveryServer) {
   ASSERT_TRUE(b.store->CreateScene(Settings("s", 8), 1).ok());
   ASSERT_TRUE(Eventually([&] {
     auto scene = a.registry->Find("s");
-    return scene.ok() && (*scene)->settings().grid.width == 8 && (*scene)->site_count() == 0;
+    return scene.ok() && scene->settings().grid.width == 8 && scene->site_count() == 0;
   }));
 }
 
@@ -231,19 +223,22 @@ TEST(Replicas, AWriteToASceneMadeAgainElsewhereIsRefused) {
   SceneSettings three_d = Settings("s", 4);
   three_d.depth = 4;
   three_d.max_z = 1;
-  ASSERT_TRUE(other.registry->CreateScene3(three_d).ok());
-  ASSERT_TRUE(other.registry->UpsertSites3("s", {{"q", PointSite3{{0.5, 0.5, 0.5}}}}).ok());
+  ASSERT_TRUE(other.registry->CreateScene(three_d).ok());
+  ASSERT_TRUE(other.registry->UpsertSites("s", std::vector<Site3>{{"q", PointSite3{{0.5, 0.5, 0.5}}}}).ok());
   // The late server's write follows version 2 of its own copy, which the store also has.
   auto written = late.registry->UpsertSites("s", {{"r", PointSite{{0.25, 0.25}}}});
   EXPECT_FALSE(written.ok());
   EXPECT_EQ(written.status().code(), absl::StatusCode::kFailedPrecondition) << written.status();
   auto stored = other.store->ReadChanges("s", 0);
   ASSERT_TRUE(stored.ok()) << stored.status();
-  EXPECT_TRUE(stored->put.empty());
-  ASSERT_EQ(stored->put3.size(), 1u);
-  EXPECT_EQ(stored->put3[0]->id, "q");
+  const auto* put = std::get_if<SharedSites<Site3>>(&stored->put);
+  ASSERT_NE(put, nullptr);  // a 3D scene's sites
+  ASSERT_EQ(put->size(), 1u);
+  EXPECT_EQ((*put)[0]->id, "q");
   EXPECT_EQ(stored->version, 2u);
-  EXPECT_TRUE(late.registry->Find3("s").ok());  // it now holds the new scene
+  auto held = late.registry->Find("s");
+  ASSERT_TRUE(held.ok()) << held.status();
+  EXPECT_TRUE(held->three_d());  // it now holds the new scene
 }
 
 }  // namespace

@@ -54,7 +54,7 @@ class RecordingStore final : public SceneStore {
 
 TEST(ServiceThreads, WritesCommitOnTheCommitThreads) {
   RecordingStore store;
-  SceneRegistry registry(&store, nullptr, ServerLimits{});
+  SceneRegistry registry(&store, {}, ServerLimits{});
   ASSERT_TRUE(registry.Load().ok());
   VoronoiService service(&registry);
   grpc::ServerBuilder builder;

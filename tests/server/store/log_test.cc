@@ -1,4 +1,4 @@
-// The store as a log (render/scene/store.h), on both engines: SQLite in a file, and a real
+// The store as a log (server/store/store.h), on both engines: SQLite in a file, and a real
 // PostgreSQL started for the test (tests/support/postgres.h). The oracle is a model kept
 // here: each version's state of a scene, built from the change sets the store acknowledged.
 // A follower at any version that applies what ReadChanges gives must hold the latest state.
@@ -24,6 +24,8 @@ namespace {
 using testing::RandomSite;
 using testing::SameSite;
 using testing::TempDir;
+using testing::SitesOf;
+using testing::PutOf;
 using testing::SharedPostgres;
 
 using State = std::map<std::string, Site>;
@@ -83,7 +85,7 @@ class LogStore : public ::testing::TestWithParam<std::string> {};
 
 State StateOf(const StoredScene& s) {
   State out;
-  for (const Site& site : s.sites) out[site.id] = site;
+  for (const Site& site : SitesOf(s)) out[site.id] = site;
   return out;
 }
 
@@ -100,7 +102,7 @@ void ExpectSame(const State& got, const State& want) {
 State Applied(State state, const SceneChanges& c) {
   if (c.complete) state.clear();
   for (const std::string& id : c.removed) state.erase(id);
-  for (const auto& site : c.put) state[site->id] = *site;
+  for (const auto& site : PutOf(c)) state[site->id] = *site;
   return state;
 }
 
@@ -245,7 +247,7 @@ TEST_P(LogStore, ASceneMadeAgainIsANewIncarnation) {
   ASSERT_TRUE(c.ok());
   EXPECT_EQ(c->incarnation, *second);
   EXPECT_EQ(c->version, 1u);
-  EXPECT_TRUE(c->put.empty());
+  EXPECT_TRUE(PutOf(*c).empty());
 }
 
 // Writers on several servers race for one scene: every version is given once, in order, and

@@ -37,6 +37,8 @@ using testing::RandomSite;
 using testing::SameBits;
 using testing::SameSite;
 using testing::TempDir;
+using testing::SitesOf;
+using testing::PutOf;
 
 std::string RandomId(std::mt19937_64& rng) {
   std::string id(1 + rng() % 12, '\0');
@@ -57,7 +59,7 @@ TEST(Codec, SitesRoundTripBitForBit) {
   std::mt19937_64 rng(11);
   for (int i = 0; i < 2000; ++i) {
     Site s = RandomSite(rng, i, RandomId(rng));
-    auto back = DecodeSite(EncodeSite(s));
+    auto back = DecodeSite<Site>(EncodeSite(s));
     ASSERT_TRUE(back.ok()) << back.status();
     EXPECT_TRUE(SameSite(s, *back)) << "site " << i;
   }
@@ -93,23 +95,23 @@ TEST(Codec, DamagedBytesAreDataLoss) {
   for (int kind = 0; kind < 5; ++kind) {
     const std::string bytes = EncodeSite(RandomSite(rng, kind, "id"));
     for (size_t n = 0; n < bytes.size(); ++n) {
-      auto s = DecodeSite(std::string_view(bytes).substr(0, n));
+      auto s = DecodeSite<Site>(std::string_view(bytes).substr(0, n));
       ASSERT_EQ(s.status().code(), absl::StatusCode::kDataLoss) << "kind " << kind << " prefix " << n;
     }
-    EXPECT_EQ(DecodeSite(bytes + "x").status().code(), absl::StatusCode::kDataLoss);
+    EXPECT_EQ(DecodeSite<Site>(bytes + "x").status().code(), absl::StatusCode::kDataLoss);
     std::string format = bytes;
     format[0] = 9;
-    EXPECT_EQ(DecodeSite(format).status().code(), absl::StatusCode::kDataLoss);
+    EXPECT_EQ(DecodeSite<Site>(format).status().code(), absl::StatusCode::kDataLoss);
     // The geometry tag follows the format byte, the id (4-byte length + 2 bytes) and the
     // three weights.
     std::string tag = bytes;
     tag[1 + 4 + 2 + 24] = 0;
-    EXPECT_EQ(DecodeSite(tag).status().code(), absl::StatusCode::kDataLoss);
+    EXPECT_EQ(DecodeSite<Site>(tag).status().code(), absl::StatusCode::kDataLoss);
   }
   // A point count far beyond the bytes present.
   std::string line = EncodeSite(Site{"l", PolylineSite{{{0, 0}, {1, 1}}}});
   line[1 + 4 + 1 + 24 + 1 + 3] = '\x7f';
-  EXPECT_EQ(DecodeSite(line).status().code(), absl::StatusCode::kDataLoss);
+  EXPECT_EQ(DecodeSite<Site>(line).status().code(), absl::StatusCode::kDataLoss);
   const std::string settings = EncodeSettings(ValidSettings());
   ASSERT_TRUE(DecodeSettings(settings).ok());
   for (size_t n = 0; n < settings.size(); ++n) {
@@ -141,11 +143,11 @@ TEST(Codec, ValuesNoAcceptedSiteHadAreDataLoss) {
   for (double m : {0.0, -2.0, nan}) bad.push_back(Site{"w", PointSite{{0, 0}}, 0, m});
   for (double r : {0.0, -1.0, nan}) bad.push_back(Site{"w", PointSite{{0, 0}}, 0, 1, r});
   for (size_t i = 0; i < bad.size(); ++i) {
-    EXPECT_EQ(DecodeSite(EncodeSite(bad[i])).status().code(), absl::StatusCode::kDataLoss) << i;
+    EXPECT_EQ(DecodeSite<Site>(EncodeSite(bad[i])).status().code(), absl::StatusCode::kDataLoss) << i;
   }
   // The same sites with their values mended decode.
-  EXPECT_TRUE(DecodeSite(EncodeSite(Site{"p", PointSite{{0, 1e300}}, 1e15, 1e-6, 1e-300})).ok());
-  EXPECT_TRUE(DecodeSite(EncodeSite(Site{"g", PolygonSite{{{0, 0}, {1, 1}, {0, 0}}}})).ok());
+  EXPECT_TRUE(DecodeSite<Site>(EncodeSite(Site{"p", PointSite{{0, 1e300}}, 1e15, 1e-6, 1e-300})).ok());
+  EXPECT_TRUE(DecodeSite<Site>(EncodeSite(Site{"g", PolygonSite{{{0, 0}, {1, 1}, {0, 0}}}})).ok());
 
   std::vector<SceneSettings> scenes(7, ValidSettings());
   scenes[0].id.clear();
@@ -189,8 +191,9 @@ void ExpectStoreHolds(SqliteStore& store, const StoreModel& model) {
     EXPECT_EQ(scene.settings.grid.width, 32u);
     EXPECT_TRUE(SameBits(scene.settings.eps, 0.25));
     const SceneModel& sites = model.sites.at(scene.settings.id);
-    ASSERT_EQ(scene.sites.size(), sites.size());
-    for (const Site& site : scene.sites) {
+    const std::vector<Site> stored = SitesOf(scene);
+    ASSERT_EQ(stored.size(), sites.size());
+    for (const Site& site : stored) {
       auto it = sites.find(site.id);
       ASSERT_NE(it, sites.end()) << site.id;
       EXPECT_TRUE(SameSite(site, it->second)) << site.id;
@@ -637,7 +640,7 @@ TEST(Store, ASchemaVersion1StoreBecomesALog) {
   ASSERT_TRUE(changes.ok()) << changes.status();
   EXPECT_EQ(changes->version, 7u);
   EXPECT_NE(changes->incarnation, 0u);
-  EXPECT_TRUE(changes->put.empty());  // written before version 3, as far as the log knows
+  EXPECT_TRUE(PutOf(*changes).empty());  // written before version 3, as far as the log knows
   std::vector<std::string> removed = {"p"};
   ASSERT_TRUE((*store)->Commit({"a", 8, {}, removed}).ok());
   changes = (*store)->ReadChanges("a", 7);
@@ -715,7 +718,7 @@ TEST(Store, ChangeSetsNameWhatAWriteDid) {
   ASSERT_TRUE(scene
                   .Upsert({{"b", PointSite{{0.3, 0.3}}}, {"c", PointSite{{0.4, 0.4}}}}, 10,
                           [&](const ChangeSet& c) {
-                            for (const auto& s : c.put) put_ids.push_back(s->id);
+                            for (const auto& s : c.Put<Site>()) put_ids.push_back(s->id);
                             version = c.version;
                             EXPECT_EQ(c.scene_id, "c");
                             EXPECT_TRUE(c.removed.empty());
@@ -728,7 +731,7 @@ TEST(Store, ChangeSetsNameWhatAWriteDid) {
                   .Delete({"a", "c"},
                           [&](const ChangeSet& c) {
                             removed.assign(c.removed.begin(), c.removed.end());
-                            EXPECT_TRUE(c.put.empty());
+                            EXPECT_EQ(c.put_count(), 0u);
                             EXPECT_EQ(c.version, 4u);
                             return absl::OkStatus();
                           })
@@ -774,7 +777,8 @@ void CheckALaterPutWins(const SqliteStore::Packing& packing, uint64_t fold_chunk
     ASSERT_TRUE(scenes.ok()) << scenes.status();
     ASSERT_EQ(scenes->size(), 1u);
     std::map<std::string, const Site*> stored;
-    for (const Site& site : scenes->front().sites) stored[site.id] = &site;
+    const std::vector<Site> front = SitesOf(scenes->front());
+    for (const Site& site : front) stored[site.id] = &site;
     ASSERT_EQ(stored.size(), 4u);
     EXPECT_TRUE(SameSite(*stored["a"], *put[5])) << "the last of a's three puts";
     EXPECT_TRUE(SameSite(*stored["same-prefix-a"], *put[2]));
@@ -832,7 +836,7 @@ TEST(Store, ATombstoneOutlivesTheUnfoldedPackItHides) {
   // A follower at version 1 (before the pack) and one at version 2 (after it).
   auto sorted_ids = [](const SceneChanges& c) {
     std::set<std::string> out;
-    for (const auto& site : c.put) out.insert(site->id);
+    for (const auto& site : PutOf(c)) out.insert(site->id);
     return out;
   };
   for (uint64_t after : {1u, 2u}) {
@@ -854,7 +858,7 @@ TEST(Store, ATombstoneOutlivesTheUnfoldedPackItHides) {
     auto scenes = (*store)->Load();
     EXPECT_TRUE(scenes.ok()) << scenes.status();
     if (scenes.ok()) {
-      for (const Site& site : scenes->front().sites) out.insert(site.id);
+      for (const Site& site : SitesOf(scenes->front())) out.insert(site.id);
     }
     return out;
   };
@@ -915,7 +919,8 @@ TEST(Store, AFoldPartWayThroughAPackKnowsItFromANewOneOfItsVersion) {
     ASSERT_TRUE(scenes.ok()) << scenes.status();
     ASSERT_EQ(scenes->size(), 1u);
     std::map<std::string, const Site*> stored;
-    for (const Site& site : scenes->front().sites) stored[site.id] = &site;
+    const std::vector<Site> front = SitesOf(scenes->front());
+    for (const Site& site : front) stored[site.id] = &site;
     ASSERT_EQ(stored.size(), fresh.size());
     for (const auto& site : fresh) {
       ASSERT_TRUE(stored.count(site->id)) << site->id;
@@ -941,7 +946,7 @@ std::vector<Site3> Sites3() {
 
 TEST(Codec, Sites3RoundTripBitForBit) {
   for (const Site3& s : Sites3()) {
-    auto back = DecodeSite3(EncodeSite(s));
+    auto back = DecodeSite<Site3>(EncodeSite(s));
     ASSERT_TRUE(back.ok()) << s.id << ": " << back.status();
     EXPECT_EQ(back->id, s.id);
     EXPECT_TRUE(SameBits(back->additive, s.additive) && SameBits(back->multiplicative, s.multiplicative) &&
@@ -973,23 +978,23 @@ TEST(Codec, Damaged3DBytesAreDataLoss) {
   for (const Site3& s : Sites3()) {
     const std::string bytes = EncodeSite(s);
     for (size_t n = 0; n < bytes.size(); ++n) {
-      ASSERT_EQ(DecodeSite3(std::string_view(bytes).substr(0, n)).status().code(),
+      ASSERT_EQ(DecodeSite<Site3>(std::string_view(bytes).substr(0, n)).status().code(),
                 absl::StatusCode::kDataLoss)
           << s.id << " prefix " << n;
     }
-    EXPECT_EQ(DecodeSite3(bytes + "x").status().code(), absl::StatusCode::kDataLoss);
+    EXPECT_EQ(DecodeSite<Site3>(bytes + "x").status().code(), absl::StatusCode::kDataLoss);
     // A 2D site's bytes are no 3D site, and the other way round.
-    EXPECT_EQ(DecodeSite(bytes).status().code(), absl::StatusCode::kDataLoss) << s.id;
+    EXPECT_EQ(DecodeSite<Site>(bytes).status().code(), absl::StatusCode::kDataLoss) << s.id;
   }
-  EXPECT_EQ(DecodeSite3(EncodeSite(Site{"p", PointSite{{1, 2}}})).status().code(),
+  EXPECT_EQ(DecodeSite<Site3>(EncodeSite(Site{"p", PointSite{{1, 2}}})).status().code(),
             absl::StatusCode::kDataLoss);
   // A mesh whose triangle names a vertex past the end, or a NaN coordinate.
   Site3 mesh = Sites3()[3];
   std::string bad = EncodeSite(mesh);
   bad[bad.size() - 1] = '\x7f';  // the last index's high byte
-  EXPECT_EQ(DecodeSite3(bad).status().code(), absl::StatusCode::kDataLoss);
+  EXPECT_EQ(DecodeSite<Site3>(bad).status().code(), absl::StatusCode::kDataLoss);
   Site3 nan{"n", PointSite3{{NAN, 0, 0}}};
-  EXPECT_EQ(DecodeSite3(EncodeSite(nan)).status().code(), absl::StatusCode::kDataLoss);
+  EXPECT_EQ(DecodeSite<Site3>(EncodeSite(nan)).status().code(), absl::StatusCode::kDataLoss);
 }
 
 TEST(Codec, Settings3RoundTripAnd2DKeepsItsFormat) {
@@ -1024,7 +1029,7 @@ TEST(Store, Keeps3DScenesAcrossReopens) {
     ASSERT_TRUE((*store)->CreateScene(settings, 1).ok());
     Scene3 scene(settings);
     auto commit = [&](const ChangeSet& c) {
-      EXPECT_TRUE(c.put.empty());
+      EXPECT_TRUE(c.Put<Site>().empty());  // a 3D scene's change puts Site3s
       return (*store)->Commit(c);
     };
     ASSERT_TRUE(scene.Upsert(Sites3(), 10, commit).ok());
@@ -1038,9 +1043,9 @@ TEST(Store, Keeps3DScenesAcrossReopens) {
   const StoredScene& back = (*loaded)[0];
   EXPECT_EQ(back.settings.depth, 16u);
   EXPECT_EQ(back.version, 3u);
-  EXPECT_TRUE(back.sites.empty());
+  EXPECT_TRUE(SitesOf(back).empty());
   std::vector<std::string> ids;
-  for (const Site3& s : back.sites3) ids.push_back(s.id);
+  for (const Site3& s : SitesOf<Site3>(back)) ids.push_back(s.id);
   std::sort(ids.begin(), ids.end());
   EXPECT_EQ(ids, (std::vector<std::string>{"m", "t", "w"}));
 }

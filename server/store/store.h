@@ -1,7 +1,7 @@
-// Where scenes are made durable: the interface the scene core commits through. The server
-// opens one engine (SQLite, server/store/sqlite_store.h, for one server; PostgreSQL,
-// server/store/postgres_store.h, shared by replicas) and hands it to nothing but this
-// interface.
+// Where scenes are made durable: the interface the application core commits through and
+// replicas follow. The server opens one engine (SQLite, server/store/sqlite_store.h, for one
+// server; PostgreSQL, server/store/postgres_store.h, shared by replicas) and hands it to
+// nothing but this interface.
 //
 // The store is a log as well as a state. Each site's row carries the version that last put
 // or removed it (a removal leaves a tombstone), so the rows a scene's versions after V wrote
@@ -12,74 +12,51 @@
 // are dropped (the scene's horizon moves up); a follower from before the horizon reads the
 // scene's whole state instead.
 //
-// Sites are kept in the core's own form (core/codec.h), as validated when they were
-// accepted: a reload rebuilds snapshots without converting or checking requests again.
+// Sites are kept in the scene core's own byte form (render/scene/codec.h), as validated when
+// they were accepted: a reload rebuilds snapshots without converting or checking requests
+// again.
 #pragma once
 
 #include <chrono>
 #include <cstdint>
 #include <memory>
-#include <span>
 #include <string>
 #include <string_view>
 #include <thread>
-#include <type_traits>
+#include <variant>
 #include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "render/scene/settings.h"
 #include "render/kernel/site2.h"
 #include "render/kernel/site3.h"
+#include "render/scene/change.h"
+#include "render/scene/settings.h"
 
 namespace gvd {
 
-// A scene as stored: its settings, its version and its sites (a 3D scene's in sites3).
+// Sites of a scene of either dimension, as a store reads them.
+using AnySites = std::variant<std::vector<Site>, std::vector<Site3>>;
+template <class S>
+using SharedSites = std::vector<std::shared_ptr<const S>>;
+using AnySharedSites = std::variant<SharedSites<Site>, SharedSites<Site3>>;
+// The sites as a change puts them (a view of `sites`).
+template <class S>
+AnySitesPut AsPut(const SharedSites<S>& sites) {
+  return SitesPut<S>(sites);
+}
+
+// A scene as stored: its settings, its version and its sites (of the scene's dimension).
 struct StoredScene {
   SceneSettings settings;
   uint64_t version = 0;
   // Which creation of the scene's id this is: a scene deleted and made again under the same
   // id has another (chosen by the engine; 0 in an engine that does not tell).
   uint64_t incarnation = 0;
-  std::vector<Site> sites;
-  std::vector<Site3> sites3;
-};
+  AnySites sites;
 
-// When a commit counts as made: kSync, durable before the call returns (it survives a power
-// loss); kRelaxed, written to the store before the call returns (it survives a crash of the
-// server) and durable a bounded time later (the engine's: SqliteStore's flusher, the
-// database's WAL writer), for interactive edits that would otherwise wait on a disk flush
-// each.
-enum class Durability : uint8_t { kSync, kRelaxed };
-
-// One accepted write of one scene: the sites it puts (inserted or replaced) and the ids it
-// removes, and the version it brings the scene to. A view: valid during the call it is
-// passed to.
-struct ChangeSet {
-  std::string_view scene_id;
-  uint64_t version = 0;  // the version it brings the scene to
-  std::span<const std::shared_ptr<const Site>> put;
-  std::span<const std::string> removed;
-  // A 3D scene's sites put (a 2D scene's change has none; a 3D scene's, no `put`).
-  std::span<const std::shared_ptr<const Site3>> put3 = {};
-  // The version it follows: 0 for version - 1 (a write); lower for the net change of
-  // several versions a follower read (SceneChanges).
-  uint64_t follows = 0;
-  // The incarnation of the scene it was made for (StoredScene::incarnation): the engine
-  // refuses it (ABORTED) when the scene's id now names another one. 0: not checked.
-  uint64_t incarnation = 0;
-  Durability durability = Durability::kSync;
-
-  uint64_t base() const { return follows != 0 ? follows : version - 1; }
-
-  // The sites put, of the kind a scene of K's sites holds.
-  template <class S>
-  std::span<const std::shared_ptr<const S>> Put() const {
-    if constexpr (std::is_same_v<S, Site3>) {
-      return put3;
-    } else {
-      return put;
-    }
+  size_t site_count() const {
+    return std::visit([](const auto& s) { return s.size(); }, sites);
   }
 };
 
@@ -101,13 +78,13 @@ struct SceneChanges {
   uint64_t incarnation = 0;
   uint64_t version = 0;
   bool complete = false;
-  std::vector<std::shared_ptr<const Site>> put;
-  std::vector<std::shared_ptr<const Site3>> put3;
+  AnySharedSites put;  // of the scene's dimension
   std::vector<std::string> removed;
 
   // The change as the scene core applies it, following `after` (a view of this object).
   ChangeSet View(uint64_t after) const {
-    return {settings.id, version, put, removed, put3, after};
+    return {settings.id, version, std::visit([](const auto& sites) { return AsPut(sites); }, put),
+            removed, after};
   }
 };
 

@@ -1,5 +1,5 @@
-// What one render did and what it cost, as a render thread reports it (metrics, logs,
-// benchmarks). No GL.
+// What one render did and what it cost, as a renderer reports it (metrics, logs, benchmarks):
+// a 2D scene's frame drawn by the render threads, or a 3D scene's volume scanned on the CPU.
 #pragma once
 
 #include <cstddef>
@@ -19,10 +19,11 @@ struct RenderStats {
   double readback_seconds = 0;
   PixelRect window;            // bounds the pixels redrawn and read back
   size_t windows = 0;          // separate windows redrawn
-  uint64_t pixels = 0;         // pixels redrawn and read back
+  uint64_t pixels = 0;         // pixels redrawn and read back (a volume's: voxels rendered)
   bool full = false;           // a render from scratch
-  bool computed = false;       // by Rasterizer::Compute (no mesh drawn)
-  double candidates_per_pixel = 0;  // when computed: the mean length of the lists scanned
+  bool computed = false;       // by a scan of candidate lists (no mesh drawn); volumes always
+  // When computed: the mean length of the candidate lists a pixel (voxel) scanned.
+  double candidates_per_pixel = 0;
 };
 
 }  // namespace gvd
