@@ -25,19 +25,20 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
-#include "server/flags.h"
-#include "server/grpc/auth.h"
-#include "server/http/http.h"
-#include "server/log.h"
-#include "server/app/memory.h"
-#include "server/metrics.h"
-#include "server/render_telemetry.h"
 #include "render/gl/render_loop.h"
 #include "render/plan/volume_renderer.h"
+#include "server/app/auth.h"
+#include "server/app/legacy_records.h"
+#include "server/app/memory.h"
 #include "server/app/registry.h"
+#include "server/app/service.h"
+#include "server/flags.h"
 #include "server/grpc/service.h"
+#include "server/http/http.h"
 #include "server/http/web_app.h"
-#include "server/grpc/legacy_records.h"
+#include "server/log.h"
+#include "server/metrics.h"
+#include "server/render_telemetry.h"
 #include "server/store/postgres_store.h"
 #include "server/store/sqlite_store.h"
 
@@ -364,7 +365,9 @@ int main(int argc, char** argv) {
   auto registry =
       std::make_unique<gvd::SceneRegistry>(store->get(), gvd::Renderers{&renderer, &volumes},
                                             flags.limits, &metrics);
-  gvd::VoronoiService service(registry.get(), auth ? &*auth : nullptr, &metrics);
+  // The application core's calls, and the gRPC transport over them (HTTP's comes below).
+  gvd::Service core(registry.get(), auth ? &*auth : nullptr, &metrics);
+  gvd::VoronoiService service(&core);
   metrics.SetMemoryLimit(flags.limits.max_memory);
   gvd::Log(gvd::LogLevel::kInfo, "memory_budget",
            {{"max_memory", absl::StrCat(flags.limits.max_memory)},
@@ -406,7 +409,7 @@ int main(int argc, char** argv) {
   server->GetHealthCheckService()->SetServingStatus(false);
   gvd::Log(gvd::LogLevel::kInfo, "listening",
            {{"address", flags.listen}, {"port", absl::StrCat(port)}});
-  // HTTP: the same service, reached over an in-process channel.
+  // HTTP: the same core's calls, over the Connect protocol.
   std::unique_ptr<gvd::HttpServer> http;
   if (!flags.http_listen.empty()) {
     gvd::HttpOptions options;
@@ -421,10 +424,7 @@ int main(int argc, char** argv) {
         options.tls_client_ca = ReadFile("--tls-client-ca", flags.tls_client_ca);
       }
     }
-    grpc::ChannelArguments args;
-    args.SetMaxReceiveMessageSize(-1);
-    args.SetMaxSendMessageSize(-1);
-    auto started = gvd::HttpServer::Start(std::move(options), server->InProcessChannel(args));
+    auto started = gvd::HttpServer::Start(std::move(options), &core);
     if (!started.ok()) {
       gvd::Log(gvd::LogLevel::kError, "http_failed", {{"error", started.status().ToString()}});
       server->Shutdown();
@@ -484,13 +484,13 @@ int main(int argc, char** argv) {
   int sig = 0;
   sigwait(&signals, &sig);
   gvd::Log(gvd::LogLevel::kInfo, "shutting_down",
-           {{"signal", strsignal(sig)}, {"in_flight", absl::StrCat(service.in_flight())}});
+           {{"signal", strsignal(sig)}, {"in_flight", absl::StrCat(core.in_flight())}});
   // Drain: health says NOT_SERVING, new calls are refused, calls in flight get the grace
   // period to finish; whatever is left then is cancelled.
   stopping = true;
   if (health.joinable()) health.join();
   server->GetHealthCheckService()->SetServingStatus(false);
-  int left = service.Drain(std::chrono::milliseconds(flags.grace_ms));
+  int left = core.Drain(std::chrono::milliseconds(flags.grace_ms));
   // HTTP connections finish the response under way, idle ones close.
   if (http) http->Shutdown(std::chrono::milliseconds(std::min<uint32_t>(flags.grace_ms, 1000)));
   server->Shutdown(std::chrono::system_clock::now());

@@ -10,7 +10,8 @@ void RenderTelemetry::Rendered(const std::string& scene_id, uint64_t version, si
   if (metrics_) metrics_->ObserveRender(stats, seconds);
   const PixelRect& w = stats.window;
   Log(LogLevel::kDebug, "rendered",
-      {{"scene", scene_id}, {"version", absl::StrCat(version)},
+      {{"scene", scene_id},
+       {"version", absl::StrCat(version)},
        {"sites", absl::StrCat(sites)},
        {"full", stats.full ? "true" : "false"},
        {"window", absl::StrCat(w.x0, ",", w.y0, ",", w.x1, ",", w.y1)},

@@ -7,8 +7,8 @@
 #include <deque>
 #include <memory>
 #include <set>
-#include <utility>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -26,8 +26,7 @@ class RenderObserver {
   virtual ~RenderObserver() = default;
   virtual void Rendered(const std::string& scene_id, uint64_t version, size_t sites,
                         const RenderStats& stats, double seconds) = 0;
-  virtual void Failed(const std::string& scene_id, uint64_t version,
-                      const absl::Status& error) = 0;
+  virtual void Failed(const std::string& scene_id, uint64_t version, const absl::Status& error) = 0;
 };
 
 // Renders the scenes of one kernel's sites (a template on the scene: Scene or Scene3).

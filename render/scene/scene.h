@@ -43,6 +43,9 @@ struct SceneFrames<Kernel2> {
                                             std::shared_ptr<const SiteSnapshot> sites) {
     return Frame::Empty(s.grid, s.eps, std::move(sites));
   }
+  // The scene's grid, and the part of the plane it samples (its window).
+  static const Grid& GridOf(const SceneSettings& s) { return s.grid; }
+  static const Window& Bounds(const SceneSettings& s) { return s.grid.window; }
   // Whether the frame holds values around q (its window).
   static bool Covers(const SceneSettings& s, Vec2 q) { return s.grid.window.Contains(q); }
   // The order a batch is best answered in (OrderByTile).
@@ -65,6 +68,8 @@ struct SceneFrames<Kernel3> {
                                             std::shared_ptr<const SiteSnapshot3> sites) {
     return Volume::Empty(s.grid3(), s.diagram, std::move(sites));
   }
+  static Grid3 GridOf(const SceneSettings& s) { return s.grid3(); }
+  static Box3 Bounds(const SceneSettings& s) { return s.grid3().box; }
   static bool Covers(const SceneSettings& s, Vec3 q) { return s.grid3().box.Contains(q); }
   static std::vector<uint32_t> Order(const SceneSettings&, const std::vector<Vec3>&) { return {}; }
   // A volume's ids and values (8 bytes a voxel), and the copies of the slices a render

@@ -16,8 +16,8 @@
 
 namespace gvd {
 
-// f(std::type_identity<S>()) with S the scene type of the settings' dimension (Scene or
-// Scene3): where a scene of either dimension is made.
+// f(std::type_identity<S>()) with S the scene type of the settings' dimension: where a scene
+// of either dimension is made.
 template <class F>
 decltype(auto) ForDimension(const SceneSettings& settings, F&& f) {
   if (settings.three_d()) return f(std::type_identity<Scene3>());
@@ -30,7 +30,7 @@ class SceneHandle {
   template <class S>
   SceneHandle(std::shared_ptr<S> scene) : scene_(std::move(scene)) {}  // NOLINT: a scene is one
 
-  // f(scene), the scene as a std::shared_ptr of its own type (Scene or Scene3).
+  // f(scene), the scene as a std::shared_ptr of its own type.
   template <class F>
   decltype(auto) Visit(F&& f) const {
     return std::visit(std::forward<F>(f), scene_);
@@ -39,10 +39,10 @@ class SceneHandle {
   template <class S>
   absl::StatusOr<std::shared_ptr<S>> As() const {
     if (const auto* s = std::get_if<std::shared_ptr<S>>(&scene_)) return *s;
-    constexpr bool kWants3 = std::is_same_v<S, Scene3>;
-    return absl::FailedPreconditionError(absl::StrCat("scene \"", id(), "\" is a ",
-                                                      kWants3 ? "2D" : "3D", " scene; this call needs a ",
-                                                      kWants3 ? "3D" : "2D", " one"));
+    constexpr bool kWants3 = S::Kernel::kDimension == 3;
+    return absl::FailedPreconditionError(
+        absl::StrCat("scene \"", id(), "\" is a ", kWants3 ? "2D" : "3D",
+                     " scene; this call needs a ", kWants3 ? "3D" : "2D", " one"));
   }
   bool three_d() const { return scene_.index() == 1; }
 

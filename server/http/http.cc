@@ -4,17 +4,18 @@
 #include <google/protobuf/dynamic_message.h>
 #include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
-#include <grpcpp/generic/generic_stub.h>
 
 #include <algorithm>
 #include <atomic>
 #include <boost/asio/ssl.hpp>
+#include <boost/asio/steady_timer.hpp>
 #include <boost/asio/strand.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/ssl.hpp>
 #include <charconv>
 #include <deque>
+#include <functional>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -25,13 +26,13 @@
 #include <zlib.h>
 
 #include "absl/strings/ascii.h"
-#include "absl/strings/escaping.h"
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
 #include "absl/strings/strip.h"
+#include "gvd/v1/voronoi.pb.h"
 #include "server/log.h"
 
 namespace gvd {
@@ -47,28 +48,28 @@ using google::protobuf::MethodDescriptor;
 
 const char* const kService = "gvd.v1.Voronoi";
 
-// The Connect protocol's name and HTTP status for each gRPC code.
+// The Connect protocol's name and HTTP status for each code.
 struct ConnectCode {
   const char* name;
   http::status status;
 };
-ConnectCode ToConnect(grpc::StatusCode code) {
+ConnectCode ToConnect(absl::StatusCode code) {
   switch (code) {
-    case grpc::StatusCode::CANCELLED: return {"canceled", static_cast<http::status>(499)};
-    case grpc::StatusCode::INVALID_ARGUMENT: return {"invalid_argument", http::status::bad_request};
-    case grpc::StatusCode::DEADLINE_EXCEEDED: return {"deadline_exceeded", http::status::gateway_timeout};
-    case grpc::StatusCode::NOT_FOUND: return {"not_found", http::status::not_found};
-    case grpc::StatusCode::ALREADY_EXISTS: return {"already_exists", http::status::conflict};
-    case grpc::StatusCode::PERMISSION_DENIED: return {"permission_denied", http::status::forbidden};
-    case grpc::StatusCode::RESOURCE_EXHAUSTED: return {"resource_exhausted", http::status::too_many_requests};
-    case grpc::StatusCode::FAILED_PRECONDITION: return {"failed_precondition", http::status::bad_request};
-    case grpc::StatusCode::ABORTED: return {"aborted", http::status::conflict};
-    case grpc::StatusCode::OUT_OF_RANGE: return {"out_of_range", http::status::bad_request};
-    case grpc::StatusCode::UNIMPLEMENTED: return {"unimplemented", http::status::not_implemented};
-    case grpc::StatusCode::INTERNAL: return {"internal", http::status::internal_server_error};
-    case grpc::StatusCode::UNAVAILABLE: return {"unavailable", http::status::service_unavailable};
-    case grpc::StatusCode::DATA_LOSS: return {"data_loss", http::status::internal_server_error};
-    case grpc::StatusCode::UNAUTHENTICATED: return {"unauthenticated", http::status::unauthorized};
+    case absl::StatusCode::kCancelled: return {"canceled", static_cast<http::status>(499)};
+    case absl::StatusCode::kInvalidArgument: return {"invalid_argument", http::status::bad_request};
+    case absl::StatusCode::kDeadlineExceeded: return {"deadline_exceeded", http::status::gateway_timeout};
+    case absl::StatusCode::kNotFound: return {"not_found", http::status::not_found};
+    case absl::StatusCode::kAlreadyExists: return {"already_exists", http::status::conflict};
+    case absl::StatusCode::kPermissionDenied: return {"permission_denied", http::status::forbidden};
+    case absl::StatusCode::kResourceExhausted: return {"resource_exhausted", http::status::too_many_requests};
+    case absl::StatusCode::kFailedPrecondition: return {"failed_precondition", http::status::bad_request};
+    case absl::StatusCode::kAborted: return {"aborted", http::status::conflict};
+    case absl::StatusCode::kOutOfRange: return {"out_of_range", http::status::bad_request};
+    case absl::StatusCode::kUnimplemented: return {"unimplemented", http::status::not_implemented};
+    case absl::StatusCode::kInternal: return {"internal", http::status::internal_server_error};
+    case absl::StatusCode::kUnavailable: return {"unavailable", http::status::service_unavailable};
+    case absl::StatusCode::kDataLoss: return {"data_loss", http::status::internal_server_error};
+    case absl::StatusCode::kUnauthenticated: return {"unauthenticated", http::status::unauthorized};
     default: return {"unknown", http::status::internal_server_error};
   }
 }
@@ -77,19 +78,6 @@ ConnectCode ToConnect(grpc::StatusCode code) {
 std::string JsonString(const std::string& text);
 std::string ErrorJson(const char* code, const std::string& message) {
   return absl::StrCat("{\"code\":\"", code, "\",\"message\":", JsonString(message), "}");
-}
-
-std::string Bytes(const grpc::ByteBuffer& buffer) {
-  std::vector<grpc::Slice> slices;
-  (void)buffer.Dump(&slices);
-  std::string out;
-  for (const auto& s : slices) out.append(reinterpret_cast<const char*>(s.begin()), s.size());
-  return out;
-}
-
-grpc::ByteBuffer Buffer(const std::string& bytes) {
-  grpc::Slice slice(bytes);
-  return grpc::ByteBuffer(&slice, 1);
 }
 
 // A 5-byte Connect envelope (flags, big-endian length) and its payload.
@@ -101,13 +89,101 @@ std::string Envelope(uint8_t flags, const std::string& payload) {
   return out + payload;
 }
 
-// One HTTP/1.1 connection: requests one at a time; each RPC forwarded over the generic stub.
+// One HTTP/1.1 connection: requests one at a time; each call handed to the core.
 class SessionBase : public std::enable_shared_from_this<SessionBase> {
  public:
   virtual ~SessionBase() = default;
   // Closes the connection when it is idle now or after its current request (the drain).
   virtual void CloseWhenIdle() = 0;
 };
+
+// How a call of the service reaches the core: a unary call with its response message, or a
+// server stream with the messages its writer sends. What the HTTP transport knows of each
+// method beyond its descriptor.
+class StreamOut {
+ public:
+  virtual ~StreamOut() = default;
+  // A message written by the core, as the answer's encoding has it (JSON or binary), and the
+  // core's callback for when it is sent.
+  virtual void Message(std::string payload, std::function<void(bool)> written) = 0;
+  virtual void End(const absl::Status& status) = 0;
+};
+struct Method {
+  using Unary = std::function<void(Service*, CallPtr, const Message&, Message*, Done)>;
+  using Streaming = std::function<void(Service*, CallPtr, const Message&,
+                                       std::shared_ptr<StreamOut>, bool json)>;
+  Unary unary;          // set for a unary method
+  Streaming streaming;  // set for a server-streaming one
+};
+
+template <class Request, class Response>
+Method UnaryMethod(void (Service::*method)(CallPtr, const Request&, Response*, Done)) {
+  return {[method](Service* core, CallPtr call, const Message& request, Message* response,
+                   Done done) {
+            (core->*method)(std::move(call), static_cast<const Request&>(request),
+                            static_cast<Response*>(response), std::move(done));
+          },
+          nullptr};
+}
+
+// A server stream's writer of M, over the session's StreamOut. The core's writer lives until
+// the core finishes it.
+template <class M>
+class StreamOf final : public StreamWriter<M> {
+ public:
+  StreamOf(std::shared_ptr<StreamOut> out, bool json) : out_(std::move(out)), json_(json) {}
+  void Write(const M* message, std::function<void(bool)> written) override {
+    std::string payload;
+    if (!json_) {
+      payload = message->SerializeAsString();
+    } else if (!google::protobuf::util::MessageToJsonString(*message, &payload).ok()) {
+      payload = "{}";
+    }
+    out_->Message(std::move(payload), std::move(written));
+  }
+  void Finish(const absl::Status& status) override {
+    out_->End(status);
+    delete this;
+  }
+
+ private:
+  std::shared_ptr<StreamOut> out_;
+  const bool json_;
+};
+
+template <class Request, class M>
+Method StreamingMethod(void (Service::*method)(CallPtr, const Request&, StreamWriter<M>*)) {
+  return {nullptr, [method](Service* core, CallPtr call, const Message& request,
+                            std::shared_ptr<StreamOut> out, bool json) {
+            (core->*method)(std::move(call), static_cast<const Request&>(request),
+                            new StreamOf<M>(std::move(out), json));
+          }};
+}
+
+// Every method of gvd.v1.Voronoi, by name.
+const std::map<std::string, Method>& Methods() {
+  static const auto* methods = new std::map<std::string, Method>{
+      {"CreateScene", UnaryMethod(&Service::CreateScene)},
+      {"GetScene", UnaryMethod(&Service::GetScene)},
+      {"ListScenes", UnaryMethod(&Service::ListScenes)},
+      {"DeleteScene", UnaryMethod(&Service::DeleteScene)},
+      {"WatchScene", StreamingMethod(&Service::WatchScene)},
+      {"UpsertSites", UnaryMethod(&Service::UpsertSites)},
+      {"DeleteSites", UnaryMethod(&Service::DeleteSites)},
+      {"ListSites", UnaryMethod(&Service::ListSites)},
+      {"FindNearest", UnaryMethod(&Service::FindNearest)},
+      {"FindNearestStream", StreamingMethod(&Service::FindNearestStream)},
+      {"RenderImage", UnaryMethod(&Service::RenderImage)},
+      {"GetBoundaries", UnaryMethod(&Service::GetBoundaries)},
+      {"GetNeighbors", UnaryMethod(&Service::GetNeighbors)},
+      {"GetDelaunay", UnaryMethod(&Service::GetDelaunay)},
+      {"RenderWindow", UnaryMethod(&Service::RenderWindow)},
+      {"GetClearanceField", UnaryMethod(&Service::GetClearanceField)},
+      {"PlanPath", UnaryMethod(&Service::PlanPath)},
+      {"Pick", UnaryMethod(&Service::Pick)},
+  };
+  return *methods;
+}
 
 }  // namespace
 
@@ -147,47 +223,6 @@ std::string JsonString(const std::string& text) {
   std::string quoted;
   (void)google::protobuf::util::MessageToJsonString(value, &quoted);
   return quoted;
-}
-
-// Whether a request header is the call's metadata (as Connect servers pass them on): not the
-// HTTP connection's, the body's or the protocol's own, nor the browser's (cookies included).
-// Names gRPC would refuse (any but lower-case letters, digits, '-', '_' and '.') are not.
-bool IsMetadata(const std::string& name) {
-  static const std::set<std::string> kNot = {
-      "host", "connection", "keep-alive", "proxy-connection", "transfer-encoding", "upgrade",
-      "te", "trailer", "content-type", "content-length", "content-encoding", "accept",
-      "accept-encoding", "accept-language", "user-agent", "origin", "referer", "cookie",
-      "authorization", "expect", "cache-control", "pragma", "priority", "dnt"};
-  if (name.empty() || kNot.count(name) > 0) return false;
-  for (const char* prefix : {"connect-", "grpc-", "access-control-", "sec-", "proxy-"}) {
-    if (absl::StartsWith(name, prefix)) return false;
-  }
-  for (char c : name) {
-    if (!absl::ascii_islower(c) && !absl::ascii_isdigit(c) && c != '-' && c != '_' && c != '.') {
-      return false;
-    }
-  }
-  return true;
-}
-
-// A gRPC metadata value as an HTTP header's: binary ("-bin") in base64.
-std::string HeaderValue(const grpc::string_ref& key, const grpc::string_ref& value) {
-  std::string v(value.data(), value.size());
-  return absl::EndsWith(absl::string_view(key.data(), key.size()), "-bin") ? absl::Base64Escape(v)
-                                                                             : v;
-}
-
-using Metadata = std::vector<std::pair<std::string, std::string>>;
-
-// The service's metadata that an answer carries: not gRPC's own.
-Metadata AnswerMetadata(const std::multimap<grpc::string_ref, grpc::string_ref>& md) {
-  Metadata out;
-  for (const auto& [k, v] : md) {
-    absl::string_view key(k.data(), k.size());
-    if (absl::StartsWith(key, "grpc-") || absl::StartsWith(key, ":")) continue;
-    out.emplace_back(std::string(key), HeaderValue(k, v));
-  }
-  return out;
 }
 
 // `in` gzip-compressed, fast (zlib's level 1: an answer is compressed on the request's path).
@@ -230,8 +265,9 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
                               std::string body, const std::string& timeout_ms,
                               const std::string& encoding, size_t max_bytes) {
   ConnectCall call;
-  auto refuse = [&call](grpc::StatusCode code, std::string message, int http_status = 0) {
+  auto refuse = [&call](absl::StatusCode code, std::string message, int http_status = 0) {
     call.method = nullptr;
+    call.request.reset();
     call.code = code;
     call.message = std::move(message);
     call.http_status = http_status;
@@ -241,12 +277,12 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
       google::protobuf::DescriptorPool::generated_pool()->FindMethodByName(
           absl::StrCat(kService, ".", name));
   if (method == nullptr) {
-    return refuse(grpc::StatusCode::UNIMPLEMENTED,
+    return refuse(absl::StatusCode::kUnimplemented,
                   absl::StrCat(kService, " has no method \"", name, "\""),
                   static_cast<int>(http::status::not_found));
   }
   if (!post) {
-    return refuse(grpc::StatusCode::UNIMPLEMENTED,
+    return refuse(absl::StatusCode::kUnimplemented,
                   absl::StrCat("call ", kService, "/", name, " with POST"),
                   static_cast<int>(http::status::method_not_allowed));
   }
@@ -256,7 +292,7 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
   const std::string want_json = streaming ? "application/connect+json" : "application/json";
   const std::string want_proto = streaming ? "application/connect+proto" : "application/proto";
   if (type != want_json && type != want_proto) {
-    return refuse(grpc::StatusCode::UNIMPLEMENTED,
+    return refuse(absl::StatusCode::kUnimplemented,
                   absl::StrCat("Content-Type \"", type, "\" is not supported by ", name,
                                ": send ", want_json, " (or ", want_proto, ")"),
                   static_cast<int>(http::status::unsupported_media_type));
@@ -265,7 +301,7 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
   call.content_type = call.json ? want_json : want_proto;
   const std::string coding = absl::AsciiStrToLower(absl::StripAsciiWhitespace(encoding));
   if (!coding.empty() && coding != "identity" && coding != "gzip") {
-    return refuse(grpc::StatusCode::UNIMPLEMENTED,
+    return refuse(absl::StatusCode::kUnimplemented,
                   absl::StrCat(streaming ? "Connect-Content-Encoding" : "Content-Encoding", " \"",
                                coding, "\" is not supported: send gzip or identity"));
   }
@@ -273,7 +309,7 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
   auto inflate = [&](std::string& bytes) -> std::optional<ConnectCall> {
     auto inflated = Gunzip(bytes, max_bytes);
     if (!inflated.ok()) {
-      return refuse(static_cast<grpc::StatusCode>(inflated.status().code()),
+      return refuse(inflated.status().code(),
                     std::string(inflated.status().message()),
                     0);
     }
@@ -286,19 +322,19 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
   if (streaming) {
     // One enveloped message, compressed (flag 1) only as Connect-Content-Encoding says.
     if (body.size() < 5) {
-      return refuse(grpc::StatusCode::INVALID_ARGUMENT,
+      return refuse(absl::StatusCode::kInvalidArgument,
                     "a streaming request's body must be one Connect envelope");
     }
     const bool compressed = (static_cast<uint8_t>(body[0]) & 0x01) != 0;
     if (compressed && coding != "gzip") {
-      return refuse(grpc::StatusCode::INVALID_ARGUMENT,
+      return refuse(absl::StatusCode::kInvalidArgument,
                     "the request's envelope is compressed, and Connect-Content-Encoding names "
                     "no compression");
     }
     const uint32_t n = (uint32_t(uint8_t(body[1])) << 24) | (uint32_t(uint8_t(body[2])) << 16) |
                        (uint32_t(uint8_t(body[3])) << 8) | uint32_t(uint8_t(body[4]));
     if (n != body.size() - 5) {
-      return refuse(grpc::StatusCode::INVALID_ARGUMENT,
+      return refuse(absl::StatusCode::kInvalidArgument,
                     absl::StrCat("the request's envelope says ", n, " bytes; ", body.size() - 5,
                                  " follow it"));
     }
@@ -307,10 +343,12 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
       if (auto refused = inflate(body)) return std::move(*refused);
     }
   }
-  auto* prototype =
-      google::protobuf::MessageFactory::generated_factory()->GetPrototype(method->input_type());
+  // The generated class of the input type (the pool is the generated one), which the
+  // application core takes.
+  std::unique_ptr<Message> message(google::protobuf::MessageFactory::generated_factory()
+                                       ->GetPrototype(method->input_type())
+                                       ->New());
   if (call.json) {
-    std::unique_ptr<Message> message(prototype->New());
     google::protobuf::util::JsonParseOptions parse;
     // A newer client's fields are ignored, as protobuf's JSON mapping and Connect's servers
     // do, so that it can talk to an older server.
@@ -318,24 +356,20 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
     if (auto s = google::protobuf::util::JsonStringToMessage(body.empty() ? "{}" : body,
                                                                message.get(), parse);
         !s.ok()) {
-      return refuse(grpc::StatusCode::INVALID_ARGUMENT,
+      return refuse(absl::StatusCode::kInvalidArgument,
                     absl::StrCat("the body is not a ", method->input_type()->name(), " in JSON: ",
                                  s.message().ToString()));
     }
-    call.request = message->SerializeAsString();
-  } else {
-    std::unique_ptr<Message> message(prototype->New());
-    if (!message->ParseFromString(body)) {
-      return refuse(grpc::StatusCode::INVALID_ARGUMENT,
-                    absl::StrCat("the body is not a ", method->input_type()->name(),
-                                 " in binary protobuf"));
-    }
-    call.request = std::move(body);
+  } else if (!message->ParseFromString(body)) {
+    return refuse(absl::StatusCode::kInvalidArgument,
+                  absl::StrCat("the body is not a ", method->input_type()->name(),
+                               " in binary protobuf"));
   }
+  call.request = std::move(message);
   if (!timeout_ms.empty()) {
     int64_t ms = 0;
     if (!absl::SimpleAtoi(timeout_ms, &ms) || ms <= 0) {
-      return refuse(grpc::StatusCode::INVALID_ARGUMENT,
+      return refuse(absl::StatusCode::kInvalidArgument,
                     absl::StrCat("Connect-Timeout-Ms must be a positive number, not \"",
                                  timeout_ms, "\""));
     }
@@ -347,9 +381,8 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
 
 class HttpServer::Impl {
  public:
-  Impl(HttpOptions options, std::shared_ptr<grpc::Channel> channel)
-      : options_(std::move(options)), channel_(std::move(channel)), stub_(channel_),
-        acceptor_(net::make_strand(ioc_)) {}
+  Impl(HttpOptions options, Service* core)
+      : options_(std::move(options)), core_(core), acceptor_(net::make_strand(ioc_)) {}
 
   absl::Status Start();
   void Shutdown(std::chrono::milliseconds grace);
@@ -357,7 +390,7 @@ class HttpServer::Impl {
 
   // What sessions need.
   const HttpOptions& options() const { return options_; }
-  grpc::GenericStub& stub() { return stub_; }
+  Service* core() const { return core_; }
   bool Allowed(const std::string& origin) const {
     for (const auto& o : options_.cors_origins) {
       if (o == "*" || o == origin) return true;
@@ -381,8 +414,7 @@ class HttpServer::Impl {
   void Accept();
 
   HttpOptions options_;
-  std::shared_ptr<grpc::Channel> channel_;
-  grpc::GenericStub stub_;
+  Service* const core_;
   net::io_context ioc_;
   std::optional<ssl::context> tls_;
   tcp::acceptor acceptor_;  // on a strand of its own: its handler and Shutdown's close
@@ -498,12 +530,12 @@ class Session final : public SessionBase {
   void OnRead(beast::error_code ec) {
     if (ec == http::error::body_limit) {  // a chunked body past kDrainBytes: answered, closed
       keep_alive_ = false;
-      return Error(grpc::StatusCode::RESOURCE_EXHAUSTED, TooLarge("the request body"));
+      return Error(absl::StatusCode::kResourceExhausted, TooLarge("the request body"));
     }
     if (ec) return Close();  // the peer went, timed out, or spoke no HTTP
     if (chunked_over_) {
       std::string().swap(chunked_body_);
-      return Error(grpc::StatusCode::RESOURCE_EXHAUSTED, TooLarge("the request body"));
+      return Error(absl::StatusCode::kResourceExhausted, TooLarge("the request body"));
     }
     auto req = parser_->release();
     if (req.chunked()) req.body() = std::move(chunked_body_);
@@ -525,7 +557,7 @@ class Session final : public SessionBase {
     if (length > kDrainBytes) {
       keep_alive_ = false;
       header_parser_.reset();
-      return Error(grpc::StatusCode::RESOURCE_EXHAUSTED, drain_message_);
+      return Error(absl::StatusCode::kResourceExhausted, drain_message_);
     }
     drain_parser_.emplace(std::move(*header_parser_));
     header_parser_.reset();
@@ -543,7 +575,7 @@ class Session final : public SessionBase {
                        if (ec) return self->Close();
                        if (!self->drain_parser_->is_done()) return self->DrainSome();
                        self->drain_parser_.reset();
-                       self->Error(grpc::StatusCode::RESOURCE_EXHAUSTED, self->drain_message_);
+                       self->Error(absl::StatusCode::kResourceExhausted, self->drain_message_);
                      });
   }
 
@@ -567,7 +599,7 @@ class Session final : public SessionBase {
         return StaticFile(target, req.method() == http::verb::head);
       }
       // As a Connect server answers a service it does not have: 404, unimplemented.
-      return Error(grpc::StatusCode::UNIMPLEMENTED,
+      return Error(absl::StatusCode::kUnimplemented,
                    absl::StrCat("no such service or path: ", target, " (this server has ",
                                 kService, ")"),
                    http::status::not_found);
@@ -589,154 +621,118 @@ class Session final : public SessionBase {
                    call.http_status ? std::optional(static_cast<http::status>(call.http_status))
                                     : std::nullopt);
     }
+    auto method = Methods().find(name);
+    if (method == Methods().end()) {  // a method of the proto this server does not serve
+      return Error(absl::StatusCode::kUnimplemented,
+                   absl::StrCat(kService, " has no method \"", name, "\""),
+                   http::status::not_found);
+    }
     json_ = call.json;
     content_type_ = call.content_type;
-    output_ = call.method->output_type();
-    // What the gRPC call carries of the request: its token, its deadline and the headers
-    // that are metadata (a "-bin" one's value in base64, as Connect sends binary values).
-    metadata_.clear();
-    for (const auto& field : req) {
-      std::string name = absl::AsciiStrToLower(
-          absl::string_view(field.name_string().data(), field.name_string().size()));
-      if (!IsMetadata(name)) continue;
-      std::string value(field.value().data(), field.value().size());
-      if (absl::EndsWith(name, "-bin")) {
-        std::string raw;
-        if (!absl::Base64Unescape(value, &raw) && !absl::WebSafeBase64Unescape(value, &raw)) {
-          return Error(grpc::StatusCode::INVALID_ARGUMENT,
-                       absl::StrCat("header ", name, " is binary metadata (\"-bin\"): its value "
-                                    "must be base64"));
-        }
-        value = std::move(raw);
-      } else if (!std::all_of(value.begin(), value.end(),
-                              [](char c) { return c >= 0x20 && c <= 0x7e; })) {
-        return Error(grpc::StatusCode::INVALID_ARGUMENT,
-                     absl::StrCat("header ", name, " holds a character metadata may not: only "
-                                  "printable ASCII, or base64 in a \"-bin\" header"));
+    // The call as the core takes it: the token (the Authorization header, as gRPC's
+    // "authorization" metadata), cancelled when its deadline passes.
+    call_ = std::make_shared<Call>(header(http::field::authorization));
+    ++calls_;
+    deadline_passed_ = false;
+    if (call.timeout) StartDeadline(*call.timeout);
+    if (method->second.streaming) return Stream(method->second, std::move(call.request));
+    Unary(method->second, *call.method, std::move(call.request));
+  }
+
+  // Connect-Timeout-Ms: when it passes, the call is cancelled and answered DEADLINE_EXCEEDED.
+  void StartDeadline(std::chrono::milliseconds timeout) {
+    deadline_.emplace(stream_.get_executor(), timeout);
+    deadline_->async_wait([self = Self(), generation = calls_](beast::error_code ec) {
+      if (ec || generation != self->calls_) return;  // cancelled, or a later call's
+      self->deadline_passed_ = true;
+      if (self->call_) self->call_->Cancel();
+      if (self->unary_pending_) {
+        self->unary_pending_ = false;
+        self->Error(absl::StatusCode::kDeadlineExceeded,
+                    "the call's deadline (Connect-Timeout-Ms) passed");
       }
-      metadata_.emplace_back(std::move(name), std::move(value));
-    }
-    authorization_ = std::string(req[http::field::authorization]);
-    deadline_.reset();
-    if (call.timeout) deadline_ = std::chrono::system_clock::now() + *call.timeout;
-    const std::string request = std::move(call.request);
-    const std::string path = absl::StrCat("/", kService, "/", name);
-    if (call.method->server_streaming()) return Stream(path, request);
-    Unary(path, request);
+    });
+  }
+  void StopDeadline() {
+    if (deadline_) deadline_->cancel();
   }
 
-  void Prepare(grpc::ClientContext* ctx) const {
-    if (!authorization_.empty()) ctx->AddMetadata("authorization", authorization_);
-    for (const auto& [name, value] : metadata_) ctx->AddMetadata(name, value);
-    if (deadline_) ctx->set_deadline(*deadline_);
-  }
-
-  // A unary call: the gRPC call, then one response.
-  void Unary(const std::string& path, const std::string& request) {
-    struct Call {
-      grpc::ClientContext ctx;
-      grpc::ByteBuffer request, response;
+  // A unary call: the core's call, then one response, checked against --max-message-bytes
+  // as gRPC checks what it sends.
+  void Unary(const Method& method, const MethodDescriptor& descriptor,
+             std::unique_ptr<Message> request) {
+    struct Exchange {
+      std::unique_ptr<Message> request, response;
     };
-    auto call = std::make_shared<Call>();
-    Prepare(&call->ctx);
-    call->request = Buffer(request);
-    server_->stub().UnaryCall(
-        &call->ctx, path, grpc::StubOptions(), &call->request, &call->response,
-        [self = Self(), call](grpc::Status s) {
-          net::post(self->stream_.get_executor(), [self, call, s] {
-            // The service's headers as headers, its trailers as "Trailer-" ones (Connect's
-            // unary form), on the answer or the error alike.
-            self->answer_headers_ = AnswerMetadata(call->ctx.GetServerInitialMetadata());
-            for (auto& [name, value] : AnswerMetadata(call->ctx.GetServerTrailingMetadata())) {
-              self->answer_headers_.emplace_back("trailer-" + name, std::move(value));
-            }
-            if (!s.ok()) return self->Error(s.error_code(), s.error_message());
-            std::string body = Bytes(call->response);
-            if (self->json_) {
-              auto json = self->ToJson(body);
-              if (!json) return;  // answered
-              body = std::move(*json);
-            }
-            self->Send(http::status::ok, self->content_type_, std::move(body));
-          });
-        });
+    auto exchange = std::make_shared<Exchange>();
+    exchange->request = std::move(request);
+    exchange->response.reset(google::protobuf::MessageFactory::generated_factory()
+                                 ->GetPrototype(descriptor.output_type())
+                                 ->New());
+    unary_pending_ = true;
+    method.unary(server_->core(), call_, *exchange->request, exchange->response.get(),
+                 [self = Self(), exchange, generation = calls_](const absl::Status& s) {
+                   net::post(self->stream_.get_executor(), [self, exchange, generation, s] {
+                     if (!self->unary_pending_ || generation != self->calls_) return;
+                     self->unary_pending_ = false;
+                     self->StopDeadline();
+                     if (!s.ok()) return self->Error(s.code(), std::string(s.message()));
+                     self->Answer(*exchange->response);
+                   });
+                 });
   }
 
-  // The response message in JSON; nullopt (having answered INTERNAL) when it does not parse.
-  std::optional<std::string> ToJson(const std::string& bytes) {
-    auto* prototype = google::protobuf::MessageFactory::generated_factory()->GetPrototype(output_);
-    std::unique_ptr<Message> message(prototype->New());
-    std::string json;
-    if (!message->ParseFromString(bytes) ||
-        !google::protobuf::util::MessageToJsonString(*message, &json).ok()) {
-      Error(grpc::StatusCode::INTERNAL, "the service's answer could not be written as JSON");
-      return std::nullopt;
+  // The response message, as the request's encoding asks.
+  void Answer(const Message& response) {
+    if (const size_t bytes = response.ByteSizeLong();
+        bytes > server_->options().max_body_bytes) {
+      return Error(absl::StatusCode::kResourceExhausted,
+                   absl::StrCat("the answer is ", bytes, " bytes, over the limit of ",
+                                server_->options().max_body_bytes, " (--max-message-bytes)"));
     }
-    return json;
+    std::string body;
+    if (!json_) {
+      body = response.SerializeAsString();
+    } else if (!google::protobuf::util::MessageToJsonString(response, &body).ok()) {
+      return Error(absl::StatusCode::kInternal,
+                   "the service's answer could not be written as JSON");
+    }
+    Send(http::status::ok, content_type_, std::move(body));
   }
 
   // A server-streaming call: a 200 response with chunked transfer, one envelope per message
-  // as the service sends it (the next is read when the last is written: the HTTP reader's
-  // pace is the stream's), then the end-of-stream envelope with the status. One write at a
-  // time: the call can end (OnDone) while its last message, or the header, is still being
-  // written, and the end then waits for that write.
-  class StreamCall;
-  // What the connection's strand and the call's gRPC threads share: the call, until its
-  // OnDone (after which it is gone).
-  struct CallHandle {
-    std::mutex mu;
-    StreamCall* call = nullptr;  // null once done
-  };
-  class StreamCall final : public grpc::ClientBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer> {
+  // as the core writes it (the core writes the next once the last is sent: the HTTP
+  // reader's pace is the stream's), then the end-of-stream envelope with the status. One
+  // write at a time, in order: the header, each message, the end.
+  class Out final : public StreamOut {
    public:
-    StreamCall(std::shared_ptr<Session> session, std::shared_ptr<CallHandle> handle)
-        : session_(std::move(session)), handle_(std::move(handle)) {}
-    grpc::ClientContext ctx;
-    grpc::ByteBuffer request, message;
-
-    // The call is held (AddHold) from its start: gRPC ends it (freeing the stream, then
-    // OnDone) only once the session starts no more reads, so NextRead can never start one on
-    // a freed stream. Released when a read finds the end, or when the connection broke.
-    void Release() {
-      if (!released_.exchange(true)) RemoveHold();
-    }
-    void OnReadDone(bool ok) override {
-      if (!ok) return Release();  // the stream ends: OnDone follows
-      std::string bytes = Bytes(message);
+    explicit Out(std::shared_ptr<Session> session) : session_(std::move(session)) {}
+    void Message(std::string payload, std::function<void(bool)> written) override {
       auto session = session_;
-      net::post(session->stream_.get_executor(), [session, bytes = std::move(bytes)]() mutable {
-        session->StreamMessage(std::move(bytes));
-      });
+      net::post(session->stream_.get_executor(),
+                [session, payload = std::move(payload), written = std::move(written)]() mutable {
+                  session->outgoing_.push_back({std::move(payload), std::move(written), {}});
+                  session->Pump();
+                });
     }
-    void OnDone(const grpc::Status& s) override {
-      {
-        std::lock_guard<std::mutex> lock(handle_->mu);
-        handle_->call = nullptr;
-      }
+    void End(const absl::Status& status) override {
       auto session = std::move(session_);
-      // The service's headers and trailers both: the answer's own headers went before the
-      // call began.
-      Metadata trailers = AnswerMetadata(ctx.GetServerInitialMetadata());
-      for (auto& kv : AnswerMetadata(ctx.GetServerTrailingMetadata())) trailers.push_back(kv);
-      net::post(session->stream_.get_executor(), [session, s, trailers = std::move(trailers)] {
-        session->stream_trailers_ = trailers;
-        session->StreamEnd(s);
+      net::post(session->stream_.get_executor(), [session, status] {
+        session->outgoing_.push_back({{}, nullptr, status});
+        session->Pump();
       });
-      delete this;
     }
 
    private:
     std::shared_ptr<Session> session_;
-    std::shared_ptr<CallHandle> handle_;
-    std::atomic<bool> released_{false};
+  };
+  struct Outgoing {
+    std::string payload;
+    std::function<void(bool)> written;  // a message's
+    std::optional<absl::Status> end;    // the end's
   };
 
-  void Stream(const std::string& path, const std::string& request) {
-    call_ = std::make_shared<CallHandle>();
-    auto* call = new StreamCall(Self(), call_);
-    call_->call = call;
-    Prepare(&call->ctx);
-    call->request = Buffer(request);
+  void Stream(const Method& method, std::unique_ptr<Message> request) {
     // The response header first; messages follow as they come.
     response_header_.emplace(http::status::ok, version_);
     response_header_->set(http::field::content_type, content_type_);
@@ -745,112 +741,86 @@ class Session final : public SessionBase {
     response_header_->chunked(true);
     response_header_->keep_alive(keep_alive_);
     serializer_.emplace(*response_header_);
-    beast::get_lowest_layer(stream_).expires_never();
-    server_->stub().PrepareBidiStreamingCall(&call->ctx, path, grpc::StubOptions(), call);
-    call->StartWrite(&call->request);
-    call->StartWritesDone();
-    call->AddHold();
-    call->StartCall();
+    broken_ = false;
     writing_ = true;
     beast::get_lowest_layer(stream_).expires_after(std::chrono::seconds(120));
     http::async_write_header(stream_, *serializer_, [self = Self()](beast::error_code ec, size_t) {
-      self->StreamWritten(ec);
+      self->Written(ec);
     });
+    // The request lives as long as the core's stream may read it: until its end.
+    std::shared_ptr<Message> held(std::move(request));
+    method.streaming(server_->core(), call_, *held, std::make_shared<Out>(Self()), json_);
+    held_request_ = std::move(held);
   }
 
-  // A write of the stream's is done: the end, if it came meanwhile, goes now; else the next
-  // message is asked for.
-  void StreamWritten(beast::error_code ec) {
+  // A write of the stream's is done: the next goes, if one waits.
+  void Written(beast::error_code ec) {
     writing_ = false;
     // A reader that stops reading fails the write after 120 s; between messages (a watch
     // waits for frames) there is no deadline.
     beast::get_lowest_layer(stream_).expires_never();
-    if (ec) StreamBroken();
-    if (pending_end_) {
-      const grpc::Status s = *pending_end_;
-      pending_end_.reset();
-      return StreamEnd(s);
-    }
-    if (!ec) NextRead();
+    if (ec) Broken();
+    Pump();
   }
 
-  // Asks the call for its next message, unless it is done.
-  void NextRead() {
-    if (!call_) return;
-    std::lock_guard<std::mutex> lock(call_->mu);
-    if (call_->call != nullptr) call_->call->StartRead(&call_->call->message);
-  }
-
-  void StreamMessage(std::string bytes) {
+  // The connection failed under a stream: the core hears of it at its next write, and the
+  // call is cancelled so that a stream waiting for frames ends now.
+  void Broken() {
     if (broken_) return;
-    std::string payload = std::move(bytes);
-    if (json_) {
-      auto* prototype = google::protobuf::MessageFactory::generated_factory()->GetPrototype(output_);
-      std::unique_ptr<Message> message(prototype->New());
-      std::string json;
-      if (message->ParseFromString(payload) &&
-          google::protobuf::util::MessageToJsonString(*message, &json).ok()) {
-        payload = std::move(json);
-      }
+    broken_ = true;
+    if (call_) call_->Cancel();
+  }
+
+  // Writes the next outgoing message or the end, unless a write is under way.
+  void Pump() {
+    if (writing_ || outgoing_.empty()) return;
+    Outgoing next = std::move(outgoing_.front());
+    outgoing_.pop_front();
+    if (next.end) return StreamEnd(*next.end);
+    if (broken_) {
+      next.written(false);
+      return Pump();
     }
-    auto chunk = std::make_shared<std::string>(Envelope(0, payload));
+    auto chunk = std::make_shared<std::string>(Envelope(0, next.payload));
     writing_ = true;
     beast::get_lowest_layer(stream_).expires_after(std::chrono::seconds(120));
     net::async_write(stream_, http::make_chunk(net::buffer(*chunk)),
-                     [self = Self(), chunk](beast::error_code ec, size_t) {
-                       self->StreamWritten(ec);
+                     [self = Self(), chunk, written = std::move(next.written)](
+                         beast::error_code ec, size_t) {
+                       self->Written(ec);
+                       written(!ec);
                      });
   }
 
-  void StreamEnd(const grpc::Status& s) {
-    if (writing_) {
-      pending_end_ = s;
-      return;
-    }
-    call_.reset();
+  void StreamEnd(absl::Status s) {
+    StopDeadline();
+    held_request_.reset();
     if (broken_) return Close();
-    std::vector<std::string> parts;
+    if (deadline_passed_ && !s.ok()) {
+      s = absl::DeadlineExceededError("the call's deadline (Connect-Timeout-Ms) passed");
+    }
+    std::string end = "{}";
     if (!s.ok()) {
-      const ConnectCode c = ToConnect(s.error_code());
-      parts.push_back(absl::StrCat("\"error\":", ErrorJson(c.name, s.error_message())));
+      const ConnectCode c = ToConnect(s.code());
+      end = absl::StrCat("{\"error\":", ErrorJson(c.name, std::string(s.message())), "}");
     }
-    if (!stream_trailers_.empty()) {
-      std::map<std::string, std::vector<std::string>> grouped;
-      for (const auto& [name, value] : stream_trailers_) grouped[name].push_back(JsonString(value));
-      std::vector<std::string> fields;
-      for (const auto& [name, values] : grouped) {
-        fields.push_back(absl::StrCat(JsonString(name), ":[", absl::StrJoin(values, ","), "]"));
-      }
-      parts.push_back(absl::StrCat("\"metadata\":{", absl::StrJoin(fields, ","), "}"));
-      stream_trailers_.clear();
-    }
-    const std::string end = absl::StrCat("{", absl::StrJoin(parts, ","), "}");
     auto chunk = std::make_shared<std::string>(Envelope(0x02, end));
+    writing_ = true;
     net::async_write(stream_, http::make_chunk(net::buffer(*chunk)),
                      [self = Self(), chunk](beast::error_code ec, size_t) {
                        if (ec) return self->Close();
                        net::async_write(self->stream_, http::make_chunk_last(),
                                         [self](beast::error_code ec2, size_t) {
+                                          self->writing_ = false;
                                           if (ec2 || !self->keep_alive_) return self->Close();
                                           self->Read();
                                         });
                      });
   }
 
-  // The connection failed under a stream: cancel the call; its end then closes.
-  void StreamBroken() {
-    broken_ = true;
-    if (!call_) return Close();
-    std::lock_guard<std::mutex> lock(call_->mu);
-    if (call_->call != nullptr) {
-      call_->call->ctx.TryCancel();
-      call_->call->Release();  // no read is outstanding: a write was, and it failed
-    }
-  }
-
   void Preflight() {
     if (origin_.empty() || !server_->Allowed(origin_)) {
-      return Error(grpc::StatusCode::PERMISSION_DENIED,
+      return Error(absl::StatusCode::kPermissionDenied,
                    absl::StrCat("origin \"", origin_, "\" is not allowed (--http-cors-origins)"),
                    http::status::forbidden);
     }
@@ -868,7 +838,7 @@ class Session final : public SessionBase {
     const auto& files = server_->options().files;
     auto it = files.find(path.empty() ? "/" : path);
     if (it == files.end()) {
-      return Error(grpc::StatusCode::NOT_FOUND, absl::StrCat("no such path: ", path));
+      return Error(absl::StatusCode::kNotFound, absl::StrCat("no such path: ", path));
     }
     auto res = std::make_shared<http::response<http::string_body>>(http::status::ok, version_);
     res->set(http::field::content_type, it->second.first);
@@ -893,7 +863,7 @@ class Session final : public SessionBase {
 
   // `status`, where given, is the HTTP status even for a streaming request (an unknown
   // method's 404, an unsupported content type's 415).
-  void Error(grpc::StatusCode code, const std::string& message,
+  void Error(absl::StatusCode code, const std::string& message,
              std::optional<http::status> status = std::nullopt) {
     const ConnectCode c = ToConnect(code);
     if (!stream_type_.empty() && !status) {
@@ -919,8 +889,6 @@ class Session final : public SessionBase {
       }
     }
     res->body() = std::move(body);
-    for (const auto& [name, value] : answer_headers_) res->insert(name, value);
-    answer_headers_.clear();
     Cors(*res);
     Write(res);
   }
@@ -962,16 +930,18 @@ class Session final : public SessionBase {
   unsigned version_ = 11;
   bool keep_alive_ = false, idle_ = false, closing_ = false, closed_ = false;
   bool json_ = true, broken_ = false, writing_ = false;
-  std::optional<grpc::Status> pending_end_;  // the stream's end, waiting for a write
-  std::string origin_, content_type_, authorization_;
+  std::string origin_, content_type_;
   std::string stream_type_;  // the request's Content-Type where it is a Connect stream's
   bool gzip_answer_ = false;  // the request's Accept-Encoding takes gzip
-  Metadata metadata_;         // the request's headers that are metadata
-  Metadata answer_headers_;   // the service's, for the next answer Send writes
-  Metadata stream_trailers_;  // the service's, for a stream's end
-  std::optional<std::chrono::system_clock::time_point> deadline_;
-  const google::protobuf::Descriptor* output_ = nullptr;
-  std::shared_ptr<CallHandle> call_;
+  // The call under way (null before the first): the core's, its deadline, and whether it
+  // has passed.
+  CallPtr call_;
+  std::optional<net::steady_timer> deadline_;
+  uint64_t calls_ = 0;  // the calls begun: a call's number, so that a stale callback does nothing
+  bool deadline_passed_ = false;
+  bool unary_pending_ = false;  // a unary call's answer is still to be sent
+  std::shared_ptr<Message> held_request_;  // a stream's request, until its end
+  std::deque<Outgoing> outgoing_;          // a stream's messages and end, waiting to be written
   std::optional<http::response<http::empty_body>> response_header_;
   std::optional<http::response_serializer<http::empty_body>> serializer_;
 };
@@ -1077,9 +1047,9 @@ void HttpServer::Impl::Shutdown(std::chrono::milliseconds grace) {
   threads_.clear();
 }
 
-absl::StatusOr<std::unique_ptr<HttpServer>> HttpServer::Start(
-    HttpOptions options, std::shared_ptr<grpc::Channel> channel) {
-  auto impl = std::make_unique<Impl>(std::move(options), std::move(channel));
+absl::StatusOr<std::unique_ptr<HttpServer>> HttpServer::Start(HttpOptions options,
+                                                               Service* core) {
+  auto impl = std::make_unique<Impl>(std::move(options), core);
   if (auto s = impl->Start(); !s.ok()) return s;
   return std::unique_ptr<HttpServer>(new HttpServer(std::move(impl)));
 }

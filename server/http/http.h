@@ -5,13 +5,13 @@
 // application/connect+json or +proto streams; errors as {"code": "invalid_argument",
 // "message": ...} with the matching HTTP status.
 //
-// It is a second transport, not a second implementation: each request is forwarded, as the
-// same protobuf message, to the gRPC service over an in-process channel, with its
-// Authorization header as the call's metadata and its Connect-Timeout-Ms as the deadline,
-// so every call has the same handlers, limits, tokens, metrics and drain as over gRPC. It
-// adds only what HTTP needs: TLS on its own port, CORS for the origins allowed, and a limit
-// on request bodies (--max-message-bytes). Boost.Beast, asynchronous: a connection waiting
-// on a long stream holds no thread.
+// A transport that only translates: each request is decoded into its request message and
+// handed to the application core (server/app/service.h) with its Authorization header as the
+// call's token and its Connect-Timeout-Ms as the deadline, so every call has the same
+// admission, limits, tokens, metrics and drain as over gRPC. It adds only what HTTP needs: TLS
+// on its own port, CORS for the origins allowed, and the limit on request bodies and answers
+// (--max-message-bytes). Boost.Beast, asynchronous: a connection waiting on a long stream
+// holds no thread.
 #pragma once
 
 #include <chrono>
@@ -23,9 +23,11 @@
 #include <vector>
 
 #include <google/protobuf/descriptor.h>
-#include <grpcpp/grpcpp.h>
+#include <google/protobuf/message.h>
 
+#include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "server/app/service.h"
 
 namespace gvd {
 
@@ -44,17 +46,17 @@ struct HttpOptions {
 };
 
 // A call as an HTTP request states it, decoded (the part of the transport that reads what
-// the client sent): the method named in the path, the request message as protobuf bytes
-// (parsed from JSON, or as sent), and the deadline asked for. `method` is null when the
-// request is refused: then `code` and `message` say why, and `http_status` the HTTP status
-// when it is not the code's own (0).
+// the client sent): the method named in the path, the request message (parsed from JSON, or
+// binary protobuf, into the generated class of the method's input type), and the deadline
+// asked for. `method` is null when the request is refused: then `code` and `message` say
+// why, and `http_status` the HTTP status when it is not the code's own (0).
 struct ConnectCall {
   const google::protobuf::MethodDescriptor* method = nullptr;
   bool json = false;
   std::string content_type;  // the answer's: the request's, canonical ("application/json"...)
-  std::string request;
+  std::unique_ptr<google::protobuf::Message> request;
   std::optional<std::chrono::milliseconds> timeout;
-  grpc::StatusCode code = grpc::StatusCode::OK;
+  absl::StatusCode code = absl::StatusCode::kOk;
   std::string message;
   int http_status = 0;
 };
@@ -70,15 +72,14 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
 
 class HttpServer {
  public:
-  // Listens and serves, forwarding calls over `channel` (to the gRPC service). Fails when
-  // the address cannot be bound or the TLS files do not load.
-  static absl::StatusOr<std::unique_ptr<HttpServer>> Start(
-      HttpOptions options, std::shared_ptr<grpc::Channel> channel);
+  // Listens and serves the calls of `core`, which must outlive the server. Fails when the
+  // address cannot be bound or the TLS files do not load.
+  static absl::StatusOr<std::unique_ptr<HttpServer>> Start(HttpOptions options, Service* core);
   ~HttpServer();
 
   int port() const;
-  // Stops accepting connections (those open finish the request under way; the service's
-  // drain ends the streams); closes everything left after `grace`.
+  // Stops accepting connections (those open finish the request under way; the core's drain
+  // ends the streams); closes everything left after `grace`.
   void Shutdown(std::chrono::milliseconds grace);
 
   class Impl;

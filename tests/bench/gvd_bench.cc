@@ -312,6 +312,7 @@ struct InProcessServer {
   RenderLoop renderer;
   std::unique_ptr<SqliteStore> store;
   std::unique_ptr<SceneRegistry> registry;
+  std::unique_ptr<Service> core;
   std::unique_ptr<VoronoiService> service;
   std::unique_ptr<grpc::Server> server;
   std::string address;
@@ -331,7 +332,8 @@ struct InProcessServer {
     store = std::move(*opened);
     registry = std::make_unique<SceneRegistry>(store.get(), Renderers{&renderer}, ServerLimits{});
     (void)registry->Load();
-    service = std::make_unique<VoronoiService>(registry.get());
+    core = std::make_unique<Service>(registry.get());
+    service = std::make_unique<VoronoiService>(core.get());
     grpc::ServerBuilder builder;
     int port = 0;
     builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);

@@ -8,7 +8,9 @@
 #include <google/protobuf/stubs/logging.h>
 
 #include "gvd/v1/voronoi.pb.h"
-#include "server/grpc/convert.h"
+#include "server/app/convert/queries.h"
+#include "server/app/convert/scenes.h"
+#include "server/app/convert/sites.h"
 #include "render/scene/scene.h"
 #include "tests/support/oracle.h"
 

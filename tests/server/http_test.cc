@@ -20,8 +20,6 @@
 
 #include <zlib.h>
 
-#include <grpcpp/generic/async_generic_service.h>
-
 #include "gvd/client.h"
 #include "server/http/http.h"
 #include "tests/support/server_process.h"
@@ -718,6 +716,34 @@ TEST(HttpSecurity, TokensAndTls) {
   std::system(("rm -rf " + d).c_str());
 }
 
+// Connect-Timeout-Ms is the call's deadline: a read that waits for a render held back ends
+// 504 deadline_exceeded when it passes (the call is cancelled in the core, which counts it no
+// more), a stream's end says the same, and a call within its deadline is answered.
+TEST_F(HttpTest, DeadlinesEndCallsThatWait) {
+  ASSERT_EQ(Post(port(), "CreateScene", Json(testing::UnitScene("late", 32, 32))).status, 200);
+  v1::FindNearestRequest find;
+  find.set_scene_id("late");
+  find.add_points()->set_x(0.5);
+  {
+    testing::HoldRenders hold(*server_);
+    find.set_min_version(Upsert("late", {{"a", PointSite{{0.25, 0.25}}}}));
+    const auto start = std::chrono::steady_clock::now();
+    Reply late = Post(port(), "FindNearest", Json(find), {{"Connect-Timeout-Ms", "200"}});
+    EXPECT_EQ(late.status, 504) << late.body;
+    EXPECT_EQ(ConnectError(late).first, "deadline_exceeded") << late.body;
+    EXPECT_GE(std::chrono::steady_clock::now() - start, std::chrono::milliseconds(200));
+    StreamReply stream = Stream(port(), "FindNearestStream", Json(find),
+                                {{"Connect-Timeout-Ms", "200"}});
+    EXPECT_EQ(stream.status, 200);
+    EXPECT_TRUE(stream.messages.empty());
+    EXPECT_EQ(JsonString(stream.end, "code"), "deadline_exceeded") << stream.end;
+  }
+  // Released: the same call within a generous deadline is answered.
+  Reply answered = Post(port(), "FindNearest", Json(find), {{"Connect-Timeout-Ms", "600000"}});
+  EXPECT_EQ(answered.status, 200) << answered.body;
+  EXPECT_EQ(JsonString(answered.body, "siteId"), "a") << answered.body;
+}
+
 // SIGTERM: an HTTP watch ends with UNAVAILABLE in its end-of-stream, and the server exits 0.
 TEST(HttpDrain, ShutdownEndsHttpStreams) {
   testing::ServerProcess server(GVD_SERVER_PATH,
@@ -739,116 +765,6 @@ TEST(HttpDrain, ShutdownEndsHttpStreams) {
   EXPECT_EQ(JsonString(watched.end, "code"), "unavailable");
   const int status = server.Wait();
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << server.log();
-}
-
-}  // namespace
-}  // namespace gvd
-
-namespace gvd {
-namespace {
-
-// A stand-in for the service behind the HTTP transport: it answers GetScene (a scene named
-// after what it was sent) and WatchScene (one event), echoing the call's metadata: each
-// client key K as initial metadata "echo-K" and trailing "trailed-K"; "x-fail: yes" makes
-// the call fail NOT_FOUND, trailers still sent.
-class EchoService final : public grpc::CallbackGenericService {
-  class Reactor final : public grpc::ServerGenericBidiReactor {
-   public:
-    explicit Reactor(grpc::GenericCallbackServerContext* ctx) : ctx_(ctx) { StartRead(&request_); }
-    void OnReadDone(bool ok) override {
-      if (!ok) return Finish(grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "no request"));
-      bool fail = false;
-      for (const auto& [k, v] : ctx_->client_metadata()) {
-        const std::string key(k.data(), k.size()), value(v.data(), v.size());
-        if (key.rfind("x-", 0) != 0) continue;
-        if (key == "x-fail") fail = true;
-        ctx_->AddInitialMetadata("echo-" + key, value);
-        ctx_->AddTrailingMetadata("trailed-" + key, value);
-      }
-      if (fail) return Finish(grpc::Status(grpc::StatusCode::NOT_FOUND, "asked to fail"));
-      std::string bytes;
-      if (ctx_->method() == "/gvd.v1.Voronoi/WatchScene") {
-        v1::SceneEvent event;
-        event.set_scene_id("echo");
-        event.set_version(7);
-        bytes = event.SerializeAsString();
-      } else {
-        v1::Scene scene;
-        scene.set_scene_id("echo");
-        bytes = scene.SerializeAsString();
-      }
-      grpc::Slice slice(bytes);
-      response_ = grpc::ByteBuffer(&slice, 1);
-      StartWrite(&response_);
-    }
-    void OnWriteDone(bool ok) override {
-      Finish(ok ? grpc::Status::OK : grpc::Status(grpc::StatusCode::UNKNOWN, "write failed"));
-    }
-    void OnDone() override { delete this; }
-
-   private:
-    grpc::GenericCallbackServerContext* ctx_;
-    grpc::ByteBuffer request_, response_;
-  };
-  grpc::ServerGenericBidiReactor* CreateReactor(grpc::GenericCallbackServerContext* ctx) override {
-    return new Reactor(ctx);
-  }
-};
-
-// Request headers reach the service as metadata (a "-bin" one decoded from base64); the
-// service's headers come back as headers and its trailers as "Trailer-" headers (unary) or
-// in the end-of-stream message's metadata (streams), on errors too. Protocol and browser
-// headers stay out.
-TEST(HttpMetadata, HeadersAndTrailersBothWays) {
-  EchoService service;
-  grpc::ServerBuilder builder;
-  int grpc_port = 0;
-  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &grpc_port);
-  builder.RegisterCallbackGenericService(&service);
-  std::unique_ptr<grpc::Server> grpc_server = builder.BuildAndStart();
-  ASSERT_NE(grpc_server, nullptr);
-  HttpOptions options;
-  options.listen = "127.0.0.1:0";
-  auto http_server = HttpServer::Start(
-      options, grpc::CreateChannel("127.0.0.1:" + std::to_string(grpc_port),
-                                   grpc::InsecureChannelCredentials()));
-  ASSERT_TRUE(http_server.ok()) << http_server.status();
-  const int port = (*http_server)->port();
-
-  const std::map<std::string, std::string> headers = {
-      {"X-Request-Id", "r-42"}, {"x-data-bin", "AAEC/w=="},  // bytes 0, 1, 2, 255
-      {"Cookie", "session=secret"}, {"User-Agent", "test"}};
-  Reply unary = Post(port, "GetScene", R"({"sceneId": "any"})", headers);
-  ASSERT_EQ(unary.status, 200) << unary.body;
-  EXPECT_EQ(JsonString(unary.body, "sceneId"), "echo");
-  EXPECT_EQ(unary.headers["echo-x-request-id"], "r-42");
-  EXPECT_EQ(unary.headers["trailer-trailed-x-request-id"], "r-42");
-  // Binary metadata arrived as its bytes and went back in base64.
-  EXPECT_EQ(unary.headers["echo-x-data-bin"], "AAEC/w==");
-  EXPECT_EQ(unary.headers["trailer-trailed-x-data-bin"], "AAEC/w==");
-  EXPECT_EQ(unary.headers.count("echo-cookie"), 0u);
-  EXPECT_EQ(unary.headers.count("echo-user-agent"), 0u);
-
-  std::map<std::string, std::string> failing = headers;
-  failing["X-Fail"] = "yes";
-  Reply refused = Post(port, "GetScene", R"({"sceneId": "any"})", failing);
-  EXPECT_EQ(refused.status, 404);
-  EXPECT_EQ(ConnectError(refused).first, "not_found");
-  EXPECT_EQ(refused.headers["trailer-trailed-x-fail"], "yes");
-
-  StreamReply stream = Stream(port, "WatchScene", R"({"sceneId": "any"})", headers);
-  EXPECT_EQ(stream.status, 200);
-  ASSERT_EQ(stream.messages.size(), 1u);
-  EXPECT_EQ(Parse<v1::SceneEvent>(stream.messages[0]).version(), 7u);
-  EXPECT_NE(stream.end.find(R"("trailed-x-request-id":["r-42"])"), std::string::npos) << stream.end;
-  EXPECT_NE(stream.end.find(R"("echo-x-data-bin":["AAEC/w=="])"), std::string::npos) << stream.end;
-
-  Reply bad = Post(port, "GetScene", R"({"sceneId": "any"})", {{"x-data-bin", "not base64!"}});
-  EXPECT_EQ(ConnectError(bad).first, "invalid_argument");
-  EXPECT_NE(ConnectError(bad).second.find("x-data-bin"), std::string::npos);
-
-  (*http_server)->Shutdown(std::chrono::milliseconds(100));
-  grpc_server->Shutdown();
 }
 
 }  // namespace

@@ -300,7 +300,7 @@ TEST(SceneRegistry, A3DSceneFromCreateToReload) {
     auto version = registry.UpsertSites("space", sites);
     ASSERT_TRUE(version.ok()) << version.status();
 
-    auto job = NearestJob3::Make(&registry, *scene, {points, false, false, true, *version, true}, nullptr);
+    auto job = BasicNearestJob<Scene3>::Make(&registry, *scene, {points, false, false, true, *version, true}, nullptr);
     ASSERT_TRUE(Run3(job).ok());
     ASSERT_EQ(job->rows().size(), points.size());
     for (size_t i = 0; i < points.size(); ++i) {
@@ -311,7 +311,7 @@ TEST(SceneRegistry, A3DSceneFromCreateToReload) {
       EXPECT_GE(r.distance, best - 1e-9);
       EXPECT_NEAR(Distance(job->closest()[i], points[i]), r.distance, 1e-9);
     }
-    auto exact = NearestJob3::Make(&registry, *scene, {points, true, false, true, 0}, nullptr);
+    auto exact = BasicNearestJob<Scene3>::Make(&registry, *scene, {points, true, false, true, 0}, nullptr);
     ASSERT_TRUE(Run3(exact).ok());
     for (size_t i = 0; i < points.size(); ++i) {
       EXPECT_NEAR(exact->rows()[i].distance, oracle(points[i]), 1e-9);
@@ -340,7 +340,7 @@ TEST(SceneRegistry, A3DSceneFromCreateToReload) {
   EXPECT_EQ((*scene)->settings().depth, 10u);
   auto read = registry.ReadVersion(**scene, 0);
   ASSERT_TRUE(read.ok());
-  auto job = NearestJob3::Make(&registry, *scene, {points, false, false, true, *read}, nullptr);
+  auto job = BasicNearestJob<Scene3>::Make(&registry, *scene, {points, false, false, true, *read}, nullptr);
   ASSERT_TRUE(Run3(job).ok());
   for (size_t i = 0; i < points.size(); ++i) {
     EXPECT_LE(job->rows()[i].distance - oracle(points[i]), job->rows()[i].error_bound + 1e-9);

@@ -1,5 +1,5 @@
-// The gRPC transport in process, over a real gRPC server on loopback: its handlers never
-// wait on the store. Every store call a write makes runs on the core's commit threads
+// The gRPC transport in process over the application core, on a real gRPC server on
+// loopback: its handlers never wait on the store. Every store call a write makes runs on the core's commit threads
 // ("gvd-commit"), whatever thread gRPC ran the handler on.
 #include <gtest/gtest.h>
 #include <grpcpp/grpcpp.h>
@@ -56,7 +56,8 @@ TEST(ServiceThreads, WritesCommitOnTheCommitThreads) {
   RecordingStore store;
   SceneRegistry registry(&store, {}, ServerLimits{});
   ASSERT_TRUE(registry.Load().ok());
-  VoronoiService service(&registry);
+  Service core(&registry);
+  VoronoiService service(&core);
   grpc::ServerBuilder builder;
   int port = 0;
   builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);

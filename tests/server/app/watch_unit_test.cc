@@ -1,7 +1,7 @@
-// What a WatchScene stream has yet to tell (server/grpc/watch.h), without a server: frames noted
+// What a WatchScene stream has yet to tell (server/app/watch.h), without a server: frames noted
 // between two events merge into the next one, the newest version with every changed window
 // joined.
-#include "server/grpc/watch.h"
+#include "server/app/watch.h"
 
 #include <gtest/gtest.h>
 

@@ -1,11 +1,12 @@
-#include "server/grpc/legacy_records.h"
+#include "server/app/legacy_records.h"
 
-#include "server/grpc/convert.h"
+#include "server/app/convert/scenes.h"
+#include "server/app/convert/sites.h"
 
 namespace gvd {
 
 SqliteStore::Legacy LegacyRecords(const ServerLimits& limits) {
-  auto refused = [](const grpc::Status& s) { return absl::DataLossError(s.error_message()); };
+  auto refused = [](const absl::Status& s) { return absl::DataLossError(s.message()); };
   return {
       [limits, refused](std::string_view bytes) -> absl::StatusOr<SceneSettings> {
         v1::CreateSceneRequest request;

@@ -4,8 +4,7 @@
 #include <string>
 #include <vector>
 
-#include <grpcpp/server_context.h>
-
+#include "absl/status/status.h"
 #include "absl/status/statusor.h"
 
 namespace gvd {
@@ -17,10 +16,11 @@ class TokenAuth {
   // and lines starting with '#' are skipped. Tokens are 16 or more printable characters.
   static absl::StatusOr<TokenAuth> Load(const std::string& path);
 
-  // OK when the call carries "authorization: Bearer TOKEN" for a known token that may do it;
-  // else UNAUTHENTICATED (no or unknown token) or PERMISSION_DENIED (a read-only token
-  // asking to write). Tokens are compared in constant time.
-  grpc::Status Check(const grpc::CallbackServerContext& ctx, bool write) const;
+  // OK when a call's authorization (its "authorization" metadata, or HTTP header; empty when
+  // it has none) is "Bearer TOKEN" for a known token that may do it; else UNAUTHENTICATED (no
+  // or unknown token) or PERMISSION_DENIED (a read-only token asking to write). Tokens are
+  // compared in constant time.
+  absl::Status Check(const std::string& authorization, bool write) const;
 
   size_t size() const { return tokens_.size(); }
 

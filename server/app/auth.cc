@@ -1,4 +1,4 @@
-#include "server/grpc/auth.h"
+#include "server/app/auth.h"
 
 #include <fstream>
 #include <sstream>
@@ -43,33 +43,25 @@ absl::StatusOr<TokenAuth> TokenAuth::Load(const std::string& path) {
   return auth;
 }
 
-grpc::Status TokenAuth::Check(const grpc::CallbackServerContext& ctx, bool write) const {
-  const auto& md = ctx.client_metadata();
-  auto it = md.find("authorization");
-  if (it == md.end()) {
-    return grpc::Status(grpc::StatusCode::UNAUTHENTICATED,
-                        "this server needs a bearer token (metadata \"authorization: Bearer "
-                        "TOKEN\")");
+absl::Status TokenAuth::Check(const std::string& authorization, bool write) const {
+  if (authorization.empty()) {
+    return absl::UnauthenticatedError(
+        "this server needs a bearer token (metadata \"authorization: Bearer TOKEN\")");
   }
-  std::string value(it->second.data(), it->second.size());
   const std::string prefix = "Bearer ";
-  if (value.compare(0, prefix.size(), prefix) != 0) {
-    return grpc::Status(grpc::StatusCode::UNAUTHENTICATED,
-                        "the authorization metadata must be \"Bearer TOKEN\"");
+  if (authorization.compare(0, prefix.size(), prefix) != 0) {
+    return absl::UnauthenticatedError("the authorization metadata must be \"Bearer TOKEN\"");
   }
-  std::string presented = value.substr(prefix.size());
+  const std::string presented = authorization.substr(prefix.size());
   const Token* match = nullptr;
   for (const Token& t : tokens_) {
     if (ConstantTimeEqual(t.secret, presented)) match = &t;
   }
-  if (match == nullptr) {
-    return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "unknown bearer token");
-  }
+  if (match == nullptr) return absl::UnauthenticatedError("unknown bearer token");
   if (write && !match->can_write) {
-    return grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
-                        "this token may read but not write");
+    return absl::PermissionDeniedError("this token may read but not write");
   }
-  return grpc::Status::OK;
+  return absl::OkStatus();
 }
 
 }  // namespace gvd

@@ -1,31 +1,20 @@
-// WatchScene's streams: one reactor per stream, fed by its scene's frame listener. Events a
-// slow reader has not taken yet are merged into the next one; a stream ends when its scene
-// is deleted (OK, after a last event saying so), when the client goes, or when the server
-// drains (UNAVAILABLE).
+// WatchScene's streams: one per watcher, fed by its scene's frame listener. Events a slow
+// reader has not taken yet are merged into the next one; a stream ends when its scene is
+// deleted (OK, after a last event saying so), when the caller goes, or when the server drains
+// (UNAVAILABLE).
 #pragma once
 
 #include <memory>
 #include <mutex>
 #include <set>
 
-#include <grpcpp/grpcpp.h>
-
-#include "gvd/v1/voronoi.grpc.pb.h"
+#include "absl/status/status.h"
+#include "gvd/v1/voronoi.pb.h"
 #include "render/scene/scene.h"
-#include "server/grpc/call_scope.h"
+#include "server/app/call.h"
+#include "server/app/scene_handle.h"
 
 namespace gvd {
-
-template <class S>
-class WatchStream;
-
-// A stream, as the set of open ones knows it (watch.cc's WatchStream, a template on the scene).
-class WatchStreamBase {
- public:
-  virtual ~WatchStreamBase() = default;
-  // Ends the stream with `status` once the write under way, if any, is done.
-  virtual void End(const grpc::Status& status) = 0;
-};
 
 // What a stream has yet to tell: the newest frame noted since its last event, with the
 // changed parts of every frame noted since joined. Not thread-safe.
@@ -56,6 +45,14 @@ class PendingEvent {
   bool box_changed_ = false;  // a volume's
 };
 
+// A stream, as the set of open ones knows it (watch.cc's WatchStream, a template on the scene).
+class WatchStreamBase {
+ public:
+  virtual ~WatchStreamBase() = default;
+  // Ends the stream with `status` once the write under way, if any, is done.
+  virtual void End(const absl::Status& status) = 0;
+};
+
 // The streams open now. Thread-safe.
 class Watches {
  public:
@@ -63,17 +60,12 @@ class Watches {
   Watches(const Watches&) = delete;
   Watches& operator=(const Watches&) = delete;
 
-  // A stream of `scene`'s events for frames newer than `after`, counted in `scope` until it
-  // ends.
-  // A 2D scene's or a 3D scene's (Scene3).
-  template <class S>
-  grpc::ServerWriteReactor<v1::SceneEvent>* Start(std::shared_ptr<CallScope> scope,
-                                                  std::shared_ptr<S> scene, uint64_t after);
-  // A stream that ends at once with `status` (a refused call).
-  static grpc::ServerWriteReactor<v1::SceneEvent>* Refuse(std::shared_ptr<CallScope> scope,
-                                                          const grpc::Status& status);
+  // Streams the events of `scene`'s frames newer than `after` into `out`, counted in `scope`
+  // until it ends; it ends when `call` is cancelled too.
+  void Start(CallPtr call, std::shared_ptr<CallScope> scope, const SceneHandle& scene,
+             uint64_t after, StreamWriter<v1::SceneEvent>* out);
   // Ends every open stream with `status` (the drain), and every stream started from now on.
-  void EndAll(const grpc::Status& status);
+  void EndAll(const absl::Status& status);
 
  private:
   template <class S>
@@ -81,9 +73,9 @@ class Watches {
   void Remove(WatchStreamBase* stream);
 
   std::mutex mu_;
-  std::set<WatchStreamBase*> open_;
+  std::set<std::shared_ptr<WatchStreamBase>> open_;
   bool ended_ = false;
-  grpc::Status end_status_;
+  absl::Status end_status_;
 };
 
 }  // namespace gvd
