@@ -415,15 +415,17 @@ class HttpServer::Impl {
 
   HttpOptions options_;
   Service* const core_;
+  std::atomic<bool> stopping_{false};
+  // Before the io_context: handlers it still holds when it goes (a call the core finished
+  // after the server stopped) own sessions, whose destructors unregister here.
+  std::mutex sessions_mu_;
+  std::map<SessionBase*, std::weak_ptr<SessionBase>> sessions_;
   net::io_context ioc_;
   std::optional<ssl::context> tls_;
   tcp::acceptor acceptor_;  // on a strand of its own: its handler and Shutdown's close
   std::vector<std::thread> threads_;
   std::optional<net::executor_work_guard<net::io_context::executor_type>> work_;
   int port_ = 0;
-  std::atomic<bool> stopping_{false};
-  std::mutex sessions_mu_;
-  std::map<SessionBase*, std::weak_ptr<SessionBase>> sessions_;
 };
 
 namespace {

@@ -767,5 +767,36 @@ TEST(HttpDrain, ShutdownEndsHttpStreams) {
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << server.log();
 }
 
+// SIGTERM while an HTTP call waits for a render held back: the call's end comes after the
+// HTTP server stopped serving, and the server still stops cleanly (the core's answer to a
+// connection already gone is dropped with it: ASan's build checks nothing outlives it).
+TEST(HttpDrain, ACallThatOutlivesTheServerEndsCleanly) {
+  testing::ServerProcess server(GVD_SERVER_PATH,
+                                {"--http-listen", "127.0.0.1:0", "--shutdown-grace-ms", "200"});
+  ASSERT_TRUE(server.error().empty()) << server.error();
+  ASSERT_EQ(Post(server.http_port(), "CreateScene",
+                 R"({"sceneId": "s", "window": {"maxX": 1, "maxY": 1}, "widthPx": 8, "heightPx": 8})")
+                .status,
+            200);
+  testing::HoldRenders hold(server);
+  Reply written = Post(server.http_port(), "UpsertSites",
+                       R"({"sceneId": "s", "sites": [{"id": "a", "point": {"x": 0.5, "y": 0.5}}]})");
+  ASSERT_EQ(written.status, 200) << written.body;
+  const std::string version = JsonString(written.body, "version");
+  std::thread waiting([&] {
+    try {
+      Post(server.http_port(), "FindNearest",
+           R"({"sceneId": "s", "points": [{"x": 0.1, "y": 0.1}], "minVersion": ")" + version + R"("})");
+    } catch (const std::exception&) {
+      // The connection closed with the server: what a client sees of a call cut short.
+    }
+  });
+  for (int i = 0; i < 30; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  server.Terminate();
+  waiting.join();
+  const int status = server.Wait();
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << server.log();
+}
+
 }  // namespace
 }  // namespace gvd
