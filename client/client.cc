@@ -22,7 +22,7 @@ std::unique_ptr<Client> Client::Connect(const std::string& target, ClientOptions
 }
 
 Client::Client(std::shared_ptr<grpc::Channel> channel, ClientOptions options)
-    : channel_(std::move(channel)), stub_(v1::Voronoi::NewStub(channel_)), options_(options) {}
+    : channel_(std::move(channel)), stub_(v1::VoronoiService::NewStub(channel_)), options_(options) {}
 
 std::unique_ptr<grpc::ClientContext> Client::Context() const {
   auto ctx = std::make_unique<grpc::ClientContext>();
@@ -32,20 +32,32 @@ std::unique_ptr<grpc::ClientContext> Client::Context() const {
 }
 
 grpc::Status Client::CreateScene(const v1::CreateSceneRequest& request, v1::Scene* scene) {
-  return stub_->CreateScene(Context().get(), request, scene);
+  v1::CreateSceneResponse response;
+  grpc::Status s = stub_->CreateScene(Context().get(), request, &response);
+  if (s.ok()) *scene = std::move(*response.mutable_scene());
+  return s;
 }
 
 grpc::Status Client::GetScene(const std::string& scene_id, v1::Scene* scene) {
   v1::GetSceneRequest request;
   request.set_scene_id(scene_id);
-  return stub_->GetScene(Context().get(), request, scene);
+  v1::GetSceneResponse response;
+  grpc::Status s = stub_->GetScene(Context().get(), request, &response);
+  if (s.ok()) *scene = std::move(*response.mutable_scene());
+  return s;
 }
 
 grpc::Status Client::ListScenes(std::vector<v1::Scene>* scenes) {
-  v1::ListScenesResponse response;
-  grpc::Status s = stub_->ListScenes(Context().get(), v1::ListScenesRequest(), &response);
-  if (s.ok()) scenes->assign(response.scenes().begin(), response.scenes().end());
-  return s;
+  scenes->clear();
+  v1::ListScenesRequest request;
+  while (true) {
+    v1::ListScenesResponse page;
+    grpc::Status s = stub_->ListScenes(Context().get(), request, &page);
+    if (!s.ok()) return s;
+    scenes->insert(scenes->end(), page.scenes().begin(), page.scenes().end());
+    if (page.next_page_token().empty()) return s;
+    request.set_page_token(page.next_page_token());
+  }
 }
 
 grpc::Status Client::DeleteScene(const std::string& scene_id) {
@@ -56,11 +68,11 @@ grpc::Status Client::DeleteScene(const std::string& scene_id) {
 }
 
 grpc::Status Client::WatchScene(const v1::WatchSceneRequest& request,
-                                const std::function<bool(const v1::SceneEvent&)>& on_event) {
+                                const std::function<bool(const v1::WatchSceneResponse&)>& on_event) {
   grpc::ClientContext ctx;
   if (!options_.token.empty()) ctx.AddMetadata("authorization", "Bearer " + options_.token);
   auto reader = stub_->WatchScene(&ctx, request);
-  v1::SceneEvent event;
+  v1::WatchSceneResponse event;
   while (reader->Read(&event)) {
     if (!on_event(event)) {
       ctx.TryCancel();
@@ -117,12 +129,12 @@ grpc::Status Client::FindNearest(const v1::FindNearestRequest& request,
   return stub_->FindNearest(Context().get(), request, response);
 }
 
-grpc::Status Client::FindNearestStream(const v1::FindNearestRequest& request,
-                                       std::vector<v1::FindNearestResponse>* chunks) {
+grpc::Status Client::FindNearestStream(const v1::FindNearestStreamRequest& request,
+                                       std::vector<v1::FindNearestStreamResponse>* chunks) {
   chunks->clear();
   auto ctx = Context();
   auto reader = stub_->FindNearestStream(ctx.get(), request);
-  v1::FindNearestResponse chunk;
+  v1::FindNearestStreamResponse chunk;
   while (reader->Read(&chunk)) chunks->push_back(std::move(chunk));
   return reader->Finish();
 }

@@ -115,7 +115,7 @@ ABSL_FLAG(std::string, metrics_listen, "",
           "<HOST:PORT> serve Prometheus metrics at http://HOST:PORT/metrics (by default off)");
 ABSL_FLAG(std::string, http_listen, "",
           "<HOST:PORT> also serve every call over HTTP/1.1 in the Connect protocol (JSON: POST "
-          "/gvd.v1.Voronoi/METHOD), and the web app at / (by default off; the same tokens, TLS, "
+          "/gvd.v1.VoronoiService/METHOD), and the web app at / (by default off; the same tokens, TLS, "
           "limits and metrics)");
 ABSL_FLAG(std::vector<std::string>, http_cors_origins, {},
           "<LIST> origins whose pages may call the HTTP port, comma-separated "
@@ -367,7 +367,7 @@ int main(int argc, char** argv) {
                                             flags.limits, &metrics);
   // The application core's calls, and the gRPC transport over them (HTTP's comes below).
   gvd::Service core(registry.get(), auth ? &*auth : nullptr, &metrics);
-  gvd::VoronoiService service(&core);
+  gvd::GrpcService service(&core);
   metrics.SetMemoryLimit(flags.limits.max_memory);
   gvd::Log(gvd::LogLevel::kInfo, "memory_budget",
            {{"max_memory", absl::StrCat(flags.limits.max_memory)},

@@ -115,7 +115,7 @@ class Server:
         headers = {"Content-Type": content_type}
         if token:
             headers["Authorization"] = f"Bearer {token}"
-        r = urllib.request.Request(f"{self.url}/gvd.v1.Voronoi/{method}", data=data, headers=headers)
+        r = urllib.request.Request(f"{self.url}/gvd.v1.VoronoiService/{method}", data=data, headers=headers)
         try:
             with urllib.request.urlopen(r, timeout=120) as response:
                 return response.status, json.loads(response.read() or b"{}")
@@ -193,13 +193,13 @@ def inside(q, v):
 
 
 def value(q, site):
-    """The site's value in the diagram (a NEAREST one): m d + a, or infinity where the site
+    """The site's value in the diagram (a DIAGRAM_NEAREST one): m d + a, or infinity where the site
     does not reach (beyond max_distance, or on the side of a polygon it leaves out)."""
     d = distance(q, site)
     if site.get("maxDistance") and d > site["maxDistance"]:
         return math.inf
     side = site.get("polygon", {}).get("side", "SIDE_UNSPECIFIED")
-    if side != "SIDE_UNSPECIFIED" and d > 0 and inside(q, points_of(site["polygon"], "vertices")) != (side == "INSIDE"):
+    if side != "SIDE_UNSPECIFIED" and d > 0 and inside(q, points_of(site["polygon"], "vertices")) != (side == "SIDE_INSIDE"):
         return math.inf
     return site.get("multiplicativeWeight", 1) * d + site.get("additiveWeight", 0)
 

@@ -30,7 +30,7 @@ gvd --scene demo neighbors --min-version 2 2>/dev/null | grep -q '^a b$'
 # The README's curl call, and the web app.
 curl -sf -H 'Content-Type: application/json' \
   -d '{"sceneId": "demo", "points": [{"x": 12, "y": 11}], "exact": true}' \
-  "$http/gvd.v1.Voronoi/FindNearest" | grep -q '"siteId":"a","distance":2.23606797749979'
+  "$http/gvd.v1.VoronoiService/FindNearest" | grep -q '"siteId":"a","distance":2.23606797749979'
 curl -sf "$http/" | grep -q '<title>gvd — nearest-object selection</title>'
 curl -sf "$http/app.js" | grep -q 'pointerrawupdate'
 kill -TERM "$server"

@@ -175,7 +175,7 @@ class Client:
         data = json.dumps(body).encode()
         start = time.perf_counter()
         try:
-            self.conn.request("POST", "/gvd.v1.Voronoi/" + method, data,
+            self.conn.request("POST", "/gvd.v1.VoronoiService/" + method, data,
                               {"Content-Type": "application/json"})
             response = self.conn.getresponse()
             payload = response.read()
@@ -565,7 +565,7 @@ def wait_caught_up(server, stats, models, since):
         for model in models:
             while True:
                 try:
-                    scene = client.call("GetScene", {"sceneId": model.scene_id})
+                    scene = client.call("GetScene", {"sceneId": model.scene_id}).get("scene", {})
                 except CallError as e:
                     stats.fail(f"GetScene {model.scene_id} on {server.name} after an outage: {e}")
                     return

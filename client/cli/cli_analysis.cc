@@ -76,8 +76,8 @@ int Boundaries(const Args& a, Client& client) {
   r.set_scene_id(a.scene);
   if (const std::string* window = Option(a, "--window")) ParseWindow(*window, r.mutable_window());
   if (const std::string* m = Option(a, "--method")) {
-    if (*m == "full") r.set_method(v1::GetBoundariesRequest::FULL_SCAN);
-    else if (*m == "continuation") r.set_method(v1::GetBoundariesRequest::CONTINUATION);
+    if (*m == "full") r.set_method(v1::GetBoundariesRequest::METHOD_FULL_SCAN);
+    else if (*m == "continuation") r.set_method(v1::GetBoundariesRequest::METHOD_CONTINUATION);
     else Usage("--method must be full or continuation");
   }
   r.set_min_version(MinVersion(a));
@@ -219,8 +219,8 @@ int Plan(const Args& a, Client& client) {
   ParsePoint(*to, "--to", r.mutable_goal());
   if (const std::string* v = Option(a, "--radius")) r.set_robot_radius(Number(*v, "--radius"));
   if (const std::string* p = Option(a, "--prefer")) {
-    if (*p == "clearance") r.set_prefer(v1::PlanPathRequest::MAX_CLEARANCE);
-    else if (*p == "shortest") r.set_prefer(v1::PlanPathRequest::SHORTEST);
+    if (*p == "clearance") r.set_prefer(v1::PlanPathRequest::PREFER_MAX_CLEARANCE);
+    else if (*p == "shortest") r.set_prefer(v1::PlanPathRequest::PREFER_SHORTEST);
     else Usage("--prefer must be clearance or shortest");
   }
   r.set_min_version(MinVersion(a));
@@ -237,7 +237,7 @@ int Plan(const Args& a, Client& client) {
   if (const std::string* out = Option(a, "--output")) {
     v1::RenderImageRequest image;
     image.set_scene_id(a.scene);
-    image.set_layer(v1::RenderImageRequest::DISTANCE);
+    image.set_layer(v1::RenderImageRequest::LAYER_DISTANCE);
     image.set_draw_sites(true);
     image.set_min_version(response.version());
     *image.mutable_polyline() = response.path();
@@ -272,8 +272,8 @@ int Pick(const Args& a, Client& client) {
     std::cout << "(nothing within reach)\n";
     return 0;
   }
-  std::string kind = response.feature_kind() == v1::EDGE    ? "edge"
-                     : response.feature_kind() == v1::CURVE ? "curve"
+  std::string kind = response.feature_kind() == v1::FEATURE_KIND_EDGE    ? "edge"
+                     : response.feature_kind() == v1::FEATURE_KIND_CURVE ? "curve"
                                                             : "vertex";
   std::cout << response.site_id() << "\t" << Num(response.distance()) << "\t" << kind << " "
             << response.feature_index() << "\n";
@@ -294,7 +294,7 @@ absl::StatusOr<std::vector<uint32_t>> ServerDiagram(Client& client, const Grid& 
   create.mutable_window()->set_max_y(grid.window.max_y);
   create.set_width_px(grid.width);
   create.set_height_px(grid.height);
-  create.set_render_mode(v1::EXACT);
+  create.set_render_mode(v1::RENDER_MODE_EXACT);
   v1::Scene created;
   if (auto s = client.CreateScene(create, &created); !s.ok()) return fail(s);
   auto run = [&]() -> absl::StatusOr<std::vector<uint32_t>> {

@@ -121,7 +121,7 @@ void PrintScene(const gvd::v1::Scene& s) {
             << ", " << s.width_px() << "x" << s.height_px()
             << (space ? absl::StrCat("x", s.depth_px(), " voxels") : std::string(" px"))
             << ", max_error " << Num(s.max_error()) << ", "
-            << (s.render_mode() == gvd::v1::EXACT || space
+            << (s.render_mode() == gvd::v1::RENDER_MODE_EXACT || space
                     ? std::string("exact render")
                     : absl::StrCat(s.cone_triangles(), " triangles per cone"))
             << ", version " << s.version() << ", "
@@ -203,8 +203,8 @@ bool ReadGeoJson(const std::string& text, const std::string& path,
       }
       if (const Value* side = field(p, "side")) {
         const std::string& sv = side->string_value();
-        if (sv == "outside") poly->set_side(gvd::v1::Polygon::OUTSIDE);
-        else if (sv == "inside") poly->set_side(gvd::v1::Polygon::INSIDE);
+        if (sv == "outside") poly->set_side(gvd::v1::Polygon::SIDE_OUTSIDE);
+        else if (sv == "inside") poly->set_side(gvd::v1::Polygon::SIDE_INSIDE);
         else if (!sv.empty()) return fail(i, "properties.side must be \"outside\" or \"inside\"");
       }
     } else {
@@ -311,11 +311,11 @@ int Run(const Args& a) {
       if (const std::string* e = option("--max-error")) r.set_max_error(Number(*e, "--max-error"));
       if (const std::string* m = option("--render-mode")) {
         if (*m != "mesh" && *m != "exact") Usage("--render-mode must be mesh or exact");
-        r.set_render_mode(*m == "exact" ? gvd::v1::EXACT : gvd::v1::MESH);
+        r.set_render_mode(*m == "exact" ? gvd::v1::RENDER_MODE_EXACT : gvd::v1::RENDER_MODE_MESH);
       }
       if (const std::string* d = option("--diagram")) {
         if (*d != "nearest" && *d != "farthest") Usage("--diagram must be nearest or farthest");
-        r.set_diagram(*d == "farthest" ? gvd::v1::FARTHEST : gvd::v1::NEAREST);
+        r.set_diagram(*d == "farthest" ? gvd::v1::DIAGRAM_FARTHEST : gvd::v1::DIAGRAM_NEAREST);
       }
       gvd::v1::Scene scene;
       if (auto s = client->CreateScene(r, &scene); !s.ok()) return Fail(s);
@@ -355,7 +355,7 @@ int Run(const Args& a) {
       if (!absl::SimpleAtoi(*after, &v)) Usage(absl::StrCat("--after needs a version, not \"", *after, "\""));
       r.set_after_version(v);
     }
-    auto s = client->WatchScene(r, [&](const gvd::v1::SceneEvent& e) {
+    auto s = client->WatchScene(r, [&](const gvd::v1::WatchSceneResponse& e) {
       if (a.json) {
         std::string line;
         google::protobuf::util::JsonPrintOptions o;
@@ -452,8 +452,8 @@ int Run(const Args& a) {
           for (auto& q : pts) *site->mutable_polygon()->add_vertices() = q;
           if (const std::string* side = option("--side")) {
             if (*side != "outside" && *side != "inside") Usage("--side must be outside or inside");
-            site->mutable_polygon()->set_side(*side == "outside" ? gvd::v1::Polygon::OUTSIDE
-                                                                 : gvd::v1::Polygon::INSIDE);
+            site->mutable_polygon()->set_side(*side == "outside" ? gvd::v1::Polygon::SIDE_OUTSIDE
+                                                                 : gvd::v1::Polygon::SIDE_INSIDE);
           }
         } else {
           for (auto& q : pts) *site->mutable_bezier()->add_control_points() = q;
@@ -605,8 +605,8 @@ int Run(const Args& a) {
     r.set_exact(a.exact);
     const bool closest = absl::GetFlag(FLAGS_closest);
     if (closest) {
-      r.add_fields(gvd::v1::FindNearestRequest::CLOSEST);
-      r.add_fields(gvd::v1::FindNearestRequest::GRADIENT);
+      r.add_fields(gvd::v1::NEAREST_FIELD_CLOSEST);
+      r.add_fields(gvd::v1::NEAREST_FIELD_GRADIENT);
     }
     gvd::v1::FindNearestResponse response;
     if (auto s = client->FindNearest(r, &response); !s.ok()) return Fail(s);
@@ -629,9 +629,9 @@ int Run(const Args& a) {
         std::cout << "(none)\tinf\t0\tyes\t-" << (closest ? "\t-\t-\n" : "\n");
         continue;
       }
-      std::string kind = n.feature_kind() == gvd::v1::EDGE    ? "edge"
-                         : n.feature_kind() == gvd::v1::CURVE ? "curve"
-                         : n.feature_kind() == gvd::v1::FACE  ? "face"
+      std::string kind = n.feature_kind() == gvd::v1::FEATURE_KIND_EDGE    ? "edge"
+                         : n.feature_kind() == gvd::v1::FEATURE_KIND_CURVE ? "curve"
+                         : n.feature_kind() == gvd::v1::FEATURE_KIND_FACE  ? "face"
                                                               : "vertex";
       std::cout << n.site_id() << "\t" << Num(n.distance()) << "\t" << Num(n.error_bound())
                 << "\t" << (n.exact() ? "yes" : "no") << "\t" << kind << " "
@@ -651,16 +651,16 @@ int Run(const Args& a) {
     gvd::v1::RenderImageRequest r;
     r.set_scene_id(w[1]);
     std::string layer = option("--layer") ? *option("--layer") : "ids";
-    if (layer == "ids") r.set_layer(gvd::v1::RenderImageRequest::IDS);
-    else if (layer == "features") r.set_layer(gvd::v1::RenderImageRequest::FEATURES);
-    else if (layer == "distance") r.set_layer(gvd::v1::RenderImageRequest::DISTANCE);
+    if (layer == "ids") r.set_layer(gvd::v1::RenderImageRequest::LAYER_IDS);
+    else if (layer == "features") r.set_layer(gvd::v1::RenderImageRequest::LAYER_FEATURES);
+    else if (layer == "distance") r.set_layer(gvd::v1::RenderImageRequest::LAYER_DISTANCE);
     else Usage("--layer must be ids, features or distance");
     std::string format = option("--format") ? *option("--format")
                          : out->size() > 4 && out->substr(out->size() - 4) == ".exr" ? "exr"
                                                                                      : "png";
     if (format != "png" && format != "exr") Usage("--format must be png or exr");
-    r.set_format(format == "exr" ? gvd::v1::RenderImageRequest::EXR
-                                 : gvd::v1::RenderImageRequest::PNG);
+    r.set_format(format == "exr" ? gvd::v1::RenderImageRequest::FORMAT_EXR
+                                 : gvd::v1::RenderImageRequest::FORMAT_PNG);
     if (const std::string* window = option("--window")) ParseWindow(*window, r.mutable_window());
     r.set_draw_sites(option("--draw-sites") != nullptr);
     if (const std::string* z = option("--z")) r.set_z(Number(*z, "--z"));

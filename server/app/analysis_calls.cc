@@ -135,7 +135,7 @@ absl::StatusOr<std::shared_ptr<Scene>> PlaneOf(const std::optional<SceneHandle>&
 absl::Status NeedsNearest(const SceneSettings& s, const char* what) {
   if (s.diagram == Diagram::kNearest) return absl::OkStatus();
   return absl::FailedPreconditionError(
-      absl::StrCat("scene \"", s.id, "\" is a FARTHEST diagram; ", what, " needs NEAREST"));
+      absl::StrCat("scene \"", s.id, "\" is a DIAGRAM_FARTHEST scene; ", what, " needs DIAGRAM_NEAREST"));
 }
 
 // GetClearanceField of a 3D scene (S: its type), read off its volume.

@@ -15,27 +15,27 @@
 namespace gvd {
 namespace {
 
-// The packed columns a FindNearest request asks for: bit f for v1::FindNearestRequest::Field f.
+// The packed columns a FindNearest request asks for: bit f for v1::NearestField f.
 constexpr uint32_t kDefaultFields = 0x3e;  // SITE .. FEATURE, when a request names none
-constexpr uint32_t Bit(v1::FindNearestRequest::Field f) { return 1u << f; }
+constexpr uint32_t Bit(v1::NearestField f) { return 1u << f; }
 // The fields that a request with `points` may name: they add to whole NearestSite messages.
 constexpr uint32_t kPointFields =
-    Bit(v1::FindNearestRequest::CLOSEST) | Bit(v1::FindNearestRequest::GRADIENT);
+    Bit(v1::NEAREST_FIELD_CLOSEST) | Bit(v1::NEAREST_FIELD_GRADIENT);
 
-// Writes the job's answers [begin, end) into the response: as NearestSite results, or packed
-// (only the columns in `fields`: bit f for v1::FindNearestRequest::Field f).
+// Writes the job's answers [begin, end): as NearestSite results into `response`, or packed
+// into `p` (only the columns in `fields`: bit f for v1::NearestField f), one of the two.
 // A template on the job: closest points and gradients have 2 or 3 coordinates.
 template <class J>
-void Fill(const J& job, size_t begin, size_t end, bool packed, uint32_t fields,
-          v1::FindNearestResponse* response) {
+void Fill(const J& job, size_t begin, size_t end, uint32_t fields,
+          v1::FindNearestResponse* response, v1::PackedNearest* p) {
   using Point = typename J::Point;
   constexpr int kWidth = Point::length();
   const std::vector<AnswerRow>& rows = job.rows();
   const std::vector<Point>& points = job.points();
   const std::vector<Point>& nearest_points = job.closest();  // filled when asked for
-  const bool closest = (fields & Bit(v1::FindNearestRequest::CLOSEST)) != 0;
-  const bool gradient = (fields & Bit(v1::FindNearestRequest::GRADIENT)) != 0;
-  if (!packed) {
+  const bool closest = (fields & Bit(v1::NEAREST_FIELD_CLOSEST)) != 0;
+  const bool gradient = (fields & Bit(v1::NEAREST_FIELD_GRADIENT)) != 0;
+  if (p == nullptr) {
     auto* results = response->mutable_results();
     results->Reserve(static_cast<int>(end - begin));
     for (size_t i = begin; i < end; ++i) {
@@ -59,44 +59,43 @@ void Fill(const J& job, size_t begin, size_t end, bool packed, uint32_t fields,
   }
   // Each column asked for is sized once and written in place; a site's index in site_ids is
   // looked up by its slot (all rows come from one version).
-  v1::PackedNearest* p = response->mutable_packed();
   const int n = static_cast<int>(end - begin);
-  auto wants = [fields](v1::FindNearestRequest::Field f) { return (fields & (1u << f)) != 0; };
+  auto wants = [fields](v1::NearestField f) { return (fields & (1u << f)) != 0; };
   // A column of `width` values an answer (x and y: 2), sized once, or null when not wanted.
   auto column = [n](auto* field, bool wanted, int width = 1) {
     if (!wanted) return decltype(field->mutable_data())(nullptr);
     field->Resize(width * n, {});
     return field->mutable_data();
   };
-  uint32_t* site = column(p->mutable_site(), wants(v1::FindNearestRequest::SITE));
-  double* distance = column(p->mutable_distance(), wants(v1::FindNearestRequest::DISTANCE));
+  uint32_t* site = column(p->mutable_site(), wants(v1::NEAREST_FIELD_SITE));
+  double* distance = column(p->mutable_distance(), wants(v1::NEAREST_FIELD_DISTANCE));
   double* error_bound =
-      column(p->mutable_error_bound(), wants(v1::FindNearestRequest::ERROR_BOUND));
-  bool* exact = column(p->mutable_exact(), wants(v1::FindNearestRequest::EXACT));
+      column(p->mutable_error_bound(), wants(v1::NEAREST_FIELD_ERROR_BOUND));
+  bool* exact = column(p->mutable_exact(), wants(v1::NEAREST_FIELD_EXACT));
   uint32_t* feature_index =
-      column(p->mutable_feature_index(), wants(v1::FindNearestRequest::FEATURE));
-  int* feature_kind = column(p->mutable_feature_kind(), wants(v1::FindNearestRequest::FEATURE));
+      column(p->mutable_feature_index(), wants(v1::NEAREST_FIELD_FEATURE));
+  int* feature_kind = column(p->mutable_feature_kind(), wants(v1::NEAREST_FIELD_FEATURE));
   double* closest_xy = column(p->mutable_closest(), closest, kWidth);
   double* gradient_xy = column(p->mutable_gradient(), gradient, kWidth);
   if (site != nullptr) {
-    // slot -> index in site_ids: a table over the slots when the rows are many for the slots
-    // they span (a large batch), a hash map otherwise (small stream chunks of a large scene).
+    // slot -> 1 + index in site_ids (0 for none): a table over the slots when the rows are
+    // many for the slots they span (a large batch), a hash map otherwise (small stream chunks
+    // of a large scene).
     uint32_t slots = 0;
     for (size_t i = begin; i < end; ++i) slots = std::max(slots, rows[i].slot + 1);
     const bool dense = slots <= 4 * size_t(n) + 1024;
-    std::vector<uint32_t> table(dense ? slots : 0, UINT32_MAX);
+    std::vector<uint32_t> table(dense ? slots : 0, 0);
     std::unordered_map<uint32_t, uint32_t> map;
     for (size_t i = begin, k = 0; i < end; ++i, ++k) {
       const AnswerRow& row = rows[i];
       if (row.site_id == nullptr) {
-        site[k] = UINT32_MAX;
+        site[k] = 0;
         continue;
       }
-      uint32_t& name =
-          dense ? table[row.slot] : map.try_emplace(row.slot, UINT32_MAX).first->second;
-      if (name == UINT32_MAX) {
-        name = static_cast<uint32_t>(p->site_ids_size());
+      uint32_t& name = dense ? table[row.slot] : map.try_emplace(row.slot, 0).first->second;
+      if (name == 0) {
         p->add_site_ids(*row.site_id);
+        name = static_cast<uint32_t>(p->site_ids_size());
       }
       site[k] = name;
     }
@@ -121,11 +120,11 @@ void Fill(const J& job, size_t begin, size_t end, bool packed, uint32_t fields,
   }
 }
 
-// Validates a FindNearest request on its scene and resolves its points and mode, and the
-// packed columns it asks for (bit f for v1::FindNearestRequest::Field f). `packed`: whether
-// the answers go out packed (a request with packed points, and every stream).
-template <class S>
-absl::Status ParseNearest(const SceneRegistry& registry, const v1::FindNearestRequest& request,
+// Validates a FindNearest or FindNearestStream request on its scene and resolves its points
+// and mode, and the packed columns it asks for (bit f for v1::NearestField f). `packed`:
+// whether the answers go out packed (a request with packed points, and every stream).
+template <class S, class Request>
+absl::Status ParseNearest(const SceneRegistry& registry, const Request& request,
                           const S& scene, bool packed, BasicNearestQuery<typename S::Point>* query,
                           uint32_t* fields) {
   bool outside = false;
@@ -144,24 +143,23 @@ absl::Status ParseNearest(const SceneRegistry& registry, const v1::FindNearestRe
     *fields = 0;
     for (int i = 0; i < request.fields_size(); ++i) {
       const int f = request.fields(i);
-      if (f < v1::FindNearestRequest::SITE || f > v1::FindNearestRequest::GRADIENT) {
+      if (f < v1::NEAREST_FIELD_SITE || f > v1::NEAREST_FIELD_GRADIENT) {
         return Invalid(absl::StrCat("fields[", i, "] is ", f,
-                                    "; it must be SITE, DISTANCE, ERROR_BOUND, EXACT, FEATURE, "
-                                    "CLOSEST or GRADIENT"));
+                                    "; it must be NEAREST_FIELD_SITE to NEAREST_FIELD_GRADIENT"));
       }
-      if (!packed && (Bit(static_cast<v1::FindNearestRequest::Field>(f)) & kPointFields) == 0) {
-        return Invalid(absl::StrCat("fields[", i, "] is ", v1::FindNearestRequest::Field_Name(f),
+      if (!packed && (Bit(static_cast<v1::NearestField>(f)) & kPointFields) == 0) {
+        return Invalid(absl::StrCat("fields[", i, "] is ", v1::NearestField_Name(f),
                                     "; with points, whose answers are whole NearestSite "
-                                    "messages, fields may name only CLOSEST and GRADIENT (send "
-                                    "the points as xy, or xyz, to choose the columns of packed "
-                                    "answers)"));
+                                    "messages, fields may name only NEAREST_FIELD_CLOSEST and "
+                                    "NEAREST_FIELD_GRADIENT (send the points as xy, or xyz, to "
+                                    "choose the columns of packed answers)"));
       }
       *fields |= 1u << f;
     }
   }
-  query->features = !packed || (*fields & Bit(v1::FindNearestRequest::FEATURE)) != 0;
+  query->features = !packed || (*fields & Bit(v1::NEAREST_FIELD_FEATURE)) != 0;
   query->closest =
-      (*fields & (Bit(v1::FindNearestRequest::CLOSEST) | Bit(v1::FindNearestRequest::GRADIENT))) !=
+      (*fields & (Bit(v1::NEAREST_FIELD_CLOSEST) | Bit(v1::NEAREST_FIELD_GRADIENT))) !=
       0;
   return absl::OkStatus();
 }
@@ -191,7 +189,7 @@ template <class J>
 class NearestChunks : public std::enable_shared_from_this<NearestChunks<J>> {
  public:
   NearestChunks(std::shared_ptr<CallScope> scope, std::shared_ptr<J> job, uint32_t fields,
-                size_t chunk, StreamWriter<v1::FindNearestResponse>* out)
+                size_t chunk, StreamWriter<v1::FindNearestStreamResponse>* out)
       : scope_(std::move(scope)), job_(std::move(job)), fields_(fields), chunk_(chunk), out_(out) {}
 
   void Start(const CallPtr& call) {
@@ -211,7 +209,7 @@ class NearestChunks : public std::enable_shared_from_this<NearestChunks<J>> {
     message_.Clear();
     message_.set_version(job_->version());
     message_.set_offset(offset_);
-    Fill(*job_, offset_, end, /*packed=*/true, fields_, &message_);
+    Fill(*job_, offset_, end, fields_, nullptr, message_.mutable_packed());
     offset_ = end;
     auto self = this->shared_from_this();
     out_->Write(&message_, [self](bool ok) {
@@ -228,9 +226,9 @@ class NearestChunks : public std::enable_shared_from_this<NearestChunks<J>> {
   const std::shared_ptr<J> job_;
   const uint32_t fields_;
   const size_t chunk_;
-  StreamWriter<v1::FindNearestResponse>* const out_;
+  StreamWriter<v1::FindNearestStreamResponse>* const out_;
   size_t offset_ = 0;
-  v1::FindNearestResponse message_;
+  v1::FindNearestStreamResponse message_;
 };
 
 }  // namespace
@@ -253,14 +251,15 @@ void Service::FindNearest(CallPtr call, const v1::FindNearestRequest& request,
         call, job,
         [=](const Job& job) {
           response->set_version(job.version());
-          Fill(job, 0, job.rows().size(), packed, fields, response);
+          Fill(job, 0, job.rows().size(), fields, response,
+               packed ? response->mutable_packed() : nullptr);
         },
         std::move(done));
   });
 }
 
-void Service::FindNearestStream(CallPtr call, const v1::FindNearestRequest& request,
-                                StreamWriter<v1::FindNearestResponse>* stream) {
+void Service::FindNearestStream(CallPtr call, const v1::FindNearestStreamRequest& request,
+                                StreamWriter<v1::FindNearestStreamResponse>* stream) {
   Begun begun = Begin(*call, "FindNearestStream", Access::kRead, &request.scene_id());
   auto refuse = [&](const absl::Status& s) {
     begun.scope->Record(s);

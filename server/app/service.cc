@@ -65,8 +65,8 @@ void Service::OnLane(CpuPool::Lane& lane, const char* limit, std::function<absl:
   }
 }
 
-void Service::CreateScene(CallPtr call, const v1::CreateSceneRequest& request, v1::Scene* response,
-                          Done done) {
+void Service::CreateScene(CallPtr call, const v1::CreateSceneRequest& request,
+                          v1::CreateSceneResponse* response, Done done) {
   Begun begun = Begin(*call, "CreateScene", Access::kWrite);
   done = Ending(begun.scope, std::move(done));
   if (!begun.status.ok()) return done(begun.status);
@@ -77,26 +77,27 @@ void Service::CreateScene(CallPtr call, const v1::CreateSceneRequest& request, v
       [this, settings = std::move(settings), response]() mutable -> absl::Status {
         auto scene = registry_->CreateScene(std::move(settings));
         if (!scene.ok()) return scene.status();
-        ToProto(*scene, response);
+        ToProto(*scene, response->mutable_scene());
         return absl::OkStatus();
       },
       std::move(done));
 }
 
-void Service::GetScene(CallPtr call, const v1::GetSceneRequest& request, v1::Scene* response,
-                       Done done) {
+void Service::GetScene(CallPtr call, const v1::GetSceneRequest& request,
+                       v1::GetSceneResponse* response, Done done) {
   Begun begun = Begin(*call, "GetScene", Access::kRead);
   done = Ending(begun.scope, std::move(done));
   if (!begun.status.ok()) return done(begun.status);
   if (auto s = ValidateSceneId(request.scene_id(), limits_); !s.ok()) return done(s);
   auto entry = registry_->Describe(request.scene_id());
   if (!entry.ok()) return done(entry.status());
+  v1::Scene* out = response->mutable_scene();
   if (entry->unloaded) {
-    ToProto(*entry->unloaded, response);
+    ToProto(*entry->unloaded, out);
     return done(absl::OkStatus());
   }
-  ToProto(*entry->scene, response);
-  ToProto(registry_->Lag(request.scene_id()), response);
+  ToProto(*entry->scene, out);
+  ToProto(registry_->Lag(request.scene_id()), out);
   auto plane = entry->scene->As<Scene>();
   if (!plane.ok()) return done(absl::OkStatus());  // a 3D scene has no hidden sites to count
   // Sites that meet the window but hold no pixel of the latest frame (paper sec. 6.2): their
@@ -104,28 +105,39 @@ void Service::GetScene(CallPtr call, const v1::GetSceneRequest& request, v1::Sce
   // the frame's pixels).
   OnLane(
       registry_->answers(), "",
-      [scene = *plane, response] {
+      [scene = *plane, out] {
         constexpr size_t kHiddenIds = 16;
         const std::shared_ptr<const Frame> frame = scene->frame();
         auto hidden = scene->Derived<std::vector<uint32_t>>(frame, [](const Frame& frame) {
           if (frame.empty()) return std::vector<uint32_t>();
           return HiddenSites(IdsOf(frame, frame.grid().all()), frame.sites());
         });
-        response->set_hidden_site_count(hidden->size());
+        out->set_hidden_site_count(hidden->size());
         for (size_t k = 0; k < hidden->size() && k < kHiddenIds; ++k) {
-          response->add_hidden_site_ids(frame->sites().get((*hidden)[k])->id);
+          out->add_hidden_site_ids(frame->sites().get((*hidden)[k])->id);
         }
         return absl::OkStatus();
       },
       std::move(done));
 }
 
-void Service::ListScenes(CallPtr call, const v1::ListScenesRequest&,
+void Service::ListScenes(CallPtr call, const v1::ListScenesRequest& request,
                          v1::ListScenesResponse* response, Done done) {
   Begun begun = Begin(*call, "ListScenes", Access::kRead);
   done = Ending(begun.scope, std::move(done));
   if (!begun.status.ok()) return done(begun.status);
+  const uint32_t size = request.page_size() == 0 ? 1000 : request.page_size();
+  if (size > limits_.max_page_size) {
+    return done(Invalid(absl::StrCat("page_size is ", size, "; it must be at most ",
+                                     limits_.max_page_size)));
+  }
+  // The page token is the last id of the previous page; ids are ordered bytewise.
   for (const SceneEntry& entry : registry_->List()) {
+    if (entry.id() <= request.page_token()) continue;
+    if (response->scenes_size() == static_cast<int>(size)) {
+      response->set_next_page_token(response->scenes(response->scenes_size() - 1).scene_id());
+      break;
+    }
     v1::Scene* scene = response->add_scenes();
     if (entry.unloaded) {
       ToProto(*entry.unloaded, scene);
@@ -149,7 +161,7 @@ void Service::DeleteScene(CallPtr call, const v1::DeleteSceneRequest& request,
 }
 
 void Service::WatchScene(CallPtr call, const v1::WatchSceneRequest& request,
-                         StreamWriter<v1::SceneEvent>* stream) {
+                         StreamWriter<v1::WatchSceneResponse>* stream) {
   Begun begun = Begin(*call, "WatchScene", Access::kRead, &request.scene_id());
   if (!begun.status.ok()) {
     begun.scope->Record(begun.status);

@@ -1,4 +1,4 @@
-// Every call of gvd.v1.Voronoi as the application core serves it: plain functions that take
+// Every call of gvd.v1.VoronoiService as the application core serves it: plain functions that take
 // the request message and fill the response message, whichever transport brought them. The
 // gRPC transport (server/grpc/) and the HTTP transport (server/http/) only translate: they
 // make a Call per request, hand the messages to these functions and turn the status into
@@ -49,15 +49,17 @@ class Service {
   int in_flight() const { return calls_.in_flight; }
 
   // Scenes.
-  void CreateScene(CallPtr call, const v1::CreateSceneRequest& request, v1::Scene* response,
+  void CreateScene(CallPtr call, const v1::CreateSceneRequest& request,
+                   v1::CreateSceneResponse* response,
                    Done done);
-  void GetScene(CallPtr call, const v1::GetSceneRequest& request, v1::Scene* response, Done done);
+  void GetScene(CallPtr call, const v1::GetSceneRequest& request, v1::GetSceneResponse* response,
+                Done done);
   void ListScenes(CallPtr call, const v1::ListScenesRequest& request,
                   v1::ListScenesResponse* response, Done done);
   void DeleteScene(CallPtr call, const v1::DeleteSceneRequest& request,
                    v1::DeleteSceneResponse* response, Done done);
   void WatchScene(CallPtr call, const v1::WatchSceneRequest& request,
-                  StreamWriter<v1::SceneEvent>* stream);
+                  StreamWriter<v1::WatchSceneResponse>* stream);
 
   // Sites.
   void UpsertSites(CallPtr call, const v1::UpsertSitesRequest& request,
@@ -70,8 +72,8 @@ class Service {
   // Queries (server/app/queries.cc).
   void FindNearest(CallPtr call, const v1::FindNearestRequest& request,
                    v1::FindNearestResponse* response, Done done);
-  void FindNearestStream(CallPtr call, const v1::FindNearestRequest& request,
-                         StreamWriter<v1::FindNearestResponse>* stream);
+  void FindNearestStream(CallPtr call, const v1::FindNearestStreamRequest& request,
+                         StreamWriter<v1::FindNearestStreamResponse>* stream);
   void RenderImage(CallPtr call, const v1::RenderImageRequest& request,
                    v1::RenderImageResponse* response, Done done);
   void Pick(CallPtr call, const v1::PickRequest& request, v1::PickResponse* response, Done done);

@@ -20,7 +20,7 @@ void PendingEvent::Note(const Volume& volume, bool) {
   box_changed_ = true;
 }
 
-void PendingEvent::Take(const Grid3& grid, v1::SceneEvent* event) {
+void PendingEvent::Take(const Grid3& grid, v1::WatchSceneResponse* event) {
   event->set_version(version_);
   event->set_site_count(sites_);
   if (box_changed_) {
@@ -36,7 +36,7 @@ void PendingEvent::Take(const Grid3& grid, v1::SceneEvent* event) {
   box_changed_ = false;
 }
 
-void PendingEvent::Take(const Grid& grid, v1::SceneEvent* event) {
+void PendingEvent::Take(const Grid& grid, v1::WatchSceneResponse* event) {
   event->set_version(version_);
   event->set_site_count(sites_);
   if (!changed_.empty()) {
@@ -61,7 +61,7 @@ class WatchStream final : public WatchStreamBase,
  public:
   using Frame = typename S::Frame;
   WatchStream(Watches* owner, std::shared_ptr<CallScope> scope, std::shared_ptr<S> scene,
-              uint64_t after, StreamWriter<v1::SceneEvent>* out)
+              uint64_t after, StreamWriter<v1::WatchSceneResponse>* out)
       : owner_(owner),
         scope_(std::move(scope)),
         scene_(std::move(scene)),
@@ -179,7 +179,7 @@ class WatchStream final : public WatchStreamBase,
   Watches* const owner_;
   const std::shared_ptr<CallScope> scope_;
   const std::shared_ptr<S> scene_;
-  StreamWriter<v1::SceneEvent>* const out_;
+  StreamWriter<v1::WatchSceneResponse>* const out_;
   uint64_t token_ = 0;
 
   std::mutex mu_;  // guards everything below
@@ -187,11 +187,11 @@ class WatchStream final : public WatchStreamBase,
   bool deleted_ = false, deletion_sent_ = false;
   bool writing_ = false, finished_ = false;
   std::optional<absl::Status> end_;
-  v1::SceneEvent event_;  // the event being written (its writer reads it until `written`)
+  v1::WatchSceneResponse event_;  // the event being written (its writer reads it until `written`)
 };
 
 void Watches::Start(CallPtr call, std::shared_ptr<CallScope> scope, const SceneHandle& scene,
-                    uint64_t after, StreamWriter<v1::SceneEvent>* out) {
+                    uint64_t after, StreamWriter<v1::WatchSceneResponse>* out) {
   scene.Visit([&](const auto& s) {
     using S = typename std::decay_t<decltype(s)>::element_type;
     auto stream = std::make_shared<WatchStream<S>>(this, std::move(scope), s, after, out);

@@ -32,8 +32,8 @@ class PendingEvent {
   bool ready() const { return version_ > sent_; }
   // Writes what is pending into `event` (version, site count, changed window in the scene
   // units of `grid`) and starts afresh. CONTRACT: ready().
-  void Take(const Grid& grid, v1::SceneEvent* event);
-  void Take(const Grid3& grid, v1::SceneEvent* event);
+  void Take(const Grid& grid, v1::WatchSceneResponse* event);
+  void Take(const Grid3& grid, v1::WatchSceneResponse* event);
   // The version of the last event taken (or `after`).
   uint64_t sent() const { return sent_; }
 
@@ -63,7 +63,7 @@ class Watches {
   // Streams the events of `scene`'s frames newer than `after` into `out`, counted in `scope`
   // until it ends; it ends when `call` is cancelled too.
   void Start(CallPtr call, std::shared_ptr<CallScope> scope, const SceneHandle& scene,
-             uint64_t after, StreamWriter<v1::SceneEvent>* out);
+             uint64_t after, StreamWriter<v1::WatchSceneResponse>* out);
   // Ends every open stream with `status` (the drain), and every stream started from now on.
   void EndAll(const absl::Status& status);
 

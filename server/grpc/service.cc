@@ -74,13 +74,13 @@ class Stream final : public grpc::ServerWriteReactor<M>, public StreamWriter<M> 
 }  // namespace
 
 #define GVD_UNARY(Method, Request, Response)                                                     \
-  grpc::ServerUnaryReactor* VoronoiService::Method(grpc::CallbackServerContext* ctx,             \
+  grpc::ServerUnaryReactor* GrpcService::Method(grpc::CallbackServerContext* ctx,             \
                                                    const Request* request, Response* response) { \
     return Serve(core_, ctx, request, response, &gvd::Service::Method);                          \
   }
 
-GVD_UNARY(CreateScene, v1::CreateSceneRequest, v1::Scene)
-GVD_UNARY(GetScene, v1::GetSceneRequest, v1::Scene)
+GVD_UNARY(CreateScene, v1::CreateSceneRequest, v1::CreateSceneResponse)
+GVD_UNARY(GetScene, v1::GetSceneRequest, v1::GetSceneResponse)
 GVD_UNARY(ListScenes, v1::ListScenesRequest, v1::ListScenesResponse)
 GVD_UNARY(DeleteScene, v1::DeleteSceneRequest, v1::DeleteSceneResponse)
 GVD_UNARY(UpsertSites, v1::UpsertSitesRequest, v1::UpsertSitesResponse)
@@ -97,16 +97,16 @@ GVD_UNARY(PlanPath, v1::PlanPathRequest, v1::PlanPathResponse)
 GVD_UNARY(Pick, v1::PickRequest, v1::PickResponse)
 #undef GVD_UNARY
 
-grpc::ServerWriteReactor<v1::SceneEvent>* VoronoiService::WatchScene(
+grpc::ServerWriteReactor<v1::WatchSceneResponse>* GrpcService::WatchScene(
     grpc::CallbackServerContext* ctx, const v1::WatchSceneRequest* request) {
-  auto* stream = new Stream<v1::SceneEvent>(MakeCall(*ctx));
+  auto* stream = new Stream<v1::WatchSceneResponse>(MakeCall(*ctx));
   core_->WatchScene(stream->call(), *request, stream);
   return stream;
 }
 
-grpc::ServerWriteReactor<v1::FindNearestResponse>* VoronoiService::FindNearestStream(
-    grpc::CallbackServerContext* ctx, const v1::FindNearestRequest* request) {
-  auto* stream = new Stream<v1::FindNearestResponse>(MakeCall(*ctx));
+grpc::ServerWriteReactor<v1::FindNearestStreamResponse>* GrpcService::FindNearestStream(
+    grpc::CallbackServerContext* ctx, const v1::FindNearestStreamRequest* request) {
+  auto* stream = new Stream<v1::FindNearestStreamResponse>(MakeCall(*ctx));
   core_->FindNearestStream(stream->call(), *request, stream);
   return stream;
 }

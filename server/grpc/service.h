@@ -1,4 +1,4 @@
-// The gvd.v1.Voronoi service on gRPC's callback API: a transport that only translates. Each
+// The gvd.v1.VoronoiService on gRPC's callback API: a transport that only translates. Each
 // handler makes a Call (the caller's "authorization" metadata; cancelled when gRPC cancels
 // the RPC, its deadline included), hands the messages to the application core
 // (server/app/service.h) and finishes with the core's status as the same gRPC code.
@@ -11,24 +11,24 @@ namespace gvd {
 
 // Threads: gRPC's threads run the handlers, which return at once; the core says where each
 // call's work runs.
-class VoronoiService final : public v1::Voronoi::CallbackService {
+class GrpcService final : public v1::VoronoiService::CallbackService {
  public:
   // `core` must outlive the service. (Within this class, Service alone names gRPC's base.)
-  explicit VoronoiService(gvd::Service* core) : core_(core) {}
+  explicit GrpcService(gvd::Service* core) : core_(core) {}
 
   grpc::ServerUnaryReactor* CreateScene(grpc::CallbackServerContext* ctx,
                                         const v1::CreateSceneRequest* request,
-                                        v1::Scene* response) override;
+                                        v1::CreateSceneResponse* response) override;
   grpc::ServerUnaryReactor* GetScene(grpc::CallbackServerContext* ctx,
                                      const v1::GetSceneRequest* request,
-                                     v1::Scene* response) override;
+                                     v1::GetSceneResponse* response) override;
   grpc::ServerUnaryReactor* ListScenes(grpc::CallbackServerContext* ctx,
                                        const v1::ListScenesRequest* request,
                                        v1::ListScenesResponse* response) override;
   grpc::ServerUnaryReactor* DeleteScene(grpc::CallbackServerContext* ctx,
                                         const v1::DeleteSceneRequest* request,
                                         v1::DeleteSceneResponse* response) override;
-  grpc::ServerWriteReactor<v1::SceneEvent>* WatchScene(
+  grpc::ServerWriteReactor<v1::WatchSceneResponse>* WatchScene(
       grpc::CallbackServerContext* ctx, const v1::WatchSceneRequest* request) override;
   grpc::ServerUnaryReactor* UpsertSites(grpc::CallbackServerContext* ctx,
                                         const v1::UpsertSitesRequest* request,
@@ -42,8 +42,8 @@ class VoronoiService final : public v1::Voronoi::CallbackService {
   grpc::ServerUnaryReactor* FindNearest(grpc::CallbackServerContext* ctx,
                                         const v1::FindNearestRequest* request,
                                         v1::FindNearestResponse* response) override;
-  grpc::ServerWriteReactor<v1::FindNearestResponse>* FindNearestStream(
-      grpc::CallbackServerContext* ctx, const v1::FindNearestRequest* request) override;
+  grpc::ServerWriteReactor<v1::FindNearestStreamResponse>* FindNearestStream(
+      grpc::CallbackServerContext* ctx, const v1::FindNearestStreamRequest* request) override;
   grpc::ServerUnaryReactor* RenderImage(grpc::CallbackServerContext* ctx,
                                         const v1::RenderImageRequest* request,
                                         v1::RenderImageResponse* response) override;

@@ -46,7 +46,7 @@ using tcp = net::ip::tcp;
 using google::protobuf::Message;
 using google::protobuf::MethodDescriptor;
 
-const char* const kService = "gvd.v1.Voronoi";
+const char* const kService = "gvd.v1.VoronoiService";
 
 // The Connect protocol's name and HTTP status for each code.
 struct ConnectCode {
@@ -160,7 +160,7 @@ Method StreamingMethod(void (Service::*method)(CallPtr, const Request&, StreamWr
           }};
 }
 
-// Every method of gvd.v1.Voronoi, by name.
+// Every method of gvd.v1.VoronoiService, by name.
 const std::map<std::string, Method>& Methods() {
   static const auto* methods = new std::map<std::string, Method>{
       {"CreateScene", UnaryMethod(&Service::CreateScene)},

@@ -1,5 +1,5 @@
-// The gvd.v1.Voronoi service over HTTP/1.1 in the Connect protocol (https://connectrpc.com),
-// for browsers, curl and Connect clients: every RPC at POST /gvd.v1.Voronoi/METHOD, unary
+// The gvd.v1.VoronoiService over HTTP/1.1 in the Connect protocol (https://connectrpc.com),
+// for browsers, curl and Connect clients: every RPC at POST /gvd.v1.VoronoiService/METHOD, unary
 // ones with application/json (the canonical protobuf JSON mapping) or application/proto
 // bodies, server-streaming ones (FindNearestStream, WatchScene) as enveloped
 // application/connect+json or +proto streams; errors as {"code": "invalid_argument",
@@ -60,7 +60,7 @@ struct ConnectCall {
   std::string message;
   int http_status = 0;
 };
-// `name`: the path after /gvd.v1.Voronoi/; `post`: whether the HTTP method is POST;
+// `name`: the path after /gvd.v1.VoronoiService/; `post`: whether the HTTP method is POST;
 // `timeout_ms`: the Connect-Timeout-Ms header (empty when absent); `encoding`: the body's
 // Content-Encoding (unary) or Connect-Content-Encoding (streaming): "", "identity" or "gzip"
 // (anything else is UNIMPLEMENTED); a gzip body inflated past `max_bytes` is

@@ -1,4 +1,4 @@
-// A client of gvd.v1.Voronoi over fetch, in the Connect protocol that gvd-server speaks on its
+// A client of gvd.v1.VoronoiService over fetch, in the Connect protocol that gvd-server speaks on its
 // HTTP port: unary calls as JSON, server-streaming calls as application/connect+json (each
 // message behind a 5-byte envelope: flags, then the length in big-endian; the last envelope,
 // flag 2, ends the stream and holds its error, if any).
@@ -52,7 +52,7 @@ export class Client {
 
   async post(method, contentType, body, signal) {
     try {
-      return await fetch(`${this.base}/gvd.v1.Voronoi/${method}`, {
+      return await fetch(`${this.base}/gvd.v1.VoronoiService/${method}`, {
         method: 'POST', headers: this.headers(contentType), body, signal,
       });
     } catch (e) {

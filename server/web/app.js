@@ -3,7 +3,7 @@
 //
 // Hover answers come from Pick, one call in flight at a time (the newest cursor position
 // waits for it), never from downloading the sites. The region under the cursor is tinted from
-// a SITE_INDEX image of the same frame, which names each pixel's site. window.gvd exposes the
+// a LAYER_SITE_INDEX image of the same frame, which names each pixel's site. window.gvd exposes the
 // page's state to scripts and tests.
 import { Client, GvdError, bytesOf } from './api.js';
 
@@ -129,7 +129,12 @@ function resize() {
 async function loadScenes(preferred) {
   let scenes;
   try {
-    scenes = (await client.call('ListScenes', {})).scenes ?? [];
+    scenes = [];
+    for (let token = '', first = true; first || token; first = false) {
+      const page = await client.call('ListScenes', { pageToken: token });
+      scenes.push(...(page.scenes ?? []));
+      token = page.nextPageToken ?? '';
+    }
   } catch (e) {
     showError(e, 'scenes');
     return;
@@ -167,7 +172,7 @@ async function openScene(id) {
   url.searchParams.delete('token');
   history.replaceState(null, '', url);
   try {
-    state.scene = await client.call('GetScene', { sceneId: id });
+    state.scene = (await client.call('GetScene', { sceneId: id })).scene ?? {};
   } catch (e) {
     showError(e, 'scenes');
     return;
@@ -343,8 +348,8 @@ async function refresh(minVersion) {
       if (space) common.slice = state.slice;
       else Object.assign(common, zoomSize(window));
       const [shown, index] = await Promise.all([
-        client.call('RenderImage', { ...common, layer: $('layer').value === 'distance' ? 'DISTANCE' : 'IDS', drawSites: !space && $('draw-sites').checked }),
-        client.call('RenderImage', { ...common, layer: 'SITE_INDEX' }),
+        client.call('RenderImage', { ...common, layer: $('layer').value === 'distance' ? 'LAYER_DISTANCE' : 'LAYER_IDS', drawSites: !space && $('draw-sites').checked }),
+        client.call('RenderImage', { ...common, layer: 'LAYER_SITE_INDEX' }),
       ]);
       if (sceneId !== state.sceneId) return;
       const [bitmap, decoded] = await Promise.all([decode(bytesOf(shown.image)), decodeIndex(index)]);
@@ -546,7 +551,7 @@ function drawOverlay() {
 const format = (v) => (Number.isFinite(v) ? v.toPrecision(6) : '–');
 
 function featureName(kind, index) {
-  return kind ? `${kind.toLowerCase()} ${index ?? 0}` : '–';
+  return kind ? `${kind.replace('FEATURE_KIND_', '').toLowerCase()} ${index ?? 0}` : '–';
 }
 
 function kindOf(site) {
@@ -671,12 +676,13 @@ async function write(method, request) {
 }
 
 // A dragged point is sent as it moves, one upsert in flight (the newest position waits):
-// RELAXED while it moves (answered once written, without waiting for the disk; synced within
-// the server's --relaxed-sync-ms), SYNC where it is dropped, the position that stays.
+// DURABILITY_RELAXED while it moves (answered once written, without waiting for the disk;
+// synced within the server's --relaxed-sync-ms), DURABILITY_SYNC where it is dropped, the
+// position that stays.
 let moving = false;
 let nextMove = null;
 
-async function move(id, site, to, durability = 'RELAXED') {
+async function move(id, site, to, durability = 'DURABILITY_RELAXED') {
   if (moving) {
     nextMove = [id, site, to, durability];
     return;
@@ -797,7 +803,7 @@ overlay.addEventListener('pointerup', async (e) => {
   if (press.drag && press.moved) {
     const to = toScene(cx, cy);
     drawOverlay();
-    await move(press.drag.id, press.drag.site, to, 'SYNC');
+    await move(press.drag.id, press.drag.site, to, 'DURABILITY_SYNC');
     state.hover = null;
     return;
   }

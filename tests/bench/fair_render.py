@@ -27,7 +27,7 @@ from gvdtest import percentile, start_server  # noqa: E402
 
 def call(port, method, body):
     conn = http.client.HTTPConnection("127.0.0.1", port, timeout=600)
-    conn.request("POST", "/gvd.v1.Voronoi/" + method, json.dumps(body).encode(),
+    conn.request("POST", "/gvd.v1.VoronoiService/" + method, json.dumps(body).encode(),
                  {"Content-Type": "application/json"})
     response = conn.getresponse()
     payload = response.read()

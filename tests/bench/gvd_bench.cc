@@ -313,7 +313,7 @@ struct InProcessServer {
   std::unique_ptr<SqliteStore> store;
   std::unique_ptr<SceneRegistry> registry;
   std::unique_ptr<Service> core;
-  std::unique_ptr<VoronoiService> service;
+  std::unique_ptr<GrpcService> service;
   std::unique_ptr<grpc::Server> server;
   std::string address;
   uint64_t version = 0;  // the scene's, once it holds the points (and has rendered them)
@@ -333,7 +333,7 @@ struct InProcessServer {
     registry = std::make_unique<SceneRegistry>(store.get(), Renderers{&renderer}, ServerLimits{});
     (void)registry->Load();
     core = std::make_unique<Service>(registry.get());
-    service = std::make_unique<VoronoiService>(core.get());
+    service = std::make_unique<GrpcService>(core.get());
     grpc::ServerBuilder builder;
     int port = 0;
     builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
@@ -445,7 +445,7 @@ void BM_GrpcUpsert(benchmark::State& state) {
   std::uniform_real_distribution<double> u(0, 1);
   v1::UpsertSitesRequest r;
   r.set_scene_id("durable");
-  r.set_durability(mode == 2 ? v1::RELAXED : v1::SYNC);
+  r.set_durability(mode == 2 ? v1::DURABILITY_RELAXED : v1::DURABILITY_SYNC);
   auto* site = r.add_sites();
   double commit = 0;
   for (auto _ : state) {
@@ -529,7 +529,7 @@ void BM_GrpcMove(benchmark::State& state) {
   std::uniform_real_distribution<double> u(0, 1);
   v1::UpsertSitesRequest move;
   move.set_scene_id("moves");
-  move.set_durability(relaxed ? v1::RELAXED : v1::SYNC);
+  move.set_durability(relaxed ? v1::DURABILITY_RELAXED : v1::DURABILITY_SYNC);
   auto* site = move.add_sites();
   site->set_id(RandomSites(1, kUnit, 4)[0].id);
   v1::FindNearestRequest ask;

@@ -73,13 +73,13 @@ def main():
                 channel = grpc.insecure_channel(f"127.0.0.1:{grpc_port}", options=[
                     ("grpc.max_receive_message_length", -1), ("grpc.max_send_message_length", -1)])
                 stream = channel.unary_stream(
-                    "/gvd.v1.Voronoi/FindNearestStream",
-                    request_serializer=pb.FindNearestRequest.SerializeToString,
-                    response_deserializer=pb.FindNearestResponse.FromString)
+                    "/gvd.v1.VoronoiService/FindNearestStream",
+                    request_serializer=pb.FindNearestStreamRequest.SerializeToString,
+                    response_deserializer=pb.FindNearestStreamResponse.FromString)
 
                 def raw():
-                    request = pb.FindNearestRequest(scene_id="bench", exact=exact,
-                                                    chunk_size=65536)
+                    request = pb.FindNearestStreamRequest(scene_id="bench", exact=exact,
+                                                          chunk_size=65536)
                     request.xy.extend(q.ravel().tolist())
                     return list(stream(request, timeout=600))
                 figures[f"raw_stub_{name}_s"] = best(raw, args.repeat)

@@ -50,24 +50,25 @@ def load_messages(workdir):
 
 
 class Voronoi:
-    """The gvd.v1.Voronoi calls this script makes."""
+    """The gvd.v1.VoronoiService calls this script makes."""
 
     def __init__(self, channel, pb):
         def call(name, request, response):
-            return channel.unary_unary("/gvd.v1.Voronoi/" + name,
+            return channel.unary_unary("/gvd.v1.VoronoiService/" + name,
                                        request_serializer=request.SerializeToString,
                                        response_deserializer=response.FromString)
-        self.CreateScene = call("CreateScene", pb.CreateSceneRequest, pb.Scene)
+        self.CreateScene = call("CreateScene", pb.CreateSceneRequest, pb.CreateSceneResponse)
         self.UpsertSites = call("UpsertSites", pb.UpsertSitesRequest, pb.UpsertSitesResponse)
         # Takes the request already serialized: times the server, not the client's encoder.
         self.UpsertSitesBytes = channel.unary_unary(
-            "/gvd.v1.Voronoi/UpsertSites", request_serializer=lambda body: body,
+            "/gvd.v1.VoronoiService/UpsertSites", request_serializer=lambda body: body,
             response_deserializer=pb.UpsertSitesResponse.FromString)
         self.FindNearest = call("FindNearest", pb.FindNearestRequest, pb.FindNearestResponse)
         self.DeleteScene = call("DeleteScene", pb.DeleteSceneRequest, pb.DeleteSceneResponse)
         self.WatchScene = channel.unary_stream(
-            "/gvd.v1.Voronoi/WatchScene", request_serializer=pb.WatchSceneRequest.SerializeToString,
-            response_deserializer=pb.SceneEvent.FromString)
+            "/gvd.v1.VoronoiService/WatchScene",
+            request_serializer=pb.WatchSceneRequest.SerializeToString,
+            response_deserializer=pb.WatchSceneResponse.FromString)
 
 
 def start_server(binary, workdir, store=None):
@@ -223,7 +224,7 @@ def main():
         # small append made durable.
         for durability in ("SYNC", "RELAXED"):
             move = pb.UpsertSitesRequest(scene_id="load",
-                                         durability=pb.Durability.Value(durability))
+                                         durability=pb.Durability.Value("DURABILITY_" + durability))
             site = move.sites.add(id="0")
             ask = pb.FindNearestRequest(scene_id="load")
             at = ask.points.add()
@@ -273,7 +274,7 @@ def main():
                               (True, ["SITE", "DISTANCE"]), (False, closest), (True, closest)):
             batch.exact = exact
             del batch.fields[:]
-            batch.fields.extend(pb.FindNearestRequest.Field.Value(f) for f in fields)
+            batch.fields.extend(pb.NearestField.Value("NEAREST_FIELD_" + f) for f in fields)
             seconds, reply = best(lambda: api.FindNearest(batch, timeout=600), 3)
             if len(reply.packed.site) != args.queries:
                 raise SystemExit("the batch came back short")

@@ -69,7 +69,7 @@ def mixed_sites(seed):
         sites.append({"id": f"line{i}", "polyline": {"points": pts}})
     for i in range(6):
         cx, cy, r, n = u(5, 95), u(5, 95), u(2, 7), 3 + i % 4
-        side = ["SIDE_UNSPECIFIED", "INSIDE", "OUTSIDE"][i % 3]
+        side = ["SIDE_UNSPECIFIED", "SIDE_INSIDE", "SIDE_OUTSIDE"][i % 3]
         sites.append({"id": f"poly{i}", "polygon": {
             "vertices": [P(cx + r * math.cos(2 * math.pi * k / n), cy + r * math.sin(2 * math.pi * k / n)) for k in range(n)],
             "side": side}})
@@ -262,7 +262,7 @@ class SelectionTest(unittest.TestCase):
     def test_hover_highlights_the_exact_nearest_object(self):
         sites = {s["id"]: s for s in mixed_sites(7)}
         version = self.create("mixed", list(sites.values()))
-        self.max_error = self.server.ok("GetScene", {"sceneId": "mixed"})["maxError"]
+        self.max_error = self.server.ok("GetScene", {"sceneId": "mixed"})["scene"]["maxError"]
         d = self.browser()
         open_scene(d, self.server, "mixed", min_version=version)
         pointer = Pointer(d)
@@ -308,7 +308,7 @@ class SelectionTest(unittest.TestCase):
         sites = {s["id"]: s for s in mixed_sites(5)}
         version = self.create("zoomed", list(sites.values()))  # pixels of 0.098, finer than the canvas's
         scene_px = 100 / 1024
-        max_error = self.server.ok("GetScene", {"sceneId": "zoomed"})["maxError"]
+        max_error = self.server.ok("GetScene", {"sceneId": "zoomed"})["scene"]["maxError"]
         d = self.browser()
         open_scene(d, self.server, "zoomed", min_version=version)
         before = page(d, "window.gvd.indexShape()")
@@ -380,7 +380,7 @@ o.dispatchEvent(new WheelEvent('wheel', {deltaY: -2000, clientX: r.left + r.widt
         while stored() > 1.5 / pointer.width * 100 and time.monotonic() < deadline:
             time.sleep(0.05)
         self.assertLess(stored(), 1.5 / pointer.width * 100, "the store holds the point where it was dropped")
-        written = int(self.server.ok("GetScene", {"sceneId": "drag"})["version"])
+        written = int(self.server.ok("GetScene", {"sceneId": "drag"})["scene"]["version"])
         # Page b, untouched, follows through WatchScene.
         wait(b, "window.gvd.frameVersion >= %d && window.gvd.indexAt(%f, %f).id === 'handle'" % (written, goal[0], goal[1]),
              timeout=10, what="the second page to show the move")
@@ -488,7 +488,7 @@ o.dispatchEvent(new WheelEvent('wheel', {deltaY: -2000, clientX: r.left + r.widt
         script = """
 const [method, body, type] = arguments;
 const done = arguments[arguments.length - 1];
-fetch('/gvd.v1.Voronoi/' + method, {method: 'POST', headers: {'Content-Type': type}, body})
+fetch('/gvd.v1.VoronoiService/' + method, {method: 'POST', headers: {'Content-Type': type}, body})
   .then(async (r) => done([r.status, await r.text()]), (e) => done([0, String(e)]));
 """
         def post(method, body, type="application/json"):
@@ -513,7 +513,7 @@ fetch('/gvd.v1.Voronoi/' + method, {method: 'POST', headers: {'Content-Type': ty
             self.assertIn(named, answer["message"], answer)
         got_status, answer = post("GetScene", '{"sceneId": "guarded"}', "text/plain")
         self.assertEqual(got_status, 415, answer)
-        scene = self.server.ok("GetScene", {"sceneId": "guarded"})
+        scene = self.server.ok("GetScene", {"sceneId": "guarded"})["scene"]
         self.assertEqual(int(scene["version"]), version, "nothing changed")
         self.assertEqual(list(self.sites("guarded")), ["a"])
         # The page's own error banner, for a call the server refuses.
@@ -608,7 +608,7 @@ class LatencyTest(unittest.TestCase):
                 parts = page(d, "window.gvd.parts")
                 # A sample checked against brute force: the hover answer, and the SITE_INDEX
                 # pixel under it (indexes up to 100,000 take all three bytes of a pixel).
-                max_error = server.ok("GetScene", {"sceneId": "big"})["maxError"]
+                max_error = server.ok("GetScene", {"sceneId": "big"})["scene"]["maxError"]
                 for answer in answers[:15]:
                     q = (answer["x"], answer["y"])
                     best = min(math.hypot(q[0] - x, q[1] - y) for x, y in points)

@@ -150,7 +150,7 @@ TEST_F(CliTest, EveryKindAndAnImage) {
   EXPECT_EQ(magic, "\x89PNG\r\n\x1a\n");
   r = Gvd("render kinds -o " + server_->dir() + "/kinds.exr --layer ids");
   EXPECT_EQ(r.exit_code, 1);
-  EXPECT_NE(r.out.find("INVALID_ARGUMENT: format EXR holds the DISTANCE layer only"),
+  EXPECT_NE(r.out.find("INVALID_ARGUMENT: format FORMAT_EXR holds the LAYER_DISTANCE layer only"),
             std::string::npos)
       << r.out;
 }
@@ -496,9 +496,9 @@ TEST_F(CliTest, A3DSceneFromAModelFileToOpenVdb) {
   v1::FindNearestRequest q;
   q.set_scene_id("model");
   q.set_min_version(5);
-  for (auto f : {v1::FindNearestRequest::SITE, v1::FindNearestRequest::DISTANCE,
-                 v1::FindNearestRequest::ERROR_BOUND, v1::FindNearestRequest::CLOSEST,
-                 v1::FindNearestRequest::GRADIENT}) {
+  for (auto f : {v1::NEAREST_FIELD_SITE, v1::NEAREST_FIELD_DISTANCE,
+                 v1::NEAREST_FIELD_ERROR_BOUND, v1::NEAREST_FIELD_CLOSEST,
+                 v1::NEAREST_FIELD_GRADIENT}) {
     q.add_fields(f);
   }
   std::mt19937_64 rng(7);

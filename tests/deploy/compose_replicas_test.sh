@@ -126,7 +126,7 @@ expect "a 10 10 b 80 20 c 50 90 d 60 60" "60 61" "$out"
 for port in 8080 8081; do
   answer=$(curl -sf -H 'Content-Type: application/json' \
     -d '{"sceneId":"city","points":[{"x":60,"y":61}],"minVersion":"3","exact":true}' \
-    "http://127.0.0.1:$port/gvd.v1.Voronoi/FindNearest")
+    "http://127.0.0.1:$port/gvd.v1.VoronoiService/FindNearest")
   echo "HTTP $port: $answer"
   [[ $answer == *'"siteId":"d"'* && $answer == *'"version":"3"'* ]] \
     || { echo "FAIL: HTTP $port answered $answer"; exit 1; }

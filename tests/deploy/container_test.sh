@@ -21,7 +21,7 @@ trap cleanup EXIT
 "${run[@]}" run -d --name "$name" --network=host --memory "$memory" "$image" \
   --listen "127.0.0.1:$port" --http-listen "127.0.0.1:$((port + 1))" \
   --metrics-listen "127.0.0.1:$((port + 2))" >/dev/null
-http="http://127.0.0.1:$((port + 1))/gvd.v1.Voronoi"
+http="http://127.0.0.1:$((port + 1))/gvd.v1.VoronoiService"
 for _ in $(seq 120); do
   "${podman[@]}" logs "$name" 2>&1 | grep -q event=http_listening && break
   [[ $("${podman[@]}" inspect -f '{{.State.Running}}' "$name") == true ]] || break

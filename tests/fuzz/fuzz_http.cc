@@ -1,7 +1,7 @@
 // Fuzz target: bytes as an HTTP/1.1 request to the Connect transport: Boost.Beast parses them
 // as gvd-server's sessions do, then DecodeConnectCall (server/http/http.h) turns the path, the
 // headers and the body into a call. Whatever the input: no crash; a refusal has a code and a
-// message; an accepted call names a method of gvd.v1.Voronoi and carries a request of that
+// message; an accepted call names a method of gvd.v1.VoronoiService and carries a request of that
 // method's input type, and a JSON request, written back as JSON and decoded again, gives the
 // same request bytes.
 #include <cstdint>
@@ -35,8 +35,8 @@ std::string_view View(boost::beast::string_view v) { return {v.data(), v.size()}
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
   google::protobuf::SetLogHandler(nullptr);
   // Links voronoi.proto's messages and builds its descriptors, so that the generated pool
-  // knows gvd.v1.Voronoi (nothing else in this binary names them).
-  Check(gvd::v1::CreateSceneRequest::descriptor()->file()->FindServiceByName("Voronoi") != nullptr);
+  // knows gvd.v1.VoronoiService (nothing else in this binary names them).
+  Check(gvd::v1::CreateSceneRequest::descriptor()->file()->FindServiceByName("VoronoiService") != nullptr);
   return 0;
 }
 
@@ -56,7 +56,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   http::request<http::string_body> req = parser.release();
   std::string target(View(req.target()));
   target = target.substr(0, target.find('?'));
-  const std::string prefix = "/gvd.v1.Voronoi/";
+  const std::string prefix = "/gvd.v1.VoronoiService/";
   if (target.compare(0, prefix.size(), prefix) != 0) return 0;
   const std::string name = target.substr(prefix.size());
   const bool post = req.method() == http::verb::post;
@@ -68,7 +68,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     Check(call.request == nullptr);
     return 0;
   }
-  Check(call.method->service()->full_name() == "gvd.v1.Voronoi" && post);
+  Check(call.method->service()->full_name() == "gvd.v1.VoronoiService" && post);
   Check(!call.timeout || call.timeout->count() > 0);
   // The request is of the method's input type, as the core takes it.
   Check(call.request != nullptr && call.request->GetDescriptor() == call.method->input_type());

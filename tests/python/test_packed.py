@@ -27,7 +27,7 @@ def message(rng, n, closest):
     if closest:
         p.closest.extend(rng.random(2 * n).tolist())
         p.gradient.extend(rng.random(2 * n).tolist())
-    return pb.FindNearestResponse(packed=p, version=int(rng.integers(0, 2**63)),
+    return pb.FindNearestStreamResponse(packed=p, version=int(rng.integers(0, 2**63)),
                                   offset=int(rng.integers(0, 2**40)))
 
 
@@ -75,7 +75,7 @@ def test_a_field_split_over_records_is_joined():
     rng = np.random.default_rng(5)
     first, second = message(rng, 9, False), message(rng, 4, False)
     # Protobuf merges a message field given twice, appending its repeated fields.
-    r = pb.FindNearestResponse.FromString(first.SerializeToString() + second.SerializeToString())
+    r = pb.FindNearestStreamResponse.FromString(first.SerializeToString() + second.SerializeToString())
     check(PackedAnswers.FromString(first.SerializeToString() + second.SerializeToString()), r)
 
 
@@ -83,7 +83,7 @@ def test_the_unpacked_encoding_is_read_by_protobuf():
     # distance (field 3) as one unpacked double, then a packed site: valid protobuf.
     inner = bytes([3 << 3 | 1]) + np.float64(2.5).tobytes() + bytes([2 << 3 | 2, 1, 0])
     data = bytes([3 << 3 | 2, len(inner)]) + inner + bytes([2 << 3, 7])
-    r = pb.FindNearestResponse.FromString(data)
+    r = pb.FindNearestStreamResponse.FromString(data)
     a = PackedAnswers.FromString(data)
     check(a, r)
     assert a.version == 7 and list(a.get(_packed.DISTANCE, "<f8")) == [2.5]

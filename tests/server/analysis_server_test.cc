@@ -26,8 +26,8 @@ class AnalysisServerTest : public testing::SharedServerTest {
  protected:
   static void SetUpTestSuite() { StartServer({"--max-side-px", "4096"}); }
   // A scene over the unit square at size x size pixels.
-  static void Create(const std::string& id, uint32_t size, v1::Diagram diagram = v1::NEAREST,
-                     v1::RenderMode mode = v1::MESH) {
+  static void Create(const std::string& id, uint32_t size, v1::Diagram diagram = v1::DIAGRAM_NEAREST,
+                     v1::RenderMode mode = v1::RENDER_MODE_MESH) {
     v1::CreateSceneRequest r = testing::UnitScene(id, size, size);
     r.set_diagram(diagram);
     r.set_render_mode(mode);
@@ -123,7 +123,7 @@ TEST_F(AnalysisServerTest, DelaunayTrianglesHaveEmptyCircumcircles) {
 // Boundaries of random points: both methods find the same pixel pairs; each boundary is
 // between two neighbours and its inner points are equidistant from them.
 TEST_F(AnalysisServerTest, BoundariesByBothMethods) {
-  Create("bounds", 400, v1::NEAREST, v1::EXACT);
+  Create("bounds", 400, v1::DIAGRAM_NEAREST, v1::RENDER_MODE_EXACT);
   SiteTable sites = RandomPoints(40, 11);
   uint64_t v = Upsert("bounds", sites);
   v1::GetBoundariesRequest r;
@@ -131,7 +131,7 @@ TEST_F(AnalysisServerTest, BoundariesByBothMethods) {
   r.set_min_version(v);
   v1::GetBoundariesResponse full, walk;
   ASSERT_TRUE(client_->GetBoundaries(r, &full).ok());
-  r.set_method(v1::GetBoundariesRequest::CONTINUATION);
+  r.set_method(v1::GetBoundariesRequest::METHOD_CONTINUATION);
   ASSERT_TRUE(client_->GetBoundaries(r, &walk).ok());
   EXPECT_EQ(full.boundary_pixel_pairs(), walk.boundary_pixel_pairs());
   EXPECT_EQ(full.boundaries_size(), walk.boundaries_size());
@@ -153,7 +153,7 @@ TEST_F(AnalysisServerTest, BoundariesByBothMethods) {
   }
   EXPECT_GT(exact, points * 99 / 100);
   // A window of the scene: fewer boundaries, all inside it.
-  r.set_method(v1::GetBoundariesRequest::FULL_SCAN);
+  r.set_method(v1::GetBoundariesRequest::METHOD_FULL_SCAN);
   r.mutable_window()->set_min_x(0.25);
   r.mutable_window()->set_min_y(0.25);
   r.mutable_window()->set_max_x(0.5);
@@ -171,7 +171,7 @@ TEST_F(AnalysisServerTest, BoundariesByBothMethods) {
 // A zoom window rendered by the server: every pixel's site is within 2 eps (at the zoom's
 // resolution) of the exact nearest, even for a window outside the scene's.
 TEST_F(AnalysisServerTest, ZoomWindowsAgainstTheOracle) {
-  Create("zoom", 256, v1::NEAREST, v1::EXACT);
+  Create("zoom", 256, v1::DIAGRAM_NEAREST, v1::RENDER_MODE_EXACT);
   SiteTable sites = RandomPoints(60, 3);
   sites.push_back({"seg", SegmentSite{{0.1, 0.9}, {0.6, 0.7}}});
   uint64_t v = Upsert("zoom", sites);
@@ -439,7 +439,7 @@ TEST_F(AnalysisServerTest, AmbiguousAnswersAreRefined) {
 
 TEST_F(AnalysisServerTest, BadInputIsRefusedByName) {
   Create("bad", 64);
-  Create("far", 64, v1::FARTHEST);
+  Create("far", 64, v1::DIAGRAM_FARTHEST);
   SiteTable sites = {{"a", PointSite{{0.2, 0.2}}}, {"s", SegmentSite{{0.5, 0.5}, {0.7, 0.6}}}};
   Upsert("bad", sites);
   Upsert("far", sites);
@@ -455,7 +455,7 @@ TEST_F(AnalysisServerTest, BadInputIsRefusedByName) {
     r.set_scene_id("bad");
     r.set_method(static_cast<v1::GetBoundariesRequest::Method>(7));
     expect(client_->GetBoundaries(r, &out), StatusCode::INVALID_ARGUMENT, "method is 7");
-    r.set_method(v1::GetBoundariesRequest::FULL_SCAN);
+    r.set_method(v1::GetBoundariesRequest::METHOD_FULL_SCAN);
     r.mutable_window()->set_min_x(5);
     r.mutable_window()->set_max_x(6);
     r.mutable_window()->set_max_y(1);

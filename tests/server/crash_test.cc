@@ -144,7 +144,7 @@ TEST(CrashTest, AcknowledgedUpdatesSurviveSigkill) {
           std::lock_guard<std::mutex> lock(mu);
           in_flight = op;
         }
-        const v1::Durability durability = r() % 2 ? v1::RELAXED : v1::SYNC;
+        const v1::Durability durability = r() % 2 ? v1::DURABILITY_RELAXED : v1::DURABILITY_SYNC;
         grpc::Status s;
         uint64_t version = 0;
         if (remove) {
@@ -273,7 +273,7 @@ TEST(CrashTest, CleanRestartKeepsEverything) {
     c.mutable_window()->set_max_y(10);
     c.set_width_px(32);
     c.set_height_px(32);
-    c.set_render_mode(v1::EXACT);
+    c.set_render_mode(v1::RENDER_MODE_EXACT);
     v1::Scene scene;
     ASSERT_TRUE(client->CreateScene(c, &scene).ok());
     v1::UpsertSitesRequest u;
@@ -294,7 +294,7 @@ TEST(CrashTest, CleanRestartKeepsEverything) {
   ASSERT_TRUE(client->GetScene("kept", &scene).ok());
   EXPECT_EQ(scene.version(), 2u);
   EXPECT_EQ(scene.site_count(), 1u);
-  EXPECT_EQ(scene.render_mode(), v1::EXACT);
+  EXPECT_EQ(scene.render_mode(), v1::RENDER_MODE_EXACT);
   v1::FindNearestRequest q;
   q.set_scene_id("kept");
   q.add_points();
@@ -334,7 +334,7 @@ TEST(StoreUpgrade, AnEarlierDatabaseIsConvertedOnStart) {
   RawSql(db, "CREATE TABLE sites (scene TEXT NOT NULL REFERENCES scenes(id) ON DELETE CASCADE,"
              " id TEXT NOT NULL, site BLOB NOT NULL, PRIMARY KEY (scene, id)) WITHOUT ROWID");
   v1::CreateSceneRequest create = testing::UnitScene("old", 48, 32);
-  create.set_diagram(v1::FARTHEST);
+  create.set_diagram(v1::DIAGRAM_FARTHEST);
   RawSql(db, "INSERT INTO scenes VALUES ('old', ?, 9)", {create.SerializeAsString()});
   v1::Site p, g;
   p.set_id("p");
@@ -348,7 +348,7 @@ TEST(StoreUpgrade, AnEarlierDatabaseIsConvertedOnStart) {
     v->set_x(x);
     v->set_y(y);
   }
-  g.mutable_polygon()->set_side(v1::Polygon::INSIDE);
+  g.mutable_polygon()->set_side(v1::Polygon::SIDE_INSIDE);
   for (const v1::Site& site : {p, g}) {
     RawSql(db, "INSERT INTO sites VALUES ('old', '" + site.id() + "', ?)",
            {site.SerializeAsString()});
@@ -359,12 +359,12 @@ TEST(StoreUpgrade, AnEarlierDatabaseIsConvertedOnStart) {
     EXPECT_EQ(scene.version(), version);
     EXPECT_EQ(scene.width_px(), 48u);
     EXPECT_EQ(scene.height_px(), 32u);
-    EXPECT_EQ(scene.diagram(), v1::FARTHEST);
+    EXPECT_EQ(scene.diagram(), v1::DIAGRAM_FARTHEST);
     std::vector<v1::Site> sites;
     ASSERT_TRUE(client.ListAllSites("old", &sites).ok());
     ASSERT_EQ(sites.size(), count);
     EXPECT_EQ(sites[0].id(), "g");
-    EXPECT_EQ(sites[0].polygon().side(), v1::Polygon::INSIDE);
+    EXPECT_EQ(sites[0].polygon().side(), v1::Polygon::SIDE_INSIDE);
     ASSERT_EQ(sites[0].polygon().vertices_size(), 3);
     EXPECT_EQ(sites[0].polygon().vertices(2).y(), 0.8);
     EXPECT_EQ(sites[1].id(), "p");

@@ -84,7 +84,7 @@ Reply Send(int port, http::verb verb, const std::string& target, const std::stri
 Reply Post(int port, const std::string& method, const std::string& json,
            std::map<std::string, std::string> headers = {}) {
   headers.emplace("Content-Type", "application/json");
-  return Send(port, http::verb::post, "/gvd.v1.Voronoi/" + method, json, headers);
+  return Send(port, http::verb::post, "/gvd.v1.VoronoiService/" + method, json, headers);
 }
 
 template <class M>
@@ -170,7 +170,7 @@ std::string Envelope(const std::string& json) {
 StreamReply Stream(int port, const std::string& method, const std::string& json,
                    std::map<std::string, std::string> headers = {}) {
   headers.emplace("Content-Type", "application/connect+json");
-  Reply r = Send(port, http::verb::post, "/gvd.v1.Voronoi/" + method, Envelope(json), headers);
+  Reply r = Send(port, http::verb::post, "/gvd.v1.VoronoiService/" + method, Envelope(json), headers);
   EXPECT_EQ(r.headers["content-type"], "application/connect+json");
   return ReadStream(r.body, r.status);
 }
@@ -264,8 +264,8 @@ TEST_F(HttpTest, JsonAndGrpcGiveTheSameAnswersAndErrors) {
   for (double v : {0.1, 0.2, 0.5, 0.5, 2.0, -1.0}) packed.add_xy(v);
   ASSERT_TRUE(client_->FindNearest(packed, &found).ok());
   same("FindNearest", found, Json(packed));
-  v1::Scene scene;
-  ASSERT_TRUE(client_->GetScene("both", &scene).ok());
+  v1::GetSceneResponse scene;
+  ASSERT_TRUE(client_->GetScene("both", scene.mutable_scene()).ok());
   v1::GetSceneRequest get;
   get.set_scene_id("both");
   same("GetScene", scene, Json(get));
@@ -308,10 +308,10 @@ TEST_F(HttpTest, JsonAndGrpcGiveTheSameAnswersAndErrors) {
   v1::GetSceneRequest missing;
   missing.set_scene_id("missing");
   const std::vector<Bad> bad = {
-      {"CreateScene", Json(zero), [&] { return client_->CreateScene(zero, &scene); }, 400},
-      {"CreateScene", Json(create), [&] { return client_->CreateScene(create, &scene); }, 409},
+      {"CreateScene", Json(zero), [&] { return client_->CreateScene(zero, scene.mutable_scene()); }, 400},
+      {"CreateScene", Json(create), [&] { return client_->CreateScene(create, scene.mutable_scene()); }, 409},
       {"FindNearest", Json(ahead), [&] { return client_->FindNearest(ahead, &found); }, 400},
-      {"GetScene", Json(missing), [&] { return client_->GetScene("missing", &scene); }, 404},
+      {"GetScene", Json(missing), [&] { return client_->GetScene("missing", scene.mutable_scene()); }, 404},
   };
   for (const Bad& b : bad) {
     grpc::Status g = b.grpc_call();
@@ -340,7 +340,7 @@ TEST_F(HttpTest, BadRequestsAreRefusedByNameAndChangeNothing) {
   const std::string huge(300000, ' ');
   const std::vector<Case> cases = {
       {"not JSON", Post(port(), "CreateScene", "{\"sceneId\": "), 400, "invalid_argument", ""},
-      {"binary, not protobuf", Send(port(), http::verb::post, "/gvd.v1.Voronoi/CreateScene",
+      {"binary, not protobuf", Send(port(), http::verb::post, "/gvd.v1.VoronoiService/CreateScene",
                                     std::string("\xff\xff\xff", 3),
                                     {{"Content-Type", "application/proto"}}),
        400, "invalid_argument", "CreateSceneRequest"},
@@ -352,16 +352,16 @@ TEST_F(HttpTest, BadRequestsAreRefusedByNameAndChangeNothing) {
       {"oversize", Post(port(), "CreateScene", "{\"sceneId\": \"x\"" + huge + "}"), 429,
        "resource_exhausted", "--max-message-bytes"},
       {"unknown method", Post(port(), "MakeCoffee", "{}"), 404, "unimplemented", "MakeCoffee"},
-      {"GET of a method", Send(port(), http::verb::get, "/gvd.v1.Voronoi/ListScenes", ""), 405,
+      {"GET of a method", Send(port(), http::verb::get, "/gvd.v1.VoronoiService/ListScenes", ""), 405,
        "unimplemented", "POST"},
-      {"plain text", Send(port(), http::verb::post, "/gvd.v1.Voronoi/ListScenes", "{}",
+      {"plain text", Send(port(), http::verb::post, "/gvd.v1.VoronoiService/ListScenes", "{}",
                           {{"Content-Type", "text/plain"}}),
        415, "unimplemented", "application/json"},
       {"unknown path", Send(port(), http::verb::get, "/etc/passwd", ""), 404, "not_found",
        "/etc/passwd"},
-      {"unknown service", Send(port(), http::verb::post, "/gvd.v2.Voronoi/ListScenes", "{}",
+      {"unknown service", Send(port(), http::verb::post, "/gvd.v2.VoronoiService/ListScenes", "{}",
                                {{"Content-Type", "application/json"}}),
-       404, "unimplemented", "gvd.v2.Voronoi"},
+       404, "unimplemented", "gvd.v2.VoronoiService"},
       {"bad timeout", Post(port(), "ListScenes", "{}", {{"Connect-Timeout-Ms", "soon"}}), 400,
        "invalid_argument", "Connect-Timeout-Ms"},
   };
@@ -398,7 +398,7 @@ TEST_F(HttpTest, OversizeBodiesAreReadThroughAndAnswered) {
   beast::flat_buffer buffer;
   // `chunked`: the body sent in 64 KB chunks with no length, as a streaming client sends it.
   auto call = [&](const std::string& method, std::string body, bool chunked = false) {
-    http::request<http::string_body> req{http::verb::post, "/gvd.v1.Voronoi/" + method, 11};
+    http::request<http::string_body> req{http::verb::post, "/gvd.v1.VoronoiService/" + method, 11};
     req.set(http::field::host, "127.0.0.1");
     req.set(http::field::content_type, "application/json");
     req.keep_alive(true);
@@ -467,12 +467,12 @@ TEST_F(HttpTest, GzipRequestBodies) {
   find.add_xy(0.5);
   std::string envelope = Envelope(Gzip(Json(find)));
   envelope[0] = 0x01;
-  Reply r = Send(port(), http::verb::post, "/gvd.v1.Voronoi/FindNearestStream", envelope,
+  Reply r = Send(port(), http::verb::post, "/gvd.v1.VoronoiService/FindNearestStream", envelope,
                  {{"Content-Type", "application/connect+json"}, {"Connect-Content-Encoding", "gzip"}});
   EXPECT_EQ(r.headers["connect-accept-encoding"], "gzip");
   StreamReply s = ReadStream(r.body, r.status);
   ASSERT_EQ(s.messages.size(), 1u) << r.body;
-  EXPECT_EQ(Parse<v1::FindNearestResponse>(s.messages[0]).packed().site_ids(0), "a");
+  EXPECT_EQ(Parse<v1::FindNearestStreamResponse>(s.messages[0]).packed().site_ids(0), "a");
   EXPECT_EQ(s.end, "{}");
 }
 
@@ -517,7 +517,7 @@ TEST_F(HttpTest, AnswersAreGzipWhereTheRequestTakesIt) {
   StreamReply stream = Stream(port(), "FindNearestStream", Json(find), {{"Accept-Encoding", "gzip"}});
   EXPECT_EQ(stream.status, 200);
   ASSERT_EQ(stream.messages.size(), 1u);
-  EXPECT_EQ(Parse<v1::FindNearestResponse>(stream.messages[0]).packed().distance_size(), 500);
+  EXPECT_EQ(Parse<v1::FindNearestStreamResponse>(stream.messages[0]).packed().distance_size(), 500);
 }
 
 // Server streams in the Connect protocol: FindNearestStream's chunks as gRPC gives them,
@@ -526,7 +526,7 @@ TEST_F(HttpTest, ServerStreamsOverHttp) {
   v1::Scene scene;
   ASSERT_TRUE(client_->CreateScene(testing::UnitScene("streamed", 64, 64), &scene).ok());
   const uint64_t v = Upsert("streamed", {{"a", PointSite{{0.2, 0.2}}}, {"b", PointSite{{0.8, 0.7}}}});
-  v1::FindNearestRequest find;
+  v1::FindNearestStreamRequest find;
   find.set_scene_id("streamed");
   find.set_min_version(v);
   find.set_chunk_size(3);
@@ -534,14 +534,14 @@ TEST_F(HttpTest, ServerStreamsOverHttp) {
     find.add_xy(i / 10.0);
     find.add_xy(1 - i / 10.0);
   }
-  std::vector<v1::FindNearestResponse> chunks;
+  std::vector<v1::FindNearestStreamResponse> chunks;
   ASSERT_TRUE(client_->FindNearestStream(find, &chunks).ok());
   StreamReply s = Stream(port(), "FindNearestStream", Json(find));
   EXPECT_EQ(s.status, 200);
   ASSERT_EQ(s.messages.size(), chunks.size());
   for (size_t k = 0; k < chunks.size(); ++k) {
     EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(
-        Parse<v1::FindNearestResponse>(s.messages[k]), chunks[k]));
+        Parse<v1::FindNearestStreamResponse>(s.messages[k]), chunks[k]));
   }
   EXPECT_EQ(s.end, "{}");
 
@@ -564,10 +564,10 @@ TEST_F(HttpTest, ServerStreamsOverHttp) {
   watcher.join();
   EXPECT_EQ(watched.status, 200);
   ASSERT_GE(watched.messages.size(), 2u);
-  EXPECT_EQ(Parse<v1::SceneEvent>(watched.messages.front()).scene_id(), "streamed");
-  EXPECT_GT(Parse<v1::SceneEvent>(watched.messages.front()).version(), v);
-  EXPECT_TRUE(Parse<v1::SceneEvent>(watched.messages.back()).deleted());
-  EXPECT_LE(Parse<v1::SceneEvent>(watched.messages[watched.messages.size() - 2]).version(), last);
+  EXPECT_EQ(Parse<v1::WatchSceneResponse>(watched.messages.front()).scene_id(), "streamed");
+  EXPECT_GT(Parse<v1::WatchSceneResponse>(watched.messages.front()).version(), v);
+  EXPECT_TRUE(Parse<v1::WatchSceneResponse>(watched.messages.back()).deleted());
+  EXPECT_LE(Parse<v1::WatchSceneResponse>(watched.messages[watched.messages.size() - 2]).version(), last);
   EXPECT_EQ(watched.end, "{}");
 
   v1::WatchSceneRequest gone;
@@ -596,7 +596,7 @@ TEST_F(HttpTest, ServerStreamsOverHttp) {
 // CORS: a preflight from an allowed origin is answered with what a browser needs, from
 // another origin refused; answers carry Access-Control-Allow-Origin only for allowed ones.
 TEST_F(HttpTest, CorsForTheAllowedOriginsOnly) {
-  Reply ok = Send(port(), http::verb::options, "/gvd.v1.Voronoi/ListScenes", "",
+  Reply ok = Send(port(), http::verb::options, "/gvd.v1.VoronoiService/ListScenes", "",
                   {{"Origin", "https://app.example.com"},
                    {"Access-Control-Request-Method", "POST"},
                    {"Access-Control-Request-Headers", "content-type, authorization"}});
@@ -604,7 +604,7 @@ TEST_F(HttpTest, CorsForTheAllowedOriginsOnly) {
   EXPECT_EQ(ok.headers["access-control-allow-origin"], "https://app.example.com");
   EXPECT_NE(ok.headers["access-control-allow-headers"].find("Authorization"), std::string::npos);
   EXPECT_NE(ok.headers["access-control-allow-methods"].find("POST"), std::string::npos);
-  Reply other = Send(port(), http::verb::options, "/gvd.v1.Voronoi/ListScenes", "",
+  Reply other = Send(port(), http::verb::options, "/gvd.v1.VoronoiService/ListScenes", "",
                      {{"Origin", "https://evil.example.com"}, {"Access-Control-Request-Method", "POST"}});
   EXPECT_EQ(other.status, 403);
   EXPECT_EQ(other.headers.count("access-control-allow-origin"), 0u);
@@ -631,7 +631,7 @@ TEST(HttpStreams, LargeChunksArriveWholeAndInOrder) {
   const v1::UpsertSitesRequest sites = testing::RandomPoints("large", 300, 41, "p");
   uint64_t version = 0;
   ASSERT_TRUE(client->UpsertSites(sites, &version).ok());
-  v1::FindNearestRequest find;
+  v1::FindNearestStreamRequest find;
   find.set_scene_id("large");
   find.set_min_version(version);
   find.set_chunk_size(50000);  // four equal chunks of 1 MB: the last write is a large one
@@ -642,7 +642,7 @@ TEST(HttpStreams, LargeChunksArriveWholeAndInOrder) {
     find.add_xy(u(rng));
     find.add_xy(u(rng));
   }
-  std::vector<v1::FindNearestResponse> chunks;
+  std::vector<v1::FindNearestStreamResponse> chunks;
   ASSERT_TRUE(client->FindNearestStream(find, &chunks).ok());
   ASSERT_EQ(chunks.size(), 4u);
   std::string body(5, '\0');
@@ -653,7 +653,7 @@ TEST(HttpStreams, LargeChunksArriveWholeAndInOrder) {
     SCOPED_TRACE(round);
     Reply r;
     try {
-      r = Send(server.http_port(), http::verb::post, "/gvd.v1.Voronoi/FindNearestStream", body,
+      r = Send(server.http_port(), http::verb::post, "/gvd.v1.VoronoiService/FindNearestStream", body,
                {{"Content-Type", "application/connect+proto"}});
     } catch (const std::exception& e) {
       FAIL() << "the response is not well-formed HTTP: " << e.what();
@@ -663,7 +663,7 @@ TEST(HttpStreams, LargeChunksArriveWholeAndInOrder) {
     EXPECT_EQ(s.end, "{}");
     ASSERT_EQ(s.messages.size(), chunks.size());
     for (size_t k = 0; k < chunks.size(); ++k) {
-      v1::FindNearestResponse m;
+      v1::FindNearestStreamResponse m;
       ASSERT_TRUE(m.ParseFromString(s.messages[k]));
       EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(m, chunks[k]));
     }
@@ -697,7 +697,7 @@ TEST(HttpSecurity, TokensAndTls) {
   auto post = [&](const std::string& method, const std::string& json, const std::string& token) {
     std::map<std::string, std::string> h{{"Content-Type", "application/json"}};
     if (!token.empty()) h["Authorization"] = "Bearer " + token;
-    return Send(server.http_port(), http::verb::post, "/gvd.v1.Voronoi/" + method, json, h,
+    return Send(server.http_port(), http::verb::post, "/gvd.v1.VoronoiService/" + method, json, h,
                 ca.str());
   };
   const std::string create =
@@ -711,7 +711,7 @@ TEST(HttpSecurity, TokensAndTls) {
   EXPECT_EQ(post("CreateScene", create, "writer-token-0123456789").status, 200);
   EXPECT_EQ(post("ListScenes", "{}", "reader-token-0123456789").status, 200);
   // Plain HTTP on the TLS port gets no answer.
-  EXPECT_ANY_THROW(Send(server.http_port(), http::verb::post, "/gvd.v1.Voronoi/ListScenes", "{}",
+  EXPECT_ANY_THROW(Send(server.http_port(), http::verb::post, "/gvd.v1.VoronoiService/ListScenes", "{}",
                         {{"Content-Type", "application/json"}}));
   std::system(("rm -rf " + d).c_str());
 }

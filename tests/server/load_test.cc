@@ -65,7 +65,7 @@ TEST(LoadTest, MixedWorkloadHoldsItsContract) {
     auto client = Client::Connect(server.address());
     for (const auto& name : names) {
       v1::CreateSceneRequest c = testing::UnitScene(name, 256, 256);
-      if (name == "load-c") c.set_render_mode(v1::EXACT);
+      if (name == "load-c") c.set_render_mode(v1::RENDER_MODE_EXACT);
       v1::Scene scene;
       ASSERT_TRUE(client->CreateScene(c, &scene).ok());
     }

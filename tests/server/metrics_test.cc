@@ -24,7 +24,7 @@ TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
   auto client = Client::Connect(server.address());
   // A FARTHEST diagram is drawn as meshes on every device, so its full render reports a fill.
   v1::CreateSceneRequest c = testing::UnitScene("metered", 64, 64);
-  c.set_diagram(v1::FARTHEST);
+  c.set_diagram(v1::DIAGRAM_FARTHEST);
   v1::Scene scene;
   ASSERT_TRUE(client->CreateScene(c, &scene).ok());
   EXPECT_EQ(client->CreateScene(c, &scene).error_code(), grpc::StatusCode::ALREADY_EXISTS);
@@ -73,7 +73,7 @@ TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
   // An EXACT nearest diagram's first render is computed: it reports its candidates per pixel
   // instead, at least one (every pixel centre scans the site nearest to it).
   c = testing::UnitScene("computed", 64, 64);
-  c.set_render_mode(v1::EXACT);
+  c.set_render_mode(v1::RENDER_MODE_EXACT);
   ASSERT_TRUE(client->CreateScene(c, &scene).ok());
   u.set_scene_id("computed");
   ASSERT_TRUE(client->UpsertSites(u, &v).ok());
@@ -127,7 +127,7 @@ TEST(MetricsTest, CancelledBatchesStopWorking) {
     q.add_xy((i / 1000) / 1000.0);
   }
   auto channel = grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials());
-  auto stub = v1::Voronoi::NewStub(channel);
+  auto stub = v1::VoronoiService::NewStub(channel);
   grpc::ClientContext ctx;
   ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(10));
   v1::FindNearestResponse r;

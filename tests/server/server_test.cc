@@ -28,7 +28,7 @@ using grpc::StatusCode;
 class ServerTest : public testing::SharedServerTest {
  protected:
   static v1::Scene Create(const std::string& id, Window w, uint32_t width, uint32_t height,
-                          double max_error = 0, v1::RenderMode mode = v1::MESH) {
+                          double max_error = 0, v1::RenderMode mode = v1::RENDER_MODE_MESH) {
     v1::CreateSceneRequest r;
     r.set_scene_id(id);
     r.mutable_window()->set_min_x(w.min_x);
@@ -124,8 +124,8 @@ TEST_F(ServerTest, SceneLifecycle) {
 }
 
 TEST_F(ServerTest, TenThousandRandomSitesAnswerWithinTheirBound) {
-  for (v1::RenderMode mode : {v1::MESH, v1::EXACT}) {
-  const std::string name = mode == v1::MESH ? "random10k" : "random10k-exact";
+  for (v1::RenderMode mode : {v1::RENDER_MODE_MESH, v1::RENDER_MODE_EXACT}) {
+  const std::string name = mode == v1::RENDER_MODE_MESH ? "random10k" : "random10k-exact";
   Window w{-50, 20, 150, 220};
   v1::Scene scene = Create(name, w, 384, 384, 0, mode);
   EXPECT_EQ(scene.render_mode(), mode);
@@ -609,8 +609,9 @@ TEST_F(ServerTest, LargeBatchesAnswerEveryPointInItsPlace) {
       for (size_t i = 0; i < points.size() && failures < 5; ++i) {
         const Vec2 q = points[i];
         const uint32_t named = b.packed().site(i);
-        ASSERT_LT(named, uint32_t(b.packed().site_ids_size())) << "point " << i;
-        const std::string& id = b.packed().site_ids(named);
+        ASSERT_GE(named, 1u) << "point " << i;
+        ASSERT_LE(named, uint32_t(b.packed().site_ids_size())) << "point " << i;
+        const std::string& id = b.packed().site_ids(named - 1);
         const double d = b.packed().distance(i), bound = b.packed().error_bound(i);
         const double truth = oracle::BestSite(q, sites).value, tol = oracle::Tolerance(q, d);
         const bool ok = by_id.count(id) &&
@@ -657,7 +658,7 @@ TEST_F(ServerTest, PackedAndStreamedAnswersAgree) {
   ASSERT_EQ(b.packed().site_size(), 5000);
   EXPECT_EQ(a.results_size(), 5000);
   for (int i = 0; i < 5000; ++i) {
-    EXPECT_EQ(a.results(i).site_id(), b.packed().site_ids(b.packed().site(i)));
+    EXPECT_EQ(a.results(i).site_id(), testing::Named(b.packed(), i));
     EXPECT_EQ(a.results(i).distance(), b.packed().distance(i));
     EXPECT_EQ(a.results(i).error_bound(), b.packed().error_bound(i));
   }
@@ -670,39 +671,38 @@ TEST_F(ServerTest, PackedAndStreamedAnswersAgree) {
   EXPECT_EQ(named.size(), size_t(b.packed().site_ids_size())) << "an id is named twice";
   EXPECT_LE(named.size(), sites.size());
   for (int i = 0; i < 5000; ++i) {
-    EXPECT_EQ(a.results(i).site_id(), b.packed().site_ids(b.packed().site(i)));
+    EXPECT_EQ(a.results(i).site_id(), testing::Named(b.packed(), i));
     EXPECT_EQ(a.results(i).distance(), b.packed().distance(i));
     EXPECT_TRUE(b.packed().exact(i));
   }
   for (auto* r : {&plain, &packed}) r->set_exact(false);
-  packed.set_chunk_size(1200);
-  std::vector<v1::FindNearestResponse> chunks;
-  ASSERT_TRUE(client_->FindNearestStream(packed, &chunks).ok());
+  std::vector<v1::FindNearestStreamResponse> chunks;
+  ASSERT_TRUE(client_->FindNearestStream(testing::StreamOf(packed, 1200), &chunks).ok());
   ASSERT_EQ(chunks.size(), 5u);  // 1200 x 4 + 200
   int i = 0;
   for (const auto& c : chunks) {
     EXPECT_EQ(c.offset(), uint64_t(i));
     for (int k = 0; k < c.packed().site_size(); ++k, ++i) {
-      EXPECT_EQ(c.packed().site_ids(c.packed().site(k)), a.results(i).site_id());
+      EXPECT_EQ(testing::Named(c.packed(), k), a.results(i).site_id());
       EXPECT_EQ(c.packed().distance(k), a.results(i).distance());
     }
   }
   EXPECT_EQ(i, 5000);
   // Small chunks of a larger scene: each names its own sites, once.
-  packed.set_chunk_size(97);
-  ASSERT_TRUE(client_->FindNearestStream(packed, &chunks).ok());
+  ASSERT_TRUE(client_->FindNearestStream(testing::StreamOf(packed, 97), &chunks).ok());
   i = 0;
   for (const auto& c : chunks) {
     std::set<std::string> ids(c.packed().site_ids().begin(), c.packed().site_ids().end());
     EXPECT_EQ(ids.size(), size_t(c.packed().site_ids_size()));
     for (int k = 0; k < c.packed().site_size(); ++k, ++i) {
-      EXPECT_EQ(c.packed().site_ids(c.packed().site(k)), a.results(i).site_id());
+      EXPECT_EQ(testing::Named(c.packed(), k), a.results(i).site_id());
     }
   }
   EXPECT_EQ(i, 5000);
   // A stream for an unknown scene fails with its status.
   packed.set_scene_id("nowhere");
-  EXPECT_EQ(client_->FindNearestStream(packed, &chunks).error_code(), StatusCode::NOT_FOUND);
+  EXPECT_EQ(client_->FindNearestStream(testing::StreamOf(packed), &chunks).error_code(),
+            StatusCode::NOT_FOUND);
 }
 
 // A packed answer carries the columns asked for, with the values of the full answer; the
@@ -723,7 +723,7 @@ TEST_F(ServerTest, PackedAnswersCarryTheFieldsAskedFor) {
     all.add_xy(u(rng));
     all.add_xy(u(rng));
   }
-  using F = v1::FindNearestRequest;
+  using Field = v1::NearestField;
   for (bool exact : {false, true}) {
     all.set_exact(exact);
     v1::FindNearestResponse full;
@@ -734,7 +734,7 @@ TEST_F(ServerTest, PackedAnswersCarryTheFieldsAskedFor) {
     // The full answer keeps the contract, against the oracle.
     for (int i = 0; i < 2000 && !HasFailure(); ++i) {
       v1::NearestSite n;
-      n.set_site_id(f.site_ids(f.site(i)));
+      n.set_site_id(testing::Named(f, i));
       n.set_distance(f.distance(i));
       n.set_error_bound(f.error_bound(i));
       n.set_feature_index(f.feature_index(i));
@@ -742,36 +742,36 @@ TEST_F(ServerTest, PackedAnswersCarryTheFieldsAskedFor) {
       ExpectContract(sites, {all.xy(2 * i), all.xy(2 * i + 1)}, n);
       EXPECT_TRUE(f.exact(i) || !exact);
     }
-    for (const std::vector<F::Field>& want :
-         {std::vector<F::Field>{F::SITE, F::DISTANCE}, {F::FEATURE}, {F::EXACT, F::ERROR_BOUND},
-          {F::DISTANCE, F::DISTANCE}}) {
+    for (const std::vector<Field>& want :
+         {std::vector<Field>{v1::NEAREST_FIELD_SITE, v1::NEAREST_FIELD_DISTANCE}, {v1::NEAREST_FIELD_FEATURE}, {v1::NEAREST_FIELD_EXACT, v1::NEAREST_FIELD_ERROR_BOUND},
+          {v1::NEAREST_FIELD_DISTANCE, v1::NEAREST_FIELD_DISTANCE}}) {
       v1::FindNearestRequest some = all;
-      for (F::Field field : want) some.add_fields(field);
+      for (Field field : want) some.add_fields(field);
       v1::FindNearestResponse r;
       ASSERT_TRUE(client_->FindNearest(some, &r).ok());
       const auto& p = r.packed();
-      auto has = [&](F::Field x) { return std::find(want.begin(), want.end(), x) != want.end(); };
-      EXPECT_EQ(p.site_size(), has(F::SITE) ? 2000 : 0);
-      EXPECT_EQ(p.site_ids_size() > 0, has(F::SITE));
-      EXPECT_EQ(p.distance_size(), has(F::DISTANCE) ? 2000 : 0);
-      EXPECT_EQ(p.error_bound_size(), has(F::ERROR_BOUND) ? 2000 : 0);
-      EXPECT_EQ(p.exact_size(), has(F::EXACT) ? 2000 : 0);
-      EXPECT_EQ(p.feature_index_size(), has(F::FEATURE) ? 2000 : 0);
-      EXPECT_EQ(p.feature_kind_size(), has(F::FEATURE) ? 2000 : 0);
+      auto has = [&](Field x) { return std::find(want.begin(), want.end(), x) != want.end(); };
+      EXPECT_EQ(p.site_size(), has(v1::NEAREST_FIELD_SITE) ? 2000 : 0);
+      EXPECT_EQ(p.site_ids_size() > 0, has(v1::NEAREST_FIELD_SITE));
+      EXPECT_EQ(p.distance_size(), has(v1::NEAREST_FIELD_DISTANCE) ? 2000 : 0);
+      EXPECT_EQ(p.error_bound_size(), has(v1::NEAREST_FIELD_ERROR_BOUND) ? 2000 : 0);
+      EXPECT_EQ(p.exact_size(), has(v1::NEAREST_FIELD_EXACT) ? 2000 : 0);
+      EXPECT_EQ(p.feature_index_size(), has(v1::NEAREST_FIELD_FEATURE) ? 2000 : 0);
+      EXPECT_EQ(p.feature_kind_size(), has(v1::NEAREST_FIELD_FEATURE) ? 2000 : 0);
       for (int i = 0; i < 2000; ++i) {
-        if (has(F::SITE)) {
-          ASSERT_EQ(p.site_ids(p.site(i)), f.site_ids(f.site(i)));
+        if (has(v1::NEAREST_FIELD_SITE)) {
+          ASSERT_EQ(testing::Named(p, i), testing::Named(f, i));
         }
-        if (has(F::DISTANCE)) {
+        if (has(v1::NEAREST_FIELD_DISTANCE)) {
           ASSERT_EQ(p.distance(i), f.distance(i));
         }
-        if (has(F::ERROR_BOUND)) {
+        if (has(v1::NEAREST_FIELD_ERROR_BOUND)) {
           ASSERT_EQ(p.error_bound(i), f.error_bound(i));
         }
-        if (has(F::EXACT)) {
+        if (has(v1::NEAREST_FIELD_EXACT)) {
           ASSERT_EQ(p.exact(i), f.exact(i));
         }
-        if (has(F::FEATURE)) {
+        if (has(v1::NEAREST_FIELD_FEATURE)) {
           ASSERT_EQ(p.feature_index(i), f.feature_index(i));
           ASSERT_EQ(p.feature_kind(i), f.feature_kind(i));
         }
@@ -781,22 +781,22 @@ TEST_F(ServerTest, PackedAnswersCarryTheFieldsAskedFor) {
   // Bad lists: an unset or unknown field, and fields with per-point answers.
   v1::FindNearestResponse r;
   v1::FindNearestRequest bad = all;
-  bad.add_fields(F::SITE);
-  bad.add_fields(F::FIELD_UNSPECIFIED);
+  bad.add_fields(v1::NEAREST_FIELD_SITE);
+  bad.add_fields(v1::NEAREST_FIELD_UNSPECIFIED);
   grpc::Status s = client_->FindNearest(bad, &r);
   EXPECT_EQ(s.error_code(), StatusCode::INVALID_ARGUMENT);
   EXPECT_NE(s.error_message().find("fields[1] is 0"), std::string::npos) << s.error_message();
-  bad.set_fields(1, static_cast<F::Field>(9));
+  bad.set_fields(1, static_cast<Field>(9));
   s = client_->FindNearest(bad, &r);
   EXPECT_NE(s.error_message().find("fields[1] is 9"), std::string::npos) << s.error_message();
   bad.clear_xy();
   bad.clear_fields();
-  bad.add_fields(F::CLOSEST);
-  bad.add_fields(F::SITE);
+  bad.add_fields(v1::NEAREST_FIELD_CLOSEST);
+  bad.add_fields(v1::NEAREST_FIELD_SITE);
   bad.add_points()->set_x(0.5);
   s = client_->FindNearest(bad, &r);
   EXPECT_EQ(s.error_code(), StatusCode::INVALID_ARGUMENT);
-  EXPECT_NE(s.error_message().find("fields[1] is SITE; with points"), std::string::npos)
+  EXPECT_NE(s.error_message().find("fields[1] is NEAREST_FIELD_SITE; with points"), std::string::npos)
       << s.error_message();
 }
 
@@ -821,7 +821,7 @@ TEST_F(ServerTest, ClosestPointsAndGradients) {
   std::vector<Vec2> queries;
   for (int i = 0; i < 1500; ++i) queries.push_back(gen.P());
   for (int k = 0; k < 140; k += 3) queries.push_back(oracle::Segments(sites[k].geometry)[0].first);
-  using F = v1::FindNearestRequest;
+  using Field = v1::NearestField;
   int checked = 0;
   auto check = [&](Vec2 q, const std::string& id, v1::FeatureKind kind, uint32_t index,
                    const v1::Point& closest, const v1::Point& gradient) {
@@ -839,8 +839,8 @@ TEST_F(ServerTest, ClosestPointsAndGradients) {
     each.set_min_version(v);
     each.set_exact(exact);
     for (Vec2 q : queries) testing::SetPoint(q, each.add_points());
-    each.add_fields(F::GRADIENT);
-    each.add_fields(F::CLOSEST);
+    each.add_fields(v1::NEAREST_FIELD_GRADIENT);
+    each.add_fields(v1::NEAREST_FIELD_CLOSEST);
     v1::FindNearestResponse r;
     grpc::Status s = client_->FindNearest(each, &r);
     ASSERT_TRUE(s.ok()) << s.error_message();
@@ -863,7 +863,10 @@ TEST_F(ServerTest, ClosestPointsAndGradients) {
       packed.add_xy(q.x);
       packed.add_xy(q.y);
     }
-    for (F::Field f : {F::SITE, F::FEATURE, F::CLOSEST, F::GRADIENT}) packed.add_fields(f);
+    for (Field f : {v1::NEAREST_FIELD_SITE, v1::NEAREST_FIELD_FEATURE, v1::NEAREST_FIELD_CLOSEST,
+                    v1::NEAREST_FIELD_GRADIENT}) {
+      packed.add_fields(f);
+    }
     s = client_->FindNearest(packed, &r);
     ASSERT_TRUE(s.ok()) << s.error_message();
     const auto& p = r.packed();
@@ -872,14 +875,14 @@ TEST_F(ServerTest, ClosestPointsAndGradients) {
     EXPECT_EQ(p.distance_size(), 0);
     for (size_t i = 0; i < queries.size(); ++i) {
       const int k = static_cast<int>(i);
-      if (p.site(k) == UINT32_MAX) {
+      if (p.site(k) == 0) {  // no site
         EXPECT_TRUE(std::isnan(p.closest(2 * k)) && std::isnan(p.gradient(2 * k)));
         continue;
       }
       v1::Point closest, gradient;
       testing::SetPoint({p.closest(2 * k), p.closest(2 * k + 1)}, &closest);
       testing::SetPoint({p.gradient(2 * k), p.gradient(2 * k + 1)}, &gradient);
-      check(queries[i], p.site_ids(p.site(k)), p.feature_kind(k), p.feature_index(k), closest,
+      check(queries[i], testing::Named(p, k), p.feature_kind(k), p.feature_index(k), closest,
             gradient);
     }
     // Left out unless asked for: a packed answer's default columns stay as they were.

@@ -73,8 +73,8 @@ class SitesServerTest : public testing::SharedServerTest {
 TEST_F(SitesServerTest, MixedScenesAnswerWithinTheirBound) {
   const std::vector<Site> sites = MixedSites(7);
   int scene = 0;
-  for (v1::Diagram diagram : {v1::NEAREST, v1::FARTHEST}) {
-    for (v1::RenderMode mode : {v1::MESH, v1::EXACT}) {
+  for (v1::Diagram diagram : {v1::DIAGRAM_NEAREST, v1::DIAGRAM_FARTHEST}) {
+    for (v1::RenderMode mode : {v1::RENDER_MODE_MESH, v1::RENDER_MODE_EXACT}) {
       std::string id = "mixed" + std::to_string(scene++);
       Create(id, diagram, mode);
       uint64_t version = Upsert(id, sites);
@@ -94,7 +94,7 @@ TEST_F(SitesServerTest, MixedScenesAnswerWithinTheirBound) {
         auto st = client_->FindNearest(r, &response);
         ASSERT_TRUE(st.ok()) << st.error_message();
         ASSERT_EQ(response.results_size(), int(qs.size()));
-        const Diagram d = diagram == v1::FARTHEST ? Diagram::kFarthest : Diagram::kNearest;
+        const Diagram d = diagram == v1::DIAGRAM_FARTHEST ? Diagram::kFarthest : Diagram::kNearest;
         for (size_t k = 0; k < qs.size(); ++k) {
           const v1::NearestSite& n = response.results(int(k));
           oracle::Best truth = oracle::BestSite(qs[k], sites, d);
@@ -120,7 +120,7 @@ TEST_F(SitesServerTest, MixedScenesAnswerWithinTheirBound) {
 }
 
 TEST_F(SitesServerTest, SitesReadBackAsWritten) {
-  Create("readback", v1::NEAREST, v1::MESH);
+  Create("readback", v1::DIAGRAM_NEAREST, v1::RENDER_MODE_MESH);
   const std::vector<Site> sites = MixedSites(3);
   Upsert("readback", sites);
   std::vector<v1::Site> listed;
@@ -134,7 +134,7 @@ TEST_F(SitesServerTest, SitesReadBackAsWritten) {
 }
 
 TEST_F(SitesServerTest, BadSitesAreRefusedByName) {
-  Create("bad", v1::NEAREST, v1::MESH);
+  Create("bad", v1::DIAGRAM_NEAREST, v1::RENDER_MODE_MESH);
   uint64_t before = Upsert("bad", {{"keep", PointSite{{1, 1}}}});
   auto upsert = [](std::function<void(v1::Site&)> edit) {
     v1::UpsertSitesRequest r;
@@ -210,7 +210,7 @@ TEST_F(SitesServerTest, BadSitesAreRefusedByName) {
     r.mutable_sites(0)->set_id("fine");
     uint64_t version;
     cases.push_back({client_->UpsertSites(r, &version), StatusCode::INVALID_ARGUMENT,
-                     "durability is 7; it must be SYNC or RELAXED"});
+                     "durability is 7; it must be DURABILITY_SYNC or DURABILITY_RELAXED"});
     cases.push_back({client_->DeleteSites("bad", {"keep"}, &version,
                                           static_cast<v1::Durability>(9)),
                      StatusCode::INVALID_ARGUMENT, "durability is 9"});
@@ -227,7 +227,7 @@ TEST_F(SitesServerTest, BadSitesAreRefusedByName) {
 }
 
 TEST_F(SitesServerTest, RenderImageEncodesLayers) {
-  Create("image", v1::NEAREST, v1::MESH);
+  Create("image", v1::DIAGRAM_NEAREST, v1::RENDER_MODE_MESH);
   uint64_t version = Upsert("image", MixedSites(5));
   auto render = [&](v1::RenderImageRequest::Layer layer, v1::RenderImageRequest::Format format,
                     v1::RenderImageResponse* out) {
@@ -239,19 +239,19 @@ TEST_F(SitesServerTest, RenderImageEncodesLayers) {
     return client_->RenderImage(r, out);
   };
   v1::RenderImageResponse png, exr, features;
-  ASSERT_TRUE(render(v1::RenderImageRequest::IDS, v1::RenderImageRequest::PNG, &png).ok());
+  ASSERT_TRUE(render(v1::RenderImageRequest::LAYER_IDS, v1::RenderImageRequest::FORMAT_PNG, &png).ok());
   EXPECT_EQ(png.image().substr(1, 3), "PNG");
   EXPECT_EQ(png.mime_type(), "image/png");
   EXPECT_EQ(png.width_px(), 512u);
   EXPECT_EQ(png.version(), version);
-  ASSERT_TRUE(render(v1::RenderImageRequest::DISTANCE, v1::RenderImageRequest::EXR, &exr).ok());
+  ASSERT_TRUE(render(v1::RenderImageRequest::LAYER_DISTANCE, v1::RenderImageRequest::FORMAT_EXR, &exr).ok());
   EXPECT_EQ(exr.image().substr(0, 4), std::string("\x76\x2f\x31\x01", 4));  // OpenEXR magic
-  ASSERT_TRUE(render(v1::RenderImageRequest::FEATURES, v1::RenderImageRequest::PNG, &features).ok());
+  ASSERT_TRUE(render(v1::RenderImageRequest::LAYER_FEATURES, v1::RenderImageRequest::FORMAT_PNG, &features).ok());
   EXPECT_NE(features.image(), png.image());
   v1::RenderImageResponse bad;
-  auto st = render(v1::RenderImageRequest::IDS, v1::RenderImageRequest::EXR, &bad);
+  auto st = render(v1::RenderImageRequest::LAYER_IDS, v1::RenderImageRequest::FORMAT_EXR, &bad);
   EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT);
-  EXPECT_NE(st.error_message().find("EXR holds the DISTANCE layer only"), std::string::npos);
+  EXPECT_NE(st.error_message().find("FORMAT_EXR holds the LAYER_DISTANCE layer only"), std::string::npos);
   v1::RenderImageRequest r;
   r.set_scene_id("image");
   r.mutable_window()->set_min_x(20);
@@ -270,11 +270,11 @@ TEST_F(SitesServerTest, RenderImageEncodesLayers) {
 TEST_F(SitesServerTest, SiteIndexImagesNameEachPixelsNearestSite) {
   std::vector<Site> sites = MixedSites(11);
   for (Site& s : sites) s.max_distance = INFINITY;  // every pixel has a site
-  Create("index", v1::NEAREST, v1::EXACT);
+  Create("index", v1::DIAGRAM_NEAREST, v1::RENDER_MODE_EXACT);
   const uint64_t version = Upsert("index", sites);
   v1::RenderImageRequest r;
   r.set_scene_id("index");
-  r.set_layer(v1::RenderImageRequest::SITE_INDEX);
+  r.set_layer(v1::RenderImageRequest::LAYER_SITE_INDEX);
   r.set_min_version(version);
   r.mutable_window()->set_min_x(2.01);
   r.mutable_window()->set_min_y(3);
@@ -376,19 +376,19 @@ TEST_F(SitesServerTest, SiteIndexImagesNameEachPixelsNearestSite) {
   r.set_draw_sites(true);
   st = client_->RenderImage(r, &image);
   EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT);
-  EXPECT_NE(st.error_message().find("SITE_INDEX takes neither draw_sites nor polyline"), std::string::npos)
+  EXPECT_NE(st.error_message().find("LAYER_SITE_INDEX takes neither draw_sites nor polyline"), std::string::npos)
       << st.error_message();
   r.set_draw_sites(false);
-  r.set_format(v1::RenderImageRequest::EXR);
+  r.set_format(v1::RenderImageRequest::FORMAT_EXR);
   st = client_->RenderImage(r, &image);
   EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT);
-  EXPECT_NE(st.error_message().find("EXR holds the DISTANCE layer only"), std::string::npos);
+  EXPECT_NE(st.error_message().find("FORMAT_EXR holds the LAYER_DISTANCE layer only"), std::string::npos);
 }
 
 // Pick returns the site it picked, as stored: a UI outlines it without another call.
 TEST_F(SitesServerTest, PickReturnsTheSiteAsStored) {
   const std::vector<Site> sites = MixedSites(5);
-  Create("picked", v1::NEAREST, v1::MESH);
+  Create("picked", v1::DIAGRAM_NEAREST, v1::RENDER_MODE_MESH);
   Upsert("picked", sites);
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> u(0, 10);

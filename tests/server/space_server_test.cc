@@ -121,9 +121,9 @@ TEST_F(SpaceServerTest, TenThousandQueriesWithinTheirBoundsAndExact) {
     points.push_back({u(rng), u(rng), uz(rng)});
     for (int k = 0; k < 3; ++k) r.add_xyz(points.back()[k]);
   }
-  for (auto f : {v1::FindNearestRequest::SITE, v1::FindNearestRequest::DISTANCE,
-                 v1::FindNearestRequest::ERROR_BOUND, v1::FindNearestRequest::CLOSEST,
-                 v1::FindNearestRequest::GRADIENT}) {
+  for (auto f : {v1::NEAREST_FIELD_SITE, v1::NEAREST_FIELD_DISTANCE,
+                 v1::NEAREST_FIELD_ERROR_BOUND, v1::NEAREST_FIELD_CLOSEST,
+                 v1::NEAREST_FIELD_GRADIENT}) {
     r.add_fields(f);
   }
   for (bool exact : {false, true}) {
@@ -139,7 +139,7 @@ TEST_F(SpaceServerTest, TenThousandQueriesWithinTheirBoundsAndExact) {
       const Vec3 q = points[i];
       double best = INFINITY;
       for (const Site3& s : sites) best = std::min(best, OracleValue(q, s));
-      const std::string& id = p.site_ids(p.site(i));
+      const std::string id = testing::Named(p, i);
       const Site3& site = *std::find_if(sites.begin(), sites.end(), [&](const Site3& s) { return s.id == id; });
       const double tol = 1e-9 * (1 + best);
       const Vec3 c(p.closest(3 * i), p.closest(3 * i + 1), p.closest(3 * i + 2));
@@ -163,7 +163,7 @@ TEST_F(SpaceServerTest, TenThousandQueriesWithinTheirBoundsAndExact) {
   v1::FindNearestRequest one;
   one.set_scene_id("space");
   Set(one.add_points(), {0.5, 0.5, 0.75});
-  one.add_fields(v1::FindNearestRequest::CLOSEST);
+  one.add_fields(v1::NEAREST_FIELD_CLOSEST);
   v1::FindNearestResponse answer;
   ASSERT_TRUE(client_->FindNearest(one, &answer).ok());
   ASSERT_EQ(answer.results_size(), 1);
@@ -339,7 +339,7 @@ TEST_F(SpaceServerTest, SliceImagesShowTheNearestSitesAndTheirDistances) {
     r.set_scene_id("slices");
     r.set_min_version(version);
     c.by_z ? r.set_z(c.z) : r.set_slice(c.slice);
-    r.set_layer(v1::RenderImageRequest::SITE_INDEX);
+    r.set_layer(v1::RenderImageRequest::LAYER_SITE_INDEX);
     r.mutable_window()->set_min_x(0.5);
     r.mutable_window()->set_min_y(1);
     r.mutable_window()->set_max_x(3.9);
@@ -355,8 +355,8 @@ TEST_F(SpaceServerTest, SliceImagesShowTheNearestSitesAndTheirDistances) {
     ASSERT_EQ(ids.height_px(), 30u);
     EXPECT_DOUBLE_EQ(ids.window().min_x(), 5 * voxel);
     EXPECT_DOUBLE_EQ(ids.window().max_y(), 4);
-    r.set_layer(v1::RenderImageRequest::DISTANCE);
-    r.set_format(v1::RenderImageRequest::EXR);
+    r.set_layer(v1::RenderImageRequest::LAYER_DISTANCE);
+    r.set_format(v1::RenderImageRequest::FORMAT_EXR);
     v1::RenderImageResponse distances;
     st = client_->RenderImage(r, &distances);
     ASSERT_TRUE(st.ok()) << st.error_message();
@@ -428,13 +428,13 @@ TEST_F(SpaceServerTest, SliceImagesShowTheNearestSitesAndTheirDistances) {
 TEST_F(SpaceServerTest, WatchingA3DSceneFollowsItsVersionsToItsDeletion) {
   v1::Scene scene;
   ASSERT_TRUE(client_->CreateScene(Request("watched", 8, 6), &scene).ok());
-  std::vector<v1::SceneEvent> events;
+  std::vector<v1::WatchSceneResponse> events;
   std::mutex mu;
   std::condition_variable cv;
   std::thread watcher([&] {
     v1::WatchSceneRequest r;
     r.set_scene_id("watched");
-    grpc::Status st = client_->WatchScene(r, [&](const v1::SceneEvent& e) {
+    grpc::Status st = client_->WatchScene(r, [&](const v1::WatchSceneResponse& e) {
       std::lock_guard<std::mutex> lock(mu);
       events.push_back(e);
       cv.notify_all();
@@ -452,7 +452,7 @@ TEST_F(SpaceServerTest, WatchingA3DSceneFollowsItsVersionsToItsDeletion) {
   ASSERT_TRUE(wait_for([&] { return events.back().version() >= version; }));
   {
     std::lock_guard<std::mutex> lock(mu);
-    const v1::SceneEvent& e = events.back();
+    const v1::WatchSceneResponse& e = events.back();
     EXPECT_EQ(e.version(), version);
     EXPECT_EQ(e.site_count(), 1u);
     EXPECT_EQ(e.changed().min_z(), -1);

@@ -30,14 +30,14 @@ using grpc::StatusCode;
 class Watcher {
  public:
   Watcher(const std::string& address, const std::string& scene, uint64_t after = 0)
-      : stub_(v1::Voronoi::NewStub(
+      : stub_(v1::VoronoiService::NewStub(
             grpc::CreateChannel(address, grpc::InsecureChannelCredentials()))) {
     v1::WatchSceneRequest r;
     r.set_scene_id(scene);
     r.set_after_version(after);
     thread_ = std::thread([this, r] {
       auto reader = stub_->WatchScene(&ctx_, r);
-      v1::SceneEvent e;
+      v1::WatchSceneResponse e;
       while (reader->Read(&e)) {
         std::lock_guard<std::mutex> lock(mu_);
         events_.push_back(e);
@@ -68,18 +68,18 @@ class Watcher {
     cv_.wait_for(lock, std::chrono::seconds(60), [&] { return ended_; });
     return ended_ ? status_ : grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED, "still open");
   }
-  std::vector<v1::SceneEvent> events() {
+  std::vector<v1::WatchSceneResponse> events() {
     std::lock_guard<std::mutex> lock(mu_);
     return events_;
   }
 
  private:
-  std::unique_ptr<v1::Voronoi::Stub> stub_;
+  std::unique_ptr<v1::VoronoiService::Stub> stub_;
   grpc::ClientContext ctx_;
   std::thread thread_;
   std::mutex mu_;
   std::condition_variable cv_;
-  std::vector<v1::SceneEvent> events_;
+  std::vector<v1::WatchSceneResponse> events_;
   grpc::Status status_;
   bool ended_ = false;
 };
@@ -88,7 +88,7 @@ class Watcher {
 // last `last`, each with its version's site count; the first covers the whole window, and
 // each later one every pixel centre whose nearest site (by the oracle) differs between its
 // version and the previous event's.
-void ExpectEventsCoverChanges(const std::vector<v1::SceneEvent>& events,
+void ExpectEventsCoverChanges(const std::vector<v1::WatchSceneResponse>& events,
                               std::map<uint64_t, SiteTable>& at, uint64_t last, const Grid& grid,
                               const std::string& scene) {
   ASSERT_FALSE(events.empty());

@@ -16,9 +16,9 @@ namespace gvd::testing {
 // The plane's feature kinds as the API names them; nullopt for any other value.
 inline std::optional<FeatureKind> KindOf(v1::FeatureKind kind) {
   switch (kind) {
-    case v1::VERTEX: return FeatureKind::kVertex;
-    case v1::EDGE: return FeatureKind::kEdge;
-    case v1::CURVE: return FeatureKind::kCurve;
+    case v1::FEATURE_KIND_VERTEX: return FeatureKind::kVertex;
+    case v1::FEATURE_KIND_EDGE: return FeatureKind::kEdge;
+    case v1::FEATURE_KIND_CURVE: return FeatureKind::kCurve;
     default: return std::nullopt;
   }
 }
@@ -62,8 +62,8 @@ inline v1::Site ToProtoSite(const Site& s) {
     for (Vec2 q : l->points) SetPoint(q, out.mutable_polyline()->add_points());
   } else if (const auto* poly = std::get_if<PolygonSite>(&s.geometry)) {
     for (Vec2 q : poly->vertices) SetPoint(q, out.mutable_polygon()->add_vertices());
-    out.mutable_polygon()->set_side(poly->side == Side::kOutside  ? v1::Polygon::OUTSIDE
-                                    : poly->side == Side::kInside ? v1::Polygon::INSIDE
+    out.mutable_polygon()->set_side(poly->side == Side::kOutside  ? v1::Polygon::SIDE_OUTSIDE
+                                    : poly->side == Side::kInside ? v1::Polygon::SIDE_INSIDE
                                                                   : v1::Polygon::SIDE_UNSPECIFIED);
   } else if (const auto* b = std::get_if<BezierSite>(&s.geometry)) {
     for (Vec2 q : b->control) SetPoint(q, out.mutable_bezier()->add_control_points());
@@ -101,6 +101,22 @@ inline v1::UpsertSitesRequest RandomPoints(const std::string& scene, int n, uint
     site->mutable_point()->set_y(unit(rng));
   }
   return r;
+}
+
+// The id of packed answer i's site: site_ids[site - 1], or "" where site is 0 (none).
+inline std::string Named(const v1::PackedNearest& p, int i) {
+  const uint32_t site = p.site(i);
+  return site == 0 ? std::string() : p.site_ids(static_cast<int>(site) - 1);
+}
+
+// A stream's request of a FindNearestRequest's points and options (their fields share
+// numbers), its answers in chunks of `chunk_size` points.
+inline v1::FindNearestStreamRequest StreamOf(const v1::FindNearestRequest& r,
+                                             uint32_t chunk_size = 0) {
+  v1::FindNearestStreamRequest out;
+  out.ParseFromString(r.SerializeAsString());
+  out.set_chunk_size(chunk_size);
+  return out;
 }
 
 }  // namespace gvd::testing

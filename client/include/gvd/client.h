@@ -32,19 +32,22 @@ class Client {
   static std::unique_ptr<Client> Connect(const std::string& target, ClientOptions options = {});
   Client(std::shared_ptr<grpc::Channel> channel, ClientOptions options);
 
+  // The scene made (CreateSceneResponse.scene).
   grpc::Status CreateScene(const v1::CreateSceneRequest& request, v1::Scene* scene);
   grpc::Status GetScene(const std::string& scene_id, v1::Scene* scene);
+  // Every scene, following page tokens.
   grpc::Status ListScenes(std::vector<v1::Scene>* scenes);
   grpc::Status DeleteScene(const std::string& scene_id);
   // WatchScene: calls on_event with each event as it comes, until the stream ends, or
   // on_event returns false (then the call is cancelled and the result is OK). No deadline:
   // a watch lasts as long as the scene, the server or the caller.
   grpc::Status WatchScene(const v1::WatchSceneRequest& request,
-                          const std::function<bool(const v1::SceneEvent&)>& on_event);
+                          const std::function<bool(const v1::WatchSceneResponse&)>& on_event);
 
   grpc::Status UpsertSites(const v1::UpsertSitesRequest& request, uint64_t* version);
   grpc::Status DeleteSites(const std::string& scene_id, const std::vector<std::string>& ids,
-                           uint64_t* version, v1::Durability durability = v1::SYNC);
+                           uint64_t* version,
+                           v1::Durability durability = v1::DURABILITY_SYNC);
   grpc::Status ListSites(const v1::ListSitesRequest& request, v1::ListSitesResponse* response);
   // Every site of the scene, following page tokens.
   grpc::Status ListAllSites(const std::string& scene_id, std::vector<v1::Site>* sites);
@@ -52,8 +55,8 @@ class Client {
   grpc::Status FindNearest(const v1::FindNearestRequest& request,
                            v1::FindNearestResponse* response);
   // FindNearestStream: every packed chunk, in order.
-  grpc::Status FindNearestStream(const v1::FindNearestRequest& request,
-                                 std::vector<v1::FindNearestResponse>* chunks);
+  grpc::Status FindNearestStream(const v1::FindNearestStreamRequest& request,
+                                 std::vector<v1::FindNearestStreamResponse>* chunks);
 
   grpc::Status RenderImage(const v1::RenderImageRequest& request,
                            v1::RenderImageResponse* response);
@@ -81,7 +84,7 @@ class Client {
   std::unique_ptr<grpc::ClientContext> Context() const;
 
   std::shared_ptr<grpc::Channel> channel_;
-  std::unique_ptr<v1::Voronoi::Stub> stub_;
+  std::unique_ptr<v1::VoronoiService::Stub> stub_;
   ClientOptions options_;
 };
 

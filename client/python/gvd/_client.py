@@ -21,7 +21,6 @@ MAX_POINTS_PER_CALL = 1_000_000
 MAX_SITES_PER_CALL = 100_000
 # Answers per FindNearestStream chunk, each a progress step.
 CHUNK_POINTS = 65_536
-_NO_SITE = 0xFFFFFFFF  # PackedNearest.site for a point with no site
 
 
 @dataclass
@@ -81,8 +80,8 @@ class Client:
     # ---- any call ----
 
     def call(self, method: str, request: Any) -> Any:
-        """Any unary call of gvd.v1.Voronoi by name, with its request message; the response
-        message."""
+        """Any unary call of gvd.v1.VoronoiService by name, with its request message; the
+        response message."""
         response = _RESPONSES[method]
         return self._transport.unary(method, request, response, self.timeout)
 
@@ -97,26 +96,35 @@ class Client:
         request.width_px, request.height_px = int(size[0]), int(size[1])
         if len(size) == 3:
             request.depth_px = int(size[2])
-        return self._transport.unary("CreateScene", request, pb.Scene, self.timeout)
+        return self._transport.unary("CreateScene", request, pb.CreateSceneResponse,
+                                     self.timeout).scene
 
     def get_scene(self, scene_id: str) -> pb.Scene:
         return self._transport.unary("GetScene", pb.GetSceneRequest(scene_id=scene_id),
-                                     pb.Scene, self.timeout)
+                                     pb.GetSceneResponse, self.timeout).scene
 
     def list_scenes(self) -> List[pb.Scene]:
-        return list(self._transport.unary("ListScenes", pb.ListScenesRequest(),
-                                          pb.ListScenesResponse, self.timeout).scenes)
+        """Every scene, in id order, read page by page."""
+        scenes: List[pb.Scene] = []
+        token = ""
+        while True:
+            page = self._transport.unary("ListScenes", pb.ListScenesRequest(page_token=token),
+                                         pb.ListScenesResponse, self.timeout)
+            scenes += page.scenes
+            token = page.next_page_token
+            if not token:
+                return scenes
 
     def delete_scene(self, scene_id: str) -> None:
         self._transport.unary("DeleteScene", pb.DeleteSceneRequest(scene_id=scene_id),
                               pb.DeleteSceneResponse, self.timeout)
 
     def watch(self, scene_id: str, *, after_version: int = 0,
-              timeout: Optional[float] = None) -> Iterator[pb.SceneEvent]:
+              timeout: Optional[float] = None) -> Iterator[pb.WatchSceneResponse]:
         """The scene's events, one per published frame, until the scene is deleted (its last
         event says deleted) or the iterator is closed. No deadline unless `timeout`."""
         request = pb.WatchSceneRequest(scene_id=scene_id, after_version=after_version)
-        return self._transport.stream("WatchScene", request, pb.SceneEvent, timeout)
+        return self._transport.stream("WatchScene", request, pb.WatchSceneResponse, timeout)
 
     # ---- sites ----
 
@@ -207,15 +215,14 @@ class Client:
         parts: List[_Packed] = []
         for start in range(0, m, MAX_POINTS_PER_CALL):
             part = q[start:start + MAX_POINTS_PER_CALL]
-            request = pb.FindNearestRequest(scene_id=scene_id, min_version=min_version,
-                                            exact=exact, skip_refinement=skip_refinement,
-                                            chunk_size=CHUNK_POINTS)
+            request = pb.FindNearestStreamRequest(scene_id=scene_id, min_version=min_version,
+                                                  exact=exact, skip_refinement=skip_refinement,
+                                                  chunk_size=CHUNK_POINTS)
             if closest:
-                request.fields.extend([pb.FindNearestRequest.SITE, pb.FindNearestRequest.DISTANCE,
-                                       pb.FindNearestRequest.ERROR_BOUND,
-                                       pb.FindNearestRequest.EXACT, pb.FindNearestRequest.FEATURE,
-                                       pb.FindNearestRequest.CLOSEST,
-                                       pb.FindNearestRequest.GRADIENT])
+                request.fields.extend([pb.NEAREST_FIELD_SITE, pb.NEAREST_FIELD_DISTANCE,
+                                       pb.NEAREST_FIELD_ERROR_BOUND, pb.NEAREST_FIELD_EXACT,
+                                       pb.NEAREST_FIELD_FEATURE, pb.NEAREST_FIELD_CLOSEST,
+                                       pb.NEAREST_FIELD_GRADIENT])
             # The points go packed, written straight from the array: field xy (5) or xyz.
             field = 5 if part.shape[1] == 2 else _XYZ_FIELD
             body = request.SerializeToString() + _packed_doubles(field, part)
@@ -260,14 +267,15 @@ class Client:
         """layer "distance": the (H, W) float32 distances of the scene's latest frame (row 0
         at the top, as images go); "ids": (H, W) site indices (-1: none) and the ids they
         name. Any other layer ("features", "site_index" and the rest of RenderImageRequest's
-        fields, such as format="PNG") returns the encoded image's RenderImageResponse."""
+        fields, such as format="FORMAT_PNG") returns the encoded image's RenderImageResponse."""
         if layer in ("distance", "ids") and not fields:
             raster = self.render_window(scene_id)
             if layer == "distance":
                 return raster.distances[::-1]
             return raster.site_indices[::-1], raster.ids
         request = pb.RenderImageRequest(scene_id=scene_id,
-                                        layer=pb.RenderImageRequest.Layer.Value(layer.upper()),
+                                        layer=pb.RenderImageRequest.Layer.Value(
+                                            "LAYER_" + layer.upper()),
                                         **fields)
         return self._transport.unary("RenderImage", request, pb.RenderImageResponse, self.timeout)
 
@@ -341,9 +349,9 @@ class Path:
 # ---- helpers ----
 
 _RESPONSES = {m.name: getattr(pb, m.output_type.name)
-              for m in pb.DESCRIPTOR.services_by_name["Voronoi"].methods}
-_XYZ_FIELD = next((f.number for f in pb.FindNearestRequest.DESCRIPTOR.fields if f.name == "xyz"),
-                  None)
+              for m in pb.DESCRIPTOR.services_by_name["VoronoiService"].methods}
+_XYZ_FIELD = next((f.number for f in pb.FindNearestStreamRequest.DESCRIPTOR.fields
+                   if f.name == "xyz"), None)
 
 
 def _window(w: Sequence[float]) -> pb.Window:
@@ -357,7 +365,7 @@ def _window(w: Sequence[float]) -> pb.Window:
 def _durability(name: str) -> int:
     if name not in ("sync", "relaxed"):
         raise ValueError(f'durability must be "sync" or "relaxed", not {name!r}')
-    return pb.SYNC if name == "sync" else pb.RELAXED
+    return pb.DURABILITY_SYNC if name == "sync" else pb.DURABILITY_RELAXED
 
 
 def _points(a: ArrayLike, name: str) -> np.ndarray:
@@ -426,16 +434,16 @@ def _join(parts: List[_Packed], m: int, dims: int, closest: bool) -> NearestResu
                            for k in (_packed.CLOSEST, _packed.GRADIENT)):
             raise GvdError(_grpc_code("INTERNAL"), "closest points missing from the answers")
         covered += n
-        # The chunk's site indices name its own site_ids: to the call's.
+        # The chunk's sites, 1 + an index into its own site_ids (0: none): to the call's.
         local = np.array([index.setdefault(s, len(index)) for s in a.site_ids], dtype=np.int64)
         idx = a.get(_packed.SITE, "u8")
         if len(idx) != n:
             raise GvdError(_grpc_code("INTERNAL"), f"{len(idx)} sites for {n} distances")
-        found = idx != _NO_SITE
-        if len(idx) and found.any() and int(idx[found].max()) >= len(local):
+        found = idx != 0
+        if len(idx) and found.any() and int(idx[found].max()) > len(local):
             raise GvdError(_grpc_code("INTERNAL"), "a site index past the chunk's site_ids")
         named = np.full(n, -1, dtype=np.int64)
-        named[found] = local[idx[found].astype(np.int64)]
+        named[found] = local[idx[found].astype(np.int64) - 1]
         site[lo:hi] = named
         distance[lo:hi] = a.get(_packed.DISTANCE, "<f8")
         for number, target in ((_packed.ERROR_BOUND, bound), (_packed.EXACT, exact),

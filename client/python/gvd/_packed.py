@@ -1,4 +1,4 @@
-"""FindNearestResponse's packed answers read from the wire straight into NumPy arrays.
+"""FindNearestStreamResponse's packed answers read from the wire straight into NumPy arrays.
 
 Protobuf's Python objects hand a repeated field over one Python number at a time (some 60 ns
 each), which for a million answers costs more than the server takes to find them. A packed
@@ -40,11 +40,11 @@ class PackedAnswers:
 
     @staticmethod
     def FromString(data: bytes) -> "PackedAnswers":  # pylint: disable=invalid-name
-        """The transports' deserializer: bytes of a FindNearestResponse."""
+        """The transports' deserializer: bytes of a FindNearestStreamResponse."""
         try:
             return _read_response(memoryview(data))
         except _Unexpected:
-            return _from_message(pb.FindNearestResponse.FromString(data))
+            return _from_message(pb.FindNearestStreamResponse.FromString(data))
 
 
 class _Unexpected(Exception):
@@ -85,7 +85,7 @@ def _read_response(buf: memoryview) -> PackedAnswers:
         key, i = _varint(buf, i)
         number, wire = key >> 3, key & 7
         if number == 1 or (number in (2, 4) and wire != 0) or (number == 3 and wire != 2):
-            raise _Unexpected()  # results (the unpacked form), or a field in a wrong form
+            raise _Unexpected()  # a field this reader does not know, or in a wrong form
         if number in (2, 4) and wire == 0:
             value, i = _varint(buf, i)
             if number == 2:
@@ -155,10 +155,8 @@ def _varints(b: np.ndarray) -> np.ndarray:
     return np.add.reduceat(values, starts)
 
 
-def _from_message(r: pb.FindNearestResponse) -> PackedAnswers:
+def _from_message(r: pb.FindNearestStreamResponse) -> PackedAnswers:
     """The same from a parsed message (protobuf's reading, for any encoding)."""
-    if len(r.results) and not r.HasField("packed"):
-        raise ValueError("FindNearestStream answered unpacked results")
     p = r.packed
     out = PackedAnswers(version=r.version, offset=r.offset, site_ids=list(p.site_ids))
     for number, values, dtype in ((SITE, p.site, np.uint64), (DISTANCE, p.distance, "<f8"),

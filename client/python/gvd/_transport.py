@@ -14,7 +14,7 @@ from typing import Iterator, Optional, Sequence, Tuple, Type, TypeVar
 import grpc
 from google.protobuf.message import DecodeError, Message
 
-SERVICE = "gvd.v1.Voronoi"
+SERVICE = "gvd.v1.VoronoiService"
 M = TypeVar("M", bound=Message)
 
 

@@ -6,10 +6,10 @@ import { Code, ConnectError, createClient, type Client, type Interceptor } from 
 import { createConnectTransport } from "@connectrpc/connect-web";
 
 import {
-  FindNearestRequestSchema,
-  Voronoi,
-  type FindNearestResponse,
-  type SceneEvent,
+  FindNearestStreamRequestSchema,
+  VoronoiService,
+  type FindNearestStreamResponse,
+  type WatchSceneResponse,
 } from "./gen/gvd/v1/voronoi_pb.js";
 
 export * from "./gen/gvd/v1/voronoi_pb.js";
@@ -26,8 +26,8 @@ export interface GvdOptions {
   fetch?: typeof globalThis.fetch;
 }
 
-/** Every call of gvd.v1.Voronoi, typed, plus the packed helpers below. */
-export type VoronoiClient = Client<typeof Voronoi>;
+/** Every call of gvd.v1.VoronoiService, typed, plus the packed helpers below. */
+export type VoronoiClient = Client<typeof VoronoiService>;
 
 /** A client of the server at `baseUrl` (its HTTP port: "http://127.0.0.1:8080"). */
 export function createGvdClient(baseUrl: string, options: GvdOptions = {}): GvdClient {
@@ -46,7 +46,7 @@ export function createGvdClient(baseUrl: string, options: GvdOptions = {}): GvdC
     defaultTimeoutMs: options.timeoutMs,
     fetch: options.fetch,
   });
-  return new GvdClient(createClient(Voronoi, transport));
+  return new GvdClient(createClient(VoronoiService, transport));
 }
 
 /** Answers to m query points, as typed arrays of length m. */
@@ -82,7 +82,7 @@ export class GvdClient {
       exact: new Uint8Array(m),
     };
     const index = new Map<string, number>();
-    const request = create(FindNearestRequestSchema, {
+    const request = create(FindNearestStreamRequestSchema, {
       sceneId,
       xy: Array.from(xy),
       minVersion: options.minVersion ?? 0n,
@@ -96,12 +96,12 @@ export class GvdClient {
   }
 
   /** The scene's events, one per published frame, until it is deleted. */
-  watch(sceneId: string, afterVersion = 0n, signal?: AbortSignal): AsyncIterable<SceneEvent> {
+  watch(sceneId: string, afterVersion = 0n, signal?: AbortSignal): AsyncIterable<WatchSceneResponse> {
     return this.rpc.watchScene({ sceneId, afterVersion }, { signal });
   }
 }
 
-function merge(out: NearestAnswers, index: Map<string, number>, chunk: FindNearestResponse): void {
+function merge(out: NearestAnswers, index: Map<string, number>, chunk: FindNearestStreamResponse): void {
   const p = chunk.packed;
   if (!p) return;
   if (chunk.version > out.version) out.version = chunk.version;
@@ -116,8 +116,8 @@ function merge(out: NearestAnswers, index: Map<string, number>, chunk: FindNeare
   });
   const at = Number(chunk.offset);
   for (let k = 0; k < p.distance.length; ++k) {
-    const s = p.site[k];
-    out.site[at + k] = s === 0xffffffff ? -1 : local[s];
+    const s = p.site[k];  // 1 + an index into the chunk's siteIds; 0: none
+    out.site[at + k] = s === 0 ? -1 : local[s - 1];
     out.distance[at + k] = p.distance[k];
     if (p.errorBound.length) out.errorBound[at + k] = p.errorBound[k];
     if (p.exact.length) out.exact[at + k] = p.exact[k] ? 1 : 0;

@@ -109,6 +109,6 @@ test("tokens refused by code and message", async (t) => {
       return true;
     });
   }
-  const scene = await createGvdClient(guarded.baseUrl, { token: read }).rpc.getScene({ sceneId: "guarded" });
+  const { scene } = await createGvdClient(guarded.baseUrl, { token: read }).rpc.getScene({ sceneId: "guarded" });
   assert.equal(scene.version, 1n);
 });

@@ -9,7 +9,7 @@ import assert from "node:assert/strict";
 import { Code, ConnectError, createClient } from "@connectrpc/connect";
 import { compressionGzip, createConnectTransport } from "@connectrpc/connect-node";
 
-import { Voronoi } from "../dist/index.js";
+import { VoronoiService } from "../dist/index.js";
 import { random, startServer } from "./support.mjs";
 
 const maxMessageBytes = 1 << 20;
@@ -23,7 +23,7 @@ before(async () => {
 after(() => server?.stop());
 
 function client(binary, gzip) {
-  return createClient(Voronoi, createConnectTransport({
+  return createClient(VoronoiService, createConnectTransport({
     baseUrl,
     httpVersion: "1.1",
     useBinaryFormat: binary,
@@ -93,13 +93,13 @@ for (const binary of [true, false]) {
       for await (const _ of c.findNearestStream({ sceneId: scene, xy })) { /* none comes */ }
     }, refused);
     // The connection still serves.
-    assert.equal((await c.getScene({ sceneId: scene })).sceneId, scene);
+    assert.equal((await c.getScene({ sceneId: scene })).scene.sceneId, scene);
   });
 }
 
 test("an unknown service is unimplemented", async () => {
-  const other = { ...Voronoi, typeName: "gvd.v2.Voronoi" };
-  other.methods = Voronoi.methods.map((m) => ({ ...m, parent: other }));
+  const other = { ...VoronoiService, typeName: "gvd.v2.VoronoiService" };
+  other.methods = VoronoiService.methods.map((m) => ({ ...m, parent: other }));
   const c = createClient(other, createConnectTransport({ baseUrl, httpVersion: "1.1" }));
   await assert.rejects(c.listScenes({}), (e) => {
     assert.equal(e.code, Code.Unimplemented, e.message);

@@ -12,15 +12,15 @@ namespace gvd {
 absl::Status ToBoundaryMethod(const v1::GetBoundariesRequest& request, BoundaryMethod* method) {
   switch (request.method()) {
     case v1::GetBoundariesRequest::METHOD_UNSPECIFIED:
-    case v1::GetBoundariesRequest::FULL_SCAN:
+    case v1::GetBoundariesRequest::METHOD_FULL_SCAN:
       *method = BoundaryMethod::kFullScan;
       break;
-    case v1::GetBoundariesRequest::CONTINUATION:
+    case v1::GetBoundariesRequest::METHOD_CONTINUATION:
       *method = BoundaryMethod::kContinuation;
       break;
     default:
       return Invalid(
-          absl::StrCat("method is ", request.method(), "; it must be FULL_SCAN or CONTINUATION"));
+          absl::StrCat("method is ", request.method(), "; it must be METHOD_FULL_SCAN or METHOD_CONTINUATION"));
   }
   return absl::OkStatus();
 }
@@ -28,15 +28,15 @@ absl::Status ToBoundaryMethod(const v1::GetBoundariesRequest& request, BoundaryM
 absl::Status ToPathPreference(const v1::PlanPathRequest& request, PathPreference* prefer) {
   switch (request.prefer()) {
     case v1::PlanPathRequest::PREFER_UNSPECIFIED:
-    case v1::PlanPathRequest::MAX_CLEARANCE:
+    case v1::PlanPathRequest::PREFER_MAX_CLEARANCE:
       *prefer = PathPreference::kMaxClearance;
       break;
-    case v1::PlanPathRequest::SHORTEST:
+    case v1::PlanPathRequest::PREFER_SHORTEST:
       *prefer = PathPreference::kShortest;
       break;
     default:
       return Invalid(
-          absl::StrCat("prefer is ", request.prefer(), "; it must be MAX_CLEARANCE or SHORTEST"));
+          absl::StrCat("prefer is ", request.prefer(), "; it must be PREFER_MAX_CLEARANCE or PREFER_SHORTEST"));
   }
   return absl::OkStatus();
 }

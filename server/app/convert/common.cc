@@ -125,13 +125,13 @@ absl::Status ToPixelRect(const v1::Window& w, const Grid& grid, PixelRect* rect)
 v1::FeatureKind ToProto(FeatureKind k) {
   switch (k) {
     case FeatureKind::kVertex:
-      return v1::VERTEX;
+      return v1::FEATURE_KIND_VERTEX;
     case FeatureKind::kEdge:
-      return v1::EDGE;
+      return v1::FEATURE_KIND_EDGE;
     case FeatureKind::kCurve:
-      return v1::CURVE;
+      return v1::FEATURE_KIND_CURVE;
     case FeatureKind::kFace:
-      return v1::FACE;
+      return v1::FEATURE_KIND_FACE;
   }
   return v1::FEATURE_KIND_UNSPECIFIED;
 }

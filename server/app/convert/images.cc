@@ -13,42 +13,42 @@ absl::Status ToImageOptions(const v1::RenderImageRequest& request, const Grid& g
                             ImageOptions* options) {
   switch (request.layer()) {
     case v1::RenderImageRequest::LAYER_UNSPECIFIED:
-    case v1::RenderImageRequest::IDS:
+    case v1::RenderImageRequest::LAYER_IDS:
       options->layer = ImageLayer::kIds;
       break;
-    case v1::RenderImageRequest::FEATURES:
+    case v1::RenderImageRequest::LAYER_FEATURES:
       options->layer = ImageLayer::kFeatures;
       break;
-    case v1::RenderImageRequest::DISTANCE:
+    case v1::RenderImageRequest::LAYER_DISTANCE:
       options->layer = ImageLayer::kDistance;
       break;
-    case v1::RenderImageRequest::SITE_INDEX:
+    case v1::RenderImageRequest::LAYER_SITE_INDEX:
       options->layer = ImageLayer::kSiteIndex;
       break;
     default:
       return Invalid(absl::StrCat("layer is ", request.layer(),
-                                  "; it must be IDS, FEATURES, DISTANCE or SITE_INDEX"));
+                                  "; it must be LAYER_IDS, LAYER_FEATURES, LAYER_DISTANCE or LAYER_SITE_INDEX"));
   }
   switch (request.format()) {
     case v1::RenderImageRequest::FORMAT_UNSPECIFIED:
-    case v1::RenderImageRequest::PNG:
+    case v1::RenderImageRequest::FORMAT_PNG:
       options->format = ImageFormat::kPng;
       break;
-    case v1::RenderImageRequest::EXR:
+    case v1::RenderImageRequest::FORMAT_EXR:
       options->format = ImageFormat::kExr;
       break;
     default:
-      return Invalid(absl::StrCat("format is ", request.format(), "; it must be PNG or EXR"));
+      return Invalid(absl::StrCat("format is ", request.format(), "; it must be FORMAT_PNG or FORMAT_EXR"));
   }
   const bool exr = options->format == ImageFormat::kExr;
   if (exr && options->layer != ImageLayer::kDistance) {
-    return Invalid("format EXR holds the DISTANCE layer only");
+    return Invalid("format FORMAT_EXR holds the LAYER_DISTANCE layer only");
   }
-  if (exr && request.draw_sites()) return Invalid("draw_sites needs format PNG");
+  if (exr && request.draw_sites()) return Invalid("draw_sites needs format FORMAT_PNG");
   if (options->layer == ImageLayer::kSiteIndex &&
       (request.draw_sites() || request.polyline_size() > 0)) {
     return Invalid(
-        "layer SITE_INDEX takes neither draw_sites nor polyline: its pixels are numbers");
+        "layer LAYER_SITE_INDEX takes neither draw_sites nor polyline: its pixels are numbers");
   }
   if (request.has_z() || request.has_slice()) {
     return Invalid("z and slice are for 3D scenes; this scene is 2D");
@@ -63,7 +63,7 @@ absl::Status ToImageOptions(const v1::RenderImageRequest& request, const Grid& g
     if (auto s = ToPoint(request.polyline(k), FieldPath("polyline")[k], &p); !s.ok()) return s;
     options->polyline.push_back(p);
   }
-  if (!options->polyline.empty() && exr) return Invalid("polyline needs format PNG");
+  if (!options->polyline.empty() && exr) return Invalid("polyline needs format FORMAT_PNG");
   return absl::OkStatus();
 }
 

@@ -8,8 +8,8 @@
 
 namespace gvd {
 
-template <class P, class Bounds>
-absl::Status ToQueryPoints(const v1::FindNearestRequest& r, const Bounds& bounds,
+template <class Request, class P, class Bounds>
+absl::Status ToQueryPoints(const Request& r, const Bounds& bounds,
                            const ServerLimits& limits, std::vector<P>* points, bool* outside) {
   constexpr int kWidth = P::length();
   // The packed form of this dimension's points, and the other's.
@@ -52,8 +52,12 @@ absl::Status ToQueryPoints(const v1::FindNearestRequest& r, const Bounds& bounds
 }
 template absl::Status ToQueryPoints(const v1::FindNearestRequest&, const Window&,
                                     const ServerLimits&, std::vector<Vec2>*, bool*);
-template absl::Status ToQueryPoints(const v1::FindNearestRequest&, const Box3&, const ServerLimits&,
-                                    std::vector<Vec3>*, bool*);
+template absl::Status ToQueryPoints(const v1::FindNearestRequest&, const Box3&,
+                                    const ServerLimits&, std::vector<Vec3>*, bool*);
+template absl::Status ToQueryPoints(const v1::FindNearestStreamRequest&, const Window&,
+                                    const ServerLimits&, std::vector<Vec2>*, bool*);
+template absl::Status ToQueryPoints(const v1::FindNearestStreamRequest&, const Box3&,
+                                    const ServerLimits&, std::vector<Vec3>*, bool*);
 
 template <class P>
 absl::Status ToPick(const v1::PickRequest& request, P* point, double* max_distance) {

@@ -12,11 +12,12 @@
 
 namespace gvd {
 
-// The query points of a scene of P's dimension (Vec2 or Vec3): `points`, or packed `xy` (a 2D
-// scene's) or `xyz` (a 3D scene's); count within the limit, finite. *outside is set when
-// some point lies outside the scene's `bounds` (its window, or box).
-template <class P, class Bounds>
-absl::Status ToQueryPoints(const v1::FindNearestRequest& request, const Bounds& bounds,
+// The query points of a FindNearestRequest or FindNearestStreamRequest, of a scene of P's
+// dimension (Vec2 or Vec3): `points`, or packed `xy` (a 2D scene's) or `xyz` (a 3D scene's);
+// count within the limit, finite. *outside is set when some point lies outside the scene's
+// `bounds` (its window, or box).
+template <class Request, class P, class Bounds>
+absl::Status ToQueryPoints(const Request& request, const Bounds& bounds,
                            const ServerLimits& limits, std::vector<P>* points, bool* outside);
 
 // PickRequest's point, of P's dimension, and max_distance (0: no limit, returned as

@@ -66,28 +66,28 @@ absl::Status ToSceneSettings(const v1::CreateSceneRequest& r, const ServerLimits
   settings->cone_triangles = ConeSegments(grid.window.diagonal() + eps, eps);
   switch (r.render_mode()) {
     case v1::RENDER_MODE_UNSPECIFIED:
-    case v1::MESH:
+    case v1::RENDER_MODE_MESH:
       settings->mode = RenderMode::kMesh;
       break;
-    case v1::EXACT:
+    case v1::RENDER_MODE_EXACT:
       settings->mode = RenderMode::kExact;
       break;
     default:
       return Invalid(
-          absl::StrCat("render_mode is ", r.render_mode(), "; it must be MESH or EXACT"));
+          absl::StrCat("render_mode is ", r.render_mode(), "; it must be RENDER_MODE_MESH or RENDER_MODE_EXACT"));
   }
   // A 3D scene is rendered exactly per voxel, whatever the mode asked.
   if (settings->three_d()) settings->mode = RenderMode::kExact;
   switch (r.diagram()) {
     case v1::DIAGRAM_UNSPECIFIED:
-    case v1::NEAREST:
+    case v1::DIAGRAM_NEAREST:
       settings->diagram = Diagram::kNearest;
       break;
-    case v1::FARTHEST:
+    case v1::DIAGRAM_FARTHEST:
       settings->diagram = Diagram::kFarthest;
       break;
     default:
-      return Invalid(absl::StrCat("diagram is ", r.diagram(), "; it must be NEAREST or FARTHEST"));
+      return Invalid(absl::StrCat("diagram is ", r.diagram(), "; it must be DIAGRAM_NEAREST or DIAGRAM_FARTHEST"));
   }
   return absl::OkStatus();
 }
@@ -99,8 +99,8 @@ void ToProto(const SceneSettings& s, v1::Scene* out) {
   out->set_height_px(s.grid.height);
   out->set_max_error(s.eps);
   out->set_cone_triangles(s.cone_triangles);
-  out->set_render_mode(s.mode == RenderMode::kExact ? v1::EXACT : v1::MESH);
-  out->set_diagram(s.diagram == Diagram::kFarthest ? v1::FARTHEST : v1::NEAREST);
+  out->set_render_mode(s.mode == RenderMode::kExact ? v1::RENDER_MODE_EXACT : v1::RENDER_MODE_MESH);
+  out->set_diagram(s.diagram == Diagram::kFarthest ? v1::DIAGRAM_FARTHEST : v1::DIAGRAM_NEAREST);
   if (s.three_d()) {
     out->set_depth_px(s.depth);
     out->mutable_window()->set_min_z(s.min_z);

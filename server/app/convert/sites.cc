@@ -94,15 +94,15 @@ absl::Status ToSite(const v1::Site& s, const FieldPath& field, const ServerLimit
         case v1::Polygon::SIDE_UNSPECIFIED:
           poly.side = Side::kBoth;
           break;
-        case v1::Polygon::OUTSIDE:
+        case v1::Polygon::SIDE_OUTSIDE:
           poly.side = Side::kOutside;
           break;
-        case v1::Polygon::INSIDE:
+        case v1::Polygon::SIDE_INSIDE:
           poly.side = Side::kInside;
           break;
         default:
           return Invalid(absl::StrCat(field.str(), ".polygon.side is ", s.polygon().side(),
-                                      "; it must be SIDE_UNSPECIFIED, OUTSIDE or INSIDE"));
+                                      "; it must be SIDE_UNSPECIFIED, SIDE_OUTSIDE or SIDE_INSIDE"));
       }
       site->geometry = std::move(poly);
       break;
@@ -251,14 +251,14 @@ template absl::Status ToSites(const v1::UpsertSitesRequest&, const ServerLimits&
 absl::Status ToDurability(v1::Durability durability, Durability* out) {
   switch (durability) {
     case v1::DURABILITY_UNSPECIFIED:
-    case v1::SYNC:
+    case v1::DURABILITY_SYNC:
       *out = Durability::kSync;
       return absl::OkStatus();
-    case v1::RELAXED:
+    case v1::DURABILITY_RELAXED:
       *out = Durability::kRelaxed;
       return absl::OkStatus();
     default:
-      return Invalid(absl::StrCat("durability is ", durability, "; it must be SYNC or RELAXED"));
+      return Invalid(absl::StrCat("durability is ", durability, "; it must be DURABILITY_SYNC or DURABILITY_RELAXED"));
   }
 }
 
@@ -295,8 +295,8 @@ void ToProto(const Site& site, v1::Site* out) {
     for (Vec2 q : l->points) ToProto(q, out->mutable_polyline()->add_points());
   } else if (const auto* poly = std::get_if<PolygonSite>(&site.geometry)) {
     for (Vec2 q : poly->vertices) ToProto(q, out->mutable_polygon()->add_vertices());
-    out->mutable_polygon()->set_side(poly->side == Side::kOutside  ? v1::Polygon::OUTSIDE
-                                     : poly->side == Side::kInside ? v1::Polygon::INSIDE
+    out->mutable_polygon()->set_side(poly->side == Side::kOutside  ? v1::Polygon::SIDE_OUTSIDE
+                                     : poly->side == Side::kInside ? v1::Polygon::SIDE_INSIDE
                                                                    : v1::Polygon::SIDE_UNSPECIFIED);
   } else if (const auto* b = std::get_if<BezierSite>(&site.geometry)) {
     for (Vec2 q : b->control) ToProto(q, out->mutable_bezier()->add_control_points());

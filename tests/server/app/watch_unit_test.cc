@@ -23,7 +23,7 @@ class PendingEventTest : public ::testing::Test {
                                                 snapshot);
     return last_;
   }
-  static Window Changed(const v1::SceneEvent& e) {
+  static Window Changed(const v1::WatchSceneResponse& e) {
     return {e.changed().min_x(), e.changed().min_y(), e.changed().max_x(), e.changed().max_y()};
   }
 
@@ -38,7 +38,7 @@ TEST_F(PendingEventTest, FramesBetweenEventsMerge) {
   EXPECT_FALSE(p.ready());
   p.Note(*Next(1, {}), /*whole=*/true);
   ASSERT_TRUE(p.ready());
-  v1::SceneEvent e;
+  v1::WatchSceneResponse e;
   p.Take(grid_, &e);
   EXPECT_EQ(e.version(), 1u);
   EXPECT_EQ(Changed(e).max_x, 2);
@@ -75,7 +75,7 @@ TEST_F(PendingEventTest, AStreamAfterAVersionIgnoresWhatCameBefore) {
   EXPECT_FALSE(p.ready());
   p.Note(*Next(8, {2, 2, 3, 3}));
   ASSERT_TRUE(p.ready());
-  v1::SceneEvent e;
+  v1::WatchSceneResponse e;
   p.Take(grid_, &e);
   EXPECT_EQ(e.version(), 8u);
   EXPECT_EQ(p.sent(), 8u);

@@ -57,14 +57,14 @@ TEST(ServiceThreads, WritesCommitOnTheCommitThreads) {
   SceneRegistry registry(&store, {}, ServerLimits{});
   ASSERT_TRUE(registry.Load().ok());
   Service core(&registry);
-  VoronoiService service(&core);
+  GrpcService service(&core);
   grpc::ServerBuilder builder;
   int port = 0;
   builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
   builder.RegisterService(&service);
   auto server = builder.BuildAndStart();
   ASSERT_NE(port, 0);
-  auto stub = v1::Voronoi::NewStub(
+  auto stub = v1::VoronoiService::NewStub(
       grpc::CreateChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials()));
   auto call = [](auto status) { EXPECT_TRUE(status.ok()) << status.error_message(); };
 
@@ -75,7 +75,7 @@ TEST(ServiceThreads, WritesCommitOnTheCommitThreads) {
   create.mutable_window()->set_max_y(1);
   create.set_width_px(32);
   create.set_height_px(32);
-  v1::Scene scene;
+  v1::CreateSceneResponse scene;
   grpc::ClientContext c1;
   call(stub->CreateScene(&c1, create, &scene));
   v1::UpsertSitesRequest upsert;
