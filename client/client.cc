@@ -172,6 +172,11 @@ grpc::Status Client::Pick(const v1::PickRequest& request, v1::PickResponse* resp
   return stub_->Pick(Context().get(), request, response);
 }
 
+grpc::Status Client::RenderMosaic(const v1::RenderMosaicRequest& request,
+                                  v1::RenderMosaicResponse* response) {
+  return stub_->RenderMosaic(Context().get(), request, response);
+}
+
 bool Client::WaitForConnected(std::chrono::milliseconds timeout) {
   return channel_->WaitForConnected(std::chrono::system_clock::now() + timeout);
 }

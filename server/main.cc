@@ -32,7 +32,7 @@
 #include "server/app/memory.h"
 #include "server/app/registry.h"
 #include "server/app/service.h"
-#include "server/flags.h"
+#include "client/flags/flags.h"
 #include "server/grpc/service.h"
 #include "server/http/http.h"
 #include "server/http/web_app.h"

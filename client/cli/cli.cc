@@ -4,6 +4,7 @@
 
 #include <charconv>
 #include <cstdio>
+#include <fstream>
 #include <iostream>
 
 #include "absl/strings/numbers.h"
@@ -71,8 +72,8 @@ Structure (paper sec. 5, 6), of the scene named by --scene:
   gvd delaunay [--coarse]
       the Delaunay triangles of a scene of points, one per line: A B C counter-clockwise
   gvd zoom -o OUT --window MIN_X,MIN_Y,MAX_X,MAX_Y --size WIDTHxHEIGHT [--layer ids|distance]
-      renders any window at a resolution of its own and writes its ids (PNG) or distances
-      (EXR, or 16-bit PNG)
+      renders any window at a resolution of its own and writes its ids (PNG, each site in
+      the server's colour for it) or distances (EXR, or 16-bit PNG)
 Applications (paper sec. 7):
   gvd clearance -o OUT [--window W --size WxH]
       the clearance field (distance to the nearest site, 0 inside solid polygons) as EXR
@@ -83,10 +84,10 @@ Applications (paper sec. 7):
   gvd pick X Y [--max-distance D]
       the site (and its feature) nearest to the point, exactly
   gvd mosaic IN OUT [--tiles N] [--adaptive] [--seed S] [--mean]
-      IN (any format OpenImageIO reads) as a Voronoi mosaic: N tiles (default 1000) at
-      random, or --adaptive: more and smaller where the image has detail; each tile the
-      colour at its site, or --mean of the tile; the diagram from the server (gvd-mosaic
-      makes the same mosaic with no server, rendering on this machine's EGL)
+      IN (PNG, JPEG, WebP, GIF, BMP or PNM) as a Voronoi mosaic made by the server: N
+      tiles (default 1000) at random, or --adaptive: more and smaller where the image has
+      detail; each tile the colour at its site, or --mean of the tile; OUT's name says
+      its format (.png, .jpg, .webp, .ppm)
   all of them wait for --min-version V when given
 Health:
   gvd health           the server's grpc.health.v1 status; exit 0 when SERVING
@@ -139,6 +140,15 @@ void ParseWindow(const std::string& text, gvd::v1::Window* w) {
   w->set_min_y(Number(c[1], "--window MIN_Y"));
   w->set_max_x(Number(c[2], "--window MAX_X"));
   w->set_max_y(Number(c[3], "--window MAX_Y"));
+}
+
+int WriteBytes(const std::string& path, const std::string& bytes) {
+  std::ofstream file(path, std::ios::binary);
+  file.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  file.close();
+  if (file) return 0;
+  std::fprintf(stderr, "gvd: cannot write %s\n", path.c_str());
+  return 1;
 }
 
 int Fail(const grpc::Status& s) {

@@ -49,17 +49,27 @@ uint64_t MinVersion(const Args& a);
 // Prints "gvd: CODE: message" to stderr; returns 1.
 int Fail(const grpc::Status& s);
 void PrintJson(const google::protobuf::Message& m);
+// Writes bytes (an image the server encoded) to `path`: 0, or prints "gvd: cannot write
+// PATH" to stderr and returns 1.
+int WriteBytes(const std::string& path, const std::string& bytes);
 // The shortest decimal form that reads back as v.
 std::string Num(double v);
 
-// The commands on a diagram's structure and its applications (cli_analysis.cc): boundaries,
-// neighbors, delaunay, zoom, clearance, plan, pick, mosaic. Returns the exit code, or -1 when
-// the command is none of them.
-int RunAnalysis(const Args& a, Client& client);
+// A command: its words and flags in `a`, its calls through `client`; returns the exit code.
+using Command = int (*)(const Args& a, Client& client);
+
+// The commands on a diagram's structure and its applications (cli_analysis.cc).
+int Boundaries(const Args& a, Client& client);
+int Neighbors(const Args& a, Client& client);
+int Delaunay(const Args& a, Client& client);
+int Zoom(const Args& a, Client& client);
+int Clearance(const Args& a, Client& client);
+int Plan(const Args& a, Client& client);
+int Pick(const Args& a, Client& client);
+int Mosaic(const Args& a, Client& client);
 
 // The commands of 3D scenes (cli_space.cc): volume (a scene's distances as an OpenVDB file).
-// Returns the exit code, or -1 when the command is none of them.
-int RunSpace(const Args& a, Client& client);
+int Volume(const Args& a, Client& client);
 
 // The triangles of a model file (OBJ, STL, PLY, glTF, COLLADA, ... : what Assimp reads), its
 // scene graph flattened with its transforms, as a mesh; false with *error naming the file.

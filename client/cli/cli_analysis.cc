@@ -4,19 +4,18 @@
 #include "client/cli/cli.h"
 
 #include <OpenImageIO/imageio.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <fstream>
 #include <iostream>
-#include <random>
+#include <sstream>
 
+#include "absl/status/status.h"
+#include "absl/strings/ascii.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
-#include "render/image/mosaic.h"
-#include "render/image/image.h"
 
 namespace gvd::cli {
 namespace {
@@ -71,6 +70,8 @@ const std::string& Name(const std::string& id) {
   return id.empty() ? kNone : id;
 }
 
+}  // namespace
+
 int Boundaries(const Args& a, Client& client) {
   v1::GetBoundariesRequest r;
   r.set_scene_id(a.scene);
@@ -99,12 +100,16 @@ int Boundaries(const Args& a, Client& client) {
   return 0;
 }
 
+namespace {
+
 void PrintHidden(const google::protobuf::RepeatedPtrField<v1::HiddenSite>& hidden) {
   for (const auto& h : hidden) {
     std::cerr << "hidden: " << h.site_id() << " holds no pixel; "
               << (h.recovered() ? "found by zooming" : "no region found") << "\n";
   }
 }
+
+}  // namespace
 
 int Neighbors(const Args& a, Client& client) {
   const auto& w = a.words;
@@ -153,32 +158,40 @@ int Zoom(const Args& a, Client& client) {
   const std::string* window = Option(a, "--window");
   const std::string* size = Option(a, "--size");
   if (!out || !window || !size) Usage("usage: gvd zoom -o OUT --window W --size WIDTHxHEIGHT");
-  v1::RenderWindowRequest r;
-  r.set_scene_id(a.scene);
-  ParseWindow(*window, r.mutable_window());
-  uint32_t width, height;
-  ParseSize(*size, &width, &height);
-  r.set_width_px(width);
-  r.set_height_px(height);
-  r.set_min_version(MinVersion(a));
   std::string layer = Option(a, "--layer") ? *Option(a, "--layer") : "ids";
   if (layer != "ids" && layer != "distance") Usage("--layer must be ids or distance");
+  // The window at its size: an image (ids) and a raster (distances) ask alike.
+  auto ask = [&](auto& r) {
+    r.set_scene_id(a.scene);
+    ParseWindow(*window, r.mutable_window());
+    uint32_t width, height;
+    ParseSize(*size, &width, &height);
+    r.set_width_px(width);
+    r.set_height_px(height);
+    r.set_min_version(MinVersion(a));
+  };
+  if (layer == "ids") {
+    // The server colours the sites, as in every image of it.
+    if (!EndsWith(*out, ".png")) Usage("--layer ids writes a PNG: name OUT .png");
+    v1::RenderImageRequest r;
+    ask(r);
+    v1::RenderImageResponse response;
+    if (auto s = client.RenderImage(r, &response); !s.ok()) return Fail(s);
+    if (int e = WriteBytes(*out, response.image())) return e;
+    std::cout << "wrote " << *out << ": " << response.width_px() << "x" << response.height_px()
+              << " ids, version " << response.version() << "\n";
+    return 0;
+  }
+  v1::RenderWindowRequest r;
+  ask(r);
   v1::RenderWindowResponse response;
   if (auto s = client.RenderWindow(r, &response); !s.ok()) return Fail(s);
-  absl::Status written;
-  if (layer == "distance") {
-    written = WriteField(*out, response.width_px(), response.height_px(), response.distances().data());
-  } else {
-    std::vector<uint8_t> rgb(size_t{response.width_px()} * response.height_px() * 3, 0);
-    for (int k = 0; k < response.ids_size(); ++k) {
-      if (uint32_t id = response.ids(k)) SiteColour(response.site_ids(id - 1), 0, &rgb[size_t(k) * 3]);
-    }
-    written = WritePixels(*out, response.width_px(), response.height_px(), 3,
-                          OIIO::TypeDesc::UINT8, rgb.data(), 3);
+  if (auto s = WriteField(*out, response.width_px(), response.height_px(), response.distances().data());
+      !s.ok()) {
+    return WriteFailed(s);
   }
-  if (!written.ok()) return WriteFailed(written);
   std::cout << "wrote " << *out << ": " << response.width_px() << "x" << response.height_px()
-            << " " << layer << ", " << response.site_ids_size() << " sites, max_error "
+            << " distance, " << response.site_ids_size() << " sites, max_error "
             << Num(response.max_error()) << ", version " << response.version() << "\n";
   return 0;
 }
@@ -243,12 +256,7 @@ int Plan(const Args& a, Client& client) {
     *image.mutable_polyline() = response.path();
     v1::RenderImageResponse picture;
     if (auto s = client.RenderImage(image, &picture); !s.ok()) return Fail(s);
-    std::ofstream file(*out, std::ios::binary);
-    file.write(picture.image().data(), static_cast<std::streamsize>(picture.image().size()));
-    if (!file) {
-      std::fprintf(stderr, "gvd: cannot write %s\n", out->c_str());
-      return 1;
-    }
+    if (int e = WriteBytes(*out, picture.image())) return e;
     std::cerr << "wrote " << *out << "\n";
   }
   return 0;
@@ -280,88 +288,54 @@ int Pick(const Args& a, Client& client) {
   return 0;
 }
 
-// The diagram computed by the server: a scene of its own, made and removed again.
-absl::StatusOr<std::vector<uint32_t>> ServerDiagram(Client& client, const Grid& grid,
-                                                    const std::vector<Vec2>& sites) {
-  auto fail = [](const grpc::Status& s) { return absl::Status(absl::StatusCode(s.error_code()), s.error_message()); };
-  std::mt19937_64 rng(std::random_device{}());
-  const std::string scene = absl::StrCat("mosaic-", getpid(), "-", absl::Hex(rng() & 0xffffff));
-  v1::CreateSceneRequest create;
-  create.set_scene_id(scene);
-  create.mutable_window()->set_min_x(grid.window.min_x);
-  create.mutable_window()->set_min_y(grid.window.min_y);
-  create.mutable_window()->set_max_x(grid.window.max_x);
-  create.mutable_window()->set_max_y(grid.window.max_y);
-  create.set_width_px(grid.width);
-  create.set_height_px(grid.height);
-  create.set_render_mode(v1::RENDER_MODE_EXACT);
-  v1::Scene created;
-  if (auto s = client.CreateScene(create, &created); !s.ok()) return fail(s);
-  auto run = [&]() -> absl::StatusOr<std::vector<uint32_t>> {
-    uint64_t version = 0;
-    for (size_t first = 0; first < sites.size(); first += 100'000) {
-      v1::UpsertSitesRequest upsert;
-      upsert.set_scene_id(scene);
-      for (size_t k = first; k < std::min(sites.size(), first + 100'000); ++k) {
-        v1::Site* site = upsert.add_sites();
-        site->set_id(absl::StrCat(k));
-        site->mutable_point()->set_x(sites[k].x);
-        site->mutable_point()->set_y(sites[k].y);
-      }
-      if (auto s = client.UpsertSites(upsert, &version); !s.ok()) return fail(s);
-    }
-    v1::RenderWindowRequest r;
-    r.set_scene_id(scene);
-    r.set_min_version(version);
-    v1::RenderWindowResponse response;
-    if (auto s = client.RenderWindow(r, &response); !s.ok()) return fail(s);
-    std::vector<uint32_t> index(response.site_ids_size());
-    for (int k = 0; k < response.site_ids_size(); ++k) {
-      if (!absl::SimpleAtoi(response.site_ids(k), &index[k])) {
-        return absl::InternalError("the server named a site this mosaic did not make");
-      }
-    }
-    std::vector<uint32_t> ids(response.ids().begin(), response.ids().end());
-    for (uint32_t& id : ids) id = id == 0 ? 0 : index[id - 1] + 1;
-    return ids;
-  };
-  auto ids = run();
-  (void)client.DeleteScene(scene);
-  return ids;
-}
-
 int Mosaic(const Args& a, Client& client) {
   const auto& w = a.words;
   if (w.size() != 3) Usage("usage: gvd mosaic IN OUT [--tiles N] [--adaptive] [--seed S] [--mean]");
-  if (Option(a, "--embedded")) {
-    Usage("--embedded: gvd renders nothing itself; gvd-mosaic IN OUT takes the same flags and "
-          "renders on this machine");
+  v1::RenderMosaicRequest r;
+  if (const std::string* t = Option(a, "--tiles")) {
+    uint32_t tiles;
+    if (!absl::SimpleAtoi(*t, &tiles) || tiles == 0) {
+      Usage(absl::StrCat("--tiles needs a positive count, not \"", *t, "\""));
+    }
+    r.set_tiles(tiles);
   }
-  auto options = MosaicOptionsFromFlags(a.options);
-  if (!options.ok()) Usage(std::string(options.status().message()));
-  auto report = RunMosaic(w[1], w[2], *options,
-                          [&](const Grid& grid, const std::vector<Vec2>& sites) {
-                            return ServerDiagram(client, grid, sites);
-                          },
-                          "from the server");
-  if (!report.ok()) return WriteFailed(report.status());
-  std::cout << *report << "\n";
+  if (const std::string* s = Option(a, "--seed")) {
+    uint64_t seed;
+    if (!absl::SimpleAtoi(*s, &seed)) Usage(absl::StrCat("--seed needs a number, not \"", *s, "\""));
+    r.set_seed(seed);
+  }
+  r.set_adaptive(Option(a, "--adaptive") != nullptr);
+  r.set_mean(Option(a, "--mean") != nullptr);
+  // The mosaic's format from OUT's name.
+  const std::string& out = w[2];
+  const std::string lower = absl::AsciiStrToLower(out);
+  if (EndsWith(lower, ".png")) {
+    r.set_format(v1::RenderMosaicRequest::FORMAT_PNG);
+  } else if (EndsWith(lower, ".jpg") || EndsWith(lower, ".jpeg")) {
+    r.set_format(v1::RenderMosaicRequest::FORMAT_JPEG);
+  } else if (EndsWith(lower, ".webp")) {
+    r.set_format(v1::RenderMosaicRequest::FORMAT_WEBP);
+  } else if (EndsWith(lower, ".ppm") || EndsWith(lower, ".pgm") || EndsWith(lower, ".pnm")) {
+    r.set_format(v1::RenderMosaicRequest::FORMAT_PNM);
+  } else {
+    Usage(absl::StrCat("OUT (", out, ") must end in .png, .jpg, .jpeg, .webp, .ppm, .pgm or .pnm"));
+  }
+  std::ifstream in(w[1], std::ios::binary);
+  std::stringstream bytes;
+  bytes << in.rdbuf();
+  if (!in) return WriteFailed(absl::NotFoundError(absl::StrCat("cannot read ", w[1])));
+  r.set_image(bytes.str());
+  const auto start = std::chrono::steady_clock::now();
+  v1::RenderMosaicResponse response;
+  if (auto s = client.RenderMosaic(r, &response); !s.ok()) return Fail(s);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (int e = WriteBytes(out, response.image())) return e;
+  std::cout << "wrote " << out << ": " << response.width_px() << "x" << response.height_px() << ", "
+            << response.sites_size() << (r.adaptive() ? " adaptive" : " random") << " tiles, "
+            << (r.mean() ? "tile means" : "colours at the sites") << "; from the server in "
+            << Num(std::round(seconds * 1000) / 1000) << " s\n";
   return 0;
-}
-
-}  // namespace
-
-int RunAnalysis(const Args& a, Client& client) {
-  const std::string& c = a.words[0];
-  if (c == "boundaries") return Boundaries(a, client);
-  if (c == "neighbors" || c == "neighbours") return Neighbors(a, client);
-  if (c == "delaunay") return Delaunay(a, client);
-  if (c == "zoom") return Zoom(a, client);
-  if (c == "clearance") return Clearance(a, client);
-  if (c == "plan") return Plan(a, client);
-  if (c == "pick") return Pick(a, client);
-  if (c == "mosaic") return Mosaic(a, client);
-  return -1;
 }
 
 }  // namespace gvd::cli

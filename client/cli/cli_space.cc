@@ -57,8 +57,6 @@ bool ReadModel(const std::string& path, v1::Mesh* mesh, std::string* error) {
   return true;
 }
 
-namespace {
-
 // volume SCENE -o OUT.vdb [--window BOX] [--size WxHxD]: the scene's clearance field as an
 // OpenVDB file: a float grid "distance" with every sample active, and an int grid "site"
 // (the index of each sample's nearest site in the file's metadata "gvd_site_ids", -1 none).
@@ -147,13 +145,6 @@ int Volume(const Args& a, Client& client) {
             << f.depth_px() << " distances of scene " << w[1] << " at version " << f.version()
             << ", " << f.site_ids_size() << " sites\n";
   return 0;
-}
-
-}  // namespace
-
-int RunSpace(const Args& a, Client& client) {
-  if (!a.words.empty() && a.words[0] == "volume") return Volume(a, client);
-  return -1;
 }
 
 }  // namespace gvd::cli

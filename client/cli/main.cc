@@ -13,6 +13,7 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "absl/flags/flag.h"
@@ -23,7 +24,7 @@
 #include "absl/strings/str_split.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "client/cli/cli.h"
-#include "server/flags.h"
+#include "client/flags/flags.h"
 #include "gvd/client.h"
 
 // The CLI's flags: where to connect, and the options of its commands (gvd --help says which
@@ -68,7 +69,6 @@ ABSL_FLAG(bool, draw_sites, false, "");
 ABSL_FLAG(bool, coarse, false, "");
 ABSL_FLAG(bool, adaptive, false, "");
 ABSL_FLAG(bool, mean, false, "");
-ABSL_FLAG(bool, embedded, false, "");
 
 namespace gvd::cli {
 namespace {
@@ -266,10 +266,9 @@ bool ReadSites(const std::string& path, gvd::v1::UpsertSitesRequest* request, st
   return true;
 }
 
-int Run(const Args& a) {
-  const auto& w = a.words;
-  if (w.empty()) Usage("no command");
-  gvd::ClientOptions options;
+// The client's options from the flags: the timeout, the token and the TLS files, read.
+ClientOptions OptionsOf(const Args& a) {
+  ClientOptions options;
   options.timeout = std::chrono::milliseconds(static_cast<int64_t>(a.timeout * 1000));
   options.token = a.token;
   auto read = [](const std::string& flag, const std::string& path) {
@@ -282,419 +281,444 @@ int Run(const Args& a) {
   if (!a.tls_ca.empty()) options.tls_ca = read("--tls-ca", a.tls_ca);
   if (!a.tls_cert.empty()) options.tls_cert = read("--tls-cert", a.tls_cert);
   if (!a.tls_key.empty()) options.tls_key = read("--tls-key", a.tls_key);
-  auto client = gvd::Client::Connect(a.server, options);
-  if (int rc = RunAnalysis(a, *client); rc >= 0) return rc;
-  if (int rc = RunSpace(a, *client); rc >= 0) return rc;
-  auto need = [&](size_t n, const char* form) {
-    if (w.size() != n) Usage(absl::StrCat("usage: gvd ", form));
-  };
-  auto option = [&](const char* name) -> const std::string* {
-    auto it = a.options.find(name);
-    return it == a.options.end() ? nullptr : &it->second;
-  };
+  return options;
+}
 
-  if (w[0] == "scene" && w.size() >= 2) {
-    const std::string& verb = w[1];
-    if (verb == "create") {
-      need(3, "scene create ID --window MIN_X,MIN_Y,MAX_X,MAX_Y --size WxH [--max-error E]");
-      gvd::v1::CreateSceneRequest r;
-      r.set_scene_id(w[2]);
-      const std::string* window = option("--window");
-      const std::string* size = option("--size");
-      if (!window || !size) Usage("scene create needs --window and --size");
-      ParseWindow(*window, r.mutable_window());
-      uint32_t width, height, depth;
-      ParseSize(*size, &width, &height, &depth);
-      r.set_width_px(width);
-      r.set_height_px(height);
-      r.set_depth_px(depth);
-      if (const std::string* e = option("--max-error")) r.set_max_error(Number(*e, "--max-error"));
-      if (const std::string* m = option("--render-mode")) {
-        if (*m != "mesh" && *m != "exact") Usage("--render-mode must be mesh or exact");
-        r.set_render_mode(*m == "exact" ? gvd::v1::RENDER_MODE_EXACT : gvd::v1::RENDER_MODE_MESH);
-      }
-      if (const std::string* d = option("--diagram")) {
-        if (*d != "nearest" && *d != "farthest") Usage("--diagram must be nearest or farthest");
-        r.set_diagram(*d == "farthest" ? gvd::v1::DIAGRAM_FARTHEST : gvd::v1::DIAGRAM_NEAREST);
-      }
-      gvd::v1::Scene scene;
-      if (auto s = client->CreateScene(r, &scene); !s.ok()) return Fail(s);
-      a.json ? PrintJson(scene) : PrintScene(scene);
-      return 0;
+[[noreturn]] void Unknown(const Args& a) {
+  Usage(absl::StrCat("unknown command \"", absl::StrJoin(a.words, " "), "\""));
+}
+
+// Usage naming the command's form unless it has exactly n words.
+void Need(const Args& a, size_t n, const char* form) {
+  if (a.words.size() != n) Usage(absl::StrCat("usage: gvd ", form));
+}
+
+int SceneCommand(const Args& a, Client& client) {
+  const auto& w = a.words;
+  if (w.size() < 2) Unknown(a);
+  const std::string& verb = w[1];
+  if (verb == "create") {
+    Need(a, 3, "scene create ID --window MIN_X,MIN_Y,MAX_X,MAX_Y --size WxH [--max-error E]");
+    gvd::v1::CreateSceneRequest r;
+    r.set_scene_id(w[2]);
+    const std::string* window = Option(a, "--window");
+    const std::string* size = Option(a, "--size");
+    if (!window || !size) Usage("scene create needs --window and --size");
+    ParseWindow(*window, r.mutable_window());
+    uint32_t width, height, depth;
+    ParseSize(*size, &width, &height, &depth);
+    r.set_width_px(width);
+    r.set_height_px(height);
+    r.set_depth_px(depth);
+    if (const std::string* e = Option(a, "--max-error")) r.set_max_error(Number(*e, "--max-error"));
+    if (const std::string* m = Option(a, "--render-mode")) {
+      if (*m != "mesh" && *m != "exact") Usage("--render-mode must be mesh or exact");
+      r.set_render_mode(*m == "exact" ? gvd::v1::RENDER_MODE_EXACT : gvd::v1::RENDER_MODE_MESH);
     }
-    if (verb == "get") {
-      need(3, "scene get ID");
-      gvd::v1::Scene scene;
-      if (auto s = client->GetScene(w[2], &scene); !s.ok()) return Fail(s);
-      a.json ? PrintJson(scene) : PrintScene(scene);
-      return 0;
+    if (const std::string* d = Option(a, "--diagram")) {
+      if (*d != "nearest" && *d != "farthest") Usage("--diagram must be nearest or farthest");
+      r.set_diagram(*d == "farthest" ? gvd::v1::DIAGRAM_FARTHEST : gvd::v1::DIAGRAM_NEAREST);
     }
-    if (verb == "ls") {
-      need(2, "scene ls");
-      std::vector<gvd::v1::Scene> scenes;
-      if (auto s = client->ListScenes(&scenes); !s.ok()) return Fail(s);
-      gvd::v1::ListScenesResponse all;
-      for (auto& s : scenes) a.json ? void(*all.add_scenes() = s) : PrintScene(s);
-      if (a.json) PrintJson(all);
-      return 0;
-    }
-    if (verb == "rm") {
-      need(3, "scene rm ID");
-      if (auto s = client->DeleteScene(w[2]); !s.ok()) return Fail(s);
-      std::cout << "deleted scene " << w[2] << "\n";
-      return 0;
-    }
+    gvd::v1::Scene scene;
+    if (auto s = client.CreateScene(r, &scene); !s.ok()) return Fail(s);
+    a.json ? PrintJson(scene) : PrintScene(scene);
+    return 0;
   }
+  if (verb == "get") {
+    Need(a, 3, "scene get ID");
+    gvd::v1::Scene scene;
+    if (auto s = client.GetScene(w[2], &scene); !s.ok()) return Fail(s);
+    a.json ? PrintJson(scene) : PrintScene(scene);
+    return 0;
+  }
+  if (verb == "ls") {
+    Need(a, 2, "scene ls");
+    std::vector<gvd::v1::Scene> scenes;
+    if (auto s = client.ListScenes(&scenes); !s.ok()) return Fail(s);
+    gvd::v1::ListScenesResponse all;
+    for (auto& s : scenes) a.json ? void(*all.add_scenes() = s) : PrintScene(s);
+    if (a.json) PrintJson(all);
+    return 0;
+  }
+  if (verb == "rm") {
+    Need(a, 3, "scene rm ID");
+    if (auto s = client.DeleteScene(w[2]); !s.ok()) return Fail(s);
+    std::cout << "deleted scene " << w[2] << "\n";
+    return 0;
+  }
+  Unknown(a);
+}
 
-  if (w[0] == "watch") {
-    need(2, "watch SCENE [--after VERSION]");
-    gvd::v1::WatchSceneRequest r;
-    r.set_scene_id(w[1]);
-    if (const std::string* after = option("--after")) {
-      uint64_t v;
-      if (!absl::SimpleAtoi(*after, &v)) Usage(absl::StrCat("--after needs a version, not \"", *after, "\""));
-      r.set_after_version(v);
-    }
-    auto s = client->WatchScene(r, [&](const gvd::v1::WatchSceneResponse& e) {
-      if (a.json) {
-        std::string line;
-        google::protobuf::util::JsonPrintOptions o;
-        (void)google::protobuf::util::MessageToJsonString(e, &line, o);
-        std::cout << line << std::endl;
-      } else if (e.deleted()) {
-        std::cout << "scene " << e.scene_id() << " deleted" << std::endl;
+int WatchCommand(const Args& a, Client& client) {
+  const auto& w = a.words;
+  Need(a, 2, "watch SCENE [--after VERSION]");
+  gvd::v1::WatchSceneRequest r;
+  r.set_scene_id(w[1]);
+  if (const std::string* after = Option(a, "--after")) {
+    uint64_t v;
+    if (!absl::SimpleAtoi(*after, &v)) Usage(absl::StrCat("--after needs a version, not \"", *after, "\""));
+    r.set_after_version(v);
+  }
+  auto s = client.WatchScene(r, [&](const gvd::v1::WatchSceneResponse& e) {
+    if (a.json) {
+      std::string line;
+      google::protobuf::util::JsonPrintOptions o;
+      (void)google::protobuf::util::MessageToJsonString(e, &line, o);
+      std::cout << line << std::endl;
+    } else if (e.deleted()) {
+      std::cout << "scene " << e.scene_id() << " deleted" << std::endl;
+    } else {
+      std::cout << "version " << e.version() << ": ";
+      if (e.has_changed()) {
+        const auto& c = e.changed();
+        std::cout << "changed [" << c.min_x() << ", " << c.max_x() << "] x [" << c.min_y()
+                  << ", " << c.max_y() << "]";
       } else {
-        std::cout << "version " << e.version() << ": ";
-        if (e.has_changed()) {
-          const auto& c = e.changed();
-          std::cout << "changed [" << c.min_x() << ", " << c.max_x() << "] x [" << c.min_y()
-                    << ", " << c.max_y() << "]";
-        } else {
-          std::cout << "nothing changed";
-        }
-        std::cout << ", " << e.site_count() << " sites" << std::endl;
+        std::cout << "nothing changed";
       }
-      return true;
-    });
-    return s.ok() ? 0 : Fail(s);
-  }
+      std::cout << ", " << e.site_count() << " sites" << std::endl;
+    }
+    return true;
+  });
+  return s.ok() ? 0 : Fail(s);
+}
 
-  if (w[0] == "sites" && w.size() >= 2) {
-    const std::string& verb = w[1];
-    if (verb == "add") {
-      gvd::v1::UpsertSitesRequest r;
-      static const std::set<std::string> kSpace = {"point", "triangle", "mesh"};
-      const std::string* file = option("--file");
-      // "point" and "triangle" name 3D kinds when their points are X,Y,Z words; otherwise
-      // they may be a point site's id ("sites add point 1 2").
-      const bool space_kind = w.size() >= 3 && kSpace.count(w[2]) > 0 &&
-                              (w[2] == "mesh" || (w.size() >= 5 && absl::StrContains(w[4], ',')));
-      std::string model;  // the model file a mesh came from
-      if (space_kind) {
-        // 3D sites: ID and X,Y,Z points; a mesh from a model file.
-        if (w.size() < 4) Usage(absl::StrCat("sites add ", w[2], " needs an ID"));
-        auto* site = r.add_sites();
-        site->set_id(w[3]);
-        if (w[2] == "mesh") {
-          if (!file || w.size() != 4) Usage("usage: gvd sites add mesh ID --file MODEL");
-          std::string error;
-          if (!ReadModel(*file, site->mutable_mesh(), &error)) {
-            std::fprintf(stderr, "gvd: %s\n", error.c_str());
-            return 2;
-          }
-          model = *file;
-        } else {
-          if (file) Usage(absl::StrCat("sites add ", w[2], " takes no --file"));
-          const size_t n = w[2] == "point" ? 1 : 3;
-          if (w.size() != 4 + n) Usage(absl::StrCat("usage: gvd sites add ", w[2], " ID", n == 1 ? " X,Y,Z" : " X,Y,Z X,Y,Z X,Y,Z"));
-          if (n == 1) {
-            ParsePoint3(w[4], site->mutable_point());
-          } else {
-            ParsePoint3(w[4], site->mutable_triangle()->mutable_a());
-            ParsePoint3(w[5], site->mutable_triangle()->mutable_b());
-            ParsePoint3(w[6], site->mutable_triangle()->mutable_c());
-          }
-        }
-        file = nullptr;
-      }
-      if (file) {
+int SitesCommand(const Args& a, Client& client) {
+  const auto& w = a.words;
+  if (w.size() < 2) Unknown(a);
+  const std::string& verb = w[1];
+  if (verb == "add") {
+    gvd::v1::UpsertSitesRequest r;
+    static const std::set<std::string> kSpace = {"point", "triangle", "mesh"};
+    const std::string* file = Option(a, "--file");
+    // "point" and "triangle" name 3D kinds when their points are X,Y,Z words; otherwise
+    // they may be a point site's id ("sites add point 1 2").
+    const bool space_kind = w.size() >= 3 && kSpace.count(w[2]) > 0 &&
+                            (w[2] == "mesh" || (w.size() >= 5 && absl::StrContains(w[4], ',')));
+    std::string model;  // the model file a mesh came from
+    if (space_kind) {
+      // 3D sites: ID and X,Y,Z points; a mesh from a model file.
+      if (w.size() < 4) Usage(absl::StrCat("sites add ", w[2], " needs an ID"));
+      auto* site = r.add_sites();
+      site->set_id(w[3]);
+      if (w[2] == "mesh") {
+        if (!file || w.size() != 4) Usage("usage: gvd sites add mesh ID --file MODEL");
         std::string error;
-        if (!ReadSites(*file, &r, &error)) {
+        if (!ReadModel(*file, site->mutable_mesh(), &error)) {
           std::fprintf(stderr, "gvd: %s\n", error.c_str());
           return 2;
         }
-      }
-      r.set_scene_id(a.scene);  // after ReadSites: parsing JSON resets the message
-      static const std::set<std::string> kKinds = {"segment", "polyline", "polygon", "bezier"};
-      if (w.size() >= 3 && kKinds.count(w[2])) {
-        if (w.size() < 5) Usage(absl::StrCat("sites add ", w[2], " needs ID and points X,Y"));
-        auto* site = r.add_sites();
-        site->set_id(w[3]);
-        std::vector<gvd::v1::Point> pts;
-        for (size_t i = 4; i < w.size(); ++i) {
-          std::vector<std::string> xy = absl::StrSplit(w[i], ',');
-          pts.emplace_back();
-          if (xy.size() == 3 && w[2] == "segment") {  // a 3D scene's segment
-            ParsePoint3(w[i], &pts.back());
-            continue;
-          }
-          if (xy.size() != 2) Usage(absl::StrCat("points are X,Y, not \"", w[i], "\""));
-          pts.back().set_x(Number(xy[0], "X"));
-          pts.back().set_y(Number(xy[1], "Y"));
-        }
-        if (w[2] == "segment") {
-          if (pts.size() != 2) Usage("sites add segment ID X,Y X,Y");
-          *site->mutable_segment()->mutable_a() = pts[0];
-          *site->mutable_segment()->mutable_b() = pts[1];
-        } else if (w[2] == "polyline") {
-          for (auto& q : pts) *site->mutable_polyline()->add_points() = q;
-        } else if (w[2] == "polygon") {
-          for (auto& q : pts) *site->mutable_polygon()->add_vertices() = q;
-          if (const std::string* side = option("--side")) {
-            if (*side != "outside" && *side != "inside") Usage("--side must be outside or inside");
-            site->mutable_polygon()->set_side(*side == "outside" ? gvd::v1::Polygon::SIDE_OUTSIDE
-                                                                 : gvd::v1::Polygon::SIDE_INSIDE);
-          }
+        model = *file;
+      } else {
+        if (file) Usage(absl::StrCat("sites add ", w[2], " takes no --file"));
+        const size_t n = w[2] == "point" ? 1 : 3;
+        if (w.size() != 4 + n) Usage(absl::StrCat("usage: gvd sites add ", w[2], " ID", n == 1 ? " X,Y,Z" : " X,Y,Z X,Y,Z X,Y,Z"));
+        if (n == 1) {
+          ParsePoint3(w[4], site->mutable_point());
         } else {
-          for (auto& q : pts) *site->mutable_bezier()->add_control_points() = q;
-          if (const std::string* t = option("--tolerance")) {
-            site->mutable_bezier()->set_tolerance(Number(*t, "--tolerance"));
-          }
-        }
-      } else if (!space_kind) {
-        if ((w.size() - 2) % 3 != 0) Usage("sites add takes triples ID X Y");
-        for (size_t i = 2; i + 2 < w.size(); i += 3) {
-          auto* site = r.add_sites();
-          site->set_id(w[i]);
-          site->mutable_point()->set_x(Number(w[i + 1], "X"));
-          site->mutable_point()->set_y(Number(w[i + 2], "Y"));
+          ParsePoint3(w[4], site->mutable_triangle()->mutable_a());
+          ParsePoint3(w[5], site->mutable_triangle()->mutable_b());
+          ParsePoint3(w[6], site->mutable_triangle()->mutable_c());
         }
       }
-      if (r.sites_size() == 0) Usage("sites add needs ID X Y triples, a kind, or --file");
-      for (auto& site : *r.mutable_sites()) {
-        if (const std::string* v = option("--additive")) site.set_additive_weight(Number(*v, "--additive"));
-        if (const std::string* v = option("--multiplicative")) {
-          site.set_multiplicative_weight(Number(*v, "--multiplicative"));
-        }
-        if (const std::string* v = option("--max-distance")) site.set_max_distance(Number(*v, "--max-distance"));
-      }
-      uint64_t version = 0;
-      if (auto s = client->UpsertSites(r, &version); !s.ok()) {
-        // A model refused (over a limit, say) names its file too.
-        if (!model.empty()) {
-          return Fail(grpc::Status(s.error_code(), absl::StrCat(model, ": ", s.error_message())));
-        }
-        return Fail(s);
-      }
-      std::cout << "upserted " << r.sites_size() << " sites; scene " << a.scene << " is at version "
-                << version << "\n";
-      return 0;
+      file = nullptr;
     }
-    if (verb == "rm") {
-      if (w.size() < 3) Usage("usage: gvd sites rm ID [ID ...]");
-      uint64_t version = 0;
-      std::vector<std::string> ids(w.begin() + 2, w.end());
-      if (auto s = client->DeleteSites(a.scene, ids, &version); !s.ok()) return Fail(s);
-      std::cout << "deleted " << ids.size() << " sites; scene " << a.scene << " is at version "
-                << version << "\n";
-      return 0;
-    }
-    if (verb == "ls") {
-      need(2, "sites ls");
-      std::vector<gvd::v1::Site> sites;
-      if (auto s = client->ListAllSites(a.scene, &sites); !s.ok()) return Fail(s);
-      if (a.json) {
-        gvd::v1::ListSitesResponse all;
-        for (auto& s : sites) *all.add_sites() = s;
-        PrintJson(all);
-        return 0;
+    if (file) {
+      std::string error;
+      if (!ReadSites(*file, &r, &error)) {
+        std::fprintf(stderr, "gvd: %s\n", error.c_str());
+        return 2;
       }
-      auto xyz = [](const gvd::v1::Point& p) {
-        return absl::StrCat(Num(p.x()), ",", Num(p.y()), ",", Num(p.z()));
-      };
-      for (const auto& s : sites) {
-        // 3D sites: a point or a segment with a z, a triangle, a mesh (its size).
-        const bool space = (s.has_point() && s.point().z() != 0) ||
-                           (s.has_segment() && (s.segment().a().z() != 0 || s.segment().b().z() != 0));
-        if (space && s.has_point()) {
-          std::cout << s.id() << "\tpoint\t" << xyz(s.point()) << "\n";
-          continue;
-        }
-        if (space) {
-          std::cout << s.id() << "\tsegment\t" << xyz(s.segment().a()) << "\t" << xyz(s.segment().b()) << "\n";
-          continue;
-        }
-        if (s.has_triangle()) {
-          std::cout << s.id() << "\ttriangle\t" << xyz(s.triangle().a()) << "\t" << xyz(s.triangle().b())
-                    << "\t" << xyz(s.triangle().c()) << "\n";
-          continue;
-        }
-        if (s.has_mesh()) {
-          std::cout << s.id() << "\tmesh\t" << s.mesh().xyz_size() / 3 << " vertices\t"
-                    << s.mesh().triangles_size() / 3 << " triangles\n";
-          continue;
-        }
-        if (s.has_point()) {
-          std::cout << s.id() << "\t" << Num(s.point().x()) << "\t" << Num(s.point().y()) << "\n";
-          continue;
-        }
-        std::vector<gvd::v1::Point> pts;
-        std::string kind;
-        if (s.has_segment()) {
-          kind = "segment";
-          pts = {s.segment().a(), s.segment().b()};
-        } else if (s.has_polyline()) {
-          kind = "polyline";
-          pts.assign(s.polyline().points().begin(), s.polyline().points().end());
-        } else if (s.has_polygon()) {
-          kind = "polygon";
-          pts.assign(s.polygon().vertices().begin(), s.polygon().vertices().end());
-        } else if (s.has_bezier()) {
-          kind = "bezier";
-          pts.assign(s.bezier().control_points().begin(), s.bezier().control_points().end());
-        }
-        std::cout << s.id() << "\t" << kind;
-        for (const auto& q : pts) std::cout << "\t" << Num(q.x()) << "," << Num(q.y());
-        std::cout << "\n";
-      }
-      return 0;
     }
+    r.set_scene_id(a.scene);  // after ReadSites: parsing JSON resets the message
+    static const std::set<std::string> kKinds = {"segment", "polyline", "polygon", "bezier"};
+    if (w.size() >= 3 && kKinds.count(w[2])) {
+      if (w.size() < 5) Usage(absl::StrCat("sites add ", w[2], " needs ID and points X,Y"));
+      auto* site = r.add_sites();
+      site->set_id(w[3]);
+      std::vector<gvd::v1::Point> pts;
+      for (size_t i = 4; i < w.size(); ++i) {
+        std::vector<std::string> xy = absl::StrSplit(w[i], ',');
+        pts.emplace_back();
+        if (xy.size() == 3 && w[2] == "segment") {  // a 3D scene's segment
+          ParsePoint3(w[i], &pts.back());
+          continue;
+        }
+        if (xy.size() != 2) Usage(absl::StrCat("points are X,Y, not \"", w[i], "\""));
+        pts.back().set_x(Number(xy[0], "X"));
+        pts.back().set_y(Number(xy[1], "Y"));
+      }
+      if (w[2] == "segment") {
+        if (pts.size() != 2) Usage("sites add segment ID X,Y X,Y");
+        *site->mutable_segment()->mutable_a() = pts[0];
+        *site->mutable_segment()->mutable_b() = pts[1];
+      } else if (w[2] == "polyline") {
+        for (auto& q : pts) *site->mutable_polyline()->add_points() = q;
+      } else if (w[2] == "polygon") {
+        for (auto& q : pts) *site->mutable_polygon()->add_vertices() = q;
+        if (const std::string* side = Option(a, "--side")) {
+          if (*side != "outside" && *side != "inside") Usage("--side must be outside or inside");
+          site->mutable_polygon()->set_side(*side == "outside" ? gvd::v1::Polygon::SIDE_OUTSIDE
+                                                               : gvd::v1::Polygon::SIDE_INSIDE);
+        }
+      } else {
+        for (auto& q : pts) *site->mutable_bezier()->add_control_points() = q;
+        if (const std::string* t = Option(a, "--tolerance")) {
+          site->mutable_bezier()->set_tolerance(Number(*t, "--tolerance"));
+        }
+      }
+    } else if (!space_kind) {
+      if ((w.size() - 2) % 3 != 0) Usage("sites add takes triples ID X Y");
+      for (size_t i = 2; i + 2 < w.size(); i += 3) {
+        auto* site = r.add_sites();
+        site->set_id(w[i]);
+        site->mutable_point()->set_x(Number(w[i + 1], "X"));
+        site->mutable_point()->set_y(Number(w[i + 2], "Y"));
+      }
+    }
+    if (r.sites_size() == 0) Usage("sites add needs ID X Y triples, a kind, or --file");
+    for (auto& site : *r.mutable_sites()) {
+      if (const std::string* v = Option(a, "--additive")) site.set_additive_weight(Number(*v, "--additive"));
+      if (const std::string* v = Option(a, "--multiplicative")) {
+        site.set_multiplicative_weight(Number(*v, "--multiplicative"));
+      }
+      if (const std::string* v = Option(a, "--max-distance")) site.set_max_distance(Number(*v, "--max-distance"));
+    }
+    uint64_t version = 0;
+    if (auto s = client.UpsertSites(r, &version); !s.ok()) {
+      // A model refused (over a limit, say) names its file too.
+      if (!model.empty()) {
+        return Fail(grpc::Status(s.error_code(), absl::StrCat(model, ": ", s.error_message())));
+      }
+      return Fail(s);
+    }
+    std::cout << "upserted " << r.sites_size() << " sites; scene " << a.scene << " is at version "
+              << version << "\n";
+    return 0;
   }
-
-  if (w[0] == "health") {
-    need(1, "health");
-    grpc::ChannelArguments args;
-    auto channel = grpc::CreateCustomChannel(
-        a.server,
-        options.tls_ca.empty() ? grpc::InsecureChannelCredentials()
-                               : grpc::SslCredentials({options.tls_ca, options.tls_key, options.tls_cert}),
-        args);
-    auto stub = grpc::health::v1::Health::NewStub(channel);
-    grpc::ClientContext ctx;
-    ctx.set_deadline(std::chrono::system_clock::now() + options.timeout);
-    grpc::health::v1::HealthCheckRequest request;
-    grpc::health::v1::HealthCheckResponse response;
-    if (auto s = stub->Check(&ctx, request, &response); !s.ok()) return Fail(s);
-    std::cout << grpc::health::v1::HealthCheckResponse::ServingStatus_Name(response.status()) << "\n";
-    return response.status() == grpc::health::v1::HealthCheckResponse::SERVING ? 0 : 1;
+  if (verb == "rm") {
+    if (w.size() < 3) Usage("usage: gvd sites rm ID [ID ...]");
+    uint64_t version = 0;
+    std::vector<std::string> ids(w.begin() + 2, w.end());
+    if (auto s = client.DeleteSites(a.scene, ids, &version); !s.ok()) return Fail(s);
+    std::cout << "deleted " << ids.size() << " sites; scene " << a.scene << " is at version "
+              << version << "\n";
+    return 0;
   }
-
-  if (w[0] == "nearest") {
-    if (w.size() < 3) Usage("usage: gvd nearest X Y [X Y ...] (X Y Z in a 3D scene)");
-    // A 3D scene's points are X Y Z triples: the scene says which.
-    gvd::v1::Scene scene;
-    if (auto s = client->GetScene(a.scene, &scene); !s.ok()) return Fail(s);
-    const size_t dims = scene.depth_px() > 0 ? 3 : 2;
-    if (w.size() < 1 + dims || (w.size() - 1) % dims != 0) {
-      Usage(dims == 3 ? "usage: gvd nearest X Y Z [X Y Z ...] (a 3D scene)"
-                      : "usage: gvd nearest X Y [X Y ...]");
-    }
-    gvd::v1::FindNearestRequest r;
-    r.set_scene_id(a.scene);
-    for (size_t i = 1; i + dims - 1 < w.size(); i += dims) {
-      auto* p = r.add_points();
-      p->set_x(Number(w[i], "X"));
-      p->set_y(Number(w[i + 1], "Y"));
-      if (dims == 3) p->set_z(Number(w[i + 2], "Z"));
-    }
-    if (const std::string* v = option("--min-version")) {
-      uint64_t mv;
-      if (!absl::SimpleAtoi(*v, &mv)) Usage("--min-version needs a version number");
-      r.set_min_version(mv);
-    }
-    r.set_exact(a.exact);
-    const bool closest = absl::GetFlag(FLAGS_closest);
-    if (closest) {
-      r.add_fields(gvd::v1::NEAREST_FIELD_CLOSEST);
-      r.add_fields(gvd::v1::NEAREST_FIELD_GRADIENT);
-    }
-    gvd::v1::FindNearestResponse response;
-    if (auto s = client->FindNearest(r, &response); !s.ok()) return Fail(s);
+  if (verb == "ls") {
+    Need(a, 2, "sites ls");
+    std::vector<gvd::v1::Site> sites;
+    if (auto s = client.ListAllSites(a.scene, &sites); !s.ok()) return Fail(s);
     if (a.json) {
-      PrintJson(response);
+      gvd::v1::ListSitesResponse all;
+      for (auto& s : sites) *all.add_sites() = s;
+      PrintJson(all);
       return 0;
     }
-    std::cout << (dims == 3 ? "x\ty\tz" : "x\ty") << "\tsite\tdistance\terror_bound\texact\tfeature"
-              << (closest ? "\tclosest\tgradient\n" : "\n");
-    // X,Y or X,Y,Z.
-    auto point = [&](const gvd::v1::Point& p) {
-      return dims == 3 ? absl::StrCat(Num(p.x()), ",", Num(p.y()), ",", Num(p.z()))
-                       : absl::StrCat(Num(p.x()), ",", Num(p.y()));
+    auto xyz = [](const gvd::v1::Point& p) {
+      return absl::StrCat(Num(p.x()), ",", Num(p.y()), ",", Num(p.z()));
     };
-    for (int i = 0; i < response.results_size(); ++i) {
-      const auto& n = response.results(i);
-      std::cout << Num(r.points(i).x()) << "\t" << Num(r.points(i).y()) << "\t";
-      if (dims == 3) std::cout << Num(r.points(i).z()) << "\t";
-      if (n.empty()) {
-        std::cout << "(none)\tinf\t0\tyes\t-" << (closest ? "\t-\t-\n" : "\n");
+    for (const auto& s : sites) {
+      // 3D sites: a point or a segment with a z, a triangle, a mesh (its size).
+      const bool space = (s.has_point() && s.point().z() != 0) ||
+                         (s.has_segment() && (s.segment().a().z() != 0 || s.segment().b().z() != 0));
+      if (space && s.has_point()) {
+        std::cout << s.id() << "\tpoint\t" << xyz(s.point()) << "\n";
         continue;
       }
-      std::string kind = n.feature_kind() == gvd::v1::FEATURE_KIND_EDGE    ? "edge"
-                         : n.feature_kind() == gvd::v1::FEATURE_KIND_CURVE ? "curve"
-                         : n.feature_kind() == gvd::v1::FEATURE_KIND_FACE  ? "face"
-                                                              : "vertex";
-      std::cout << n.site_id() << "\t" << Num(n.distance()) << "\t" << Num(n.error_bound())
-                << "\t" << (n.exact() ? "yes" : "no") << "\t" << kind << " "
-                << n.feature_index();
-      if (closest) {
-        std::cout << "\t" << point(n.closest()) << "\t" << point(n.gradient());
+      if (space) {
+        std::cout << s.id() << "\tsegment\t" << xyz(s.segment().a()) << "\t" << xyz(s.segment().b()) << "\n";
+        continue;
       }
+      if (s.has_triangle()) {
+        std::cout << s.id() << "\ttriangle\t" << xyz(s.triangle().a()) << "\t" << xyz(s.triangle().b())
+                  << "\t" << xyz(s.triangle().c()) << "\n";
+        continue;
+      }
+      if (s.has_mesh()) {
+        std::cout << s.id() << "\tmesh\t" << s.mesh().xyz_size() / 3 << " vertices\t"
+                  << s.mesh().triangles_size() / 3 << " triangles\n";
+        continue;
+      }
+      if (s.has_point()) {
+        std::cout << s.id() << "\t" << Num(s.point().x()) << "\t" << Num(s.point().y()) << "\n";
+        continue;
+      }
+      std::vector<gvd::v1::Point> pts;
+      std::string kind;
+      if (s.has_segment()) {
+        kind = "segment";
+        pts = {s.segment().a(), s.segment().b()};
+      } else if (s.has_polyline()) {
+        kind = "polyline";
+        pts.assign(s.polyline().points().begin(), s.polyline().points().end());
+      } else if (s.has_polygon()) {
+        kind = "polygon";
+        pts.assign(s.polygon().vertices().begin(), s.polygon().vertices().end());
+      } else if (s.has_bezier()) {
+        kind = "bezier";
+        pts.assign(s.bezier().control_points().begin(), s.bezier().control_points().end());
+      }
+      std::cout << s.id() << "\t" << kind;
+      for (const auto& q : pts) std::cout << "\t" << Num(q.x()) << "," << Num(q.y());
       std::cout << "\n";
     }
     return 0;
   }
+  Unknown(a);
+}
 
-  if (w[0] == "render") {
-    need(2, "render SCENE -o OUT [--layer ids|features|distance] [--format png|exr]");
-    const std::string* out = option("--output");
-    if (!out) Usage("render needs -o OUT");
-    gvd::v1::RenderImageRequest r;
-    r.set_scene_id(w[1]);
-    std::string layer = option("--layer") ? *option("--layer") : "ids";
-    if (layer == "ids") r.set_layer(gvd::v1::RenderImageRequest::LAYER_IDS);
-    else if (layer == "features") r.set_layer(gvd::v1::RenderImageRequest::LAYER_FEATURES);
-    else if (layer == "distance") r.set_layer(gvd::v1::RenderImageRequest::LAYER_DISTANCE);
-    else Usage("--layer must be ids, features or distance");
-    std::string format = option("--format") ? *option("--format")
-                         : out->size() > 4 && out->substr(out->size() - 4) == ".exr" ? "exr"
-                                                                                     : "png";
-    if (format != "png" && format != "exr") Usage("--format must be png or exr");
-    r.set_format(format == "exr" ? gvd::v1::RenderImageRequest::FORMAT_EXR
-                                 : gvd::v1::RenderImageRequest::FORMAT_PNG);
-    if (const std::string* window = option("--window")) ParseWindow(*window, r.mutable_window());
-    r.set_draw_sites(option("--draw-sites") != nullptr);
-    if (const std::string* z = option("--z")) r.set_z(Number(*z, "--z"));
-    if (const std::string* k = option("--slice")) {
-      uint32_t slice;
-      if (!absl::SimpleAtoi(*k, &slice)) Usage(absl::StrCat("--slice needs a slice index, not ", *k));
-      r.set_slice(slice);
-    }
-    if (const std::string* v = option("--min-version")) {
-      uint64_t mv;
-      if (!absl::SimpleAtoi(*v, &mv)) Usage("--min-version needs a version number");
-      r.set_min_version(mv);
-    } else {  // the scene as it is now, once rendered
-      gvd::v1::Scene scene;
-      if (auto s = client->GetScene(w[1], &scene); !s.ok()) return Fail(s);
-      r.set_min_version(scene.version());
-    }
-    gvd::v1::RenderImageResponse response;
-    if (auto s = client->RenderImage(r, &response); !s.ok()) return Fail(s);
-    std::ofstream file(*out, std::ios::binary);
-    file.write(response.image().data(), static_cast<std::streamsize>(response.image().size()));
-    if (!file) {
-      std::fprintf(stderr, "gvd: cannot write %s\n", out->c_str());
-      return 1;
-    }
-    std::cout << "wrote " << *out << ": " << response.width_px() << "x" << response.height_px()
-              << " " << layer << " of scene " << w[1]
-              << (r.has_z() || r.has_slice()
-                      ? absl::StrCat(", slice ", response.slice(), " (z ", Num(response.slice_z()), ")")
-                      : "")
-              << " at version " << response.version() << "\n";
+int HealthCommand(const Args& a, Client&) {
+  const ClientOptions options = OptionsOf(a);
+  Need(a, 1, "health");
+  grpc::ChannelArguments args;
+  auto channel = grpc::CreateCustomChannel(
+      a.server,
+      options.tls_ca.empty() ? grpc::InsecureChannelCredentials()
+                             : grpc::SslCredentials({options.tls_ca, options.tls_key, options.tls_cert}),
+      args);
+  auto stub = grpc::health::v1::Health::NewStub(channel);
+  grpc::ClientContext ctx;
+  ctx.set_deadline(std::chrono::system_clock::now() + options.timeout);
+  grpc::health::v1::HealthCheckRequest request;
+  grpc::health::v1::HealthCheckResponse response;
+  if (auto s = stub->Check(&ctx, request, &response); !s.ok()) return Fail(s);
+  std::cout << grpc::health::v1::HealthCheckResponse::ServingStatus_Name(response.status()) << "\n";
+  return response.status() == grpc::health::v1::HealthCheckResponse::SERVING ? 0 : 1;
+}
+
+int NearestCommand(const Args& a, Client& client) {
+  const auto& w = a.words;
+  if (w.size() < 3) Usage("usage: gvd nearest X Y [X Y ...] (X Y Z in a 3D scene)");
+  // A 3D scene's points are X Y Z triples: the scene says which.
+  gvd::v1::Scene scene;
+  if (auto s = client.GetScene(a.scene, &scene); !s.ok()) return Fail(s);
+  const size_t dims = scene.depth_px() > 0 ? 3 : 2;
+  if (w.size() < 1 + dims || (w.size() - 1) % dims != 0) {
+    Usage(dims == 3 ? "usage: gvd nearest X Y Z [X Y Z ...] (a 3D scene)"
+                    : "usage: gvd nearest X Y [X Y ...]");
+  }
+  gvd::v1::FindNearestRequest r;
+  r.set_scene_id(a.scene);
+  for (size_t i = 1; i + dims - 1 < w.size(); i += dims) {
+    auto* p = r.add_points();
+    p->set_x(Number(w[i], "X"));
+    p->set_y(Number(w[i + 1], "Y"));
+    if (dims == 3) p->set_z(Number(w[i + 2], "Z"));
+  }
+  if (const std::string* v = Option(a, "--min-version")) {
+    uint64_t mv;
+    if (!absl::SimpleAtoi(*v, &mv)) Usage("--min-version needs a version number");
+    r.set_min_version(mv);
+  }
+  r.set_exact(a.exact);
+  const bool closest = absl::GetFlag(FLAGS_closest);
+  if (closest) {
+    r.add_fields(gvd::v1::NEAREST_FIELD_CLOSEST);
+    r.add_fields(gvd::v1::NEAREST_FIELD_GRADIENT);
+  }
+  gvd::v1::FindNearestResponse response;
+  if (auto s = client.FindNearest(r, &response); !s.ok()) return Fail(s);
+  if (a.json) {
+    PrintJson(response);
     return 0;
   }
-  Usage(absl::StrCat("unknown command \"", absl::StrJoin(w, " "), "\""));
+  std::cout << (dims == 3 ? "x\ty\tz" : "x\ty") << "\tsite\tdistance\terror_bound\texact\tfeature"
+            << (closest ? "\tclosest\tgradient\n" : "\n");
+  // X,Y or X,Y,Z.
+  auto point = [&](const gvd::v1::Point& p) {
+    return dims == 3 ? absl::StrCat(Num(p.x()), ",", Num(p.y()), ",", Num(p.z()))
+                     : absl::StrCat(Num(p.x()), ",", Num(p.y()));
+  };
+  for (int i = 0; i < response.results_size(); ++i) {
+    const auto& n = response.results(i);
+    std::cout << Num(r.points(i).x()) << "\t" << Num(r.points(i).y()) << "\t";
+    if (dims == 3) std::cout << Num(r.points(i).z()) << "\t";
+    if (n.empty()) {
+      std::cout << "(none)\tinf\t0\tyes\t-" << (closest ? "\t-\t-\n" : "\n");
+      continue;
+    }
+    std::string kind = n.feature_kind() == gvd::v1::FEATURE_KIND_EDGE    ? "edge"
+                       : n.feature_kind() == gvd::v1::FEATURE_KIND_CURVE ? "curve"
+                       : n.feature_kind() == gvd::v1::FEATURE_KIND_FACE  ? "face"
+                                                            : "vertex";
+    std::cout << n.site_id() << "\t" << Num(n.distance()) << "\t" << Num(n.error_bound())
+              << "\t" << (n.exact() ? "yes" : "no") << "\t" << kind << " "
+              << n.feature_index();
+    if (closest) {
+      std::cout << "\t" << point(n.closest()) << "\t" << point(n.gradient());
+    }
+    std::cout << "\n";
+  }
+  return 0;
+}
+
+int RenderCommand(const Args& a, Client& client) {
+  const auto& w = a.words;
+  Need(a, 2, "render SCENE -o OUT [--layer ids|features|distance] [--format png|exr]");
+  const std::string* out = Option(a, "--output");
+  if (!out) Usage("render needs -o OUT");
+  gvd::v1::RenderImageRequest r;
+  r.set_scene_id(w[1]);
+  std::string layer = Option(a, "--layer") ? *Option(a, "--layer") : "ids";
+  if (layer == "ids") r.set_layer(gvd::v1::RenderImageRequest::LAYER_IDS);
+  else if (layer == "features") r.set_layer(gvd::v1::RenderImageRequest::LAYER_FEATURES);
+  else if (layer == "distance") r.set_layer(gvd::v1::RenderImageRequest::LAYER_DISTANCE);
+  else Usage("--layer must be ids, features or distance");
+  std::string format = Option(a, "--format") ? *Option(a, "--format")
+                       : out->size() > 4 && out->substr(out->size() - 4) == ".exr" ? "exr"
+                                                                                   : "png";
+  if (format != "png" && format != "exr") Usage("--format must be png or exr");
+  r.set_format(format == "exr" ? gvd::v1::RenderImageRequest::FORMAT_EXR
+                               : gvd::v1::RenderImageRequest::FORMAT_PNG);
+  if (const std::string* window = Option(a, "--window")) ParseWindow(*window, r.mutable_window());
+  r.set_draw_sites(Option(a, "--draw-sites") != nullptr);
+  if (const std::string* z = Option(a, "--z")) r.set_z(Number(*z, "--z"));
+  if (const std::string* k = Option(a, "--slice")) {
+    uint32_t slice;
+    if (!absl::SimpleAtoi(*k, &slice)) Usage(absl::StrCat("--slice needs a slice index, not ", *k));
+    r.set_slice(slice);
+  }
+  if (const std::string* v = Option(a, "--min-version")) {
+    uint64_t mv;
+    if (!absl::SimpleAtoi(*v, &mv)) Usage("--min-version needs a version number");
+    r.set_min_version(mv);
+  } else {  // the scene as it is now, once rendered
+    gvd::v1::Scene scene;
+    if (auto s = client.GetScene(w[1], &scene); !s.ok()) return Fail(s);
+    r.set_min_version(scene.version());
+  }
+  gvd::v1::RenderImageResponse response;
+  if (auto s = client.RenderImage(r, &response); !s.ok()) return Fail(s);
+  if (int e = WriteBytes(*out, response.image())) return e;
+  std::cout << "wrote " << *out << ": " << response.width_px() << "x" << response.height_px()
+            << " " << layer << " of scene " << w[1]
+            << (r.has_z() || r.has_slice()
+                    ? absl::StrCat(", slice ", response.slice(), " (z ", Num(response.slice_z()), ")")
+                    : "")
+            << " at version " << response.version() << "\n";
+  return 0;
+}
+
+// The commands, by name: their words and flags as gvd --help says.
+const std::map<std::string_view, Command>& Commands() {
+  static const auto* commands = new std::map<std::string_view, Command>{
+      {"scene", SceneCommand},   {"watch", WatchCommand},  {"sites", SitesCommand},
+      {"health", HealthCommand}, {"nearest", NearestCommand}, {"render", RenderCommand},
+      {"boundaries", Boundaries}, {"neighbors", Neighbors}, {"neighbours", Neighbors},
+      {"delaunay", Delaunay},    {"zoom", Zoom},           {"clearance", Clearance},
+      {"plan", Plan},            {"pick", Pick},           {"mosaic", Mosaic},
+      {"volume", Volume},
+  };
+  return *commands;
+}
+
+int Run(const Args& a) {
+  if (a.words.empty()) Usage("no command");
+  auto command = Commands().find(a.words[0]);
+  if (command == Commands().end()) Unknown(a);
+  auto client = Client::Connect(a.server, OptionsOf(a));
+  return command->second(a, *client);
 }
 
 }  // namespace

@@ -1,53 +1,125 @@
 #include "render/image/mosaic.h"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
+#include <optional>
 #include <random>
 
-#include "absl/strings/numbers.h"
+#include "absl/strings/ascii.h"
+#include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
-#include "absl/strings/str_format.h"
 
 namespace gvd {
 
-absl::StatusOr<Image> ReadImage(const std::string& path) {
-  auto in = OIIO::ImageInput::open(path);
-  if (!in) {
-    return absl::NotFoundError(absl::StrCat("cannot read ", path, ": ", OIIO::geterror()));
+namespace {
+
+// The formats ReadImage decodes, told by their first bytes: OpenImageIO's name, and the file
+// extension its plugin answers to.
+struct Sniffed {
+  const char* format;
+  const char* extension;
+};
+
+std::optional<Sniffed> Sniff(std::string_view b) {
+  auto starts = [&](std::string_view magic) { return b.substr(0, magic.size()) == magic; };
+  if (starts("\x89PNG\r\n\x1a\n")) return Sniffed{"png", "png"};
+  if (starts("\xff\xd8\xff")) return Sniffed{"jpeg", "jpg"};
+  if (starts("RIFF") && b.size() >= 12 && b.substr(8, 4) == "WEBP") return Sniffed{"webp", "webp"};
+  if (starts("GIF87a") || starts("GIF89a")) return Sniffed{"gif", "gif"};
+  if (starts("BM")) return Sniffed{"bmp", "bmp"};
+  if (b.size() >= 3 && b[0] == 'P' && b[1] >= '1' && b[1] <= '6' &&
+      absl::ascii_isspace(static_cast<unsigned char>(b[2]))) {
+    return Sniffed{"pnm", "pnm"};
   }
-  const OIIO::ImageSpec& spec = in->spec();
+  return std::nullopt;
+}
+
+}  // namespace
+
+absl::StatusOr<Image> ReadImage(std::string_view bytes, const std::string& field,
+                                const std::function<absl::Status(const Image&)>& admit) {
+  const std::optional<Sniffed> sniffed = Sniff(bytes);
+  if (!sniffed) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        field, " is not a PNG, JPEG, WebP, GIF, BMP or PNM file (", bytes.size(),
+        " bytes, starting \"", absl::CHexEscape(absl::string_view(bytes.data(), std::min<size_t>(8, bytes.size()))), "\")"));
+  }
+  OIIO::Filesystem::IOMemReader proxy(bytes.data(), bytes.size());
+  const std::string name = absl::StrCat("image.", sniffed->extension);
+  // Created without opening, so that no other format's decoder is tried on the bytes.
+  auto in = OIIO::ImageInput::create(name, /*do_open=*/false, nullptr, &proxy);
+  OIIO::ImageSpec spec;
+  if (!in || !in->set_ioproxy(&proxy) || !in->open(name, spec)) {
+    return absl::InvalidArgumentError(absl::StrCat(field, " is a damaged ", sniffed->format,
+                                                   " file: ",
+                                                   in ? in->geterror() : OIIO::geterror()));
+  }
   Image image;
-  image.width = static_cast<uint32_t>(spec.width);
-  image.height = static_cast<uint32_t>(spec.height);
-  image.channels = static_cast<uint32_t>(spec.nchannels);
-  image.format = spec.format.c_str();
+  image.width = static_cast<uint32_t>(std::max(0, spec.width));
+  image.height = static_cast<uint32_t>(std::max(0, spec.height));
+  image.channels = static_cast<uint32_t>(std::max(0, spec.nchannels));
+  image.pixel_type = spec.format.c_str();
+  image.file_format = sniffed->format;
+  if (image.width == 0 || image.height == 0 || image.channels == 0 || image.channels > 4) {
+    return absl::InvalidArgumentError(absl::StrCat(field, " is ", image.width, "x", image.height,
+                                                   " pixels of ", image.channels,
+                                                   " channels; a mosaic needs a pixel and 1 to 4 channels"));
+  }
+  if (auto s = admit(image); !s.ok()) return s;
   image.pixels.resize(size_t{image.width} * image.height * image.channels);
-  if (image.pixels.empty() ||
-      !in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data())) {
-    return absl::InvalidArgumentError(absl::StrCat("cannot read the pixels of ", path, ": ",
-                                                   in->geterror()));
+  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data())) {
+    return absl::InvalidArgumentError(absl::StrCat(field, " is a damaged ", sniffed->format,
+                                                   " file: ", in->geterror()));
   }
   return image;
 }
 
-absl::Status WriteImage(const std::string& path, const Image& image) {
-  auto out = OIIO::ImageOutput::create(path);
+absl::StatusOr<std::string> WriteImage(const Image& image, const std::string& file_format) {
+  const char* extension = file_format == "png"    ? "png"
+                          : file_format == "jpeg" ? "jpg"
+                          : file_format == "webp" ? "webp"
+                          : file_format == "pnm"  ? "pnm"
+                                                  : nullptr;
+  if (extension == nullptr) {
+    return absl::InvalidArgumentError(absl::StrCat("cannot write ", file_format, " images"));
+  }
+  // JPEG and PNM hold 1 or 3 channels: alpha (the second of two, the fourth of four) is left.
+  uint32_t channels = image.channels;
+  if ((file_format == "jpeg" || file_format == "pnm") && channels % 2 == 0) --channels;
+  OIIO::TypeDesc type(image.pixel_type.empty() ? "uint8" : image.pixel_type.c_str());
+  if (type == OIIO::TypeDesc::UNKNOWN || file_format == "jpeg") type = OIIO::TypeDesc::UINT8;
+  OIIO::ImageSpec spec(int(image.width), int(image.height), int(channels), type);
+  spec.attribute("Compression", "jpeg:90");  // JPEG's quality; other formats ignore it
+  std::vector<unsigned char> bytes;
+  OIIO::Filesystem::IOVecOutput proxy(bytes);
+  const std::string name = absl::StrCat("image.", extension);
+  auto out = OIIO::ImageOutput::create(name, &proxy);
   if (!out) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("cannot write ", path, ": ", OIIO::geterror()));
+    return absl::InternalError(absl::StrCat("OpenImageIO has no writer for ", name, ": ",
+                                            OIIO::geterror()));
   }
-  OIIO::TypeDesc format(image.format.empty() ? "uint8" : image.format.c_str());
-  if (format == OIIO::TypeDesc::UNKNOWN) format = OIIO::TypeDesc::UINT8;
-  OIIO::ImageSpec spec(int(image.width), int(image.height), int(image.channels), format);
-  spec.attribute("Compression", "jpeg:90");  // for JPEG; other formats ignore it
-  if (!out->open(path, spec) ||
-      !out->write_image(OIIO::TypeDesc::FLOAT, image.pixels.data()) || !out->close()) {
-    return absl::InternalError(absl::StrCat("writing ", path, ": ", out->geterror()));
+  const auto pixel_stride = static_cast<OIIO::stride_t>(image.channels * sizeof(float));
+  if (!out->open(name, spec) ||
+      !out->write_image(OIIO::TypeDesc::FLOAT, image.pixels.data(), pixel_stride) ||
+      !out->close()) {
+    return absl::InternalError(absl::StrCat("encoding the ", file_format, " image: ",
+                                            out->geterror()));
   }
-  return absl::OkStatus();
+  return std::string(bytes.begin(), bytes.end());
+}
+
+std::string MimeType(const std::string& file_format) {
+  if (file_format == "pnm") return "image/x-portable-anymap";
+  return absl::StrCat("image/", file_format);
+}
+
+uint64_t MosaicBytes(uint32_t width, uint32_t height, uint32_t channels) {
+  // Floats for the image and the mosaic; per pixel an id, a frame's id and distance, and the
+  // render target's id, depth and depth buffer.
+  return uint64_t{width} * height * (2 * 4 * uint64_t{channels} + 4 + 8 + 12);
 }
 
 Grid ImageGrid(const Image& image) {
@@ -143,51 +215,6 @@ absl::StatusOr<Image> MakeMosaic(const Image& image, const std::vector<Vec2>& si
     }
   }
   return out;
-}
-
-absl::StatusOr<MosaicOptions> MosaicOptionsFromFlags(
-    const std::map<std::string, std::string>& flags) {
-  MosaicOptions options;
-  if (auto t = flags.find("--tiles"); t != flags.end()) {
-    if (!absl::SimpleAtoi(t->second, &options.tiles) || options.tiles == 0) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("--tiles needs a positive count, not \"", t->second, "\""));
-    }
-  }
-  if (auto s = flags.find("--seed"); s != flags.end()) {
-    if (!absl::SimpleAtoi(s->second, &options.seed)) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("--seed needs a number, not \"", s->second, "\""));
-    }
-  }
-  options.adaptive = flags.count("--adaptive") > 0;
-  options.mean = flags.count("--mean") > 0;
-  return options;
-}
-
-absl::StatusOr<std::string> RunMosaic(const std::string& in, const std::string& out,
-                                      const MosaicOptions& options, const DiagramFn& diagram,
-                                      const std::string& source) {
-  using Clock = std::chrono::steady_clock;
-  auto seconds = [](Clock::time_point since) {
-    return std::chrono::duration<double>(Clock::now() - since).count();
-  };
-  const auto start = Clock::now();
-  auto image = ReadImage(in);
-  if (!image.ok()) return image.status();
-  std::vector<Vec2> sites = MosaicSites(*image, options);
-  const auto diagram_start = Clock::now();
-  auto ids = diagram(ImageGrid(*image), sites);
-  if (!ids.ok()) return ids.status();
-  const double diagram_s = seconds(diagram_start);
-  auto mosaic = MakeMosaic(*image, sites, *ids, options);
-  if (!mosaic.ok()) return mosaic.status();
-  if (auto s = WriteImage(out, *mosaic); !s.ok()) return s;
-  return absl::StrFormat("wrote %s: %ux%u, %u%s tiles, %s; diagram %s in %.3g s, %.3g s in all",
-                         out, image->width, image->height, sites.size(),
-                         options.adaptive ? " adaptive" : " random",
-                         options.mean ? "tile means" : "colours at the sites", source, diagram_s,
-                         seconds(start));
 }
 
 }  // namespace gvd

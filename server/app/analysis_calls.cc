@@ -1,7 +1,7 @@
 // The service's calls on the structure of a diagram and its applications (paper sec. 5-7):
-// boundaries, neighbours, Delaunay, zoom windows, clearance and planning. Each waits for its
-// frame like a query, then works on the analyses lane (never on a transport's thread),
-// rendering zoom windows through the renderer when it needs them.
+// boundaries, neighbours, Delaunay, zoom windows, clearance, planning and mosaics. Each waits
+// for its frame like a query (a mosaic has no scene), then works on the analyses lane (never
+// on a transport's thread), rendering zoom windows through the renderer when it needs them.
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -13,6 +13,7 @@
 #include "render/analysis/clearance3.h"
 #include "render/analysis/planning.h"
 #include "render/analysis/refine.h"
+#include "render/image/mosaic.h"
 #include "server/app/convert/analysis.h"
 #include "server/app/convert/common.h"
 #include "server/app/convert/images.h"
@@ -518,6 +519,70 @@ void Service::PlanPath(CallPtr call, const v1::PlanPathRequest& request,
         response->set_best_clearance(plan->best_clearance);
         response->set_length(plan->length);
         response->set_version(frame->version());
+        return absl::OkStatus();
+      },
+      std::move(done));
+}
+
+void Service::RenderMosaic(CallPtr call, const v1::RenderMosaicRequest& request,
+                           v1::RenderMosaicResponse* response, Done done) {
+  Begun begun = Begin(*call, "RenderMosaic", Access::kRead);
+  done = Ending(begun.scope, std::move(done));
+  if (!begun.status.ok()) return done(begun.status);
+  MosaicOptions options;
+  std::string format;
+  if (auto s = ToMosaicOptions(request, limits_, &options, &format); !s.ok()) return done(s);
+  SceneRegistry* registry = registry_;
+  const ServerLimits& limits = limits_;
+  OnLane(
+      registry_->analyses(), "--max-queued-analyses",
+      [=, &request, &limits]() -> absl::Status {
+        // The image's memory is reserved from its header, before its pixels are decoded.
+        std::unique_ptr<MemoryBudget::Reservation> reserved;
+        auto image = ReadImage(request.image(), "image", [&](const Image& header) -> absl::Status {
+          if (auto s = MosaicImageFits(header, limits); !s.ok()) return s;
+          auto r = registry->Reserve(
+              MosaicBytes(header.width, header.height, header.channels),
+              absl::StrCat("a mosaic of a ", header.width, "x", header.height, " image"));
+          if (!r.ok()) return r.status();
+          reserved = std::move(*r);
+          return absl::OkStatus();
+        });
+        if (!image.ok()) return image.status();
+        if (call->cancelled()) return absl::CancelledError("the call was cancelled");
+        // The sites' diagram: a zoom window of them over the image's pixels, exact.
+        const std::vector<Vec2> points = MosaicSites(*image, options);
+        std::vector<Site> sites;
+        sites.reserve(points.size());
+        for (size_t k = 0; k < points.size(); ++k) {
+          sites.push_back(Site{absl::StrCat(k), PointSite{points[k]}});
+        }
+        const Grid grid = ImageGrid(*image);
+        auto base = Frame::Unrendered(grid, grid.pixel_size(), ErrorModel{},
+                                      SiteSnapshot::Of(1, std::move(sites)));
+        auto frames = registry->Zoom(std::move(base), RenderMode::kExact, {grid});
+        if (!frames.ok()) return frames.status();
+        const Frame& frame = *frames->front();
+        // Slots are the sites' indices: SiteSnapshot::Of fills them in order.
+        std::vector<uint32_t> ids(grid.pixel_count());
+        for (uint32_t j = 0; j < grid.height; ++j) {
+          for (uint32_t i = 0; i < grid.width; ++i) ids[size_t{j} * grid.width + i] = frame.id_at(i, j);
+        }
+        auto mosaic = MakeMosaic(*image, points, ids, options);
+        if (!mosaic.ok()) return mosaic.status();
+        std::string file_format = format;
+        if (file_format.empty()) {
+          file_format = image->file_format == "gif" || image->file_format == "bmp"
+                            ? "png"
+                            : image->file_format;
+        }
+        auto bytes = WriteImage(*mosaic, file_format);
+        if (!bytes.ok()) return bytes.status();
+        response->set_image(std::move(*bytes));
+        response->set_mime_type(MimeType(file_format));
+        response->set_width_px(image->width);
+        response->set_height_px(image->height);
+        for (Vec2 p : points) ToProto(Vec2{p.x, image->height - p.y}, response->add_sites());
         return absl::OkStatus();
       },
       std::move(done));

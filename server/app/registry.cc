@@ -628,6 +628,12 @@ absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> SceneRegistry::Zoom(
   return renderers_.plane->RenderWindows(std::move(base), mode, std::move(grids));
 }
 
+absl::StatusOr<std::unique_ptr<MemoryBudget::Reservation>> SceneRegistry::Reserve(
+    uint64_t bytes, const std::string& what) {
+  if (auto s = memory_.Reserve(bytes, what); !s.ok()) return s;
+  return std::make_unique<MemoryBudget::Reservation>(&memory_, bytes);
+}
+
 std::vector<Metrics::SceneSample> SceneRegistry::Sample() const {
   std::vector<SceneHandle> scenes;
   {

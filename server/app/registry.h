@@ -166,6 +166,11 @@ class SceneRegistry {
   std::vector<Metrics::SceneSample> Sample() const;
   // What the scenes hold and reserve now, of --max-memory.
   uint64_t memory_used() const { return memory_.used(); }
+  // Reserves `bytes` of --max-memory for `what` (a call's working memory, such as a mosaic's
+  // image) while the reservation lives; RESOURCE_EXHAUSTED naming --max-memory when they do
+  // not fit.
+  absl::StatusOr<std::unique_ptr<MemoryBudget::Reservation>> Reserve(uint64_t bytes,
+                                                                     const std::string& what);
 
  private:
   // Runs one store call, timing it for the metrics.

@@ -91,6 +91,8 @@ class Service {
                          v1::GetClearanceFieldResponse* response, Done done);
   void PlanPath(CallPtr call, const v1::PlanPathRequest& request, v1::PlanPathResponse* response,
                 Done done);
+  void RenderMosaic(CallPtr call, const v1::RenderMosaicRequest& request,
+                    v1::RenderMosaicResponse* response, Done done);
 
  private:
   enum class Access { kRead, kWrite };

@@ -95,6 +95,7 @@ GVD_UNARY(RenderWindow, v1::RenderWindowRequest, v1::RenderWindowResponse)
 GVD_UNARY(GetClearanceField, v1::GetClearanceFieldRequest, v1::GetClearanceFieldResponse)
 GVD_UNARY(PlanPath, v1::PlanPathRequest, v1::PlanPathResponse)
 GVD_UNARY(Pick, v1::PickRequest, v1::PickResponse)
+GVD_UNARY(RenderMosaic, v1::RenderMosaicRequest, v1::RenderMosaicResponse)
 #undef GVD_UNARY
 
 grpc::ServerWriteReactor<v1::WatchSceneResponse>* GrpcService::WatchScene(

@@ -67,6 +67,9 @@ class GrpcService final : public v1::VoronoiService::CallbackService {
                                      v1::PlanPathResponse* response) override;
   grpc::ServerUnaryReactor* Pick(grpc::CallbackServerContext* ctx, const v1::PickRequest* request,
                                  v1::PickResponse* response) override;
+  grpc::ServerUnaryReactor* RenderMosaic(grpc::CallbackServerContext* ctx,
+                                         const v1::RenderMosaicRequest* request,
+                                         v1::RenderMosaicResponse* response) override;
 
  private:
   gvd::Service* const core_;

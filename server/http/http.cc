@@ -181,6 +181,7 @@ const std::map<std::string, Method>& Methods() {
       {"GetClearanceField", UnaryMethod(&Service::GetClearanceField)},
       {"PlanPath", UnaryMethod(&Service::PlanPath)},
       {"Pick", UnaryMethod(&Service::Pick)},
+      {"RenderMosaic", UnaryMethod(&Service::RenderMosaic)},
   };
   return *methods;
 }

@@ -38,10 +38,6 @@ class CliTest : public ::testing::Test {
   static Result Gvd(const std::string& args) {
     return Run(std::string(GVD_CLI_PATH) + " --server " + server_->address() + " " + args);
   }
-  // gvd-mosaic, which renders in its own process.
-  static Result Mosaic(const std::string& args) {
-    return Run(std::string(GVD_MOSAIC_PATH) + " " + args);
-  }
   static Result Run(const std::string& line) {
     std::string command = line + " 2>&1";
     FILE* p = popen(command.c_str(), "r");
@@ -276,10 +272,11 @@ Ppm ReadPpm(const std::string& path) {
   return p;
 }
 
-// An image with a smooth left half (a gradient) and a detailed right half (noise): a mosaic
-// keeps only colours of the image, one per tile; --adaptive puts its tiles where the detail
-// is; the server and the embedded renderer make the same mosaic.
-TEST_F(CliTest, MosaicsFromTheServerAndEmbedded) {
+// An image with a smooth left half (a gradient) and a detailed right half (noise): the
+// server's mosaic, written where OUT says in the format its name says, keeps only colours of
+// the image, one per tile; --adaptive puts its tiles where the detail is. (Each tile's colour
+// against the exact diagram: tests/server/mosaic_server_test.cc.)
+TEST_F(CliTest, MosaicsFromTheServer) {
   Ppm in{240, 160, {}};
   in.rgb.resize(240 * 160 * 3);
   std::mt19937 rng(2);
@@ -307,15 +304,15 @@ TEST_F(CliTest, MosaicsFromTheServerAndEmbedded) {
     return c;
   };
   std::set<std::array<unsigned char, 3>> all = colours(in, 0, in.w);
-  // gvd mosaic takes the diagram from the server; gvd-mosaic renders it itself.
   std::map<std::string, Ppm> made;
-  for (const char* how : {"embedded", "server", "adaptive embedded"}) {
-    const std::string out = server_->dir() + "/mosaic" + std::to_string(made.size()) + ".ppm";
-    const std::string args = src + " " + out + " --tiles 300 --seed 5" +
-                             (std::string(how).find("adaptive") == 0 ? " --adaptive" : "");
-    Result r = std::string(how) == "server" ? Gvd("mosaic " + args) : Mosaic(args);
+  for (std::string how : {"random", "adaptive"}) {
+    const std::string out = server_->dir() + "/mosaic-" + how + ".ppm";
+    Result r = Gvd("mosaic " + src + " " + out + " --tiles 300 --seed 5" +
+                   (how == "adaptive" ? " --adaptive" : ""));
     ASSERT_EQ(r.exit_code, 0) << how << ": " << r.out;
-    EXPECT_NE(r.out.find("300"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("wrote " + out + ": 240x160, 300 " + how + " tiles, colours at the sites"),
+              std::string::npos)
+        << r.out;
     Ppm m = ReadPpm(out);
     ASSERT_EQ(m.w, in.w);
     ASSERT_EQ(m.h, in.h);
@@ -325,29 +322,35 @@ TEST_F(CliTest, MosaicsFromTheServerAndEmbedded) {
     for (const auto& c : used) ASSERT_TRUE(all.count(c)) << how << ": a colour not in the image";
     made[how] = m;
   }
-  EXPECT_EQ(made["embedded"].rgb, made["server"].rgb) << "server and embedded mosaics differ";
   // Random tiles fall about evenly; adaptive ones crowd the noisy half.
-  Ppm& random = made["embedded"];
-  Ppm& adaptive = made["adaptive embedded"];
+  Ppm& random = made["random"];
+  Ppm& adaptive = made["adaptive"];
   size_t random_left = colours(random, 0, 100).size(), random_right = colours(random, 140, 240).size();
   size_t adaptive_left = colours(adaptive, 0, 100).size(), adaptive_right = colours(adaptive, 140, 240).size();
   EXPECT_LT(random_right, 2 * random_left);
   EXPECT_GT(adaptive_right, 4 * adaptive_left);
-  // Tile means: the smooth half's tiles average a linear gradient, so they keep its colours
-  // near; a bad input name, a bad flag and the CLI's old --embedded are clear errors.
-  Result r = Mosaic(src + " " + server_->dir() + "/mean.ppm --tiles 50 --mean");
+  // OUT's name gives the format.
+  const std::string png = server_->dir() + "/mean.png";
+  Result r = Gvd("mosaic " + src + " " + png + " --tiles 50 --mean");
   ASSERT_EQ(r.exit_code, 0) << r.out;
-  for (Result bad : {Mosaic("/nonexistent.png " + server_->dir() + "/x.png"),
-                     Gvd("mosaic /nonexistent.png " + server_->dir() + "/x.png")}) {
-    EXPECT_EQ(bad.exit_code, 1);
-    EXPECT_NE(bad.out.find("cannot read /nonexistent.png"), std::string::npos) << bad.out;
-  }
-  r = Mosaic(src + " " + server_->dir() + "/y.png --tiles -3");
+  std::ifstream written(png, std::ios::binary);
+  std::string magic(8, '\0');
+  written.read(magic.data(), 8);
+  EXPECT_EQ(magic, "\x89PNG\r\n\x1a\n");
+  // A bad input name, a bad flag, an unknown format and a file that is no image are clear
+  // errors.
+  r = Gvd("mosaic /nonexistent.png " + server_->dir() + "/x.png");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("cannot read /nonexistent.png"), std::string::npos) << r.out;
+  r = Gvd("mosaic " + src + " " + server_->dir() + "/y.png --tiles -3");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.out.find("--tiles needs a positive count, not \"-3\""), std::string::npos) << r.out;
-  r = Gvd("mosaic " + src + " " + server_->dir() + "/y.png --embedded");
+  r = Gvd("mosaic " + src + " " + server_->dir() + "/y.tga");
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_NE(r.out.find("gvd-mosaic"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("must end in .png"), std::string::npos) << r.out;
+  r = Gvd("mosaic " + WriteFile("notes.txt", "not an image") + " " + server_->dir() + "/z.png");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("INVALID_ARGUMENT: image is not a PNG"), std::string::npos) << r.out;
 }
 
 // gvd watch prints a line per event until the scene is deleted, then exits 0.

@@ -285,6 +285,35 @@ def test_structure_calls_against_brute_force(client):
     assert (exact - clearance).max() <= 1 / 30
 
 
+def test_mosaic_tiles_are_the_nearest_sites_regions(client):
+    """A mosaic of a random-noise PPM: each pixel the input's colour under the site nearest to
+    its centre (brute force; near-ties skipped), over both transports."""
+    rng = np.random.default_rng(4)
+    h, w = 40, 60
+    pixels = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+    image = b"P6\n%d %d\n255\n" % (w, h) + pixels.tobytes()
+    r = client.render_mosaic(image, tiles=30, seed=7, format="pnm")
+    assert (r.width_px, r.height_px, r.mime_type) == (w, h, "image/x-portable-anymap")
+    header = b"P6\n%d %d\n255\n" % (w, h)
+    assert r.image.startswith(header)
+    out = np.frombuffer(r.image[len(header):], dtype=np.uint8).reshape(h, w, 3)
+    sites = np.array([(p.x, p.y) for p in r.sites])
+    assert len(sites) == 30
+    jj, ii = np.mgrid[0:h, 0:w]
+    centres = np.stack([ii.ravel() + 0.5, jj.ravel() + 0.5], axis=1)
+    d = np.hypot(centres[:, None, 0] - sites[None, :, 0], centres[:, None, 1] - sites[None, :, 1])
+    order = np.sort(d, axis=1)
+    clear = order[:, 1] - order[:, 0] > 1e-6
+    nearest = d.argmin(axis=1)
+    under = pixels[np.minimum(sites[:, 1].astype(int), h - 1), np.minimum(sites[:, 0].astype(int), w - 1)]
+    expected = under[nearest].reshape(h, w, 3)
+    assert clear.mean() > 0.99
+    assert np.array_equal(out.reshape(-1, 3)[clear], expected.reshape(-1, 3)[clear])
+    with pytest.raises(gvd.GvdError) as e:
+        client.render_mosaic(b"GIF89a", tiles=3)
+    assert e.value.code == grpc.StatusCode.INVALID_ARGUMENT and "image is a damaged gif" in e.value.message
+
+
 def test_no_points_no_call(client):
     r = client.find_nearest("not-even-there", np.zeros((0, 2)))
     assert len(r) == 0 and r.version == 0

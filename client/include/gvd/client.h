@@ -76,6 +76,8 @@ class Client {
                                  v1::GetClearanceFieldResponse* response);
   grpc::Status PlanPath(const v1::PlanPathRequest& request, v1::PlanPathResponse* response);
   grpc::Status Pick(const v1::PickRequest& request, v1::PickResponse* response);
+  grpc::Status RenderMosaic(const v1::RenderMosaicRequest& request,
+                            v1::RenderMosaicResponse* response);
 
   // Waits until the server answers or `timeout` passes; true when connected.
   bool WaitForConnected(std::chrono::milliseconds timeout);

@@ -279,6 +279,17 @@ class Client:
                                         **fields)
         return self._transport.unary("RenderImage", request, pb.RenderImageResponse, self.timeout)
 
+    def render_mosaic(self, image: bytes, *, tiles: int = 1000, adaptive: bool = False,
+                      seed: int = 0, mean: bool = False,
+                      format: str = "") -> pb.RenderMosaicResponse:
+        """A Voronoi mosaic of an image file's bytes (PNG, JPEG, WebP, GIF, BMP or PNM), made by
+        the server: the encoded mosaic (format "png", "jpeg", "webp" or "pnm"; "" the image's
+        own) and its tiles' sites in pixel coordinates, y down from the top edge."""
+        request = pb.RenderMosaicRequest(
+            image=image, tiles=tiles, adaptive=adaptive, seed=seed, mean=mean,
+            format=pb.RenderMosaicRequest.Format.Value("FORMAT_" + (format.upper() or "UNSPECIFIED")))
+        return self._transport.unary("RenderMosaic", request, pb.RenderMosaicResponse, self.timeout)
+
     def get_boundaries(self, scene_id: str, **fields: Any) -> pb.GetBoundariesResponse:
         """The diagram's boundaries, as polylines between pairs of sites (GetBoundariesRequest's
         fields by name: window, method, site_id, min_version, coarse)."""

@@ -109,4 +109,52 @@ absl::Status ToImageOptions(const v1::RenderImageRequest& request, const Grid3& 
   return absl::OkStatus();
 }
 
+absl::Status ToMosaicOptions(const v1::RenderMosaicRequest& request, const ServerLimits& limits,
+                             MosaicOptions* options, std::string* format) {
+  options->tiles = request.tiles() == 0 ? 1000 : request.tiles();
+  if (options->tiles > limits.max_sites_per_scene) {
+    return Invalid(absl::StrCat("tiles is ", options->tiles, "; it must be 1 to ",
+                                limits.max_sites_per_scene, " (--max-sites-per-scene)"));
+  }
+  options->adaptive = request.adaptive();
+  options->seed = request.seed();
+  options->mean = request.mean();
+  switch (request.format()) {
+    case v1::RenderMosaicRequest::FORMAT_UNSPECIFIED:
+      *format = "";
+      break;
+    case v1::RenderMosaicRequest::FORMAT_PNG:
+      *format = "png";
+      break;
+    case v1::RenderMosaicRequest::FORMAT_JPEG:
+      *format = "jpeg";
+      break;
+    case v1::RenderMosaicRequest::FORMAT_WEBP:
+      *format = "webp";
+      break;
+    case v1::RenderMosaicRequest::FORMAT_PNM:
+      *format = "pnm";
+      break;
+    default:
+      return Invalid(absl::StrCat(
+          "format is ", request.format(),
+          "; it must be FORMAT_UNSPECIFIED, FORMAT_PNG, FORMAT_JPEG, FORMAT_WEBP or FORMAT_PNM"));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status MosaicImageFits(const Image& header, const ServerLimits& limits) {
+  if (header.width > limits.max_side_px || header.height > limits.max_side_px) {
+    return Invalid(absl::StrCat("image is ", header.width, "x", header.height,
+                                " pixels; a side may be 1 to ", limits.max_side_px,
+                                " (--max-side-px)"));
+  }
+  if (uint64_t{header.width} * header.height > limits.max_scene_pixels) {
+    return absl::ResourceExhaustedError(absl::StrCat("image is ", header.width, "x",
+                                                     header.height, " pixels; the limit is ",
+                                                     limits.max_scene_pixels));
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace gvd

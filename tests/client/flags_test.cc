@@ -1,4 +1,4 @@
-// The command line of gvd's programs (server/flags.h), read against flags of this test's own.
+// The command line of gvd's programs (client/flags/flags.h), read against flags of this test's own.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -8,7 +8,7 @@
 
 #include "absl/flags/flag.h"
 #include "absl/flags/reflection.h"
-#include "server/flags.h"
+#include "client/flags/flags.h"
 
 ABSL_FLAG(uint64_t, flags_test_count, 7, "<N> a count");
 ABSL_FLAG(std::string, flags_test_name, "", "<NAME> a name whose help is long enough to wrap "
@@ -70,7 +70,7 @@ TEST_F(FlagsTest, ConfigFilesExpandInPlace) {
 }
 
 TEST_F(FlagsTest, HelpFromTheFlagsOwnHelp) {
-  const std::string help = Describe("tests/server/flags_test.cc");
+  const std::string help = Describe("tests/client/flags_test.cc");
   EXPECT_EQ(help,
             "  --flags-test-count N        a count (default 7)\n"
             "  --flags-test-name NAME      a name whose help is long enough to wrap onto a second "

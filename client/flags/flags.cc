@@ -1,4 +1,4 @@
-#include "server/flags.h"
+#include "client/flags/flags.h"
 
 #include <algorithm>
 #include <fstream>

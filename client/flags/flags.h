@@ -1,4 +1,4 @@
-// The command line of every gvd program (gvd-server, gvd, gvd-mosaic), read against the
+// The command line of every gvd program (gvd-server and gvd), read against the
 // Abseil flags each defines (ABSL_FLAG): Abseil holds each flag's type, default, help and
 // value, and parses values by their type; this adds what Abseil's own parser will not do,
 // names spelled with hyphens (--max-scenes for ABSL_FLAG max_scenes), positional words
