@@ -63,25 +63,50 @@ void RenderLoop::MarkDirty(std::shared_ptr<Scene> scene) {
   scene->FailWaiters(absl::UnavailableError("the server is shutting down"));
 }
 
+bool RenderLoop::Enqueue(Task task) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (stopping_ || started_ < lanes_ || !start_status_.ok()) return false;
+    tasks_.push_back(std::move(task));
+  }
+  cv_.notify_all();
+  return true;
+}
+
 absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> RenderLoop::RenderWindows(
     std::shared_ptr<const Frame> base, RenderMode mode, std::vector<Grid> grids) {
   std::promise<absl::StatusOr<std::vector<std::shared_ptr<const Frame>>>> done;
   auto result = done.get_future();
-  {
-    std::lock_guard<std::mutex> lock(mu_);
-    if (stopping_ || started_ < lanes_ || !start_status_.ok()) {
-      return absl::UnavailableError("the render thread is not running");
+  const bool queued = Enqueue([&, base = std::move(base), grids = std::move(grids)](
+                                  Rasterizer* rasterizer, ZoomRenderer* zoom) {
+    if (rasterizer == nullptr) {
+      done.set_value(absl::UnavailableError("the server is shutting down"));
+      return;
     }
-    tasks_.push_back([&, base = std::move(base), grids = std::move(grids)](
-                         Rasterizer* rasterizer, ZoomRenderer* zoom) {
-      if (rasterizer == nullptr) {
-        done.set_value(absl::UnavailableError("the server is shutting down"));
-        return;
-      }
-      done.set_value(zoom->Render(*rasterizer, *base, mode, grids));
-    });
-  }
-  cv_.notify_all();
+    done.set_value(zoom->Render(*rasterizer, *base, mode, grids));
+  });
+  if (!queued) return absl::UnavailableError("the render thread is not running");
+  return result.get();
+}
+
+absl::StatusOr<std::shared_ptr<const Frame>> RenderLoop::RenderSites(
+    std::shared_ptr<const SiteSnapshot> sites, Grid grid, double eps, RenderMode mode,
+    Diagram diagram) {
+  std::promise<absl::StatusOr<std::shared_ptr<const Frame>>> done;
+  auto result = done.get_future();
+  const bool queued = Enqueue([&, sites = std::move(sites)](Rasterizer* rasterizer, ZoomRenderer*) {
+    if (rasterizer == nullptr) {
+      done.set_value(absl::UnavailableError("the server is shutting down"));
+      return;
+    }
+    auto raster = SceneRaster::Create(grid, eps, mode, diagram);
+    if (!raster.ok()) {
+      done.set_value(raster.status());
+      return;
+    }
+    done.set_value((*raster)->Apply(*rasterizer, sites));
+  });
+  if (!queued) return absl::UnavailableError("the render thread is not running");
   return result.get();
 }
 
@@ -149,7 +174,7 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
   };
   while (true) {
     std::shared_ptr<Scene> scene;
-    std::deque<std::function<void(Rasterizer*, ZoomRenderer*)>> tasks;
+    std::deque<Task> tasks;
     std::set<const Scene*> mine;
     std::vector<const Scene*> dropped;
     {
@@ -253,7 +278,7 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
 
   // Whatever is still queued will not be rendered: release its waiters.
   std::deque<std::shared_ptr<Scene>> left;
-  std::deque<std::function<void(Rasterizer*, ZoomRenderer*)>> tasks;
+  std::deque<Task> tasks;
   {
     std::lock_guard<std::mutex> lock(mu_);
     left = dirty_.TakeAll();

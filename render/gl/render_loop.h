@@ -63,6 +63,12 @@ class RenderLoop final : public Renderer {
   absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> RenderWindows(
       std::shared_ptr<const Frame> base, RenderMode mode, std::vector<Grid> grids) override;
 
+  // Renders `sites` whole (SceneRaster, as a scene's first render) on a render thread,
+  // between scene renders, and waits for it; the same threading as RenderWindows.
+  absl::StatusOr<std::shared_ptr<const Frame>> RenderSites(std::shared_ptr<const SiteSnapshot> sites,
+                                                           Grid grid, double eps, RenderMode mode,
+                                                           Diagram diagram) override;
+
   int lanes() const { return lanes_; }
 
   // A test hook: when the environment variable GVD_TEST_HOLD_RENDERS names a path at Start,
@@ -73,6 +79,11 @@ class RenderLoop final : public Renderer {
   static constexpr const char* kHoldRendersVariable = "GVD_TEST_HOLD_RENDERS";
 
  private:
+  // Work for a render thread between scene renders: given its rasterizer and zoom renderer,
+  // or null ones when the loop stops before running it.
+  using Task = std::function<void(Rasterizer*, ZoomRenderer*)>;
+  // Queues `task` for the first free render thread; false when the loop is not running.
+  bool Enqueue(Task task);
   void Run(int lane, DevicePreference preference);
   // The first queued scene `lane` may render now, removed from the queue (null if none):
   // not being rendered, and its own, nobody's, or a busy lane's. Under mu_.
@@ -97,7 +108,7 @@ class RenderLoop final : public Renderer {
   std::vector<std::vector<const Scene*>> taken_from_;
   // Work for the GL context other than scene renders (zooms); each is told whether the loop
   // still runs.
-  std::deque<std::function<void(Rasterizer*, ZoomRenderer*)>> tasks_;
+  std::deque<Task> tasks_;
 };
 
 }  // namespace gvd

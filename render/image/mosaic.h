@@ -1,6 +1,6 @@
 // Voronoi mosaics of images (paper sec. 7.3): each tile a Voronoi region of a point site,
 // coloured from the image. Images come and go as encoded bytes, through OpenImageIO; the
-// diagram comes from the caller (the server renders it as a zoom window of the sites).
+// diagram comes from the caller (the server renders the sites on a render thread).
 #pragma once
 
 #include <cstdint>

@@ -50,6 +50,15 @@ absl::StatusOr<std::vector<std::shared_ptr<const Volume>>> VolumeRenderer::Rende
   return out;
 }
 
+absl::StatusOr<std::shared_ptr<const Volume>> VolumeRenderer::RenderSites(
+    std::shared_ptr<const SiteSnapshot3> sites, Grid3 grid, double, RenderMode, Diagram diagram) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (stopping_) return absl::UnavailableError("the server is stopping; no more 3D renders");
+  }
+  return ScanVolume(grid, diagram, std::move(sites));
+}
+
 void VolumeRenderer::Stop() {
   std::deque<std::shared_ptr<Scene3>> left;
   {

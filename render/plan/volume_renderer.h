@@ -33,6 +33,10 @@ class VolumeRenderer final : public Renderer3 {
   // CPU pool): a volume is exact per voxel whatever `mode` asks.
   absl::StatusOr<std::vector<std::shared_ptr<const Volume>>> RenderWindows(
       std::shared_ptr<const Volume> base, RenderMode mode, std::vector<Grid3> grids) override;
+  // The box of `grid` scanned exactly from `sites`, on the calling thread (and the CPU pool).
+  absl::StatusOr<std::shared_ptr<const Volume>> RenderSites(
+      std::shared_ptr<const SiteSnapshot3> sites, Grid3 grid, double eps, RenderMode mode,
+      Diagram diagram) override;
   // Finishes the render under way, fails the waiters of the scenes still queued
   // (UNAVAILABLE) and joins the thread. Later MarkDirty calls fail their scene's waiters.
   void Stop() override;

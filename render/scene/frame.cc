@@ -81,13 +81,6 @@ std::shared_ptr<const Frame> Frame::Empty(Grid grid, double eps,
   return frame;
 }
 
-std::shared_ptr<const Frame> Frame::Unrendered(Grid grid, double eps, ErrorModel error,
-                                               std::shared_ptr<const SiteSnapshot> sites) {
-  auto frame = std::shared_ptr<Frame>(new Frame(grid, eps, std::move(sites)));
-  frame->error_ = error;
-  return frame;
-}
-
 void Frame::PixelOf(Vec2 p, uint32_t* i, uint32_t* j) const {
   Vec2 c = grid_.ToPixel(p);
   auto nearest = [](double v, uint32_t n) -> uint32_t {

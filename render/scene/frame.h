@@ -62,11 +62,6 @@ class Frame {
   // A frame of no sites (`sites` must be empty) and no pixels.
   static std::shared_ptr<const Frame> Empty(Grid grid, double eps,
                                             std::shared_ptr<const SiteSnapshot> sites);
-  // A frame of `sites` never rendered over `grid`: only the base of zoom windows of them
-  // (BasicRenderer::RenderWindows reads a base's grid, eps, error model and sites), for a
-  // one-off diagram such as a mosaic's. CONTRACT: nothing reads its pixels.
-  static std::shared_ptr<const Frame> Unrendered(Grid grid, double eps, ErrorModel error,
-                                                 std::shared_ptr<const SiteSnapshot> sites);
 
   const Grid& grid() const { return grid_; }
   // The version of the snapshot the frame was rendered from.

@@ -36,6 +36,7 @@ class BasicRenderer {
  public:
   using Frame = typename S::Frame;
   using Grid = typename SceneFrames<typename S::Kernel>::Grid;
+  using Snapshot = typename S::Snapshot;
   virtual ~BasicRenderer() = default;
 
   // Queues a render of the scene at its latest version; the renderer publishes the frame
@@ -48,6 +49,13 @@ class BasicRenderer {
   // CONTRACT: not called from the renderer's own threads.
   virtual absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> RenderWindows(
       std::shared_ptr<const Frame> base, RenderMode mode, std::vector<Grid> grids) = 0;
+  // `sites`, a snapshot of no scene, rendered whole over `grid` in `mode` (a scene's first
+  // render's path, with eps the plane's error bound), between scene renders, and waits for
+  // it: a one-off diagram, such as a mosaic's. UNAVAILABLE once stopped.
+  // CONTRACT: not called from the renderer's own threads.
+  virtual absl::StatusOr<std::shared_ptr<const Frame>> RenderSites(
+      std::shared_ptr<const Snapshot> sites, Grid grid, double eps, RenderMode mode,
+      Diagram diagram) = 0;
   // Finishes the render under way, fails the waiters of the scenes still queued
   // (UNAVAILABLE) and stops the renderer's threads. Idempotent.
   virtual void Stop() = 0;

@@ -550,7 +550,7 @@ void Service::RenderMosaic(CallPtr call, const v1::RenderMosaicRequest& request,
         });
         if (!image.ok()) return image.status();
         if (call->cancelled()) return absl::CancelledError("the call was cancelled");
-        // The sites' diagram: a zoom window of them over the image's pixels, exact.
+        // The sites' diagram over the image's pixels, exact.
         const std::vector<Vec2> points = MosaicSites(*image, options);
         std::vector<Site> sites;
         sites.reserve(points.size());
@@ -558,11 +558,10 @@ void Service::RenderMosaic(CallPtr call, const v1::RenderMosaicRequest& request,
           sites.push_back(Site{absl::StrCat(k), PointSite{points[k]}});
         }
         const Grid grid = ImageGrid(*image);
-        auto base = Frame::Unrendered(grid, grid.pixel_size(), ErrorModel{},
-                                      SiteSnapshot::Of(1, std::move(sites)));
-        auto frames = registry->Zoom(std::move(base), RenderMode::kExact, {grid});
-        if (!frames.ok()) return frames.status();
-        const Frame& frame = *frames->front();
+        auto rendered = registry->RenderSites(SiteSnapshot::Of(1, std::move(sites)), grid,
+                                              grid.pixel_size(), RenderMode::kExact);
+        if (!rendered.ok()) return rendered.status();
+        const Frame& frame = **rendered;
         // Slots are the sites' indices: SiteSnapshot::Of fills them in order.
         std::vector<uint32_t> ids(grid.pixel_count());
         for (uint32_t j = 0; j < grid.height; ++j) {

@@ -628,6 +628,12 @@ absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> SceneRegistry::Zoom(
   return renderers_.plane->RenderWindows(std::move(base), mode, std::move(grids));
 }
 
+absl::StatusOr<std::shared_ptr<const Frame>> SceneRegistry::RenderSites(
+    std::shared_ptr<const SiteSnapshot> sites, const Grid& grid, double eps, RenderMode mode) {
+  if (renderers_.plane == nullptr) return absl::UnavailableError("the server renders nothing");
+  return renderers_.plane->RenderSites(std::move(sites), grid, eps, mode, Diagram::kNearest);
+}
+
 absl::StatusOr<std::unique_ptr<MemoryBudget::Reservation>> SceneRegistry::Reserve(
     uint64_t bytes, const std::string& what) {
   if (auto s = memory_.Reserve(bytes, what); !s.ok()) return s;

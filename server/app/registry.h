@@ -160,6 +160,11 @@ class SceneRegistry {
   // renderer.
   absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> Zoom(
       std::shared_ptr<const Frame> base, RenderMode mode, std::vector<Grid> grids);
+  // Renders sites of no scene whole over a grid of the plane (Renderer::RenderSites), in the
+  // NEAREST diagram; UNAVAILABLE without a renderer.
+  absl::StatusOr<std::shared_ptr<const Frame>> RenderSites(std::shared_ptr<const SiteSnapshot> sites,
+                                                           const Grid& grid, double eps,
+                                                           RenderMode mode);
 
   const ServerLimits& limits() const { return limits_; }
   // Per-scene figures for the metrics.

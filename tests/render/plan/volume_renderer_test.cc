@@ -107,17 +107,25 @@ TEST(Scene3, RendersEachVersionAndAnswersExactly) {
   const Volume& window = *(*windows)[0];
   EXPECT_EQ(window.version(), *v2);
   const std::vector<Site3> moved = {{"a", PointSite3{{1.2, 1, 0}}}, sites[1], sites[2], sites[3]};
-  for (uint32_t k = 0; k < zoom.depth; ++k) {
-    for (uint32_t j = 0; j < zoom.height; ++j) {
-      for (uint32_t i = 0; i < zoom.width; ++i) {
-        const Vec3 c = zoom.Center(i, j, k);
-        Real best = INFINITY;
-        for (const Site3& s : moved) best = std::min(best, oracle3::ToGeometry(c, s.geometry));
-        ASSERT_NE(window.id_at(i, j, k), 0u);
-        EXPECT_NEAR(window.distance_at(i, j, k), double(best), 1e-5 * (1 + double(best)));
+  auto expect_oracle = [&](const Volume& v) {
+    for (uint32_t k = 0; k < zoom.depth; ++k) {
+      for (uint32_t j = 0; j < zoom.height; ++j) {
+        for (uint32_t i = 0; i < zoom.width; ++i) {
+          const Vec3 c = zoom.Center(i, j, k);
+          Real best = INFINITY;
+          for (const Site3& s : moved) best = std::min(best, oracle3::ToGeometry(c, s.geometry));
+          ASSERT_NE(v.id_at(i, j, k), 0u);
+          EXPECT_NEAR(v.distance_at(i, j, k), double(best), 1e-5 * (1 + double(best)));
+        }
       }
     }
-  }
+  };
+  expect_oracle(window);
+  // The same sites as no scene's, rendered whole over that box: the same values.
+  auto whole = renderer.RenderSites(SiteSnapshot3::Of(1, moved), zoom, 0, RenderMode::kExact,
+                                    Diagram::kNearest);
+  ASSERT_TRUE(whole.ok()) << whole.status();
+  expect_oracle(**whole);
 
   // Exact answers at 3D points, inside the box and out of it, with their features.
   std::mt19937_64 rng(3);
@@ -158,6 +166,11 @@ TEST(Scene3, StoppingFailsTheWaiters) {
   scene->WhenRendered(*v, [&](absl::StatusOr<std::shared_ptr<const Volume>> r) { got.set_value(r.status()); });
   renderer.MarkDirty(scene);
   EXPECT_EQ(got.get_future().get().code(), absl::StatusCode::kUnavailable);
+  EXPECT_EQ(renderer.RenderSites(SiteSnapshot3::Of(1, {}), Settings3().grid3(), 0,
+                                 RenderMode::kExact, Diagram::kNearest)
+                .status()
+                .code(),
+            absl::StatusCode::kUnavailable);
 }
 
 }  // namespace
