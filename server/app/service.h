@@ -47,6 +47,9 @@ class Service {
   int Drain(std::chrono::milliseconds grace);
   // Calls in flight: running, waiting for a render or a commit, streams writing.
   int in_flight() const { return calls_.in_flight; }
+  // Whether calls need a bearer token: a transport need not read a call's authorization
+  // otherwise.
+  bool checks_tokens() const { return auth_ != nullptr; }
 
   // Scenes.
   void CreateScene(CallPtr call, const v1::CreateSceneRequest& request,

@@ -2,6 +2,8 @@
 
 #include <functional>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <string>
 
 namespace gvd {
@@ -12,22 +14,25 @@ grpc::Status ToGrpc(const absl::Status& s) {
   return grpc::Status(static_cast<grpc::StatusCode>(s.code()), std::string(s.message()));
 }
 
-// The core's Call of an RPC: its authorization metadata.
-CallPtr MakeCall(const grpc::CallbackServerContext& ctx) {
+// The request's authorization metadata, where the core checks tokens (reading the metadata
+// builds a map of it, two allocations a call).
+std::string Authorization(const Service& core, const grpc::CallbackServerContext& ctx) {
+  if (!core.checks_tokens()) return std::string();
   const auto& md = ctx.client_metadata();
   auto it = md.find("authorization");
-  return std::make_shared<Call>(it == md.end() ? std::string()
-                                               : std::string(it->second.data(), it->second.size()));
+  return it == md.end() ? std::string() : std::string(it->second.data(), it->second.size());
 }
 
-// A unary RPC: finished with the core's status; a cancelled RPC cancels its Call.
+// The core's Call of an RPC.
+CallPtr MakeCall(const Service& core, const grpc::CallbackServerContext& ctx) {
+  return std::make_shared<Call>(Authorization(core, ctx));
+}
+
+// A unary RPC the core ends after it returned: finished with the core's status; a cancelled
+// RPC cancels its Call.
 class Unary final : public grpc::ServerUnaryReactor {
  public:
   explicit Unary(CallPtr call) : call_(std::move(call)) {}
-  const CallPtr& call() const { return call_; }
-  Done Finisher() {
-    return [this](const absl::Status& s) { Finish(ToGrpc(s)); };
-  }
   void OnCancel() override { call_->Cancel(); }
   void OnDone() override { delete this; }
 
@@ -35,14 +40,52 @@ class Unary final : public grpc::ServerUnaryReactor {
   CallPtr call_;
 };
 
-// Hands a unary RPC to the core's `method`.
+// A unary RPC's Call, and how it ends: the core's status, before its method returned or
+// after. One allocation for both.
+struct Ending {
+  explicit Ending(std::string authorization) : call(std::move(authorization)) {}
+  Call call;
+  std::mutex mu;
+  bool returned = false;              // the core's method has returned
+  std::optional<absl::Status> early;  // the status it ended with before that
+  Unary* reactor = nullptr;           // once it returned without a status
+};
+
+// Hands a unary RPC to the core's `method`. A call the core ends before its method returns
+// (a lookup, Pick, a small batch from a frame) finishes on the context's default reactor,
+// whose end gRPC runs inline; one that ends later, on a reactor of its own, which hears of
+// the caller going.
 template <class Request, class Response>
 grpc::ServerUnaryReactor* Serve(Service* core, grpc::CallbackServerContext* ctx,
                                 const Request* request, Response* response,
                                 void (Service::*method)(CallPtr, const Request&, Response*, Done)) {
-  auto* reactor = new Unary(MakeCall(*ctx));
-  (core->*method)(reactor->call(), *request, response, reactor->Finisher());
-  return reactor;
+  auto owner = std::make_shared<Ending>(Authorization(*core, *ctx));
+  CallPtr call(owner, &owner->call);
+  // The Call keeps the Ending: this function's until the core's method returns, then the
+  // reactor's until gRPC is done with it, after Finish. So `done` holds it by a plain pointer
+  // (which std::function keeps without an allocation of its own).
+  Ending* ending = owner.get();
+  (core->*method)(call, *request, response, [ending](const absl::Status& s) {
+    Unary* reactor;
+    {
+      std::lock_guard<std::mutex> lock(ending->mu);
+      if (!ending->returned) {
+        ending->early = s;
+        return;
+      }
+      reactor = ending->reactor;
+    }
+    reactor->Finish(ToGrpc(s));
+  });
+  std::lock_guard<std::mutex> lock(ending->mu);
+  ending->returned = true;
+  if (ending->early) {
+    grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+    reactor->Finish(ToGrpc(*ending->early));
+    return reactor;
+  }
+  ending->reactor = new Unary(std::move(call));
+  return ending->reactor;
 }
 
 // A server-streaming RPC as the core's StreamWriter.
@@ -100,14 +143,14 @@ GVD_UNARY(RenderMosaic, v1::RenderMosaicRequest, v1::RenderMosaicResponse)
 
 grpc::ServerWriteReactor<v1::WatchSceneResponse>* GrpcService::WatchScene(
     grpc::CallbackServerContext* ctx, const v1::WatchSceneRequest* request) {
-  auto* stream = new Stream<v1::WatchSceneResponse>(MakeCall(*ctx));
+  auto* stream = new Stream<v1::WatchSceneResponse>(MakeCall(*core_, *ctx));
   core_->WatchScene(stream->call(), *request, stream);
   return stream;
 }
 
 grpc::ServerWriteReactor<v1::FindNearestStreamResponse>* GrpcService::FindNearestStream(
     grpc::CallbackServerContext* ctx, const v1::FindNearestStreamRequest* request) {
-  auto* stream = new Stream<v1::FindNearestStreamResponse>(MakeCall(*ctx));
+  auto* stream = new Stream<v1::FindNearestStreamResponse>(MakeCall(*core_, *ctx));
   core_->FindNearestStream(stream->call(), *request, stream);
   return stream;
 }
