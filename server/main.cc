@@ -1,4 +1,6 @@
-// gvd-server: serves generalized Voronoi diagrams over gRPC from a headless GL context.
+// gvd-server: serves generalized Voronoi diagrams over gRPC and HTTP from a headless GL
+// context. main builds the store, the renderers (the GL render threads for the plane, the
+// volume renderer for space) and the application core over them, then both transports.
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
