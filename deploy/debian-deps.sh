@@ -20,10 +20,12 @@ gvd_packages() {
     node)  # the TypeScript client's tests (client/ts), where no Node.js is installed
       echo nodejs npm
       ;;
-    bench)  # the reference libraries of tests/bench/run.sh beyond the test group's, and the
-      # stock Python gRPC client of tests/bench/serve.py
+    bench)  # the reference libraries of tests/bench/run.sh beyond the test group's, the
+      # stock Python gRPC client of tests/bench/serve.py, and the load generators and
+      # instruction counter of tests/bench/transports.sh, PostGIS and psycopg2 for
+      # tests/bench/postgis.py
       echo libopencv-dev python3-opencv python3-scipy python3-numpy python3-grpcio libembree-dev \
-        python3-protobuf
+        python3-protobuf wrk nghttp2-client valgrind postgresql-15-postgis-3 python3-psycopg2
       ;;
     *)
       echo "gvd_packages: unknown group $1" >&2

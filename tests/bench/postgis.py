@@ -1,0 +1,342 @@
+#!/usr/bin/python3
+"""gvd-server beside PostGIS, the database a team would pick instead for "which object is
+nearest to this point, over the network", each driven by its ecosystem's own tools.
+
+Usage: postgis.py GVD_SERVER [--moves N] [--seconds S] [--batch N] [--json FILE]
+(run with a Python that has the gvd package: tests/python/run.sh builds such a venv;
+psycopg2 and PostGIS are Debian's python3-psycopg2 and postgresql-15-postgis-3).
+
+Starts a PostgreSQL 15 with PostGIS 3 of its own (initdb in a temporary directory, fsync on,
+as gvd's store syncs each acknowledged write) and gvd-server on its default flags with its
+store on the same disk, then, on three scenes in the unit square (gvd at 1024x1024):
+  - points: 100,000 uniform random points;
+  - segments: 20,000 random segments, each up to 0.02 long;
+  - curves: 300 cubic Beziers and 249 segments, 92% of them packed into a corner and the
+    rest scattered, so that cells range from a few pixels to a few percent of the window
+    (PostGIS gets each Bezier flattened to 64 pieces),
+measures:
+  - load until queryable: gvd CreateScene, UpsertSites of every site, and a FindNearest at
+    the new version; PostGIS CREATE TABLE, COPY, a GiST index, ANALYZE and a KNN query;
+  - a one-site move until a read sees it, p50 and p99 over N moves of a random site to a
+    random place (often into empty space, where it takes a large cell): gvd an UpsertSites
+    (SYNC) and a FindNearest at its version at the moved site; PostGIS an UPDATE (autocommit)
+    and a KNN SELECT at the same point;
+  - a batch of N random query points in one call: gvd FindNearest (the client's packed
+    stream), PostGIS a LATERAL KNN join over arrays passed as parameters;
+and on the points scene the single-point query capacity at 8 connections for S seconds:
+pgbench (-M prepared -c 8 -j 2, a KNN script at random points) against h2load (-c 8 -m 1
+-t 2, a FindNearest over gRPC at one point: h2load sends one body) and wrk (-c 8 -t 2, a
+FindNearest over HTTP/JSON at random points), with p50 and p99 from their per-request logs
+(wrk: its latency distribution).
+Clients: psycopg2 and the project's Python client (gRPC), one connection each, on loopback
+(PostgreSQL on its Unix socket, as a local deployment would use it).
+"""
+import argparse
+import json
+import os
+import re
+import shutil
+import signal
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+import psycopg2
+
+import gvd
+from gvd.v1 import voronoi_pb2 as pb
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+from gvdtest import Postgres, percentile, start_server  # noqa: E402  pylint: disable=wrong-import-position
+
+SIDE = 1024
+BEZIER_PIECES = 64
+
+
+def scene_points(rng):
+    return [("point", p) for p in rng.random((100_000, 2))]
+
+
+def random_segment(rng, center):
+    angle = 2 * np.pi * rng.random()
+    half = 0.01 * rng.random() * np.array([np.cos(angle), np.sin(angle)])
+    return ("segment", np.array([center - half, center + half]))
+
+
+def scene_segments(rng):
+    return [random_segment(rng, c) for c in rng.random((20_000, 2))]
+
+
+def scene_curves(rng):
+    sites = []
+    for i in range(549):
+        center = rng.random(2) * 0.3 if rng.random() < 0.92 else rng.random(2)
+        if i < 300:
+            sites.append(("bezier", center + (rng.random((4, 2)) - 0.5) * 0.02))
+        else:
+            sites.append(random_segment(rng, center))
+    return sites
+
+
+def moved(rng, site):
+    """The site carried to a random place of the window."""
+    kind, geometry = site
+    if kind == "point":
+        return kind, rng.random(2)
+    return kind, geometry - geometry.mean(axis=0) + rng.random(2) * 0.96 + 0.02
+
+
+def anchor(site):
+    """A point on the site: where a read after its move looks."""
+    kind, geometry = site
+    return geometry if kind == "point" else geometry[0]
+
+
+def to_pb(sid, site):
+    kind, g = site
+    s = pb.Site(id=sid)
+    if kind == "point":
+        s.point.x, s.point.y = g
+    elif kind == "segment":
+        s.segment.a.x, s.segment.a.y = g[0]
+        s.segment.b.x, s.segment.b.y = g[1]
+    else:
+        s.bezier.control_points.extend(pb.Point(x=x, y=y) for x, y in g)
+    return s
+
+
+def flatten(control):
+    """A cubic Bezier as BEZIER_PIECES segments (PostGIS has no curves of this kind)."""
+    t = np.linspace(0, 1, BEZIER_PIECES + 1)[:, None]
+    p0, p1, p2, p3 = control
+    return (1 - t) ** 3 * p0 + 3 * (1 - t) ** 2 * t * p1 + 3 * (1 - t) * t ** 2 * p2 + t ** 3 * p3
+
+
+def to_wkt(site):
+    kind, g = site
+    if kind == "point":
+        return f"POINT({g[0]!r} {g[1]!r})"
+    line = g if kind == "segment" else flatten(g)
+    return "LINESTRING(" + ",".join(f"{x!r} {y!r}" for x, y in line) + ")"
+
+
+def gvd_load(client, name, sites):
+    messages = [to_pb(str(i), s) for i, s in enumerate(sites)]
+    t0 = time.perf_counter()
+    client.create_scene(name, window=(0, 0, 1, 1), size=(SIDE, SIDE))
+    version = client.upsert_sites(name, messages)
+    client.find_nearest(name, [[0.5, 0.5]], min_version=version)
+    return time.perf_counter() - t0
+
+
+def pg_load(conn, name, sites):
+    text = "".join(f"{i}\t{to_wkt(s)}\n" for i, s in enumerate(sites))
+    t0 = time.perf_counter()
+    with conn.cursor() as cur:
+        cur.execute(f"CREATE TABLE {name} (id integer PRIMARY KEY, geom geometry NOT NULL)")
+        cur.copy_expert(f"COPY {name} (id, geom) FROM STDIN", _Text(text))
+        cur.execute(f"CREATE INDEX ON {name} USING gist (geom)")
+        cur.execute(f"ANALYZE {name}")
+        cur.execute(f"SELECT id FROM {name} ORDER BY geom <-> ST_MakePoint(0.5, 0.5) LIMIT 1")
+        cur.fetchone()
+    return time.perf_counter() - t0
+
+
+class _Text:
+    """A string as the file psycopg2's copy_expert reads."""
+
+    def __init__(self, text):
+        self.data, self.at = text.encode(), 0
+
+    def read(self, n=-1):
+        n = len(self.data) - self.at if n < 0 else n
+        chunk = self.data[self.at:self.at + n]
+        self.at += len(chunk)
+        return chunk
+
+    readline = read
+
+
+def moves(client, conn, name, sites, count, rng):
+    gvd_ms, pg_ms = [], []
+    with conn.cursor() as cur:
+        for _ in range(count):
+            i = int(rng.integers(len(sites)))
+            site = moved(rng, sites[i])
+            sites[i] = site
+            x, y = anchor(site)
+            message = to_pb(str(i), site)
+            t0 = time.perf_counter()
+            version = client.upsert_sites(name, [message])
+            answer = client.find_nearest(name, [[x, y]], min_version=version)
+            gvd_ms.append(1000 * (time.perf_counter() - t0))
+            t0 = time.perf_counter()
+            cur.execute(f"UPDATE {name} SET geom = ST_GeomFromText(%s) WHERE id = %s",
+                        (to_wkt(site), i))
+            cur.execute(f"SELECT id FROM {name} ORDER BY geom <-> ST_MakePoint(%s, %s) LIMIT 1",
+                        (x, y))
+            row = cur.fetchone()
+            pg_ms.append(1000 * (time.perf_counter() - t0))
+            # Both saw the move: the site is at distance 0 from the point read (gvd's answer
+            # may be another site within its bound).
+            if answer.distances[0] > answer.error_bounds[0] or row[0] != i:
+                raise SystemExit(f"move of {i} unseen: gvd {answer.site_ids[0]} at "
+                                 f"{answer.distances[0]}, PostGIS {row[0]}")
+    return {"gvd_p50_ms": statistics.median(gvd_ms), "gvd_p99_ms": percentile(gvd_ms, 0.99),
+            "postgis_p50_ms": statistics.median(pg_ms), "postgis_p99_ms": percentile(pg_ms, 0.99)}
+
+
+def batch(client, conn, name, q):
+    t0 = time.perf_counter()
+    client.find_nearest(name, q)
+    gvd_s = time.perf_counter() - t0
+    with conn.cursor() as cur:
+        t0 = time.perf_counter()
+        cur.execute(f"""SELECT q.i, s.id FROM unnest(%s::float8[], %s::float8[])
+                          WITH ORDINALITY AS q(x, y, i)
+                        CROSS JOIN LATERAL (SELECT id FROM {name}
+                          ORDER BY geom <-> ST_MakePoint(q.x, q.y) LIMIT 1) s""",
+                    (q[:, 0].tolist(), q[:, 1].tolist()))
+        rows = cur.fetchall()
+        pg_s = time.perf_counter() - t0
+    assert len(rows) == len(q)
+    return {"gvd_ms": 1000 * gvd_s, "postgis_ms": 1000 * pg_s}
+
+
+def capacity(pg, work, grpc_port, http_port, seconds):
+    """Single-point queries per second at 8 connections, p50 and p99 (ms), on "points"."""
+    out = {}
+    script = os.path.join(work, "knn.sql")
+    with open(script, "w", encoding="ascii") as f:
+        f.write("\\set x random(0, 999999)\n\\set y random(0, 999999)\n"
+                "SELECT id FROM points ORDER BY geom <-> "
+                "ST_MakePoint(:x / 1e6, :y / 1e6) LIMIT 1;\n")
+    logs = os.path.join(work, "pgbench")
+    os.makedirs(logs)
+    run = subprocess.run([f"{pg.bindir}/pgbench", "-h", pg.sock, "-p", str(pg.port), "-U", "gvd",
+                          "-n", "-M", "prepared", "-c", "8", "-j", "2", "-T", str(seconds),
+                          "-f", script, "-l", "--log-prefix", os.path.join(logs, "log"), "gvd"],
+                         check=True, capture_output=True, text=True)
+    tps = float(re.search(r"tps = ([\d.]+)", run.stdout).group(1))
+    lat = [int(line.split()[2]) / 1000 for name in os.listdir(logs)
+           for line in open(os.path.join(logs, name), encoding="ascii")]
+    out["postgis"] = {"per_s": tps, "p50_ms": statistics.median(lat), "p99_ms": percentile(lat, 0.99)}
+
+    body = pb.FindNearestRequest(scene_id="points", points=[pb.Point(x=0.37, y=0.61)])
+    data = body.SerializeToString()
+    req = os.path.join(work, "req.bin")
+    with open(req, "wb") as f:
+        f.write(b"\x00" + len(data).to_bytes(4, "big") + data)
+    log = os.path.join(work, "h2load.log")
+    run = subprocess.run(["h2load", "-c", "8", "-t", "2", "-m", "1", "-D", str(seconds),
+                          "--warm-up-time", "1", "-d", req, "--log-file", log,
+                          "-H", "content-type: application/grpc", "-H", "te: trailers",
+                          f"http://127.0.0.1:{grpc_port}/gvd.v1.VoronoiService/FindNearest"],
+                         check=True, capture_output=True, text=True)
+    lat = [int(line.split("\t")[2]) / 1000 for line in open(log, encoding="ascii")]
+    if "0 5xx" not in run.stdout or "0 4xx" not in run.stdout:
+        raise SystemExit("h2load: failed calls\n" + run.stdout)
+    out["gvd_grpc"] = {"per_s": float(re.search(r"finished in [\d.]+\w+, ([\d.]+) req/s",
+                                                 run.stdout).group(1)),
+                       "p50_ms": statistics.median(lat), "p99_ms": percentile(lat, 0.99)}
+
+    lua = os.path.join(work, "find.lua")
+    with open(lua, "w", encoding="ascii") as f:
+        f.write('wrk.method = "POST"\nwrk.headers["Content-Type"] = "application/json"\n'
+                "request = function()\n"
+                '  local body = string.format(\'{"sceneId":"points","points":[{"x":%.6f,"y":%.6f}]}\','
+                " math.random(), math.random())\n"
+                "  return wrk.format(nil, nil, nil, body)\nend\n")
+    url = f"http://127.0.0.1:{http_port}/gvd.v1.VoronoiService/FindNearest"
+    run = subprocess.run(["wrk", "-t", "2", "-c", "8", "-d", f"{seconds}s", "--latency", "-s", lua,
+                          url], check=True, capture_output=True, text=True)
+    if "Non-2xx" in run.stdout:
+        raise SystemExit("wrk: failed calls\n" + run.stdout)
+
+    def ms(text):
+        value, unit = re.fullmatch(r"([\d.]+)(us|ms|s)", text).groups()
+        return float(value) * {"us": 1e-3, "ms": 1.0, "s": 1e3}[unit]
+    out["gvd_http"] = {"per_s": float(re.search(r"Requests/sec:\s+([\d.]+)", run.stdout).group(1)),
+                       "p50_ms": ms(re.search(r"^\s*50%\s+(\S+)", run.stdout, re.M).group(1)),
+                       "p99_ms": ms(re.search(r"^\s*99%\s+(\S+)", run.stdout, re.M).group(1))}
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("server")
+    ap.add_argument("--moves", type=int, default=300)
+    ap.add_argument("--seconds", type=int, default=10)
+    ap.add_argument("--batch", type=int, default=100_000)
+    ap.add_argument("--json")
+    args = ap.parse_args()
+    work = tempfile.mkdtemp(prefix="gvd-postgis-")
+    os.chmod(work, 0o755)
+    server, pg = None, None
+    try:
+        pg = Postgres(work)
+        conn = psycopg2.connect(host=pg.sock, port=pg.port, user="gvd", dbname="gvd")
+        conn.autocommit = True
+        with conn.cursor() as cur:
+            cur.execute("CREATE EXTENSION postgis")
+        ports = os.path.join(work, "ports")
+        with open(os.path.join(work, "gvd.log"), "w", encoding="ascii") as log:
+            server, http_port = start_server(args.server, os.path.join(work, "gvd"), ports, log,
+                                             "--log-level", "warn")
+        with open(ports, encoding="ascii") as f:
+            grpc_port = int(f.read().split()[0])
+        client = gvd.Client(f"127.0.0.1:{grpc_port}", timeout=600)
+        figures = {}
+        for name, make in (("points", scene_points), ("segments", scene_segments),
+                           ("curves", scene_curves)):
+            rng = np.random.default_rng(7)
+            sites = make(rng)
+            row = {"sites": len(sites),
+                   "load_gvd_ms": 1000 * gvd_load(client, name, sites),
+                   "load_postgis_ms": 1000 * pg_load(conn, name, sites)}
+            row["move"] = moves(client, conn, name, sites, args.moves, rng)
+            row["batch"] = batch(client, conn, name, rng.random((args.batch, 2)))
+            figures[name] = row
+            print(name, json.dumps(row), flush=True)
+        figures["capacity"] = capacity(pg, work, grpc_port, http_port, args.seconds)
+        print("capacity", json.dumps(figures["capacity"]), flush=True)
+        print_table(figures, args.batch)
+        if args.json:
+            with open(args.json, "w", encoding="ascii") as f:
+                json.dump(figures, f, indent=1)
+    finally:
+        if server:
+            server.send_signal(signal.SIGTERM)
+            server.wait()
+        if pg:
+            pg.stop()
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def print_table(f, batch_size):
+    print(f"\n| scene | load until queryable, gvd / PostGIS | one-site move until a read sees it, "
+          f"p50 (p99), gvd / PostGIS | {batch_size:,}-query batch, gvd / PostGIS |")
+    print("|---|---|---|---|")
+    for name in ("points", "segments", "curves"):
+        r = f[name]
+        m, b = r["move"], r["batch"]
+        print(f"| {name} ({r['sites']:,}) | {r['load_gvd_ms']:.0f} / {r['load_postgis_ms']:.0f} ms "
+              f"({r['load_postgis_ms'] / r['load_gvd_ms']:.2f}x) | "
+              f"{m['gvd_p50_ms']:.2f} ({m['gvd_p99_ms']:.2f}) / {m['postgis_p50_ms']:.2f} "
+              f"({m['postgis_p99_ms']:.2f}) ms | {b['gvd_ms']:.0f} / {b['postgis_ms']:.0f} ms "
+              f"({b['postgis_ms'] / b['gvd_ms']:.0f}x faster) |")
+    c = f["capacity"]
+    print("\n| single-point FindNearest, 8 connections | queries/s | p50 | p99 | vs PostGIS |")
+    print("|---|---:|---:|---:|---:|")
+    for key, label in (("postgis", "PostGIS (pgbench)"), ("gvd_grpc", "gvd over gRPC (h2load)"),
+                       ("gvd_http", "gvd over HTTP/JSON (wrk)")):
+        r = c[key]
+        print(f"| {label} | {r['per_s']:,.0f} | {r['p50_ms']:.3f} ms | {r['p99_ms']:.3f} ms | "
+              f"{r['per_s'] / c['postgis']['per_s']:.2f}x |")
+
+
+if __name__ == "__main__":
+    main()
