@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The sanitizer builds, as CI runs them after the test suite:
-#  - ASan + UBSan: the whole test suite. LeakSanitizer checks the unit tests; it is off where
+#  - ASan + UBSan: the test suite, but for the few tests noted below. LeakSanitizer checks the unit tests; it is off where
 #    Mesa is loaded (GL tests, the server), as Mesa keeps driver allocations until exit.
 #  - TSan: the server's concurrency tests (scene writers and readers, render thread, frame publication, watch streams, concurrent
 #    queries and updates, crash and load tests), with gRPC/protobuf/abseil suppressed: Debian
@@ -25,10 +25,13 @@ cmake --build build/asan --target gvd_unit_tests gvd_core_tests gvd_render_gl_te
   gvd_fuzz_store_replay gvd_fuzz_http_replay
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 (cd build/asan && ASAN_OPTIONS=detect_leaks=1 ctest --output-on-failure -j "$jobs" -R '^(Cone|Build|Frame|Exact|Nearest|Coverage|SiteIndex|Snapshot|SceneCore|Codec|Store\.|CpuPool|BoundaryEdges|TraceBoundaries|NeighborPairs|HiddenSites|GeometryMeetsBox|TrianglesFromEdges|Volume|fuzz_)')
-# The browser tests (browser_*) and the image tests (container_*, compose_*) run in the plain build only:
-# the first drive the HTTP transport that HttpTest checks here, the second runs no code of this build.
+# Some tests run in the plain build only, as they run no code of this build that the tests
+# here do not: the browser tests (browser_*) and the clients' (python_client, ts_client)
+# test code this build does not compile, against the calls HttpTest and ServerTest make
+# here; the soak runs (soak_*) are a minute of the mixed load LoadTest drives here; the
+# image tests (container_*, compose_*) run no code of this build.
 (cd build/asan && ASAN_OPTIONS=detect_leaks=0 ctest --output-on-failure -j "$jobs" --timeout 900 \
-  -E '^(Cone|Build|Frame|Exact|Nearest|Coverage|SiteIndex|Snapshot|SceneCore|Codec|Store\.|CpuPool|BoundaryEdges|TraceBoundaries|NeighborPairs|HiddenSites|GeometryMeetsBox|TrianglesFromEdges|Volume|fuzz_|deploy_lint|browser_|container_|compose_)')
+  -E '^(Cone|Build|Frame|Exact|Nearest|Coverage|SiteIndex|Snapshot|SceneCore|Codec|Store\.|CpuPool|BoundaryEdges|TraceBoundaries|NeighborPairs|HiddenSites|GeometryMeetsBox|TrianglesFromEdges|Volume|fuzz_|deploy_lint|browser_|container_|compose_|python_client|ts_client|soak_)')
 
 cmake -S . -B build/tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGVD_WERROR=OFF \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="$opt" -DCMAKE_CXX_FLAGS="-fsanitize=thread" -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=thread" >/dev/null
@@ -37,11 +40,14 @@ cmake --build build/tsan --target gvd_core_tests gvd_integration_tests gvd_serve
 export TSAN_OPTIONS="halt_on_error=1 suppressions=$root/tests/sanitizers/tsan.supp"
 (cd build/tsan && ctest --output-on-failure -j "$jobs" --timeout 900 \
   -R '^(SceneCore|SceneRegistry|Replicas|ReplicaFaults|Engines/LogStore|ServiceThreads|Store|CpuPool|PendingEventTest|MemoryBudgetUnit|FairRenders|ServerTest|SpaceServerTest|LoadTest|CrashTest|CliTest|MetricsTest|AnalysisServerTest|AnalysisLimitsTest|WatchTest|WatchDrain|WatchReplicas|HttpTest|HttpSecurity|HttpDrain|MosaicServerTest)\.' \
-  -E '^CliTest\.(EveryKindAndAnImage|A3DSceneFromAModelFileToOpenVdb)$')
+  -E '^(CliTest\.(EveryKindAndAnImage|A3DSceneFromAModelFileToOpenVdb)|(Server|SpaceServer)Test\.TenThousand.*)$')
 # A3DSceneFromAModelFileToOpenVdb is left out of TSan only: the single-threaded CLI's OpenVDB
 # export runs Debian's uninstrumented OpenVDB, whose initialize() takes a mutex TSan sees
 # unlocked only (a false report); the server side of 3D scenes runs under TSan in
 # SpaceServerTest.
+# The ten-thousand-site accuracy tests (ServerTest.TenThousand*, SpaceServerTest.TenThousand*:
+# one client, each answer against the oracle, a fifth of this run's time) are left out of
+# TSan only: the threads they use serve every other server test here.
 # EveryKindAndAnImage is left out of TSan only: the single-threaded CLI's GeoJSON parsing
 # (protobuf Struct maps, inlined from Debian's uninstrumented protobuf) crashes under TSan
 # instrumentation; it passes in the plain, ASan and UBSan runs.
