@@ -32,6 +32,7 @@ Clients: psycopg2 and the project's Python client (gRPC), one connection each, o
 (PostgreSQL on its Unix socket, as a local deployment would use it).
 """
 import argparse
+import io
 import json
 import os
 import re
@@ -137,27 +138,12 @@ def pg_load(conn, name, sites):
     t0 = time.perf_counter()
     with conn.cursor() as cur:
         cur.execute(f"CREATE TABLE {name} (id integer PRIMARY KEY, geom geometry NOT NULL)")
-        cur.copy_expert(f"COPY {name} (id, geom) FROM STDIN", _Text(text))
+        cur.copy_expert(f"COPY {name} (id, geom) FROM STDIN", io.StringIO(text))
         cur.execute(f"CREATE INDEX ON {name} USING gist (geom)")
         cur.execute(f"ANALYZE {name}")
         cur.execute(f"SELECT id FROM {name} ORDER BY geom <-> ST_MakePoint(0.5, 0.5) LIMIT 1")
         cur.fetchone()
     return time.perf_counter() - t0
-
-
-class _Text:
-    """A string as the file psycopg2's copy_expert reads."""
-
-    def __init__(self, text):
-        self.data, self.at = text.encode(), 0
-
-    def read(self, n=-1):
-        n = len(self.data) - self.at if n < 0 else n
-        chunk = self.data[self.at:self.at + n]
-        self.at += len(chunk)
-        return chunk
-
-    readline = read
 
 
 def moves(client, conn, name, sites, count, rng):
