@@ -46,6 +46,13 @@ struct Kernel2 {
   static double Value(Point q, const Site& s) { return SiteValue(q, s); }
   // The length of line the site draws (TotalLength), summed over a scene as its ink.
   static double Ink(const Site& s) { return TotalLength(s.geometry); }
+  // How far the site's distances may be from its true geometry's, in value: a Bezier's
+  // tolerance (its flattening stands in for the curve) times its multiplicative weight; 0
+  // for every other kind.
+  static double Tolerance(const Site& s) {
+    const auto* b = std::get_if<BezierSite>(&s.geometry);
+    return b ? b->tolerance * s.multiplicative : 0;
+  }
   // Readies a site that enters a table: its segment tree, for sites of many segments.
   static void Prepare(Site& s) { IndexSegments(s); }
 };

@@ -41,6 +41,7 @@ struct Kernel3 {
   static double Value(Point q, const Site& s) { return SiteValue(q, s); }
   // No 3D structure is sized by the length of its sites' lines.
   static double Ink(const Site&) { return 0; }
+  static double Tolerance(const Site&) { return 0; }  // every distance is the geometry's
   // A mesh comes ready from MakeMesh; nothing else needs readying.
   static void Prepare(Site&) {}
 };

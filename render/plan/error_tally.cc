@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "render/kernel/exact2.h"
+#include "render/kernel/kernel2.h"
 
 namespace gvd {
 
@@ -13,9 +14,7 @@ void ErrorTally::Live(const Site& site) {
   if (std::isfinite(site.max_distance) || (poly && poly->side != Side::kBoth)) {
     limited_presence_ = true;
   }
-  if (const auto* b = std::get_if<BezierSite>(&site.geometry)) {
-    curve_slack_ = std::max(curve_slack_, b->tolerance * site.multiplicative);
-  }
+  curve_slack_ = std::max(curve_slack_, Kernel2::Tolerance(site));
 }
 
 void ErrorTally::Drawn(const Grid& grid, const Site& site, const SiteShape& shape) {

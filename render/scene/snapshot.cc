@@ -127,6 +127,8 @@ BasicSnapshotBuilder<K>::BasicSnapshotBuilder(std::shared_ptr<const Snapshot> ba
       next_slot_(base_->sites().size()),
       size_(base_->size()),
       non_plain_(base_->non_plain_),
+      curves_(base_->curves_),
+      curve_(base_->curve_),
       ink_(base_->ink_),
       bytes_(base_->bytes_) {}
 
@@ -136,6 +138,7 @@ void BasicSnapshotBuilder<K>::Put(Site site) {
   if (auto found = base_->Find(site.id)) {
     slot = *found;
     non_plain_ -= !base_->sites().get(slot)->plain();
+    curves_ -= K::Tolerance(*base_->sites().get(slot)) > 0;
     ink_ -= K::Ink(*base_->sites().get(slot));
     bytes_ -= SiteBytes(*base_->sites().get(slot));
   } else {
@@ -150,6 +153,10 @@ void BasicSnapshotBuilder<K>::Put(Site site) {
     ++size_;
   }
   non_plain_ += !site.plain();
+  if (const double tolerance = K::Tolerance(site); tolerance > 0) {
+    ++curves_;
+    curve_ = std::max(curve_, tolerance);
+  }
   ink_ += K::Ink(site);
   bytes_ += SiteBytes(site);
   changed_.push_back(slot);
@@ -162,6 +169,7 @@ bool BasicSnapshotBuilder<K>::Remove(std::string_view id) {
   auto found = base_->Find(id);
   if (!found || table_.get(*found) == nullptr) return false;
   non_plain_ -= !table_.get(*found)->plain();
+  curves_ -= K::Tolerance(*table_.get(*found)) > 0;
   ink_ -= K::Ink(*table_.get(*found));
   bytes_ -= SiteBytes(*table_.get(*found));
   table_.Set(*found, std::shared_ptr<const Site>());
@@ -188,6 +196,8 @@ std::shared_ptr<const BasicSiteSnapshot<K>> BasicSnapshotBuilder<K>::Build(uint6
   std::shared_ptr<Snapshot> s(new Snapshot);
   s->version_ = version;
   s->non_plain_ = non_plain_;
+  s->curves_ = curves_;
+  s->curve_ = curves_ == 0 ? 0 : curve_;
   // Rounding of the sums must not leave a little ink in an emptied scene.
   s->ink_ = size_ == 0 ? 0 : std::max(0.0, ink_);
   s->bytes_ = bytes_;

@@ -91,6 +91,10 @@ class BasicSiteSnapshot {
   // The least weights over the sites (SlotTable::least), found once when the version is
   // built, for the queries that bound their search with them.
   const LeastWeights& least() const { return least_; }
+  // At least the largest K::Tolerance of its sites (a Bezier's tolerance times its weight):
+  // how far an exact measure of the sites as stored may be from their true geometry. The
+  // largest since the scene last held no such site (a removal does not lower it); 0 then.
+  double curve() const { return curve_; }
   // The summed length of the sites' segments (TotalLength): how much line the coverage's
   // tiles must resolve (DefaultTilePx).
   double ink() const { return ink_; }
@@ -111,6 +115,8 @@ class BasicSiteSnapshot {
   Index index_;
   IdMap ids_;
   size_t non_plain_ = 0;
+  size_t curves_ = 0;  // sites with a tolerance
+  double curve_ = 0;
   double ink_ = 0;
   size_t bytes_ = 0;
   LeastWeights least_;
@@ -170,6 +176,8 @@ class BasicSnapshotBuilder {
   uint32_t next_slot_;
   size_t size_;
   size_t non_plain_;
+  size_t curves_;
+  double curve_;
   double ink_;
   size_t bytes_;
   std::vector<uint32_t> changed_, taken_, freed_;

@@ -113,9 +113,12 @@ struct AnswerRow {
 };
 
 // Answers a query: raster answers from the frame (refined where ambiguous), or exact ones
-// from the scene's latest snapshot, whose first render it need not wait for (a replica that
-// has not reached min_version waits for that version's frame, then answers from its latest
-// snapshot). NearestJob is a 2D scene's; a 3D scene's frames are volumes.
+// from the scene's latest snapshot, whose render it need not wait for (a replica that has
+// not reached min_version waits for that version's frame, then answers from its latest
+// snapshot). A raster query whose min_version is committed but not yet rendered gets exact
+// answers too, when it has at most kInlineExactPoints points and the scene is a NEAREST one
+// of plain sites (each answer O(log n) through the index); any other waits for the frame.
+// NearestJob is a 2D scene's; a 3D scene's frames are volumes.
 template <class S>
 class BasicNearestJob final : public BasicFrameJob<S> {
  public:
@@ -277,14 +280,29 @@ std::shared_ptr<BasicNearestJob<S>> BasicNearestJob<S>::Make(SceneRegistry* regi
 
 template <class S>
 void BasicNearestJob<S>::Begin() {
-  // Exact answers come from the latest version, once it has reached min_version: a replica
-  // behind it waits for the log (its frame waiters end when the store has it, or fail when
-  // the store has not reached it either).
-  if (!query_.exact || this->scene_->version() < this->min_version_) {
+  // A replica behind min_version waits for the log (its frame waiters end when the store has
+  // it, or fail when the store has not reached it either).
+  if (this->scene_->version() < this->min_version_) {
     this->WaitForFrame();
     return;
   }
-  BeginExact();
+  // Exact answers come from the latest version.
+  if (query_.exact) {
+    BeginExact();
+    return;
+  }
+  // A raster read of a version committed but not yet drawn: where the index answers each
+  // point in O(log n), it answers at once, exactly, rather than wait for the render.
+  if (this->min_version_ > 0 && query_.points.size() <= kInlineExactPoints &&
+      this->scene_->frame()->version() < this->min_version_) {
+    const auto snapshot = this->scene_->snapshot();
+    if (!snapshot->empty() && snapshot->plain() &&
+        this->scene_->settings().diagram == Diagram::kNearest) {
+      AnswerExact();
+      return;
+    }
+  }
+  this->WaitForFrame();
 }
 
 template <class S>
@@ -317,8 +335,8 @@ void BasicNearestJob<S>::AnswerExact() {
   }
   rows_.reserve(exact_answers_.size());
   for (const auto& a : exact_answers_) {
-    rows_.push_back({a.found ? &a.site_id : nullptr, a.slot, a.distance, 0, true,
-                     a.feature_kind, a.feature_index});
+    rows_.push_back({a.found ? &a.site_id : nullptr, a.slot, a.distance, a.error_bound,
+                     a.error_bound == 0, a.feature_kind, a.feature_index});
     if (query_.closest) closest_.push_back(a.found ? a.closest : Point(NAN));
   }
   this->Finish(absl::OkStatus());

@@ -27,21 +27,6 @@ uint64_t Upsert(Client& client, const std::string& scene, double x) {
   return version;
 }
 
-uint64_t Rendered(Client& client, const std::string& scene) {
-  v1::Scene s;
-  EXPECT_TRUE(client.GetScene(scene, &s).ok());
-  return s.rendered_version();
-}
-
-// Waits up to 60 s for the scene's frame to reach `version`.
-bool Published(Client& client, const std::string& scene, uint64_t version) {
-  for (int k = 0; k < 6000; ++k) {
-    if (Rendered(client, scene) >= version) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  return false;
-}
-
 TEST(FairRenders, ALongRenderHoldsUpOnlyItsOwnScene) {
   testing::ServerProcess server(GVD_SERVER_PATH, {"--metrics-listen", "127.0.0.1:0"});
   ASSERT_TRUE(server.error().empty()) << server.error();
@@ -50,7 +35,7 @@ TEST(FairRenders, ALongRenderHoldsUpOnlyItsOwnScene) {
   v1::Scene scene;
   for (const char* id : {"big", "small", "other"}) {
     ASSERT_TRUE(client->CreateScene(testing::UnitScene(id, 64, 64), &scene).ok());
-    ASSERT_TRUE(Published(*client, id, Upsert(*client, id, 0.1)));
+    ASSERT_TRUE(testing::WaitForRender(*client, id, Upsert(*client, id, 0.1)));
   }
   // From here the render of "big" goes on until the file goes.
   const std::string held = server.hold_renders_path() + ".big";
@@ -59,12 +44,12 @@ TEST(FairRenders, ALongRenderHoldsUpOnlyItsOwnScene) {
   for (int k = 0; k < 20; ++k) {
     for (const char* id : {"small", "other"}) {
       const uint64_t v = Upsert(*client, id, 0.3 + 0.01 * k);
-      ASSERT_TRUE(Published(*client, id, v)) << id << " version " << v << " waits for the render of big";
+      ASSERT_TRUE(testing::WaitForRender(*client, id, v)) << id << " version " << v << " waits for the render of big";
     }
   }
-  EXPECT_LT(Rendered(*client, "big"), big);
+  EXPECT_LT(testing::RenderedVersion(*client, "big"), big);
   std::remove(held.c_str());
-  ASSERT_TRUE(Published(*client, "big", big));
+  ASSERT_TRUE(testing::WaitForRender(*client, "big", big));
   // Each scene's render cost is a metric.
   const int port = testing::MetricsPort(server.log());
   ASSERT_GT(port, 0);

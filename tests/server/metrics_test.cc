@@ -77,9 +77,7 @@ TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
   ASSERT_TRUE(client->CreateScene(c, &scene).ok());
   u.set_scene_id("computed");
   ASSERT_TRUE(client->UpsertSites(u, &v).ok());
-  q.set_scene_id("computed");
-  q.set_min_version(v);
-  ASSERT_TRUE(client->FindNearest(q, &r).ok());
+  ASSERT_TRUE(testing::WaitForRender(*client, "computed", v));
   text = testing::Scrape(port);
   for (const char* want : {"gvd_render_seconds_count{kind=\"full\"} 2",
                            "gvd_render_fill_ratio_count{kind=\"full\"} 1",

@@ -495,10 +495,13 @@ TEST_F(ServerTest, MinVersionWaitsAndHonoursTheDeadline) {
   quick.timeout = std::chrono::milliseconds(100);
   auto impatient = Client::Connect(server_->address(), quick);
   uint64_t v = 0;
+  // Weighted sites: an index answer may score every site, so a raster read waits for its frame.
+  auto sites = RandomSites(50, w, 5);
+  for (Site& site : sites) site.additive = 0.01;
   {
     // The version stays unrendered until the hold ends, however fast the renderer.
     testing::HoldRenders hold(*server_);
-    v = Upsert("held", RandomSites(50, w, 5));
+    v = Upsert("held", sites);
     r.set_min_version(v);
     grpc::Status s = impatient->FindNearest(r, &response);
     EXPECT_EQ(s.error_code(), StatusCode::DEADLINE_EXCEEDED) << s.error_message();
@@ -516,6 +519,79 @@ TEST_F(ServerTest, MinVersionWaitsAndHonoursTheDeadline) {
   EXPECT_GE(response.version(), v);
 }
 
+// A raster read of a version committed but not yet rendered, of at most 64 points in a
+// NEAREST scene of plain sites, is answered at once through the index, at that version: the
+// renders are held throughout, so a read that waited would outlast the client's deadline.
+// Every kind moves (a point into empty space takes a large cell), and each answer is checked
+// against the oracle over that version's sites: one from the frame before the moves, or from
+// any version before the read's, names a site where it no longer is. Beziers are measured to
+// their flattenings, so their tolerance is in every answer's bound.
+TEST_F(ServerTest, CommittedVersionsAreAnsweredBeforeTheirRender) {
+  Window w{0, 0, 1, 1};
+  Create("unrendered", w, 128, 128);
+  std::mt19937_64 rng(41);
+  auto u = [&](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); };
+  auto p = [&] { return Vec2{u(0, 1), u(0, 1)}; };
+  const double curve_tolerance = 0.002;
+  auto random_site = [&](size_t i) {
+    const Vec2 a = p();
+    Geometry g;
+    switch (i % 5) {
+      case 0: g = PointSite{a}; break;
+      case 1: g = SegmentSite{a, {a.x + u(-0.1, 0.1), a.y + u(-0.1, 0.1)}}; break;
+      case 2: g = PolylineSite{{a, {a.x + 0.05, a.y + u(-0.05, 0.05)}, {a.x + 0.1, a.y}}}; break;
+      case 3: g = PolygonSite{{a, {a.x + u(0.02, 0.1), a.y}, {a.x, a.y + u(0.02, 0.1)}}}; break;
+      default:
+        g = MakeBezier({a, {a.x + u(-0.1, 0.1), a.y + 0.1}, {a.x + 0.1, a.y + u(-0.1, 0.1)}},
+                       curve_tolerance);
+    }
+    return Site{"s" + std::to_string(i), g};
+  };
+  std::vector<Site> sites;
+  for (size_t i = 0; i < 200; ++i) sites.push_back(random_site(i));
+  // Rendered once: the frame then shows the sites before any move.
+  uint64_t v = Upsert("unrendered", sites);
+  ASSERT_TRUE(testing::WaitForRender(*client_, "unrendered", v));
+  testing::HoldRenders hold(*server_);
+  for (int round = 0; round < 30; ++round) {
+    std::vector<Site> moved;
+    std::vector<Vec2> q;
+    for (int k = 0; k < 3; ++k) {
+      const size_t i = rng() % sites.size();
+      q.push_back(oracle::Segments(sites[i].geometry).front().first);  // where it was
+      sites[i] = random_site(i);
+      if (round % 10 == 0 && i % 5 == 0) sites[i].geometry = PointSite{{u(1.5, 2), u(1.5, 2)}};
+      moved.push_back(sites[i]);
+      q.push_back(oracle::Segments(sites[i].geometry).front().first);  // where it is
+    }
+    while (q.size() < 64) q.push_back(p());
+    v = Upsert("unrendered", moved);
+    v1::FindNearestResponse response = Nearest("unrendered", q, v);
+    ASSERT_EQ(response.results_size(), int(q.size())) << "round " << round;
+    EXPECT_EQ(response.version(), v);
+    for (size_t i = 0; i < q.size(); ++i) {
+      const v1::NearestSite& n = response.results(int(i));
+      ExpectContract(sites, q[i], n);
+      // Exact to the sites as stored, within the curves' tolerance of the true ones.
+      EXPECT_LE(n.distance(), oracle::BestSite(q[i], sites).value + oracle::Tolerance(q[i], n.distance()))
+          << "round " << round << " point " << i;
+      EXPECT_EQ(n.error_bound(), curve_tolerance);
+      EXPECT_FALSE(n.exact());
+    }
+  }
+  // Without curves, the same answers are certified exact.
+  std::vector<std::string> curves;
+  for (const Site& site : sites) {
+    if (std::holds_alternative<BezierSite>(site.geometry)) curves.push_back(site.id);
+  }
+  uint64_t deleted = 0;
+  ASSERT_TRUE(client_->DeleteSites("unrendered", curves, &deleted).ok());
+  v1::FindNearestResponse plain = Nearest("unrendered", {{0.25, 0.75}}, deleted);
+  EXPECT_EQ(plain.version(), deleted);
+  EXPECT_TRUE(plain.results(0).exact());
+  EXPECT_EQ(plain.results(0).error_bound(), 0);
+}
+
 // Exact answers: certified, equal to the oracle's nearest distance, also outside the window,
 // and from the latest version without waiting for a render.
 TEST_F(ServerTest, ExactAnswersMatchTheOracle) {
@@ -525,7 +601,7 @@ TEST_F(ServerTest, ExactAnswersMatchTheOracle) {
   uint64_t v = Upsert("exact", sites);
   // Wait for the render, so that exact answers inside the window start from the frame's bound
   // (the index-only path is taken by points outside, and by the query after the next upsert).
-  Nearest("exact", {{5, 5}}, v);
+  ASSERT_TRUE(testing::WaitForRender(*client_, "exact", v));
   std::mt19937_64 rng(8);
   std::uniform_real_distribution<double> u(-5, 15);  // about half of them outside the window
   v1::FindNearestRequest r;

@@ -183,6 +183,59 @@ TEST_F(SpaceServerTest, TenThousandQueriesWithinTheirBoundsAndExact) {
   ASSERT_TRUE(client_->DeleteScene("space").ok());
 }
 
+// As in 2D: a read of a version committed but not yet rendered, of at most 64 points in a
+// scene of plain sites, is answered through the index at once (the renders are held, so a
+// read that waited would outlast the client's deadline), exact, against the oracle over that
+// version's sites.
+TEST_F(SpaceServerTest, CommittedVersionsAreAnsweredBeforeTheirRender) {
+  v1::Scene scene;
+  ASSERT_TRUE(client_->CreateScene(Request("unrendered", 16, 12), &scene).ok());
+  std::vector<Site3> sites;
+  for (const Site3& s : Sites()) {
+    if (s.additive == 0) sites.push_back(s);
+  }
+  std::vector<v1::Site> protos;
+  for (const Site3& s : sites) protos.push_back(ToProto3(s));
+  uint64_t version = 0;
+  ASSERT_TRUE(Put("unrendered", protos, &version).ok());
+  ASSERT_TRUE(testing::WaitForRender(*client_, "unrendered", version));  // rendered once
+  testing::HoldRenders hold(*server_);
+  v1::FindNearestRequest r;
+  v1::FindNearestResponse response;
+  std::mt19937_64 rng(43);
+  std::uniform_real_distribution<double> u(-0.5, 4.5), uz(-1.5, 2.5);
+  for (int round = 0; round < 10; ++round) {
+    // The point and the ball move (the ball as a whole mesh).
+    sites[0].geometry = PointSite3{{u(rng), u(rng), uz(rng)}};
+    sites[3] = {"ball", Placed(Icosphere(2), {u(rng), u(rng), uz(rng)}, 0.6)};
+    ASSERT_TRUE(Put("unrendered", {ToProto3(sites[0]), ToProto3(sites[3])}, &version).ok());
+    r.Clear();
+    r.set_scene_id("unrendered");
+    r.set_min_version(version);
+    std::vector<Vec3> points;
+    for (int i = 0; i < 64; ++i) {
+      points.push_back({u(rng), u(rng), uz(rng)});
+      Set(r.add_points(), points.back());
+    }
+    grpc::Status st = client_->FindNearest(r, &response);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+    EXPECT_EQ(response.version(), version);
+    ASSERT_EQ(response.results_size(), 64);
+    for (int i = 0; i < 64; ++i) {
+      const v1::NearestSite& n = response.results(i);
+      double best = INFINITY;
+      for (const Site3& s : sites) best = std::min(best, OracleValue(points[i], s));
+      const auto named = std::find_if(sites.begin(), sites.end(),
+                                      [&](const Site3& s) { return s.id == n.site_id(); });
+      ASSERT_NE(named, sites.end()) << n.site_id();
+      const double tol = 1e-9 * (1 + best);
+      EXPECT_NEAR(n.distance(), OracleValue(points[i], *named), tol) << "round " << round;
+      EXPECT_NEAR(n.distance(), best, tol) << "round " << round << " point " << i;
+      EXPECT_TRUE(n.exact());
+    }
+  }
+}
+
 // The clearance field of a 3D scene: its own voxels, and a sub-box at a resolution of the
 // caller's (reaching outside the scene's box), each sample a lower bound on the oracle's
 // distance and within the voxel diagonal of it, its site the nearest within that, and its

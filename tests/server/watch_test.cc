@@ -224,13 +224,7 @@ TEST_F(WatchTest, ChangesRenderedTogetherComeInOneEvent) {
 TEST_F(WatchTest, AfterVersionDeletionAndUnknownScenes) {
   Create("gone", 16);
   const uint64_t v = Upsert("gone", {{"a", PointSite{{0.5, 0.5}}}});
-  v1::FindNearestRequest probe;
-  probe.set_scene_id("gone");
-  probe.set_min_version(v);
-  probe.add_points()->set_x(0.5);
-  probe.mutable_points(0)->set_y(0.5);
-  v1::FindNearestResponse response;
-  ASSERT_TRUE(client_->FindNearest(probe, &response).ok());  // rendered
+  ASSERT_TRUE(testing::WaitForRender(*client_, "gone", v));
   Watcher later(server_->address(), "gone", v);
   Watcher from_start(server_->address(), "gone");
   ASSERT_TRUE(from_start.WaitFor(v));

@@ -154,6 +154,23 @@ class HoldRenders {
   std::string path_;
 };
 
+// The version of the scene's newest frame.
+inline uint64_t RenderedVersion(Client& client, const std::string& scene) {
+  v1::Scene s;
+  EXPECT_TRUE(client.GetScene(scene, &s).ok());
+  return s.rendered_version();
+}
+
+// Waits up to 60 s for the scene's frame to reach `version`; whether it did. (A read at the
+// version may be answered before its render: see FindNearestRequest.min_version.)
+inline bool WaitForRender(Client& client, const std::string& scene, uint64_t version) {
+  for (int k = 0; k < 6000; ++k) {
+    if (RenderedVersion(client, scene) >= version) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return false;
+}
+
 // A suite whose tests share one gvd-server and a client of it. The server must stop cleanly
 // at the end: SIGTERM is a clean shutdown, exit status 0. A suite that needs server flags
 // hides SetUpTestSuite with one that calls StartServer(flags).

@@ -207,8 +207,9 @@ class Client:
                      exact: bool = False, closest: bool = False, skip_refinement: bool = False,
                      progress: Optional[Progress] = None) -> NearestResult:
         """The nearest site to each of m query points (an (m, 2) array, or (m, 3) in a 3D
-        scene), sent packed. min_version: answer from a frame at least this recent (waiting
-        for it). exact: certify every answer. closest: also each answer's closest point and
+        scene), sent packed. min_version: answer from at least this version (waiting for
+        its frame, unless the server answers from the index: see the API's
+        FindNearestRequest.min_version). exact: certify every answer. closest: also each answer's closest point and
         the distance's gradient. progress(done, m) follows the answers as they come."""
         q = _points(points, "points")
         m = len(q)

@@ -68,7 +68,10 @@ TEST(SceneRegistry, AWaitingReadFailsWhenItsSceneIsDeleted) {
   SceneRegistry& registry = in_memory.registry;
   auto scene = As(registry.CreateScene(Settings("s")));
   ASSERT_TRUE(scene.ok());
-  ASSERT_TRUE(registry.UpsertSites("s", {Point("a", 0.2, 0.2)}).ok());
+  // Weighted: the index does not answer in place of the frame.
+  Site a = Point("a", 0.2, 0.2);
+  a.additive = 0.1;
+  ASSERT_TRUE(registry.UpsertSites("s", {a}).ok());
   auto job = NearestJob::Make(&registry, *scene, {{{0.5, 0.5}}, false, false, true, 2}, nullptr);
   std::promise<absl::Status> done;
   job->Start([&](const absl::Status& s) { done.set_value(s); });
@@ -78,6 +81,57 @@ TEST(SceneRegistry, AWaitingReadFailsWhenItsSceneIsDeleted) {
   ASSERT_EQ(pending.wait_for(std::chrono::seconds(60)), std::future_status::ready);
   const absl::Status s = pending.get();
   EXPECT_EQ(s.code(), absl::StatusCode::kNotFound) << s;
+}
+
+// The policy for a raster read of a version committed but never rendered (no renderer here,
+// so no frame ever comes): up to 64 points in a NEAREST scene of plain sites are answered
+// through the index, exactly, at the latest version; 65 points, a weighted site or a FARTHEST
+// scene wait for the frame.
+TEST(SceneRegistry, CommittedVersionsAreAnsweredThroughTheIndexWhereThatIsCheap) {
+  InMemory in_memory;
+  SceneRegistry& registry = in_memory.registry;
+  std::mt19937_64 rng(12);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<Site> sites;
+  for (int i = 0; i < 500; ++i) {
+    sites.push_back(i % 2 ? Point("p" + std::to_string(i), u(rng), u(rng))
+                          : Site{"s" + std::to_string(i),
+                                 SegmentSite{{u(rng), u(rng)}, {u(rng), u(rng)}}});
+  }
+  auto starts = [&](const std::string& id, Diagram diagram, const std::vector<Site>& put,
+                    size_t points) {
+    SceneSettings settings = Settings(id);
+    settings.diagram = diagram;
+    auto scene = As(registry.CreateScene(settings));
+    EXPECT_TRUE(scene.ok());
+    auto v = registry.UpsertSites(id, put);
+    EXPECT_TRUE(v.ok());
+    std::vector<Vec2> q;
+    for (size_t i = 0; i < points; ++i) q.push_back({u(rng), u(rng)});
+    auto job = NearestJob::Make(&registry, *scene, {q, false, false, true, *v}, nullptr);
+    auto done = std::make_shared<std::promise<absl::Status>>();
+    job->Start([done](const absl::Status& s) { done->set_value(s); });
+    auto answered = done->get_future();
+    const bool now = answered.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
+    if (now) {
+      EXPECT_TRUE(answered.get().ok());
+      EXPECT_EQ(job->version(), *v);
+      for (size_t i = 0; i < q.size(); ++i) {
+        const AnswerRow& row = job->rows()[i];
+        const oracle::Best best = oracle::BestSite(q[i], put);
+        EXPECT_TRUE(row.exact);
+        EXPECT_EQ(*row.site_id, put[best.index].id);
+        EXPECT_NEAR(row.distance, best.value, oracle::Tolerance(q[i], best.value));
+      }
+    }
+    EXPECT_TRUE(registry.DeleteScene(id).ok());
+    return now;
+  };
+  EXPECT_TRUE(starts("plain", Diagram::kNearest, sites, 64));
+  EXPECT_FALSE(starts("many", Diagram::kNearest, sites, 65));
+  EXPECT_FALSE(starts("far", Diagram::kFarthest, sites, 1));
+  sites[7].additive = 0.01;
+  EXPECT_FALSE(starts("weighted", Diagram::kNearest, sites, 1));
 }
 
 TEST(SceneRegistry, ExactAnswersNeedNoFrame) {
