@@ -214,11 +214,17 @@ class Client:
         q = _points(points, "points")
         m = len(q)
         parts: List[_Packed] = []
+        # A batch of one chunk's size or less is one unary call (a stream costs more to set
+        # up than a small batch takes to answer); larger ones stream in chunks.
+        stream = m > CHUNK_POINTS
         for start in range(0, m, MAX_POINTS_PER_CALL):
             part = q[start:start + MAX_POINTS_PER_CALL]
-            request = pb.FindNearestStreamRequest(scene_id=scene_id, min_version=min_version,
-                                                  exact=exact, skip_refinement=skip_refinement,
-                                                  chunk_size=CHUNK_POINTS)
+            request = (pb.FindNearestStreamRequest(chunk_size=CHUNK_POINTS) if stream
+                       else pb.FindNearestRequest())
+            request.scene_id = scene_id
+            request.min_version = min_version
+            request.exact = exact
+            request.skip_refinement = skip_refinement
             if closest:
                 request.fields.extend([pb.NEAREST_FIELD_SITE, pb.NEAREST_FIELD_DISTANCE,
                                        pb.NEAREST_FIELD_ERROR_BOUND, pb.NEAREST_FIELD_EXACT,
@@ -227,6 +233,14 @@ class Client:
             # The points go packed, written straight from the array: field xy (5) or xyz.
             field = 5 if part.shape[1] == 2 else _XYZ_FIELD
             body = request.SerializeToString() + _packed_doubles(field, part)
+            if not stream:
+                # FindNearestResponse's version and packed answers have the stream's numbers.
+                answer = self._transport.unary("FindNearest", request, PackedAnswers,
+                                               self.timeout, body=body)
+                parts.append(_Packed(answer, start))
+                if progress:
+                    progress(m, m)
+                continue
             for chunk in self._transport.stream("FindNearestStream", request,
                                                 PackedAnswers, self.timeout, body=body):
                 parts.append(_Packed(chunk, start))

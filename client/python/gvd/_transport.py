@@ -9,7 +9,7 @@ import ssl
 import struct
 import threading
 import urllib.parse
-from typing import Iterator, Optional, Sequence, Tuple, Type, TypeVar
+from typing import Dict, Iterator, Optional, Sequence, Tuple, Type, TypeVar
 
 import grpc
 from google.protobuf.message import DecodeError, Message
@@ -32,6 +32,11 @@ class GvdError(Exception):
 _CONNECT_CODES = {c.value[1].replace(" ", "_"): c for c in grpc.StatusCode}
 
 
+def _serialize(request) -> bytes:
+    """A request's bytes: those given as they are, or the message's."""
+    return request if isinstance(request, bytes) else request.SerializeToString()
+
+
 class GrpcTransport:
     """A gRPC channel to `target` ("host:port", or any gRPC target such as "unix:/path")."""
 
@@ -48,15 +53,19 @@ class GrpcTransport:
             self.channel = grpc.insecure_channel(target, options)
         self.metadata: Sequence[Tuple[str, str]] = (
             [("authorization", f"Bearer {token}")] if token else [])
+        # Each method's callable, made once: making one costs about as much as a small call.
+        self._unary: Dict[Tuple[str, type], grpc.UnaryUnaryMultiCallable] = {}
 
     def unary(self, method: str, request: Message, response: Type[M],
               timeout: Optional[float], body: Optional[bytes] = None) -> M:
-        call = self.channel.unary_unary(
-            f"/{SERVICE}/{method}",
-            request_serializer=(lambda _: body) if body is not None else type(request).SerializeToString,
-            response_deserializer=response.FromString)
+        call = self._unary.get((method, response))
+        if call is None:
+            call = self.channel.unary_unary(f"/{SERVICE}/{method}", request_serializer=_serialize,
+                                            response_deserializer=response.FromString)
+            self._unary[(method, response)] = call
         try:
-            return call(request, timeout=timeout, metadata=self.metadata)
+            return call(body if body is not None else request, timeout=timeout,
+                        metadata=self.metadata)
         except grpc.RpcError as e:
             raise GvdError(e.code(), e.details() or "") from None
 
