@@ -107,7 +107,22 @@ uint64_t BasicScene<K>::Install(Builder& builder, std::shared_ptr<const Snapshot
   // Freed slots are taken again only by later snapshots: this one's frames may still show
   // them until the render of the next.
   free_slots_.insert(free_slots_.end(), builder.freed().rbegin(), builder.freed().rend());
-  snapshot_.store(next);
+  std::vector<FrameCallback> ready;
+  std::shared_ptr<const Frame> frame;
+  {
+    std::lock_guard<std::mutex> lock(waiters_mu_);
+    snapshot_.store(next);
+    for (auto it = waiters_.begin(); it != waiters_.end();) {
+      if (it->second.committed && it->second.min_version <= version) {
+        ready.push_back(std::move(it->second.done));
+        it = waiters_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    if (!ready.empty()) frame = frame_.load();
+  }
+  for (auto& done : ready) Resume(std::move(done), frame);
   return version;
 }
 
@@ -343,14 +358,17 @@ void BasicScene<K>::Publish(std::shared_ptr<const Frame> frame) {
       }
     }
   }
-  for (auto& done : ready) {
-    if (executor_) {
-      executor_([done = std::move(done), frame] { done(frame); });
-    } else {
-      done(frame);
-    }
-  }
+  for (auto& done : ready) Resume(std::move(done), frame);
   if (!deleted_) Notify(frame, /*last=*/false);
+}
+
+template <class K>
+void BasicScene<K>::Resume(FrameCallback done, std::shared_ptr<const Frame> frame) {
+  if (executor_) {
+    executor_([done = std::move(done), frame = std::move(frame)] { done(frame); });
+  } else {
+    done(std::move(frame));
+  }
 }
 
 template <class K>
@@ -408,6 +426,23 @@ uint64_t BasicScene<K>::WhenRendered(uint64_t min_version, FrameCallback done) {
   }
   if (ready) done(std::move(ready));
   return token;
+}
+
+template <class K>
+uint64_t BasicScene<K>::WhenCommitted(uint64_t min_version, FrameCallback done) {
+  uint64_t token;
+  {
+    std::lock_guard<std::mutex> lock(waiters_mu_);
+    token = next_token_++;
+    // Install stores the snapshot under this lock: a version it installs after this check
+    // finds the waiter.
+    if (snapshot_.load()->version() < min_version) {
+      waiters_.emplace(token, Waiter{min_version, std::move(done), true});
+      return token;
+    }
+  }
+  done(frame_.load());
+  return 0;
 }
 
 template <class K>

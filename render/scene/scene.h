@@ -243,6 +243,10 @@ class BasicScene {
   // Cancel() (0 when done was called at once). CONTRACT: min_version <= version(), or
   // the version is awaited from a store other servers write (FailWaitersBeyond ends it).
   uint64_t WhenRendered(uint64_t min_version, FrameCallback done);
+  // The same once the scene holds a snapshot of version >= min_version, rendered or not:
+  // `done` gets the latest frame, which may be older. For a replica's reads of a version its
+  // store has and it has not read yet (FailWaitersBeyond ends them like frame waiters).
+  uint64_t WhenCommitted(uint64_t min_version, FrameCallback done);
   // If the waiter is still pending, removes it and calls it with `why`.
   void Cancel(uint64_t token, const absl::Status& why);
 
@@ -267,7 +271,10 @@ class BasicScene {
   struct Waiter {
     uint64_t min_version;
     FrameCallback done;
+    bool committed = false;  // WhenCommitted's: a snapshot of min_version is enough
   };
+  // Hands `frame` to `done`, through the executor when there is one.
+  void Resume(FrameCallback done, std::shared_ptr<const Frame> frame);
 
   // Builds, persists and publishes the next snapshot; `edit` fills the builder and may
   // refuse. Takes the writer lock.

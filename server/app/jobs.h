@@ -69,6 +69,8 @@ class BasicFrameJob : public std::enable_shared_from_this<BasicFrameJob<S>> {
   virtual void Run(std::shared_ptr<const Frame> frame, bool on_caller) = 0;
 
   void WaitForFrame();
+  // Begins again once the scene holds min_version (a replica that has not read it yet).
+  void WaitForCommit();
   void Finish(const absl::Status& status);
   bool cancelled() const { return cancelled_fn_ && cancelled_fn_(); }
 
@@ -81,9 +83,14 @@ class BasicFrameJob : public std::enable_shared_from_this<BasicFrameJob<S>> {
  private:
   void OnFrame(const absl::StatusOr<std::shared_ptr<const Frame>>& frame, bool on_caller);
 
+  // Registers the job's waiter through `wait` (a scene's WhenRendered or WhenCommitted) as
+  // the one Cancel ends.
+  void Await(const std::function<uint64_t()>& wait);
+
   Done done_;
-  std::mutex mu_;  // guards the two below
+  std::mutex mu_;  // guards the three below
   uint64_t token_ = 0;
+  uint64_t waits_ = 0;  // Await calls begun: a later one's token supersedes
   bool cancelled_ = false;
 };
 
@@ -114,8 +121,7 @@ struct AnswerRow {
 
 // Answers a query: raster answers from the frame (refined where ambiguous), or exact ones
 // from the scene's latest snapshot, whose render it need not wait for (a replica that has
-// not reached min_version waits for that version's frame, then answers from its latest
-// snapshot). A raster query whose min_version is committed but not yet rendered gets exact
+// not reached min_version first waits until it has read that version from its store). A raster query whose min_version is committed but not yet rendered gets exact
 // answers too, when it has at most kInlineExactPoints points and the scene is a NEAREST one
 // of plain sites (each answer O(log n) through the index); any other waits for the frame.
 // NearestJob is a 2D scene's; a 3D scene's frames are volumes.
@@ -220,10 +226,39 @@ template <class S>
 void BasicFrameJob<S>::WaitForFrame() {
   auto self = this->shared_from_this();
   const std::thread::id caller = std::this_thread::get_id();
-  uint64_t token = scene_->WhenRendered(min_version_, [self, caller](auto frame) {
-    self->OnFrame(frame, std::this_thread::get_id() == caller);
+  Await([&] {
+    return scene_->WhenRendered(min_version_, [self, caller](auto frame) {
+      self->OnFrame(frame, std::this_thread::get_id() == caller);
+    });
   });
+}
+
+template <class S>
+void BasicFrameJob<S>::WaitForCommit() {
+  auto self = this->shared_from_this();
+  Await([&] {
+    return scene_->WhenCommitted(min_version_, [self](auto frame) {
+      if (frame.ok()) {
+        self->Begin();
+      } else {
+        self->Finish(frame.status());
+      }
+    });
+  });
+}
+
+template <class S>
+void BasicFrameJob<S>::Await(const std::function<uint64_t()>& wait) {
+  uint64_t mine;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    mine = ++waits_;
+  }
+  // The waiter may be resumed before this returns, and Begin a later wait: that one's token
+  // is then the one to cancel.
+  const uint64_t token = wait();
   std::lock_guard<std::mutex> lock(mu_);
+  if (waits_ != mine) return;
   token_ = token;
   if (cancelled_) scene_->Cancel(token, absl::CancelledError("the call was cancelled"));
 }
@@ -280,10 +315,10 @@ std::shared_ptr<BasicNearestJob<S>> BasicNearestJob<S>::Make(SceneRegistry* regi
 
 template <class S>
 void BasicNearestJob<S>::Begin() {
-  // A replica behind min_version waits for the log (its frame waiters end when the store has
-  // it, or fail when the store has not reached it either).
+  // A replica behind min_version waits for the log, then begins again (its waiters end when
+  // the store has the version, or fail when the store has not reached it either).
   if (this->scene_->version() < this->min_version_) {
-    this->WaitForFrame();
+    this->WaitForCommit();
     return;
   }
   // Exact answers come from the latest version.

@@ -229,6 +229,63 @@ class Writer {
   double slowest_ = 0;
 };
 
+// A write acknowledged by one replica, read at its version through another whose renders
+// are held: the reader waits until it has read the version from the store, then answers
+// through the index (at most 64 points, plain sites) without a frame of it. Each answer
+// against the oracle over that version's sites; a read that waited for the render would
+// outlast the client's deadline.
+TEST(ReplicaReads, AWriteThroughOneIsReadThroughAnotherBeforeItsRender) {
+  TempPostgres pg;
+  ASSERT_EQ(pg.error(), "");
+  auto a = StartReplica(pg);
+  auto b = StartReplica(pg);
+  auto writer = Client::Connect(a->address());
+  auto reader = Client::Connect(b->address());
+  v1::Scene scene;
+  ASSERT_TRUE(writer->CreateScene(testing::UnitScene("moved", 64, 64), &scene).ok());
+  ASSERT_TRUE(Eventually([&] { return reader->GetScene("moved", &scene).ok(); }));
+  testing::HoldRenders hold(*b);
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<Site> sites;
+  v1::UpsertSitesRequest put;
+  put.set_scene_id("moved");
+  for (int i = 0; i < 100; ++i) {
+    sites.push_back({"s" + std::to_string(i), PointSite{{u(rng), u(rng)}}});
+    *put.add_sites() = testing::ToProtoSite(sites.back());
+  }
+  uint64_t v = 0;
+  ASSERT_TRUE(writer->UpsertSites(put, &v).ok());
+  for (int round = 0; round < 20; ++round) {
+    std::vector<Vec2> q;
+    if (round > 0) {
+      Site& moved = sites[rng() % sites.size()];
+      const Vec2 to{u(rng), u(rng)};
+      moved.geometry = PointSite{to};
+      put.clear_sites();
+      *put.add_sites() = testing::ToProtoSite(moved);
+      ASSERT_TRUE(writer->UpsertSites(put, &v).ok());
+      q.push_back(to);
+    }
+    v1::FindNearestRequest find;
+    find.set_scene_id("moved");
+    find.set_min_version(v);
+    while (q.size() < 16) q.push_back({u(rng), u(rng)});
+    for (Vec2 p : q) testing::SetPoint(p, find.add_points());
+    v1::FindNearestResponse r;
+    const grpc::Status st = reader->FindNearest(find, &r);
+    ASSERT_TRUE(st.ok()) << "round " << round << ": " << st.error_message();
+    EXPECT_EQ(r.version(), v);
+    ASSERT_EQ(r.results_size(), int(q.size()));
+    for (size_t i = 0; i < q.size(); ++i) {
+      const oracle::Best best = oracle::BestSite(q[i], sites);
+      EXPECT_EQ(r.results(int(i)).site_id(), sites[best.index].id) << "round " << round;
+      EXPECT_NEAR(r.results(int(i)).distance(), best.value, oracle::Tolerance(q[i], best.value));
+      EXPECT_TRUE(r.results(int(i)).exact());
+    }
+  }
+}
+
 TEST(ReplicaFaults, ThreeReplicasKeepEveryAcknowledgedWrite) {
   TempPostgres pg;
   ASSERT_EQ(pg.error(), "");
