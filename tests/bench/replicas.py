@@ -11,6 +11,8 @@ gvd-servers on it (--store postgresql://...) and one on SQLite (--data), and mea
   - 1,000-site batches per second, the same way;
   - replication lag: a one-site upsert acknowledged by replica A, until replica B's
     WatchScene stream announces a frame of that version (p50 and p99);
+  - read lag: three writers at once, each a one-site upsert acknowledged by one replica,
+    until the other answers a one-point FindNearest at its version (p50 and p99);
   - FindNearest throughput (packed, 1,000 random points a call, raster answers) from 4
     client threads, against one replica and split over two.
 """
@@ -96,6 +98,48 @@ def lag(a, b, pb, scene, writes):
     return out
 
 
+def read_lag(apis, pb, writes, writers=3):
+    """Seconds from one replica's acknowledgement of a one-site write to the other's answer
+    to a one-point FindNearest at its version, `writers` writers at once: writer k writes
+    scene read-k through replica k % 2 and reads it through the other."""
+    out, lock, failed = [], threading.Lock(), []
+
+    def write(k):
+        scene = f"read-{k}"
+        rng = np.random.default_rng(100 + k)
+        mine = []
+        request = pb.UpsertSitesRequest(scene_id=scene)
+        site = request.sites.add()
+        try:
+            for n in range(writes):
+                site.id = str(n % 100)
+                site.point.x, site.point.y = rng.random(2)
+                version = apis[k % 2].UpsertSites(request).version
+                acked = time.perf_counter()
+                answer = apis[1 - k % 2].FindNearest(pb.FindNearestRequest(
+                    scene_id=scene, xy=[site.point.x, site.point.y], min_version=version))
+                mine.append(time.perf_counter() - acked)
+                if answer.version < version or answer.packed.distance[0] > answer.packed.error_bound[0]:
+                    raise SystemExit(f"{scene}: the write of version {version} unseen")
+                time.sleep(0.002)
+        except BaseException as e:  # pylint: disable=broad-except
+            failed.append(e)
+        with lock:
+            out.extend(mine)
+
+    for k in range(writers):
+        create(apis[k % 2], pb, f"read-{k}")
+    time.sleep(0.5)
+    threads = [threading.Thread(target=write, args=(k,)) for k in range(writers)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    if failed:
+        raise failed[0]
+    return out
+
+
 def queries_per_second(apis, pb, scene, calls):
     rng = np.random.default_rng(7)
     xy = rng.random(2000).tolist()
@@ -149,6 +193,9 @@ def main():
         lags = sorted(lag(api["a"], api["b"], pb, "lag", args.lag))
         figures["lag_p50_ms"] = 1000 * statistics.median(lags)
         figures["lag_p99_ms"] = 1000 * lags[min(len(lags) - 1, int(0.99 * len(lags)))]
+        reads = sorted(read_lag([api["a"], api["b"]], pb, args.lag))
+        figures["read_lag_p50_ms"] = 1000 * statistics.median(reads)
+        figures["read_lag_p99_ms"] = 1000 * reads[min(len(reads) - 1, int(0.99 * len(reads)))]
         create(api["a"], pb, "query")
         rng = np.random.default_rng(11)
         load = pb.UpsertSitesRequest(scene_id="query")
