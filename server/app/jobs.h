@@ -121,9 +121,10 @@ struct AnswerRow {
 
 // Answers a query: raster answers from the frame (refined where ambiguous), or exact ones
 // from the scene's latest snapshot, whose render it need not wait for (a replica that has
-// not reached min_version first waits until it has read that version from its store). A raster query whose min_version is committed but not yet rendered gets exact
-// answers too, when it has at most kInlineExactPoints points and the scene is a NEAREST one
-// of plain sites (each answer O(log n) through the index); any other waits for the frame.
+// not reached min_version first waits until it has read that version from its store). A
+// raster query whose min_version is committed but not yet rendered gets exact answers too,
+// when it has at most kInlineExactPoints points and the scene is a NEAREST one of plain
+// sites (each answer O(log n) through the index); any other waits for the frame.
 // NearestJob is a 2D scene's; a 3D scene's frames are volumes.
 template <class S>
 class BasicNearestJob final : public BasicFrameJob<S> {
