@@ -247,6 +247,9 @@ TEST_F(HttpTest, JsonAndGrpcGiveTheSameAnswersAndErrors) {
     EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(*parsed, grpc_answer))
         << method << "\nHTTP: " << parsed->DebugString() << "\ngRPC: " << grpc_answer.DebugString();
   };
+  // Rendered first: the same frame answers both (a read of an unrendered version may come
+  // from the index, exactly; see FindNearestRequest.min_version).
+  ASSERT_TRUE(testing::WaitForRender(*client_, "both", version));
   v1::FindNearestRequest find;
   find.set_scene_id("both");
   find.set_min_version(version);
@@ -526,6 +529,7 @@ TEST_F(HttpTest, ServerStreamsOverHttp) {
   v1::Scene scene;
   ASSERT_TRUE(client_->CreateScene(testing::UnitScene("streamed", 64, 64), &scene).ok());
   const uint64_t v = Upsert("streamed", {{"a", PointSite{{0.2, 0.2}}}, {"b", PointSite{{0.8, 0.7}}}});
+  ASSERT_TRUE(testing::WaitForRender(*client_, "streamed", v));  // one frame answers both
   v1::FindNearestStreamRequest find;
   find.set_scene_id("streamed");
   find.set_min_version(v);
