@@ -2,8 +2,6 @@
 
 #include <google/protobuf/descriptor.h>
 #include <google/protobuf/dynamic_message.h>
-#include <google/protobuf/struct.pb.h>
-#include <google/protobuf/util/json_util.h>
 
 #include <algorithm>
 #include <atomic>
@@ -33,6 +31,7 @@
 #include "absl/strings/str_split.h"
 #include "absl/strings/strip.h"
 #include "gvd/v1/voronoi.pb.h"
+#include "server/http/json.h"
 #include "server/log.h"
 
 namespace gvd {
@@ -74,10 +73,9 @@ ConnectCode ToConnect(absl::StatusCode code) {
   }
 }
 
-// {"code": ..., "message": ...}, the message escaped by protobuf's JSON printer.
-std::string JsonString(const std::string& text);
+// {"code": ..., "message": ...}.
 std::string ErrorJson(const char* code, const std::string& message) {
-  return absl::StrCat("{\"code\":\"", code, "\",\"message\":", JsonString(message), "}");
+  return absl::StrCat("{\"code\":\"", code, "\",\"message\":", JsonQuote(message), "}");
 }
 
 // A 5-byte Connect envelope (flags, big-endian length) and its payload.
@@ -133,13 +131,7 @@ class StreamOf final : public StreamWriter<M> {
  public:
   StreamOf(std::shared_ptr<StreamOut> out, bool json) : out_(std::move(out)), json_(json) {}
   void Write(const M* message, std::function<void(bool)> written) override {
-    std::string payload;
-    if (!json_) {
-      payload = message->SerializeAsString();
-    } else if (!google::protobuf::util::MessageToJsonString(*message, &payload).ok()) {
-      payload = "{}";
-    }
-    out_->Message(std::move(payload), std::move(written));
+    out_->Message(json_ ? ToJson(*message) : message->SerializeAsString(), std::move(written));
   }
   void Finish(const absl::Status& status) override {
     out_->End(status);
@@ -215,15 +207,6 @@ absl::StatusOr<std::string> Gunzip(const std::string& in, size_t limit) {
   inflateEnd(&z);
   if (r != Z_STREAM_END) return absl::InvalidArgumentError("the body is not whole gzip");
   return out;
-}
-
-// A JSON string of `text`, escaped by protobuf's JSON printer.
-std::string JsonString(const std::string& text) {
-  google::protobuf::Value value;
-  value.set_string_value(text);
-  std::string quoted;
-  (void)google::protobuf::util::MessageToJsonString(value, &quoted);
-  return quoted;
 }
 
 // `in` gzip-compressed, fast (zlib's level 1: an answer is compressed on the request's path).
@@ -350,16 +333,12 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
                                        ->GetPrototype(method->input_type())
                                        ->New());
   if (call.json) {
-    google::protobuf::util::JsonParseOptions parse;
-    // A newer client's fields are ignored, as protobuf's JSON mapping and Connect's servers
-    // do, so that it can talk to an older server.
-    parse.ignore_unknown_fields = true;
-    if (auto s = google::protobuf::util::JsonStringToMessage(body.empty() ? "{}" : body,
-                                                               message.get(), parse);
-        !s.ok()) {
+    // A newer client's fields are ignored (see FromJson), as Connect's servers do, so that it
+    // can talk to an older server.
+    if (auto s = FromJson(body.empty() ? "{}" : body, message.get()); !s.ok()) {
       return refuse(absl::StatusCode::kInvalidArgument,
                     absl::StrCat("the body is not a ", method->input_type()->name(), " in JSON: ",
-                                 s.message().ToString()));
+                                 s.message()));
     }
   } else if (!message->ParseFromString(body)) {
     return refuse(absl::StatusCode::kInvalidArgument,
@@ -693,14 +672,8 @@ class Session final : public SessionBase {
                    absl::StrCat("the answer is ", bytes, " bytes, over the limit of ",
                                 server_->options().max_body_bytes, " (--max-message-bytes)"));
     }
-    std::string body;
-    if (!json_) {
-      body = response.SerializeAsString();
-    } else if (!google::protobuf::util::MessageToJsonString(response, &body).ok()) {
-      return Error(absl::StatusCode::kInternal,
-                   "the service's answer could not be written as JSON");
-    }
-    Send(http::status::ok, content_type_, std::move(body));
+    Send(http::status::ok, content_type_,
+         json_ ? ToJson(response) : response.SerializeAsString());
   }
 
   // A server-streaming call: a 200 response with chunked transfer, one envelope per message

@@ -2,8 +2,8 @@
 // as gvd-server's sessions do, then DecodeConnectCall (server/http/http.h) turns the path, the
 // headers and the body into a call. Whatever the input: no crash; a refusal has a code and a
 // message; an accepted call names a method of gvd.v1.VoronoiService and carries a request of that
-// method's input type, and a JSON request, written back as JSON and decoded again, gives the
-// same request bytes.
+// method's input type, and a JSON request, written back as JSON by the transport's codec
+// (server/http/json.h) and decoded again, gives the same request bytes.
 #include <cstdint>
 #include <cstdlib>
 #include <memory>
@@ -12,13 +12,13 @@
 #include <google/protobuf/descriptor.h>
 #include <google/protobuf/dynamic_message.h>
 #include <google/protobuf/stubs/logging.h>
-#include <google/protobuf/util/json_util.h>
 
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 
 #include "gvd/v1/voronoi.pb.h"
 #include "server/http/http.h"
+#include "server/http/json.h"
 
 namespace {
 
@@ -73,8 +73,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   // The request is of the method's input type, as the core takes it.
   Check(call.request != nullptr && call.request->GetDescriptor() == call.method->input_type());
   if (!call.json) return 0;
-  std::string json;
-  Check(google::protobuf::util::MessageToJsonString(*call.request, &json).ok());
+  const std::string json = gvd::ToJson(*call.request);
   std::string body = json;
   if (call.method->server_streaming()) {
     std::string envelope(5, '\0');
