@@ -11,6 +11,9 @@
 #                              then holds its renders (so no render is counted) and serves N
 #                              calls over one connection; run it with N and with 0 and divide
 #                              the difference of the totals by N
+#   http-instructions BIN N [SERVICE]
+#                              the same for a one-point FindNearest over HTTP/JSON (h2load
+#                              --h1, one connection)
 # SERVICE is the gRPC service's full name (gvd.v1.VoronoiService; give the old name to measure
 # a binary from before the rename). Loopback ports 18080 and 18082.
 # Usage: bash tests/bench/transports.sh capacity build/bench/server/gvd-server
@@ -92,22 +95,33 @@ LUA
     echo "== gRPC FindNearest (h2load -n 200000 -c 8 -t 2 -m 1)"
     grpc_load 200000 8 2 FindNearest | grep -E "finished in|requests:|status codes"
     ;;
-  instructions)
-    method=$3 n=$4 service=${5:-gvd.v1.VoronoiService}
+  instructions | http-instructions)
+    if [[ $mode == instructions ]]; then
+      method=$3 n=$4 service=${5:-gvd.v1.VoronoiService}
+    else
+      method=FindNearest n=$3 service=${4:-gvd.v1.VoronoiService}
+    fi
     mkdir -p build/bench
-    out=build/bench/callgrind.$method.$n
+    out=build/bench/callgrind.$mode.$method.$n
     GVD_TEST_HOLD_RENDERS="$dir/hold" start 18082 256 1000 \
       valgrind --tool=callgrind --callgrind-out-file="$out"
     touch "$dir/hold"
-    request "$method"
-    if ((n > 0)); then grpc_load "$n" 1 1 "$method" | grep -E "status codes"; fi
+    if [[ $mode == instructions ]]; then
+      request "$method"
+      if ((n > 0)); then grpc_load "$n" 1 1 "$method" | grep -E "status codes"; fi
+    elif ((n > 0)); then
+      printf '{"sceneId":"bench","points":[{"x":0.37,"y":0.61}]}' >"$dir/req.json"
+      h2load --h1 -n "$n" -c 1 -t 1 -d "$dir/req.json" -H 'content-type: application/json' \
+        "http://127.0.0.1:18082/$service/FindNearest" | grep -E "status codes"
+    fi
     kill -TERM $pid
     wait $pid || true
     pid=
     echo "$method, $n calls: $(grep -h '^summary:' "$out")"
     ;;
   *)
-    echo "usage: $0 capacity BIN [SERVICE] | instructions BIN METHOD N [SERVICE]" >&2
+    echo "usage: $0 capacity BIN [SERVICE] | instructions BIN METHOD N [SERVICE] |" \
+      "http-instructions BIN N [SERVICE]" >&2
     exit 2
     ;;
 esac
