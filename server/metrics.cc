@@ -152,17 +152,36 @@ absl::StatusOr<int> Metrics::Serve(const std::string& address, SceneSampler samp
 
 void Metrics::StopSampling() { scenes_->Set(nullptr); }
 
-void Metrics::RpcStarted(const std::string& method) {
-  rpc_in_flight_->Add({{"method", method}}).Increment();
+Metrics::Rpc::Rpc(Metrics* metrics, const std::string& method)
+    : total_(metrics->rpc_total_),
+      method_(method),
+      in_flight_(&metrics->rpc_in_flight_->Add({{"method", method}})),
+      seconds_(&metrics->rpc_seconds_->Add({{"method", method}}, Seconds())) {}
+
+void Metrics::Rpc::Started() { in_flight_->Increment(); }
+
+void Metrics::Rpc::Ended() { in_flight_->Decrement(); }
+
+void Metrics::Rpc::Observe(absl::StatusCode code, double seconds) {
+  seconds_->Observe(seconds);
+  const size_t c = static_cast<size_t>(code);
+  if (c >= by_code_.size()) {  // not a code absl names today
+    total_->Add({{"method", method_}, {"code", absl::StatusCodeToString(code)}}).Increment();
+    return;
+  }
+  prometheus::Counter* counter = by_code_[c].load(std::memory_order_acquire);
+  if (counter == nullptr) {  // the family gives a racing caller the same counter
+    counter = &total_->Add({{"method", method_}, {"code", absl::StatusCodeToString(code)}});
+    by_code_[c].store(counter, std::memory_order_release);
+  }
+  counter->Increment();
 }
 
-void Metrics::RpcEnded(const std::string& method) {
-  rpc_in_flight_->Add({{"method", method}}).Decrement();
-}
-
-void Metrics::ObserveRpc(const std::string& method, absl::StatusCode code, double seconds) {
-  rpc_seconds_->Add({{"method", method}}, Seconds()).Observe(seconds);
-  rpc_total_->Add({{"method", method}, {"code", absl::StatusCodeToString(code)}}).Increment();
+Metrics::Rpc* Metrics::RpcOf(const std::string& method) {
+  std::lock_guard<std::mutex> lock(rpcs_mu_);
+  std::unique_ptr<Rpc>& rpc = rpcs_[method];
+  if (rpc == nullptr) rpc.reset(new Rpc(this, method));
+  return rpc.get();
 }
 
 void Metrics::ObserveRender(const RenderStats& stats, double render_seconds) {

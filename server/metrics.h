@@ -1,10 +1,15 @@
 // Prometheus metrics (prometheus-cpp), served at /metrics on their own port. Thread-safe.
 #pragma once
 
+#include <array>
+#include <atomic>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
+
+#include "absl/container/flat_hash_map.h"
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -47,10 +52,28 @@ class Metrics {
   // the sampler reads goes.
   void StopSampling();
 
-  // A call of `method` began, or ended (gvd_rpc_in_flight).
-  void RpcStarted(const std::string& method);
-  void RpcEnded(const std::string& method);
-  void ObserveRpc(const std::string& method, absl::StatusCode code, double seconds);
+  // The metrics of one method's calls, made on its first call and kept with the Metrics.
+  // Thread-safe.
+  class Rpc {
+   public:
+    // A call began, or ended (gvd_rpc_in_flight).
+    void Started();
+    void Ended();
+    // A call's status and duration (gvd_rpc_total, gvd_rpc_duration_seconds).
+    void Observe(absl::StatusCode code, double seconds);
+
+   private:
+    friend class Metrics;
+    Rpc(Metrics* metrics, const std::string& method);
+    prometheus::Family<prometheus::Counter>* const total_;
+    const std::string method_;
+    prometheus::Gauge* const in_flight_;
+    prometheus::Histogram* const seconds_;
+    std::array<std::atomic<prometheus::Counter*>, 17> by_code_{};  // absl::StatusCode's
+  };
+  // `method`'s (the label of every call of it): one lookup a call, where each metric's own
+  // lookup by labels would cost thousands of instructions.
+  Rpc* RpcOf(const std::string& method);
   // One render of `render_seconds`, as its stats describe it: for a render that drew meshes,
   // the area they drew over the window's; for a computed one, its mean candidates per pixel.
   void ObserveRender(const RenderStats& stats, double render_seconds);
@@ -70,6 +93,8 @@ class Metrics {
   prometheus::Family<prometheus::Histogram>* fill_ratio_;
   prometheus::Family<prometheus::Histogram>* candidates_per_pixel_;
   prometheus::Histogram* commit_seconds_;
+  std::mutex rpcs_mu_;
+  absl::flat_hash_map<std::string, std::unique_ptr<Rpc>> rpcs_;  // guarded by rpcs_mu_
 };
 
 }  // namespace gvd

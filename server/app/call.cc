@@ -24,22 +24,23 @@ void Call::OnCancel(std::function<void()> hook) {
 }
 
 CallScope::CallScope(CallCounter* counter, const char* method)
-    : counter_(counter), method_(method), start_(std::chrono::steady_clock::now()) {
+    : counter_(counter),
+      rpc_(counter->metrics ? counter->metrics->RpcOf(method) : nullptr),
+      start_(std::chrono::steady_clock::now()) {
   ++counter_->in_flight;
-  if (counter_->metrics) counter_->metrics->RpcStarted(method_);
+  if (rpc_) rpc_->Started();
 }
 
 CallScope::~CallScope() {
   Record(absl::OkStatus());
-  if (counter_->metrics) counter_->metrics->RpcEnded(method_);
+  if (rpc_) rpc_->Ended();
   --counter_->in_flight;
 }
 
 void CallScope::Record(const absl::Status& s) {
-  if (recorded_.exchange(true) || !counter_->metrics) return;
-  counter_->metrics->ObserveRpc(
-      method_, s.code(),
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count());
+  if (recorded_.exchange(true) || !rpc_) return;
+  rpc_->Observe(s.code(),
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count());
 }
 
 }  // namespace gvd

@@ -84,7 +84,7 @@ class CallScope {
 
  private:
   CallCounter* const counter_;
-  const char* method_;
+  Metrics::Rpc* const rpc_;  // null: no metrics
   std::chrono::steady_clock::time_point start_;
   std::atomic<bool> recorded_{false};
 };
