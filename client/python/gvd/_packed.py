@@ -3,8 +3,10 @@
 Protobuf's Python objects hand a repeated field over one Python number at a time (some 60 ns
 each), which for a million answers costs more than the server takes to find them. A packed
 field of doubles is the array's own little-endian bytes, and one of varints decodes in a few
-vectorised NumPy steps, so this reads the message's bytes itself: fields it does not expect
-in the form the server sends (packed) make it fall back to protobuf's parser.
+vectorised NumPy steps, so this reads the numbers from the message's bytes itself: fields it
+does not expect in the form the server sends (packed) make it fall back to protobuf's parser.
+The site ids, one string each, are protobuf's to read (its C++ parser makes the strings 5
+times faster than a loop here).
 """
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Tuple
 
 import numpy as np
+from google.protobuf.message import DecodeError
 
 from gvd.v1 import voronoi_pb2 as pb  # generated when the package is built
 
@@ -94,7 +97,16 @@ def _read_response(buf: memoryview) -> PackedAnswers:
                 out.offset = value
         elif number == 3 and wire == 2:
             n, i = _varint(buf, i)
-            _read_packed(buf[i:i + n], out, parts)
+            if i + n > len(buf):
+                raise _Unexpected()
+            try:
+                packed = pb.PackedNearest.FromString(bytes(buf[i:i + n]))
+            except DecodeError as e:
+                raise _Unexpected() from e
+            out.site_ids.extend(packed.site_ids)
+            # The numbers, rewritten by protobuf without the ids: a few packed records.
+            packed.ClearField("site_ids")
+            _read_packed(memoryview(packed.SerializeToString()), parts)
             i += n
         else:
             i = _skip(buf, i, wire)
@@ -111,7 +123,7 @@ def _read_response(buf: memoryview) -> PackedAnswers:
     return out
 
 
-def _read_packed(buf: memoryview, out: PackedAnswers, parts: Dict[int, List[memoryview]]) -> None:
+def _read_packed(buf: memoryview, parts: Dict[int, List[memoryview]]) -> None:
     i = 0
     while i < len(buf):
         key, i = _varint(buf, i)
@@ -124,12 +136,7 @@ def _read_packed(buf: memoryview, out: PackedAnswers, parts: Dict[int, List[memo
         n, i = _varint(buf, i)
         if i + n > len(buf):
             raise _Unexpected()
-        if number == SITE_IDS:
-            try:
-                out.site_ids.append(bytes(buf[i:i + n]).decode("utf-8"))
-            except UnicodeDecodeError as e:
-                raise _Unexpected() from e
-        elif number in _DOUBLES or number in _VARINTS:
+        if number in _DOUBLES or number in _VARINTS:
             parts.setdefault(number, []).append(buf[i:i + n])
         i += n
     if i != len(buf):
