@@ -325,6 +325,12 @@ class Reader : public rapidjson::BaseReaderHandler<rapidjson::UTF8<>, Reader> {
         int number;
         if (v.quoted) {
           const auto* value = f->enum_type()->FindValueByName(std::string(v.text));
+          int32_t n;
+          if (value == nullptr && !v.text.empty() &&
+              v.text.find_first_of(" \t\n\r") == absl::string_view::npos &&
+              absl::SimpleAtoi(v.text, &n)) {
+            value = f->enum_type()->FindValueByNumber(n);  // a known number, quoted
+          }
           if (value == nullptr) {  // a newer client's value: ignored, as unknown fields are
             return Claim() && Value();
           }
@@ -386,21 +392,25 @@ class Reader : public rapidjson::BaseReaderHandler<rapidjson::UTF8<>, Reader> {
   }
   // A number, or one of the strings "NaN", "Infinity", "-Infinity", or a number in a string;
   // a finite one past T's range is refused, one below its smallest rounds to it or to 0.
+  // A float is the double's rounding, as protobuf reads it. A bare -0 is the integer 0, as
+  // protobuf reads it ("-0.0" and "-0" in a string are negative zero).
   template <class T>
   static bool Real(Scalar v, T* out) {
     if (v.quoted) {
       if (v.text == "NaN") return *out = std::numeric_limits<T>::quiet_NaN(), true;
       if (v.text == "Infinity") return *out = std::numeric_limits<T>::infinity(), true;
       if (v.text == "-Infinity") return *out = -std::numeric_limits<T>::infinity(), true;
+    } else if (v.text == "-0") {
+      return *out = 0, true;
     }
-    return Finite(v.text, out);
+    double d;
+    if (!Finite(v.text, &d)) return false;
+    *out = static_cast<T>(d);
+    return std::isfinite(*out);
   }
   // A finite number written as JSON writes one (no "inf", "nan", hexadecimal or '+').
   static bool Finite(absl::string_view text, double* out) {
     return Plain(text) && absl::SimpleAtod(text, out) && std::isfinite(*out);
-  }
-  static bool Finite(absl::string_view text, float* out) {
-    return Plain(text) && absl::SimpleAtof(text, out) && std::isfinite(*out);
   }
   static bool Plain(absl::string_view text) {
     return !text.empty() && text[0] != '+' &&
@@ -535,10 +545,25 @@ absl::Status FromJson(absl::string_view json, Message* message) {
 }
 
 std::string JsonQuote(absl::string_view text) {
+  // Each byte that is not part of well-formed UTF-8 (a name cut inside a character, say)
+  // becomes U+FFFD, so that the JSON is well-formed too.
+  std::string valid;
+  valid.reserve(text.size());
+  for (size_t i = 0; i < text.size();) {
+    rapidjson::MemoryStream in(text.data() + i, text.size() - i);
+    unsigned code_point;
+    if (rapidjson::UTF8<>::Decode(in, &code_point) && in.Tell() <= text.size() - i) {
+      valid.append(text.data() + i, in.Tell());
+      i += in.Tell();
+    } else {
+      valid += "\xEF\xBF\xBD";
+      ++i;
+    }
+  }
   std::string out;
   StringOut stream{&out};
   Writer w(stream);
-  w.String(text.data(), static_cast<rapidjson::SizeType>(text.size()));
+  w.String(valid.data(), static_cast<rapidjson::SizeType>(valid.size()));
   return out;
 }
 

@@ -26,15 +26,20 @@ namespace gvd {
 // fields in number order under their JSON names, fields at their proto3 default left out,
 // enums by name (by number where the value has no name), 64-bit integers as strings, NaN and
 // the infinities as "NaN", "Infinity" and "-Infinity", bytes in base64. Numbers take the
-// shortest form that reads back to the same value (1 for 1.0).
+// shortest form that reads back to the same value (1 for 1.0; negative zero -0.0, where
+// json_util writes a "-0" that reads back as 0).
 std::string ToJson(const google::protobuf::Message& message);
 
 // Reads `json`, one JSON object, into `message` (cleared first), as json_util's
 // JsonStringToMessage does with ignore_unknown_fields: fields by JSON name or proto name;
 // unknown fields, and enum names the type lacks, ignored; null as the field's default;
-// numbers also as strings, integers also as integral floating point ("1e3"). An error names
-// the field's path in proto names (`sites[0].point.x`) and what is wrong, or the byte where
-// the JSON breaks; `message` is then partly written.
+// numbers also as strings, integers also as integral floating point ("1e3"), enums also by
+// number; a bare -0 as 0 and a float as the double's rounding, as json_util reads them. It
+// refuses what is not JSON or not the mapping (a trailing comma, single quotes, a value where
+// an array belongs, null in an array) and what json_util would drop silently (a field given
+// twice, a second field of a oneof). An error names the field's path in proto names
+// (`sites[0].point.x`) and what is wrong, or the byte where the JSON breaks; `message` is
+// then partly written.
 absl::Status FromJson(absl::string_view json, google::protobuf::Message* message);
 
 // `text` as a quoted JSON string.
