@@ -753,6 +753,10 @@ absl::Status SqliteStore::Commit(const ChangeSet& changes) {
     if (w->changes->durability == Durability::kSync) durability = Durability::kSync;
   }
   absl::Status s = Transaction([&]() -> absl::Status {
+    if (group.size() == 1) {  // its failure is the transaction's: no savepoint to roll back to
+      group[0]->status = Write(*group[0]->changes);
+      return group[0]->status;
+    }
     for (Waiter* w : group) {
       if (auto st = Step("SAVEPOINT change_set"); !st.ok()) return st;
       w->status = Write(*w->changes);
