@@ -143,8 +143,7 @@ class Reader : public rapidjson::BaseReaderHandler<rapidjson::UTF8<>, Reader> {
 
   bool StartObject() {
     if (skipping_ > 0) return ++skipping_, true;
-    if (stack_.empty()) {
-      if (done_) return Fail("", "a second JSON value follows the object");
+    if (stack_.empty()) {  // the root (RapidJSON refuses a second one)
       stack_.push_back({root_});
       return true;
     }
@@ -167,8 +166,9 @@ class Reader : public rapidjson::BaseReaderHandler<rapidjson::UTF8<>, Reader> {
     const absl::string_view key(s, n);
     if (key.empty()) return Fail(Path(), "a member with an empty name");
     const Descriptor* d = o.message->GetDescriptor();
-    const FieldDescriptor* f = d->FindFieldByName(std::string(key));
-    if (f == nullptr) f = d->FindFieldByCamelcaseName(std::string(key));
+    const std::string name(key);
+    const FieldDescriptor* f = d->FindFieldByName(name);
+    if (f == nullptr) f = d->FindFieldByCamelcaseName(name);
     if (f != nullptr && f->json_name() != key && f->name() != key) f = nullptr;
     o.field = f;
     o.in_array = false;
@@ -186,12 +186,7 @@ class Reader : public rapidjson::BaseReaderHandler<rapidjson::UTF8<>, Reader> {
   bool EndObject(rapidjson::SizeType) {
     if (skipping_ > 0) return Unskip();
     stack_.pop_back();
-    if (stack_.empty()) {
-      done_ = true;
-    } else {
-      Close();
-    }
-    return true;
+    return stack_.empty() || Value();  // a message value, counted in its parent
   }
   bool StartArray() {
     if (skipping_ > 0) return ++skipping_, true;
@@ -326,9 +321,7 @@ class Reader : public rapidjson::BaseReaderHandler<rapidjson::UTF8<>, Reader> {
         if (v.quoted) {
           const auto* value = f->enum_type()->FindValueByName(std::string(v.text));
           int32_t n;
-          if (value == nullptr && !v.text.empty() &&
-              v.text.find_first_of(" \t\n\r") == absl::string_view::npos &&
-              absl::SimpleAtoi(v.text, &n)) {
+          if (value == nullptr && Bare(v.text) && absl::SimpleAtoi(v.text, &n)) {
             value = f->enum_type()->FindValueByNumber(n);  // a known number, quoted
           }
           if (value == nullptr) {  // a newer client's value: ignored, as unknown fields are
@@ -370,19 +363,14 @@ class Reader : public rapidjson::BaseReaderHandler<rapidjson::UTF8<>, Reader> {
   // An integer from a number or a string: decimal digits, or an integral number in any
   // JSON form ("1e3", "2.0").
   static bool Integer(Scalar v, int64_t* out) {
-    if (absl::SimpleAtoi(v.text, out) && !v.text.empty() && v.text[0] != '+' &&
-        v.text.find_first_of(" \t\n\r") == absl::string_view::npos) {
-      return true;
-    }
+    if (Bare(v.text) && v.text[0] != '+' && absl::SimpleAtoi(v.text, out)) return true;
     double d;
     if (!Finite(v.text, &d) || d != std::floor(d) || d < -0x1p63 || d >= 0x1p63) return false;
     *out = static_cast<int64_t>(d);
     return true;
   }
   static bool Unsigned(Scalar v, uint64_t* out) {
-    if (!v.text.empty() && v.text[0] != '-' && v.text[0] != '+' &&
-        v.text.find_first_of(" \t\n\r") == absl::string_view::npos &&
-        absl::SimpleAtoi(v.text, out)) {
+    if (Bare(v.text) && v.text[0] != '-' && v.text[0] != '+' && absl::SimpleAtoi(v.text, out)) {
       return true;
     }
     double d;
@@ -412,6 +400,10 @@ class Reader : public rapidjson::BaseReaderHandler<rapidjson::UTF8<>, Reader> {
   static bool Finite(absl::string_view text, double* out) {
     return Plain(text) && absl::SimpleAtod(text, out) && std::isfinite(*out);
   }
+  // Text that absl's parsers read without trimming it: not empty, no whitespace.
+  static bool Bare(absl::string_view text) {
+    return !text.empty() && text.find_first_of(" \t\n\r") == absl::string_view::npos;
+  }
   static bool Plain(absl::string_view text) {
     return !text.empty() && text[0] != '+' &&
            text.find_first_not_of("0123456789.eE+-") == absl::string_view::npos;
@@ -438,8 +430,6 @@ class Reader : public rapidjson::BaseReaderHandler<rapidjson::UTF8<>, Reader> {
     if (o.in_array) ++o.index;
     return true;
   }
-  // After a message value closes: counted in its parent.
-  void Close() { Value(); }
 
   bool Skipped() {
     if (skipping_ == 1) skipping_ = 0;
@@ -491,7 +481,6 @@ class Reader : public rapidjson::BaseReaderHandler<rapidjson::UTF8<>, Reader> {
   Message* const root_;
   std::vector<Open> stack_;
   int skipping_ = 0;  // > 0: inside the value of an unknown field, nested skipping_ - 1 deep
-  bool done_ = false;
   std::string error_;
 };
 
