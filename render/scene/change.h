@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -41,6 +42,11 @@ struct ChangeSet {
   // The incarnation of the scene it was made for (StoredScene::incarnation): the engine
   // refuses it (ABORTED) when the scene's id now names another one. 0: not checked.
   uint64_t incarnation = 0;
+  // The digest of the sites the writer holds at base() (server/store/digest.h): an engine
+  // that keeps digests refuses the change (ABORTED) when its own differs, for then it holds
+  // other sites at that version (it went back in time and was written again). Unset: not
+  // checked.
+  std::optional<uint64_t> base_digest;
   Durability durability = Durability::kSync;
 
   uint64_t base() const { return follows != 0 ? follows : version - 1; }

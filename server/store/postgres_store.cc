@@ -10,6 +10,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "render/scene/codec.h"
+#include "server/store/digest.h"
 
 namespace gvd {
 namespace {
@@ -18,8 +19,8 @@ namespace {
 constexpr Oid kInt8 = 20, kText = 25, kBytea = 17, kByteaArray = 1001;
 
 // The schema's version, kept in gvd_schema: a database written by a newer release is left
-// as it is.
-constexpr int kSchemaVersion = 1;
+// as it is. 2: scenes keep the digest of their sites (server/store/digest.h).
+constexpr int kSchemaVersion = 2;
 constexpr const char* kSchema[] = {
     "SELECT pg_advisory_xact_lock(7262541730)",
     "CREATE TABLE IF NOT EXISTS gvd_schema (version integer NOT NULL)",
@@ -39,16 +40,26 @@ constexpr const char* kSchema[] = {
     "  PRIMARY KEY (scene, id))",
     "CREATE INDEX IF NOT EXISTS gvd_site_version ON gvd_site (scene, version)",
 };
+// What takes a database of version 1 (as kSchema makes it) to version 2: each scene's
+// digest, computed from its rows.
+const std::string kToVersion2[] = {
+    "ALTER TABLE gvd_scene ADD COLUMN digest bigint",
+    absl::StrCat("UPDATE gvd_scene s SET digest = (SELECT coalesce(bit_xor(", kSqlSiteDigest,
+                 "), 0) FROM gvd_site t WHERE t.scene = s.id AND t.site <> ''::bytea)"),
+    "UPDATE gvd_schema SET version = 2",
+};
 
-// One parameter, sent in binary.
+// One parameter, sent in binary (or SQL's NULL).
 struct Param {
   Oid type;
   std::string bytes;
+  bool null = false;
 };
 Param Int8(uint64_t v) {
   const uint64_t be = htobe64(v);
   return {kInt8, std::string(reinterpret_cast<const char*>(&be), 8)};
 }
+Param Int8(std::optional<uint64_t> v) { return v ? Int8(*v) : Param{kInt8, "", true}; }
 Param Text(std::string_view s) { return {kText, std::string(s)}; }
 Param Bytea(std::string_view s) { return {kBytea, std::string(s)}; }
 // A one-dimensional bytea[] in PostgreSQL's binary array form.
@@ -87,6 +98,10 @@ class Result {
     return std::string_view(PQgetvalue(r_, row, col), PQgetlength(r_, row, col));
   }
   bool null(int row, int col) const { return PQgetisnull(r_, row, col); }
+  std::optional<uint64_t> nullable_int8(int row, int col) const {
+    if (null(row, col)) return std::nullopt;
+    return int8(row, col);
+  }
   uint64_t int8(int row, int col) const {
     uint64_t be;
     std::memcpy(&be, PQgetvalue(r_, row, col), 8);
@@ -112,6 +127,10 @@ class PostgresStore::Connection {
     if (broken()) return false;
     if (!PQconsumeInput(c_)) broken_ = true;
     while (PGnotify* n = PQnotifies(c_)) PQfreemem(n);
+    // A server that shut down sends its reason and closes: the reason may be read before the
+    // close is seen.
+    pollfd p{PQsocket(c_), POLLRDHUP, 0};
+    if (poll(&p, 1, 0) > 0 && (p.revents & (POLLRDHUP | POLLHUP | POLLERR))) broken_ = true;
     return !broken();
   }
 
@@ -125,7 +144,7 @@ class PostgresStore::Connection {
     std::vector<int> lengths, formats;
     for (const Param& p : params) {
       types.push_back(p.type);
-      values.push_back(p.bytes.data());
+      values.push_back(p.null ? nullptr : p.bytes.data());
       lengths.push_back(static_cast<int>(p.bytes.size()));
       formats.push_back(1);
     }
@@ -265,7 +284,14 @@ absl::StatusOr<std::unique_ptr<PostgresStore>> PostgresStore::Open(const std::st
       }
       version = lease->Run("SELECT max(version)::int8 FROM gvd_schema", {}, options.deadline,
                            "reading the schema version");
-      return version.status();
+      if (!version.ok() || version->int8(0, 0) >= 2) return version.status();
+      for (const std::string& sql : kToVersion2) {
+        if (auto r = lease->Run(sql.c_str(), {}, options.deadline, "updating the tables");
+            !r.ok()) {
+          return r.status();
+        }
+      }
+      return absl::OkStatus();
     });
     if (!schema.ok()) return schema;
   }
@@ -359,7 +385,7 @@ absl::StatusOr<uint64_t> PostgresStore::CreateScene(const SceneSettings& setting
   auto c = Take();
   if (!c.ok()) return c.status();
   auto r = (*c)->Run(
-      "WITH made AS (INSERT INTO gvd_scene (id, settings, version) VALUES ($1, $2, $3) "
+      "WITH made AS (INSERT INTO gvd_scene (id, settings, version, digest) VALUES ($1, $2, $3, 0) "
       "RETURNING incarnation) SELECT incarnation, pg_notify('gvd_changes', $1) FROM made",
       {Text(settings.id), Bytea(EncodeSettings(settings)), Int8(version)}, options_.deadline,
       absl::StrCat("storing scene \"", settings.id, "\""));
@@ -410,9 +436,11 @@ absl::Status PostgresStore::Commit(const ChangeSet& changes) {
   std::vector<std::string> encoded;
   std::vector<std::string_view> put_ids, put_sites, removed;
   encoded.reserve(changes.put_count());
+  uint64_t put_digest = 0;  // of the sites put; the database takes out those they replace
   std::visit([&](const auto& sites) {
     for (const auto& site : sites) {
       encoded.push_back(EncodeSite(*site));
+      put_digest ^= SiteDigest(encoded.back());
       put_ids.push_back(site->id);
     }
   }, changes.put);
@@ -425,28 +453,35 @@ absl::Status PostgresStore::Commit(const ChangeSet& changes) {
   // follows, and only then are its rows written and the followers told. A relaxed change is
   // committed as a sync one (the database's synchronous_commit): replicas apply a commit as
   // soon as they are told of it, and one the database then lost (a relaxed commit, at a crash
-  // of the database) would leave them ahead of it.
-  auto r = (*c)->Run(
-      "WITH head AS (UPDATE gvd_scene SET version = $2 WHERE id = $1 AND version = $3 "
-      "  AND ($7 = 0 OR incarnation = $7) RETURNING id), "
+  // of the database) would leave them ahead of it. The scene's digest moves by the sites put
+  // and the live rows they replace or remove, as they were before the statement.
+  static const std::string sql = absl::StrCat(
+      "WITH head AS (UPDATE gvd_scene SET version = $2, digest = digest # $8 # "
+      "  (SELECT coalesce(bit_xor(", kSqlSiteDigest, "), 0) FROM gvd_site "
+      "   WHERE scene = $1 AND site <> ''::bytea AND (id = ANY($4::bytea[]) OR id = ANY($6::bytea[]))) "
+      "  WHERE id = $1 AND version = $3 AND ($7 = 0 OR incarnation = $7) "
+      "  AND ($9::int8 IS NULL OR digest = $9) RETURNING id), "
       "put AS (INSERT INTO gvd_site (scene, id, version, site) "
       "  SELECT head.id, p.id, $2, p.site FROM head, unnest($4::bytea[], $5::bytea[]) AS p(id, site) "
       "  ON CONFLICT (scene, id) DO UPDATE SET version = EXCLUDED.version, site = EXCLUDED.site), "
       "gone AS (UPDATE gvd_site SET version = $2, site = ''::bytea "
       "  WHERE scene = (SELECT id FROM head) AND id = ANY($6::bytea[])) "
-      "SELECT pg_notify('gvd_changes', id) FROM head",
+      "SELECT pg_notify('gvd_changes', id) FROM head");
+  auto r = (*c)->Run(
+      sql.c_str(),
       {Text(scene), Int8(changes.version), Int8(changes.base()), ByteaArray(put_ids),
-       ByteaArray(put_sites), ByteaArray(removed), Int8(changes.incarnation)},
+       ByteaArray(put_sites), ByteaArray(removed), Int8(changes.incarnation), Int8(put_digest),
+       Int8(changes.base_digest)},
       options_.deadline, absl::StrCat("committing to scene \"", scene, "\""));
   if (!r.ok()) return r.status();
   if (r->rows() == 0) {
-    auto head = (*c)->Run("SELECT version, incarnation FROM gvd_scene WHERE id = $1",
+    auto head = (*c)->Run("SELECT version, incarnation, digest FROM gvd_scene WHERE id = $1",
                           {Text(scene)}, options_.deadline, "reading a scene's version");
     if (!head.ok()) return head.status();
     if (head->rows() == 0) {
       return absl::NotFoundError(absl::StrCat("store: scene \"", scene, "\" is not stored"));
     }
-    return StaleChange(changes, head->int8(0, 0), head->int8(0, 1));
+    return StaleChange(changes, head->int8(0, 0), head->int8(0, 1), head->nullable_int8(0, 2));
   }
   if (options_.retention.CompactsAt(changes.version)) {
     // Old tombstones and the horizon move together, in one statement.
@@ -464,13 +499,14 @@ absl::Status PostgresStore::Commit(const ChangeSet& changes) {
 absl::StatusOr<std::vector<SceneHead>> PostgresStore::Heads() {
   auto c = Take();
   if (!c.ok()) return c.status();
-  auto r = (*c)->Run("SELECT id, incarnation, version FROM gvd_scene ORDER BY id", {},
+  auto r = (*c)->Run("SELECT id, incarnation, version, digest FROM gvd_scene ORDER BY id", {},
                      options_.deadline, "reading scenes' heads");
   if (!r.ok()) return r.status();
   std::vector<SceneHead> heads;
   heads.reserve(r->rows());
   for (int i = 0; i < r->rows(); ++i) {
-    heads.push_back({std::string(r->bytes(i, 0)), r->int8(i, 1), r->int8(i, 2)});
+    heads.push_back(
+        {std::string(r->bytes(i, 0)), r->int8(i, 1), r->int8(i, 2), r->nullable_int8(i, 3)});
   }
   return heads;
 }
@@ -482,7 +518,7 @@ absl::StatusOr<SceneChanges> PostgresStore::ReadChanges(std::string_view scene_i
   // One statement, one snapshot: the scene's head and the rows written after `after` (all
   // of them when its tombstones from after `after` may be gone).
   auto r = (*c)->Run(
-      "SELECT s.settings, s.incarnation, s.version, s.horizon, t.id, t.site "
+      "SELECT s.settings, s.incarnation, s.version, s.horizon, t.id, t.site, s.digest "
       "FROM gvd_scene s LEFT JOIN gvd_site t ON t.scene = s.id "
       "  AND (t.version > $2 OR s.horizon > $2 OR $2 = 0) "
       "WHERE s.id = $1",
@@ -501,6 +537,7 @@ absl::StatusOr<SceneChanges> PostgresStore::ReadChanges(std::string_view scene_i
   out.settings = std::move(*settings);
   out.incarnation = r->int8(0, 1);
   out.version = r->int8(0, 2);
+  out.digest = r->nullable_int8(0, 6);
   out.complete = after == 0 || after < r->int8(0, 3);
   for (int i = 0; i < r->rows(); ++i) {
     if (r->null(i, 4)) continue;  // no rows joined

@@ -32,16 +32,32 @@ struct Retention {
   uint64_t HorizonAt(uint64_t version) const { return version - versions; }
 };
 
-// The refusal of a change set whose scene is at `stored` (of incarnation `incarnation`), not
-// at the version it follows or of the incarnation it was made for.
-inline absl::Status StaleChange(const ChangeSet& changes, uint64_t stored, uint64_t incarnation) {
+// The refusal of a change set whose scene is at `stored` (of incarnation `incarnation`, its
+// sites of digest `digest` when the engine keeps digests), not at the version it follows, of
+// the incarnation it was made for or with the sites it was made on.
+inline absl::Status StaleChange(const ChangeSet& changes, uint64_t stored, uint64_t incarnation,
+                                std::optional<uint64_t> digest = std::nullopt) {
+  const std::string scene(changes.scene_id);
   if (changes.incarnation != 0 && changes.incarnation != incarnation) {
     return absl::AbortedError(absl::StrCat(
-        "scene \"", std::string(changes.scene_id),
+        "scene \"", scene,
         "\" was deleted and made again by another server since this change was made"));
   }
+  if (stored < changes.base()) {
+    return absl::AbortedError(absl::StrCat(
+        "scene \"", scene, "\" is at version ", stored, " in the store, behind version ",
+        changes.base(), " that this server holds: the store went back in time (restored from "
+        "a copy, or failed over to a standby that had not received the last commits), and "
+        "this server reloads the scene from it"));
+  }
+  if (stored == changes.base() && digest && changes.base_digest && *digest != *changes.base_digest) {
+    return absl::AbortedError(absl::StrCat(
+        "scene \"", scene, "\" holds other sites at version ", stored,
+        " in the store than this server does: the store went back in time and was written "
+        "again since, and this server reloads the scene from it"));
+  }
   return absl::AbortedError(absl::StrCat(
-      "scene \"", std::string(changes.scene_id), "\" is at version ", stored, " in the store, not at ",
+      "scene \"", scene, "\" is at version ", stored, " in the store, not at ",
       changes.base(), ": another server wrote to it first"));
 }
 

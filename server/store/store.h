@@ -10,7 +10,10 @@
 // when the scene has moved on, so writers on several servers get distinct, ordered versions
 // and none overwrites another's change unseen. Tombstones older than a window of versions
 // are dropped (the scene's horizon moves up); a follower from before the horizon reads the
-// scene's whole state instead.
+// scene's whole state instead. An engine shared by replicas also keeps each scene's digest
+// (digest.h), which its heads and log report and a commit may name: a follower compares it
+// with its own, to tell a store that went back in time and was written again from the
+// history it holds.
 //
 // Sites are kept in the scene core's own byte form (render/scene/codec.h), as validated when
 // they were accepted: a reload rebuilds snapshots without converting or checking requests
@@ -20,6 +23,7 @@
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <thread>
@@ -65,6 +69,8 @@ struct SceneHead {
   std::string id;
   uint64_t incarnation = 0;
   uint64_t version = 0;
+  // The digest of its sites (server/store/digest.h); unset in an engine that keeps none.
+  std::optional<uint64_t> digest;
 };
 
 // What a follower at version `after` of a scene missed, read from one consistent state of
@@ -77,6 +83,7 @@ struct SceneChanges {
   SceneSettings settings;
   uint64_t incarnation = 0;
   uint64_t version = 0;
+  std::optional<uint64_t> digest;  // of the sites at `version`, as SceneHead's
   bool complete = false;
   AnySharedSites put;  // of the scene's dimension
   std::vector<std::string> removed;

@@ -7,12 +7,16 @@
 #include <map>
 #include <memory>
 #include <random>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <libpq-fe.h>
+#include <openssl/sha.h>
 
+#include "render/scene/codec.h"
 #include "server/store/postgres_store.h"
 #include "server/store/sqlite_store.h"
 #include "tests/support/postgres.h"
@@ -51,6 +55,7 @@ class Engine {
       EXPECT_NE(url_, "");
     }
   }
+  const std::string& url() const { return url_; }
   std::unique_ptr<SceneStore> Open() {
     if (kind_ == "postgres") {
       PostgresStore::Options o;
@@ -297,6 +302,121 @@ TEST_P(LogStore, RacingWritersGetDistinctOrderedVersions) {
   EXPECT_EQ((*loaded)[0].version, expected - 1);
   ExpectSame(StateOf((*loaded)[0]), want);
   std::printf("%zu acknowledged, %d refused\n", acknowledged.size(), refused.load());
+}
+
+// The digest of a state's sites as digest.h defines it: the first eight bytes, big-endian,
+// of each site's SHA-256 (OpenSSL's one-shot call), XORed.
+uint64_t DigestOf(const State& state) {
+  uint64_t digest = 0;
+  for (const auto& [id, site] : state) {
+    const std::string bytes = EncodeSite(site);
+    unsigned char md[SHA256_DIGEST_LENGTH];
+    SHA256(reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size(), md);
+    uint64_t d = 0;
+    for (int i = 0; i < 8; ++i) d = d << 8 | md[i];
+    digest ^= d;
+  }
+  return digest;
+}
+
+// One value of a query run in the database itself, as text ("" on failure).
+std::string Query(const std::string& url, const std::string& sql) {
+  PGconn* c = PQconnectdb(url.c_str());
+  PGresult* r = PQexec(c, sql.c_str());
+  std::string out;
+  if (PQresultStatus(r) == PGRES_TUPLES_OK && PQntuples(r) == 1) out = PQgetvalue(r, 0, 0);
+  if (PQresultStatus(r) != PGRES_TUPLES_OK && PQresultStatus(r) != PGRES_COMMAND_OK) {
+    ADD_FAILURE() << sql << ": " << PQresultErrorMessage(r);
+  }
+  PQclear(r);
+  PQfinish(c);
+  return out;
+}
+
+// PostgreSQL keeps each scene's digest (server/store/digest.h) through random changes that
+// put, replace and remove sites: the heads and the log say the digest of the rows the scene
+// holds, as the database computes it from them and as the test computes it from its model.
+// A change made on other sites than the scene's is refused whole.
+TEST(PostgresDigest, FollowsTheRowsAndRefusesChangesMadeOnOtherSites) {
+  Engine engine("postgres", Retention());
+  auto store = engine.Open();
+  ASSERT_NE(store, nullptr);
+  ASSERT_TRUE(store->CreateScene(Settings("s"), 1).ok());
+  std::mt19937_64 rng(91);
+  State state;
+  for (uint64_t version = 2; version < 60; ++version) {
+    std::vector<std::shared_ptr<const Site>> put;
+    std::vector<std::string> removed;
+    std::set<std::string> named;
+    for (int i = 0, n = 1 + rng() % 4; i < n; ++i) {
+      const std::string id = "id" + std::to_string(rng() % 10);
+      if (!named.insert(id).second) continue;
+      if (rng() % 3 == 0 && state.count(id)) {
+        removed.push_back(id);
+      } else {
+        put.push_back(std::make_shared<const Site>(RandomSite(rng, static_cast<int>(rng()), id)));
+      }
+    }
+    ChangeSet change{"s", version, put, removed};
+    change.base_digest = DigestOf(state);
+    if (version % 7 == 0) {
+      ChangeSet wrong = change;
+      wrong.base_digest = *change.base_digest ^ 1;
+      absl::Status refused = store->Commit(wrong);
+      EXPECT_EQ(refused.code(), absl::StatusCode::kAborted) << refused;
+      EXPECT_NE(std::string(refused.message()).find("holds other sites"), std::string::npos)
+          << refused;
+    }
+    ASSERT_TRUE(store->Commit(change).ok()) << version;
+    for (const std::string& id : removed) state.erase(id);
+    for (const auto& site : put) state[site->id] = *site;
+    auto heads = store->Heads();
+    ASSERT_TRUE(heads.ok()) << heads.status();
+    ASSERT_TRUE((*heads)[0].digest.has_value());
+    EXPECT_EQ(*(*heads)[0].digest, DigestOf(state)) << version;
+    auto log = store->ReadChanges("s", version - 1);
+    ASSERT_TRUE(log.ok()) << log.status();
+    EXPECT_EQ(log->digest, DigestOf(state)) << version;
+  }
+  // And as PostgreSQL computes it from the rows the scene holds now.
+  const std::string url = engine.url();
+  EXPECT_EQ(Query(url, "SELECT digest::text FROM gvd_scene WHERE id = 's'"),
+            Query(url, "SELECT coalesce(bit_xor(('x' || left(encode(sha256(site), 'hex'), 16))"
+                       "::bit(64)::int8), 0)::text FROM gvd_site WHERE scene = 's' "
+                       "AND site <> ''::bytea"));
+}
+
+// A database of schema version 1 (no digests) gains each scene's digest when a store of
+// this release opens it.
+TEST(PostgresDigest, AVersion1DatabaseGainsItsScenesDigests) {
+  Engine engine("postgres", Retention());
+  State state;
+  {
+    auto store = engine.Open();
+    ASSERT_NE(store, nullptr);
+    ASSERT_TRUE(store->CreateScene(Settings("s"), 1).ok());
+    std::mt19937_64 rng(5);
+    std::vector<std::shared_ptr<const Site>> put;
+    for (int i = 0; i < 30; ++i) {
+      put.push_back(std::make_shared<const Site>(
+          RandomSite(rng, static_cast<int>(rng()), "id" + std::to_string(i))));
+      state[put.back()->id] = *put.back();
+    }
+    ASSERT_TRUE(store->Commit({"s", 2, put, {}}).ok());
+    std::vector<std::string> removed = {"id3", "id7"};
+    ASSERT_TRUE(store->Commit({"s", 3, {}, removed}).ok());
+    state.erase("id3");
+    state.erase("id7");
+  }
+  Query(engine.url(), "ALTER TABLE gvd_scene DROP COLUMN digest");
+  Query(engine.url(), "UPDATE gvd_schema SET version = 1");
+  auto store = engine.Open();
+  ASSERT_NE(store, nullptr);
+  auto heads = store->Heads();
+  ASSERT_TRUE(heads.ok()) << heads.status();
+  ASSERT_EQ(heads->size(), 1u);
+  EXPECT_EQ((*heads)[0].digest, DigestOf(state));
+  EXPECT_EQ(Query(engine.url(), "SELECT max(version)::text FROM gvd_schema"), "2");
 }
 
 INSTANTIATE_TEST_SUITE_P(Engines, LogStore, ::testing::Values("sqlite", "sqlite_packs", "postgres"),
