@@ -131,9 +131,24 @@ Metrics::Metrics()
                          .Help("Store transactions, BEGIN to durable COMMIT.")
                          .Register(*registry_)
                          .Add({}, Seconds());
+  reloads_ = &prometheus::BuildCounter()
+                  .Name("gvd_store_reloads_total")
+                  .Help("Scenes read again from a shared store that went back in time (a "
+                        "restore, a failover that lost commits), by scene.")
+                  .Register(*registry_);
+  versions_lost_ = &prometheus::BuildCounter()
+                        .Name("gvd_store_versions_lost_total")
+                        .Help("Versions a replica held beyond the head of a store that went "
+                              "back in time, by scene (0 for a store written past them again).")
+                        .Register(*registry_);
 }
 
 Metrics::~Metrics() = default;
+
+void Metrics::ObserveReload(const std::string& scene, uint64_t versions_lost) {
+  reloads_->Add({{"scene", scene}}).Increment();
+  versions_lost_->Add({{"scene", scene}}).Increment(static_cast<double>(versions_lost));
+}
 
 void Metrics::SetMemoryLimit(uint64_t bytes) { scenes_->SetMemoryLimit(static_cast<double>(bytes)); }
 

@@ -78,6 +78,9 @@ class Metrics {
   // the area they drew over the window's; for a computed one, its mean candidates per pixel.
   void ObserveRender(const RenderStats& stats, double render_seconds);
   void ObserveCommit(double seconds);
+  // A replica read `scene` again from a store that went back in time, `versions_lost` below
+  // the version it held (0 when the store was written past it again).
+  void ObserveReload(const std::string& scene, uint64_t versions_lost);
 
  private:
   class SceneCollector;
@@ -93,6 +96,8 @@ class Metrics {
   prometheus::Family<prometheus::Histogram>* fill_ratio_;
   prometheus::Family<prometheus::Histogram>* candidates_per_pixel_;
   prometheus::Histogram* commit_seconds_;
+  prometheus::Family<prometheus::Counter>* reloads_;
+  prometheus::Family<prometheus::Counter>* versions_lost_;
   std::mutex rpcs_mu_;
   absl::flat_hash_map<std::string, std::unique_ptr<Rpc>> rpcs_;  // guarded by rpcs_mu_
 };

@@ -367,6 +367,9 @@ int WatchCommand(const Args& a, Client& client) {
       std::cout << line << std::endl;
     } else if (e.deleted()) {
       std::cout << "scene " << e.scene_id() << " deleted" << std::endl;
+    } else if (e.reloaded()) {
+      std::cout << "scene " << e.scene_id()
+                << " reloaded: the store went back in time; watch it again" << std::endl;
     } else {
       std::cout << "version " << e.version() << ": ";
       if (e.has_changed()) {

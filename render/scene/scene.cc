@@ -128,16 +128,21 @@ uint64_t BasicScene<K>::Install(Builder& builder, std::shared_ptr<const Snapshot
 
 template <class K>
 absl::Status BasicScene<K>::Gone() const {
+  if (reloaded_) {
+    return absl::AbortedError(absl::StrCat("scene \"", id(), "\" was reloaded from the store"));
+  }
   return absl::NotFoundError(absl::StrCat("scene \"", id(), "\" was deleted"));
 }
 
 template <class K>
-absl::Status BasicScene<K>::Retire(const std::function<absl::Status()>& persist) {
+absl::Status BasicScene<K>::Retire(const std::function<absl::Status()>& persist,
+                                   bool reloaded) {
   std::lock_guard<std::mutex> lock(writer_mu_);
   if (deleted_) return Gone();
   if (persist) {
     if (auto s = persist(); !s.ok()) return s;
   }
+  reloaded_ = reloaded;
   deleted_ = true;
   Notify(nullptr, /*last=*/true);
   return absl::OkStatus();

@@ -263,9 +263,13 @@ class BasicScene {
 
   // Deletes the scene: under the writer lock, runs `persist` (the store's delete) and, if it
   // succeeds, marks the scene deleted, after which every write is refused (NOT_FOUND), and
-  // tells the listeners. NOT_FOUND when it was deleted already.
-  absl::Status Retire(const std::function<absl::Status()>& persist = nullptr);
+  // tells the listeners. NOT_FOUND when it was deleted already. `reloaded`: the scene is not
+  // gone but replaced by another object of its id, read again from a store that went back in
+  // time (listeners are told alike; reloaded() says which).
+  absl::Status Retire(const std::function<absl::Status()>& persist = nullptr,
+                      bool reloaded = false);
   bool deleted() const { return deleted_; }
+  bool reloaded() const { return reloaded_; }
 
  private:
   struct Waiter {
@@ -283,11 +287,12 @@ class BasicScene {
   // Publishes the builder's snapshot at `version` (built already when `next` is given) and
   // takes back the slots it freed: where every write ends. Under the writer lock.
   uint64_t Install(Builder& builder, std::shared_ptr<const Snapshot> next, uint64_t version);
-  absl::Status Gone() const;  // NOT_FOUND: the scene was deleted
+  absl::Status Gone() const;  // NOT_FOUND: the scene was deleted (ABORTED: reloaded)
 
   const SceneSettings settings_;
   const Executor executor_;
   std::atomic<bool> deleted_{false};
+  std::atomic<bool> reloaded_{false};  // set before deleted_
   SharedCell<const Snapshot> snapshot_;
   SharedCell<const Frame> frame_;
   std::atomic<int64_t> published_ns_{0};  // steady_clock

@@ -10,6 +10,7 @@
 #include "absl/strings/str_cat.h"
 #include "render/scene/slot_table.h"
 #include "server/log.h"
+#include "server/store/digest.h"
 
 namespace gvd {
 namespace {
@@ -29,6 +30,21 @@ std::string SizeOf(const SceneSettings& s) {
     return absl::StrCat(s.grid.width, "x", s.grid.height, "x", s.depth, " voxels");
   }
   return absl::StrCat(s.grid.width, "x", s.grid.height, " pixels");
+}
+
+// `digest`, of `snapshot`'s sites, moved by a change to them: the sites put and those they
+// replace, the ids removed.
+template <class Snapshot, class SiteT>
+uint64_t Moved(uint64_t digest, const Snapshot& snapshot, SitesPut<SiteT> put,
+               std::span<const std::string> removed) {
+  for (const auto& site : put) {
+    if (auto slot = snapshot.Find(site->id)) digest ^= SiteDigest(*snapshot.sites().ptr(*slot));
+    digest ^= SiteDigest(*site);
+  }
+  for (const std::string& id : removed) {
+    if (auto slot = snapshot.Find(id)) digest ^= SiteDigest(*snapshot.sites().ptr(*slot));
+  }
+  return digest;
 }
 
 }  // namespace
@@ -78,6 +94,33 @@ void SceneRegistry::Published(const SceneHandle& scene) {
       if (renderers_.space && !s->deleted()) renderers_.space->MarkDirty(s);
     }
   });
+}
+
+template <class S>
+uint64_t SceneRegistry::DigestOf(const std::shared_ptr<S>& scene,
+                                 const typename S::Snapshot& snapshot) {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (auto d = digests_.find(scene->id()); d != digests_.end() &&
+                                             d->second.scene.lock() == scene &&
+                                             d->second.version == snapshot.version()) {
+      return d->second.digest;
+    }
+  }
+  uint64_t digest = 0;
+  snapshot.ids().ForEachAfter("", [&](const IdMap::Entry& e) {
+    digest ^= SiteDigest(*snapshot.sites().ptr(e.slot));
+    return true;
+  });
+  NoteDigest(scene, snapshot.version(), digest);
+  return digest;
+}
+
+template <class S>
+void SceneRegistry::NoteDigest(const std::shared_ptr<S>& scene, uint64_t version,
+                               uint64_t digest) {
+  std::lock_guard<std::mutex> lock(mu_);
+  digests_[scene->id()] = {scene, version, digest};
 }
 
 uint64_t SceneRegistry::ScenesMemory() const {
@@ -145,7 +188,7 @@ SceneHandle Restored(StoredScene& s, Executor executor) {
 
 }  // namespace
 
-bool SceneRegistry::Adopt(StoredScene s) {
+bool SceneRegistry::Adopt(StoredScene s, const SceneHandle* replacing) {
   const size_t count = s.site_count();
   const uint64_t bytes = ForDimension(s.settings, [&](auto type) {
     return LoadedBytes<typename decltype(type)::type>(s);
@@ -158,6 +201,12 @@ bool SceneRegistry::Adopt(StoredScene s) {
         {{"scene", s.settings.id}, {"reason", std::string(fits.message())}});
     std::string id = s.settings.id;
     std::lock_guard<std::mutex> lock(mu_);
+    if (replacing) {
+      auto held = scenes_.find(id);
+      if (held == scenes_.end() || !(held->second == *replacing)) return false;
+      scenes_.erase(held);
+      digests_.erase(id);
+    }
     if (scenes_.count(id) || creating_.count(id)) return false;
     incarnations_[id] = s.incarnation;
     unloaded_[id] = {std::move(s.settings), s.version, count, bytes, std::string(fits.message())};
@@ -171,9 +220,17 @@ bool SceneRegistry::Adopt(StoredScene s) {
   });
   {
     std::lock_guard<std::mutex> lock(mu_);
-    // A scene made here meanwhile (a replica's create that won) is the one kept.
-    if (scenes_.count(scene.id()) || creating_.count(scene.id())) return true;
-    scenes_.emplace(scene.id(), scene);
+    if (replacing) {
+      auto held = scenes_.find(scene.id());
+      if (held == scenes_.end() || !(held->second == *replacing)) return false;
+      held->second = scene;
+      digests_.erase(scene.id());
+      heads_[scene.id()] = {incarnation, scene.version()};
+    } else {
+      // A scene made here meanwhile (a replica's create that won) is the one kept.
+      if (scenes_.count(scene.id()) || creating_.count(scene.id())) return true;
+      scenes_.emplace(scene.id(), scene);
+    }
     incarnations_[scene.id()] = incarnation;
   }
   Published(scene);
@@ -312,13 +369,27 @@ absl::StatusOr<uint64_t> SceneRegistry::Retrying(const std::string& scene_id,
         incarnation = it->second;
       }
     }
-    // The commit names the incarnation the scene had here: a scene made again elsewhere
-    // under the same id refuses it.
+    // The commit names the incarnation the scene had here (a scene made again elsewhere
+    // under the same id refuses it) and, with a shared store, the digest of the sites it was
+    // made on (a store that went back in time and was written again refuses it).
     auto commit = [&](const ChangeSet& c) {
       ChangeSet named = c;
       named.incarnation = incarnation;
       named.durability = durability;
-      return Durably([&] { return store_->Commit(named); });
+      std::optional<uint64_t> after;
+      if (store_->shared()) {
+        scene->Visit([&](const auto& s) {
+          using SiteT = typename std::decay_t<decltype(*s)>::Site;
+          auto base = s->snapshot();  // the writer's lock is held: the change follows it
+          named.base_digest = DigestOf(s, *base);
+          after = Moved(*named.base_digest, *base, c.template Put<SiteT>(), c.removed);
+        });
+      }
+      absl::Status stored = Durably([&] { return store_->Commit(named); });
+      if (stored.ok() && after) {
+        scene->Visit([&](const auto& s) { NoteDigest(s, c.version, *after); });
+      }
+      return stored;
     };
     auto version = write(*scene, commit);
     if (version.ok()) {
@@ -470,7 +541,10 @@ absl::Status SceneRegistry::Follow(const std::string& id, const SceneHead* head)
     if (auto it = incarnations_.find(id); it != incarnations_.end()) incarnation = it->second;
   }
   const uint64_t local = scene ? scene->version() : 0;
-  if (scene && head && head->incarnation == incarnation && head->version <= local) {
+  // Nothing new. A head behind the version held is read again below, in one read with its
+  // log: a commit of this server's since the heads were read is not a store gone back.
+  if (scene && head && head->incarnation == incarnation && head->version == local &&
+      Agrees(*scene, local, head->digest)) {
     return absl::OkStatus();
   }
   auto changes = store_->ReadChanges(id, local);
@@ -486,6 +560,12 @@ absl::Status SceneRegistry::Follow(const std::string& id, const SceneHead* head)
     if (changes.status().code() == absl::StatusCode::kNotFound) return absl::OkStatus();
     if (!changes.ok()) return changes.status();
   } else if (scene) {
+    // The store went back in time: it lost versions held here, or holds other sites at the
+    // version held here (it went back and was written again).
+    if (changes->version < local ||
+        (changes->version == local && !Agrees(*scene, local, changes->digest))) {
+      return Reload(*scene, incarnation, local);
+    }
     return Advance(*scene, *changes, local);
   }
   StoredScene stored{std::move(changes->settings), changes->version, changes->incarnation};
@@ -526,9 +606,19 @@ absl::Status SceneRegistry::Advance(const SceneHandle& scene, const SceneChanges
     }
     ChangeSet net = changes.View(after);
     net.removed = removed;
+    // The change must bring the sites held at `after` to those the store has at its version:
+    // else the store's history is not the one held here (it went back in time and was
+    // written again past `after`). A whole state replaces what is held anyway.
+    std::optional<uint64_t> digest;
+    if (!changes.complete && changes.digest) {
+      digest = Moved(DigestOf(s, *snapshot), *snapshot, net.template Put<SiteT>(),
+                     net.removed);
+      if (*digest != *changes.digest) return Reload(scene, changes.incarnation, after);
+    }
     auto applied = ApplyTo(s, net);
     if (!applied.ok() && applied.status().code() != absl::StatusCode::kFailedPrecondition &&
-        applied.status().code() != absl::StatusCode::kNotFound) {
+        applied.status().code() != absl::StatusCode::kNotFound &&
+        applied.status().code() != absl::StatusCode::kAborted) {
       return applied.status();
     }
     if (applied.ok()) {
@@ -540,7 +630,58 @@ absl::Status SceneRegistry::Advance(const SceneHandle& scene, const SceneChanges
         head->second.second = std::max(head->second.second, changes.version);
       }
     }
+    if (applied.ok() && digest) NoteDigest(s, changes.version, *digest);
     return absl::OkStatus();
+  });
+}
+
+absl::Status SceneRegistry::Reload(const SceneHandle& held, uint64_t incarnation,
+                                   uint64_t version) {
+  const std::string& id = held.id();
+  auto whole = store_->ReadChanges(id, 0);
+  if (whole.status().code() == absl::StatusCode::kNotFound) {
+    Forget(id, incarnation);
+    return absl::OkStatus();
+  }
+  if (!whole.ok()) return whole.status();
+  const uint64_t stored = whole->version;
+  StoredScene scene{std::move(whole->settings), whole->version, whole->incarnation};
+  std::visit(
+      [&](const auto& put) {
+        using SiteT =
+            std::remove_const_t<typename std::decay_t<decltype(put)>::value_type::element_type>;
+        std::vector<SiteT> sites;
+        sites.reserve(put.size());
+        for (const auto& site : put) sites.push_back(*site);
+        scene.sites = std::move(sites);
+      },
+      whole->put);
+  const size_t sites = scene.site_count();
+  Adopt(std::move(scene), &held);
+  // Readers waiting on the scene held here wait for versions of a history the store lost.
+  if (held.Visit([](const auto& s) { return s->Retire(nullptr, /*reloaded=*/true).ok(); })) {
+    held.FailWaiters(absl::AbortedError(absl::StrCat(
+        "scene \"", id, "\" was read again from the store, which went back in time (from version ",
+        version, " held here to ", stored, "): the version awaited may now name another "
+        "change; read again")));
+    Published(held);  // lets the render thread release the scene's target
+  }
+  const uint64_t lost = version > stored ? version - stored : 0;
+  Log(LogLevel::kWarn, "scene_reloaded",
+      {{"scene", id}, {"store", store_->Describe()}, {"held_version", absl::StrCat(version)},
+       {"store_version", absl::StrCat(stored)}, {"versions_lost", absl::StrCat(lost)},
+       {"sites", absl::StrCat(sites)}});
+  if (metrics_) metrics_->ObserveReload(id, lost);
+  return absl::OkStatus();
+}
+
+bool SceneRegistry::Agrees(const SceneHandle& scene, uint64_t version,
+                           std::optional<uint64_t> digest) {
+  if (!digest) return true;
+  return scene.Visit([&](const auto& s) {
+    auto snapshot = s->snapshot();
+    // A scene that moved on meanwhile is judged by the next catch-up.
+    return snapshot->version() != version || DigestOf(s, *snapshot) == *digest;
   });
 }
 
@@ -557,6 +698,7 @@ void SceneRegistry::Forget(const std::string& id, uint64_t incarnation) {
     }
     unloaded_.erase(id);
     incarnations_.erase(id);
+    digests_.erase(id);
   }
   if (scene && scene->Visit([](const auto& s) { return s->Retire().ok(); })) {
     scene->FailWaiters(absl::NotFoundError(absl::StrCat("scene \"", id, "\" was deleted")));

@@ -190,8 +190,9 @@ class SceneRegistry {
   // Apply's steps on a scene of S's dimension.
   template <class S>
   absl::StatusOr<uint64_t> ApplyTo(const std::shared_ptr<S>& scene, const ChangeSet& committed);
-  // Holds a stored scene if it fits --max-memory (true), else lists it unloaded.
-  bool Adopt(StoredScene stored);
+  // Holds a stored scene if it fits --max-memory (true), else lists it unloaded; in place of
+  // `replacing`, when given (and still held: else the stored scene is dropped).
+  bool Adopt(StoredScene stored, const SceneHandle* replacing = nullptr);
   // The bytes the loaded scenes hold (the budget's own figure). Takes mu_.
   uint64_t ScenesMemory() const;
   // Runs a write (`write(scene, commit)`, commit being the Persist that names the scene's
@@ -204,6 +205,19 @@ class SceneRegistry {
   // `head` is the scene's head as just read, or null to read the store for it.
   absl::Status Follow(const std::string& id, const SceneHead* head);
   absl::Status Advance(const SceneHandle& scene, const SceneChanges& changes, uint64_t after);
+  // Reads the scene again from the store in place of `held` (of `incarnation`, at version
+  // `version`), which the store no longer has: it went back in time.
+  absl::Status Reload(const SceneHandle& held, uint64_t incarnation, uint64_t version);
+  // The digest of the sites of `scene`'s `snapshot` (server/store/digest.h), from digests_
+  // when it has the snapshot's. With a shared store only.
+  template <class S>
+  uint64_t DigestOf(const std::shared_ptr<S>& scene, const typename S::Snapshot& snapshot);
+  // Notes `digest` as the digest of `scene`'s sites at `version`.
+  template <class S>
+  void NoteDigest(const std::shared_ptr<S>& scene, uint64_t version, uint64_t digest);
+  // Whether the scene's sites have `digest` (unset: not known, taken as yes), when it is still
+  // at `version`.
+  bool Agrees(const SceneHandle& scene, uint64_t version, std::optional<uint64_t> digest);
   // Drops a scene deleted in the store by another server: the one of `incarnation`, if it
   // is still the one held under the id.
   void Forget(const std::string& id, uint64_t incarnation);
@@ -236,6 +250,13 @@ class SceneRegistry {
   std::map<std::string, uint64_t> incarnations_;
   std::map<std::string, std::pair<uint64_t, uint64_t>> heads_;  // incarnation, version
   std::chrono::steady_clock::time_point heads_read_;
+  // The digests of held scenes' sites at a version, as last counted or moved by a change.
+  struct Digest {
+    std::weak_ptr<const void> scene;  // the scene object whose sites these are
+    uint64_t version = 0;
+    uint64_t digest = 0;
+  };
+  std::map<std::string, Digest> digests_;
   bool caught_up_ = true;
 
   // Serializes catch-ups (the follower's and writers').

@@ -148,7 +148,11 @@ class WatchStream final : public WatchStreamBase,
         }
       } else if (deleted_ && !deletion_sent_) {
         event_.set_version(std::max(pending_.sent(), scene_->version()));
-        event_.set_deleted(true);
+        if (scene_->reloaded()) {
+          event_.set_reloaded(true);
+        } else {
+          event_.set_deleted(true);
+        }
         deletion_sent_ = true;
       } else {
         return;

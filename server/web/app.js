@@ -392,6 +392,12 @@ async function watch(sceneId) {
           loadScenes();
           return;
         }
+        if (event.reloaded) {
+          // The store went back in time: versions from here on are a new history. The stream
+          // ends; the next one starts from the latest frame.
+          state.frameVersion = 0;
+          return;
+        }
         const version = Number(event.version ?? 0);
         if (state.scene) state.scene.siteCount = event.siteCount ?? '0';
         if (version > state.frameVersion) refresh(version);

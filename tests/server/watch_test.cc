@@ -335,5 +335,57 @@ TEST(WatchReplicas, AWatchOnOneReplicaFollowsWritesThroughAnother) {
   EXPECT_TRUE(events.back().deleted());
 }
 
+// The store a server follows goes back in time (its data directory restored from a copy
+// taken five versions earlier): a watch ends OK with an event that says the scene was
+// reloaded, and the server then lists exactly what the store holds and takes writes after it.
+TEST(WatchReplicas, AStoreGoneBackInTimeEndsTheWatchWithAReload) {
+  testing::TempPostgres pg;
+  ASSERT_EQ(pg.error(), "");
+  testing::ServerProcess server(GVD_SERVER_PATH, {"--store", pg.url(), "--render-threads", "1"});
+  ASSERT_EQ(server.error(), "");
+  auto client = Client::Connect(server.address());
+  v1::Scene scene;
+  ASSERT_TRUE(client->CreateScene(testing::UnitScene("s", 32, 32), &scene).ok());
+  std::map<std::string, double> x_of;  // the oracle: each site's x, as written
+  auto put = [&](int k) {
+    v1::UpsertSitesRequest r;
+    r.set_scene_id("s");
+    const double x = (k % 16 + 0.5) / 16;
+    *r.add_sites() = testing::ToProtoSite({"p" + std::to_string(k % 8), PointSite{{x, 0.5}}});
+    uint64_t version = 0;
+    grpc::Status status = client->UpsertSites(r, &version);
+    EXPECT_TRUE(status.ok()) << status.error_message();
+    x_of["p" + std::to_string(k % 8)] = x;
+    return version;
+  };
+  for (int k = 0; k < 5; ++k) put(k);
+  const std::map<std::string, double> saved = x_of;
+  pg.Stop();
+  ASSERT_TRUE(pg.SaveData("backup"));
+  ASSERT_TRUE(pg.Start());
+  uint64_t last = 0;
+  for (int k = 5; k < 10; ++k) last = put(k);
+  ASSERT_EQ(last, 11u);
+  Watcher watcher(server.address(), "s");
+  ASSERT_TRUE(watcher.WaitFor(last));
+  pg.Stop();
+  ASSERT_TRUE(pg.RestoreData("backup"));
+  ASSERT_TRUE(pg.Start());
+  EXPECT_TRUE(watcher.WaitEnd().ok());
+  const auto events = watcher.events();
+  ASSERT_FALSE(events.empty());
+  EXPECT_TRUE(events.back().reloaded());
+  EXPECT_FALSE(events.back().deleted());
+  ASSERT_TRUE(client->GetScene("s", &scene).ok());
+  EXPECT_EQ(scene.version(), 6u);
+  std::vector<v1::Site> listed;
+  ASSERT_TRUE(client->ListAllSites("s", &listed).ok());
+  std::map<std::string, double> held;
+  for (const v1::Site& site : listed) held[site.id()] = site.point().x();
+  EXPECT_EQ(held, saved);
+  x_of = saved;
+  EXPECT_EQ(put(11), 7u);
+}
+
 }  // namespace
 }  // namespace gvd

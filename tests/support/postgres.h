@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <fstream>
 #include <glob.h>
+#include <iterator>
 #include <string>
 #include <thread>
 #include <utility>
@@ -58,6 +59,35 @@ class TempPostgres {
       error_ = "createdb failed";
     }
   }
+  // A streaming standby of `primary`, copied from it by pg_basebackup and started on a port of
+  // its own; with `synchronous`, the primary then waits for it to flush each commit before
+  // the commit returns (synchronous_standby_names). error() says when it does not stream.
+  TempPostgres(const TempPostgres& primary, bool synchronous) : options_(primary.options_) {
+    char dir[] = "/tmp/gvd-pg-XXXXXX";
+    dir_ = mkdtemp(dir);
+    bin_ = primary.bin_;
+    as_ = primary.as_;
+    port_ = FreePort();
+    if (getuid() == 0) Sh(absl::StrCat("chown postgres '", dir_, "'"));
+    if (Sh(absl::StrCat(as_, bin_, "/pg_basebackup -h '", primary.dir_, "' -p ", primary.port_,
+                        " -U gvd -D '", dir_, "/data' -R -X stream -c fast --no-sync >'", dir_,
+                        "/basebackup.log' 2>&1")) != 0) {
+      error_ = absl::StrCat("pg_basebackup failed: see ", dir_, "/basebackup.log");
+      return;
+    }
+    if (!Start()) return;
+    if (synchronous) {
+      primary.Sql("ALTER SYSTEM SET synchronous_standby_names = '*'");
+      primary.Sql("SELECT pg_reload_conf()");
+    }
+    const std::string streaming = absl::StrCat(
+        "SELECT count(*) FROM pg_stat_replication WHERE state = 'streaming'",
+        synchronous ? " AND sync_state = 'sync'" : "");
+    for (int i = 0; i < 300 && primary.Sql(streaming) != "1"; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    if (primary.Sql(streaming) != "1") error_ = "the standby does not stream from its primary";
+  }
   ~TempPostgres() {
     Stop();
     Sh(absl::StrCat("rm -rf '", dir_, "'"));
@@ -96,6 +126,32 @@ class TempPostgres {
       return false;
     }
     return true;
+  }
+  // The socket directory (a host in a libpq URL).
+  const std::string& dir() const { return dir_; }
+  // Runs one statement in database "gvd" with psql; what it prints, without the newline.
+  std::string Sql(const std::string& statement) const {
+    const std::string out = absl::StrCat(dir_, "/sql.out");
+    Sh(absl::StrCat(bin_, "/psql -h '", dir_, "' -p ", port_, " -U gvd -d gvd -XAtqc \"",
+                    statement, "\" >'", out, "' 2>&1"));
+    std::ifstream in(out);
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    while (!text.empty() && text.back() == '\n') text.pop_back();
+    return text;
+  }
+  // Promotes a standby to a primary, waiting until it takes writes.
+  bool Promote() const {
+    return Sh(absl::StrCat(as_, bin_, "/pg_ctl -D '", dir_, "/data' -w promote >/dev/null 2>&1")) ==
+           0;
+  }
+  // Copies its data directory aside as `name`, or puts that copy back in its place: a
+  // backup taken and restored, the database going back in time. CONTRACT: stopped.
+  bool SaveData(const std::string& name) const {
+    return Sh(absl::StrCat("cp -a '", dir_, "/data' '", dir_, "/", name, "'")) == 0;
+  }
+  bool RestoreData(const std::string& name) const {
+    return Sh(absl::StrCat("rm -rf '", dir_, "/data' && cp -a '", dir_, "/", name, "' '", dir_,
+                           "/data'")) == 0;
   }
   // Stops it: "fast" (clients disconnected, a clean shutdown) or "immediate" (a crash).
   void Stop(const char* mode = "fast") {

@@ -121,8 +121,9 @@ class Client:
 
     def watch(self, scene_id: str, *, after_version: int = 0,
               timeout: Optional[float] = None) -> Iterator[pb.WatchSceneResponse]:
-        """The scene's events, one per published frame, until the scene is deleted (its last
-        event says deleted) or the iterator is closed. No deadline unless `timeout`."""
+        """The scene's events, one per published frame, until the scene is deleted or reloaded
+        from a store that went back in time (its last event says `deleted` or `reloaded`) or
+        the iterator is closed. No deadline unless `timeout`."""
         request = pb.WatchSceneRequest(scene_id=scene_id, after_version=after_version)
         return self._transport.stream("WatchScene", request, pb.WatchSceneResponse, timeout)
 

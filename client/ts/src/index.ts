@@ -95,7 +95,8 @@ export class GvdClient {
     return answers;
   }
 
-  /** The scene's events, one per published frame, until it is deleted. */
+  /** The scene's events, one per published frame, until it is deleted or reloaded from a store
+   * that went back in time (the last event says `deleted` or `reloaded`). */
   watch(sceneId: string, afterVersion = 0n, signal?: AbortSignal): AsyncIterable<WatchSceneResponse> {
     return this.rpc.watchScene({ sceneId, afterVersion }, { signal });
   }

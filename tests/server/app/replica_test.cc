@@ -241,5 +241,256 @@ TEST(Replicas, AWriteToASceneMadeAgainElsewhereIsRefused) {
   EXPECT_TRUE(held->three_d());  // it now holds the new scene
 }
 
+// The sites `r` holds in scene `id`, by id.
+std::map<std::string, Site> SitesOn(const Replica& r, const std::string& id) {
+  std::map<std::string, Site> out;
+  auto scene = r.registry->Find(id);
+  if (!scene.ok()) return out;
+  auto snapshot = (*As(*scene))->snapshot();
+  snapshot->ids().ForEachAfter("", [&](const IdMap::Entry& e) {
+    out.emplace(e.id, *snapshot->sites().get(e.slot));
+    return true;
+  });
+  return out;
+}
+
+// Writes acknowledged by version, each putting one site: the oracle of what a store at a
+// version holds, whatever history the store went through.
+class History {
+ public:
+  // Puts a site through `r` and notes it at the version acknowledged.
+  uint64_t Put(Replica& r, const std::string& id) {
+    Site site{id, PointSite{{u_(rng_), u_(rng_)}}};
+    auto version = r.registry->UpsertSites("s", {site});
+    EXPECT_TRUE(version.ok()) << version.status();
+    if (!version.ok()) return 0;
+    EXPECT_FALSE(by_version_.count(*version)) << *version;
+    by_version_[*version] = site;
+    return *version;
+  }
+  // Forgets the writes after `version`: the store went back to it.
+  void GoBackTo(uint64_t version) { by_version_.erase(by_version_.upper_bound(version), by_version_.end()); }
+  // The sites the writes leave, applied in version order.
+  std::map<std::string, Site> Sites() const {
+    std::map<std::string, Site> out;
+    for (const auto& [version, site] : by_version_) out.insert_or_assign(site.id, site);
+    return out;
+  }
+
+ private:
+  std::mt19937_64 rng_{43};
+  std::uniform_real_distribution<double> u_{0, 1};
+  std::map<uint64_t, Site> by_version_;
+};
+
+bool SameSites(const std::map<std::string, Site>& a, const std::map<std::string, Site>& b) {
+  if (a.size() != b.size()) return false;
+  for (const auto& [id, site] : a) {
+    auto other = b.find(id);
+    if (other == b.end() || !SameSite(site, other->second)) return false;
+  }
+  return true;
+}
+
+// The database goes back in time under two following servers: stopped, its data directory
+// replaced by a copy taken ten versions earlier (a restore from a backup), started again.
+// Both servers drop what the database lost, hold exactly what it holds, and take writes
+// again at the versions after it.
+TEST(StoreBackInTime, ReplicasFollowARestoredDatabaseAndWriteAgain) {
+  testing::TempPostgres pg;
+  ASSERT_EQ(pg.error(), "");
+  Replica a(pg.url()), b(pg.url());
+  ASSERT_TRUE(a.registry->CreateScene(Settings("s")).ok());
+  ASSERT_TRUE(Eventually([&] { return b.registry->Find("s").ok(); }));
+  History history;
+  for (int k = 0; k < 10; ++k) history.Put(k % 2 ? a : b, "p" + std::to_string(k % 7));
+  ASSERT_TRUE(Eventually([&] { return VersionOn(a, "s") == 11 && VersionOn(b, "s") == 11; }));
+  pg.Stop();
+  ASSERT_TRUE(pg.SaveData("backup"));
+  ASSERT_TRUE(pg.Start());
+  for (int k = 10; k < 20; ++k) history.Put(k % 2 ? a : b, "p" + std::to_string(k % 9));
+  ASSERT_TRUE(Eventually([&] { return VersionOn(a, "s") == 21 && VersionOn(b, "s") == 21; }));
+  auto held = *As(a.registry->Find("s"));
+  pg.Stop();
+  ASSERT_TRUE(pg.RestoreData("backup"));
+  ASSERT_TRUE(pg.Start());
+  history.GoBackTo(11);
+  for (Replica* r : {&a, &b}) {
+    EXPECT_TRUE(Eventually([&] { return VersionOn(*r, "s") == 11; })) << VersionOn(*r, "s");
+    EXPECT_TRUE(SameSites(SitesOn(*r, "s"), history.Sites()));
+  }
+  // The scene held before is retired as reloaded: its watchers are told so.
+  EXPECT_TRUE(held->deleted());
+  EXPECT_TRUE(held->reloaded());
+  EXPECT_EQ(history.Put(a, "after"), 12u);
+  EXPECT_EQ(history.Put(b, "after2"), 13u);
+  for (Replica* r : {&a, &b}) {
+    EXPECT_TRUE(Eventually([&] { return VersionOn(*r, "s") == 13; })) << VersionOn(*r, "s");
+    EXPECT_TRUE(SameSites(SitesOn(*r, "s"), history.Sites()));
+  }
+}
+
+// A server that does not follow (as if it read the store late) writes versions 2 to 6 of
+// scene "s", the database is copied, the server writes versions 7 to 11, and the copy is
+// restored: the database is back at version 6 and the server still holds 11.
+struct LateServer {
+  testing::TempPostgres pg;
+  std::unique_ptr<Replica> late;
+  History history;
+  void GoBackInTime() {
+    ASSERT_EQ(pg.error(), "");
+    late = std::make_unique<Replica>(pg.url(), /*follow=*/false);
+    ASSERT_TRUE(late->registry->CreateScene(Settings("s")).ok());
+    for (int k = 0; k < 5; ++k) history.Put(*late, "p" + std::to_string(k));
+    pg.Stop();
+    ASSERT_TRUE(pg.SaveData("backup"));
+    ASSERT_TRUE(pg.Start());
+    for (int k = 5; k < 10; ++k) history.Put(*late, "p" + std::to_string(k % 7));
+    ASSERT_EQ(VersionOn(*late, "s"), 11u);
+    pg.Stop();
+    ASSERT_TRUE(pg.RestoreData("backup"));
+    ASSERT_TRUE(pg.Start());
+    history.GoBackTo(6);
+  }
+};
+
+// The database goes back in time and another server writes it past the version a server
+// still holds before that server reads it again (it follows late here): the versions it holds
+// now name other changes, and it reads the scene again rather than what follows its version.
+TEST(StoreBackInTime, AServerOvertakenByANewHistoryReadsTheSceneAgain) {
+  LateServer db;
+  ASSERT_NO_FATAL_FAILURE(db.GoBackInTime());
+  Replica fresh(db.pg.url(), /*follow=*/false);
+  for (int k = 0; k < 7; ++k) db.history.Put(fresh, "q" + std::to_string(k % 3));
+  ASSERT_EQ(VersionOn(fresh, "s"), 13u);
+  ASSERT_TRUE(db.late->registry->CatchUp().ok());
+  EXPECT_EQ(VersionOn(*db.late, "s"), 13u);
+  EXPECT_TRUE(SameSites(SitesOn(*db.late, "s"), db.history.Sites()));
+}
+
+// The same, found by a write: the late server's write follows its version, which the store
+// has too, with other sites. The store refuses it, and the server reads the scene again and
+// makes the write on what the store holds.
+TEST(StoreBackInTime, AWriteOnAHistoryTheStoreLostIsMadeOnTheStoresOwn) {
+  LateServer db;
+  ASSERT_NO_FATAL_FAILURE(db.GoBackInTime());
+  Replica fresh(db.pg.url(), /*follow=*/false);
+  for (int k = 0; k < 5; ++k) db.history.Put(fresh, "q" + std::to_string(k));
+  ASSERT_EQ(VersionOn(*db.late, "s"), 11u);
+  ASSERT_EQ(VersionOn(fresh, "s"), 11u);
+  EXPECT_EQ(db.history.Put(*db.late, "r"), 12u);
+  EXPECT_TRUE(SameSites(SitesOn(*db.late, "s"), db.history.Sites()));
+  ASSERT_TRUE(fresh.registry->CatchUp().ok());
+  EXPECT_TRUE(SameSites(SitesOn(fresh, "s"), db.history.Sites()));
+}
+
+// Two servers on a primary and its streaming standby, as an operator runs PostgreSQL's own
+// high availability: one multi-host URL that connects to whichever takes writes.
+struct Failover {
+  testing::TempPostgres primary;
+  testing::TempPostgres standby;
+  std::string url;
+  explicit Failover(bool synchronous)
+      : primary(), standby(primary, synchronous),
+        url(absl::StrCat("postgresql://gvd@/gvd?host=", primary.dir(), ",", standby.dir(),
+                         "&port=", primary.port(), ",", standby.port(),
+                         "&target_session_attrs=read-write")) {}
+  // The primary dies; the standby is promoted.
+  bool Fail() {
+    primary.Stop("immediate");
+    return standby.Promote();
+  }
+};
+
+// With a synchronous standby, a failover in the middle of writes on two servers loses no
+// acknowledged write: each is in the new primary, and both servers hold what it holds.
+TEST(StoreFailover, ASynchronousStandbyKeepsEveryAcknowledgedWrite) {
+  Failover db(/*synchronous=*/true);
+  ASSERT_EQ(db.primary.error(), "");
+  ASSERT_EQ(db.standby.error(), "");
+  Replica a(db.url), b(db.url);
+  ASSERT_TRUE(a.registry->CreateScene(Settings("s")).ok());
+  ASSERT_TRUE(Eventually([&] { return b.registry->Find("s").ok(); }));
+  std::mutex mu;
+  std::map<std::string, Site> acknowledged;
+  std::atomic<bool> stop{false};
+  std::atomic<int> written{0};
+  std::vector<std::thread> writers;
+  for (Replica* r : {&a, &b}) {
+    writers.emplace_back([&, r] {
+      std::mt19937_64 rng(reinterpret_cast<uintptr_t>(r));
+      std::uniform_real_distribution<double> u(0, 1);
+      for (int k = 0; !stop; ++k) {
+        Site site{absl::StrCat(r == &a ? "a" : "b", k), PointSite{{u(rng), u(rng)}}};
+        auto version = r->registry->UpsertSites("s", {site});
+        if (!version.ok()) {
+          std::this_thread::sleep_for(std::chrono::milliseconds(5));
+          continue;  // the database is failing over: the write may or may not be there
+        }
+        ++written;
+        std::lock_guard<std::mutex> lock(mu);
+        acknowledged.emplace(site.id, site);
+      }
+    });
+  }
+  ASSERT_TRUE(Eventually([&] { return written > 50; }));
+  ASSERT_TRUE(db.Fail());
+  const int before = written;
+  EXPECT_TRUE(Eventually([&] { return written > before + 50; })) << "no writes after failover";
+  stop = true;
+  for (auto& t : writers) t.join();
+  auto stored = PostgresStore::Open(absl::StrCat("postgresql://gvd@/gvd?host=", db.standby.dir(),
+                                                 "&port=", db.standby.port()));
+  ASSERT_TRUE(stored.ok()) << stored.status();
+  auto loaded = (*stored)->Load();
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  ASSERT_EQ(loaded->size(), 1u);
+  std::map<std::string, Site> held;
+  for (const Site& site : testing::SitesOf((*loaded)[0])) held.emplace(site.id, site);
+  for (const auto& [id, site] : acknowledged) {
+    auto it = held.find(id);
+    ASSERT_NE(it, held.end()) << id << " was acknowledged and lost";
+    EXPECT_TRUE(SameSite(it->second, site)) << id;
+  }
+  for (Replica* r : {&a, &b}) {
+    EXPECT_TRUE(Eventually([&] { return VersionOn(*r, "s") == (*loaded)[0].version; }));
+    EXPECT_TRUE(SameSites(SitesOn(*r, "s"), held));
+  }
+}
+
+// With an asynchronous standby that stopped receiving before the last writes, the failover
+// loses them: both servers drop them, hold exactly what the new primary holds, and write
+// again.
+TEST(StoreFailover, AnAsynchronousStandbyThatMissedWritesIsFollowedBack) {
+  Failover db(/*synchronous=*/false);
+  ASSERT_EQ(db.primary.error(), "");
+  ASSERT_EQ(db.standby.error(), "");
+  Replica a(db.url), b(db.url);
+  ASSERT_TRUE(a.registry->CreateScene(Settings("s")).ok());
+  ASSERT_TRUE(Eventually([&] { return b.registry->Find("s").ok(); }));
+  History history;
+  for (int k = 0; k < 10; ++k) history.Put(k % 2 ? a : b, "p" + std::to_string(k % 7));
+  // The standby has replayed version 11, then stops receiving.
+  ASSERT_TRUE(Eventually([&] {
+    return db.standby.Sql("SELECT version FROM gvd_scene WHERE id = 's'") == "11";
+  }));
+  db.standby.Sql("ALTER SYSTEM SET primary_conninfo = ''");
+  db.standby.Sql("SELECT pg_reload_conf()");
+  ASSERT_TRUE(Eventually([&] {
+    return db.primary.Sql("SELECT count(*) FROM pg_stat_replication") == "0";
+  }));
+  for (int k = 10; k < 20; ++k) history.Put(k % 2 ? a : b, "p" + std::to_string(k % 9));
+  ASSERT_TRUE(Eventually([&] { return VersionOn(a, "s") == 21 && VersionOn(b, "s") == 21; }));
+  ASSERT_TRUE(db.Fail());
+  history.GoBackTo(11);
+  for (Replica* r : {&a, &b}) {
+    EXPECT_TRUE(Eventually([&] { return VersionOn(*r, "s") == 11; })) << VersionOn(*r, "s");
+    EXPECT_TRUE(SameSites(SitesOn(*r, "s"), history.Sites()));
+  }
+  EXPECT_EQ(history.Put(b, "after"), 12u);
+  EXPECT_TRUE(Eventually([&] { return VersionOn(a, "s") == 12; }));
+  EXPECT_TRUE(SameSites(SitesOn(a, "s"), history.Sites()));
+}
+
 }  // namespace
 }  // namespace gvd
