@@ -6,7 +6,9 @@ field of doubles is the array's own little-endian bytes, and one of varints deco
 vectorised NumPy steps, so this reads the numbers from the message's bytes itself: fields it
 does not expect in the form the server sends (packed) make it fall back to protobuf's parser.
 The site ids, one string each, are protobuf's to read (its C++ parser makes the strings 5
-times faster than a loop here).
+times faster than a loop here). A small message (a few dozen answers, as interactive calls
+get) is protobuf's to read whole: below some 4 KiB its parser and a few short arrays take
+less than this reader's own steps (18 against 41 microseconds for one answer).
 """
 from __future__ import annotations
 
@@ -23,6 +25,8 @@ SITE_IDS, SITE, DISTANCE, ERROR_BOUND, EXACT = 1, 2, 3, 4, 5
 FEATURE_INDEX, FEATURE_KIND, CLOSEST, GRADIENT = 6, 7, 8, 9
 _DOUBLES = (DISTANCE, ERROR_BOUND, CLOSEST, GRADIENT)
 _VARINTS = (SITE, EXACT, FEATURE_INDEX, FEATURE_KIND)
+# Messages shorter than this are read by protobuf's parser (the module's docstring).
+_SMALL = 4096
 
 
 @dataclass
@@ -44,6 +48,8 @@ class PackedAnswers:
     @staticmethod
     def FromString(data: bytes) -> "PackedAnswers":  # pylint: disable=invalid-name
         """The transports' deserializer: bytes of a FindNearestStreamResponse."""
+        if len(data) < _SMALL:
+            return _from_message(pb.FindNearestStreamResponse.FromString(data))
         try:
             return _read_response(memoryview(data))
         except _Unexpected:
