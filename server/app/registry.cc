@@ -47,6 +47,22 @@ uint64_t Moved(uint64_t digest, const Snapshot& snapshot, SitesPut<SiteT> put,
   return digest;
 }
 
+// A scene's whole state read from the log (changes after version 0), as a stored scene.
+StoredScene Whole(SceneChanges changes) {
+  StoredScene stored{std::move(changes.settings), changes.version, changes.incarnation};
+  std::visit(
+      [&](const auto& put) {
+        using SiteT =
+            std::remove_const_t<typename std::decay_t<decltype(put)>::value_type::element_type>;
+        std::vector<SiteT> sites;
+        sites.reserve(put.size());
+        for (const auto& site : put) sites.push_back(*site);
+        stored.sites = std::move(sites);
+      },
+      changes.put);
+  return stored;
+}
+
 }  // namespace
 
 SceneRegistry::SceneRegistry(SceneStore* store, Renderers renderers, ServerLimits limits,
@@ -568,17 +584,7 @@ absl::Status SceneRegistry::Follow(const std::string& id, const SceneHead* head)
     }
     return Advance(*scene, *changes, local);
   }
-  StoredScene stored{std::move(changes->settings), changes->version, changes->incarnation};
-  std::visit(
-      [&](const auto& put) {
-        using SiteT = std::remove_const_t<typename std::decay_t<decltype(put)>::value_type::element_type>;
-        std::vector<SiteT> sites;
-        sites.reserve(put.size());
-        for (const auto& site : put) sites.push_back(*site);
-        stored.sites = std::move(sites);
-      },
-      changes->put);
-  Adopt(std::move(stored));
+  Adopt(Whole(std::move(*changes)));
   return absl::OkStatus();
 }
 
@@ -645,17 +651,7 @@ absl::Status SceneRegistry::Reload(const SceneHandle& held, uint64_t incarnation
   }
   if (!whole.ok()) return whole.status();
   const uint64_t stored = whole->version;
-  StoredScene scene{std::move(whole->settings), whole->version, whole->incarnation};
-  std::visit(
-      [&](const auto& put) {
-        using SiteT =
-            std::remove_const_t<typename std::decay_t<decltype(put)>::value_type::element_type>;
-        std::vector<SiteT> sites;
-        sites.reserve(put.size());
-        for (const auto& site : put) sites.push_back(*site);
-        scene.sites = std::move(sites);
-      },
-      whole->put);
+  StoredScene scene = Whole(std::move(*whole));
   const size_t sites = scene.site_count();
   Adopt(std::move(scene), &held);
   // Readers waiting on the scene held here wait for versions of a history the store lost.
