@@ -5,6 +5,8 @@ unpacked encoding another server may send. No server needed."""
 import numpy as np
 import pytest
 
+import gvd
+
 from gvd import _packed
 from gvd._packed import PackedAnswers
 from gvd.v1 import voronoi_pb2 as pb
@@ -87,3 +89,75 @@ def test_the_unpacked_encoding_is_read_by_protobuf():
     a = PackedAnswers.FromString(data)
     check(a, r)
     assert a.version == 7 and list(a.get(_packed.DISTANCE, "<f8")) == [2.5]
+
+
+def chunks(rng, sizes, closest):
+    """FindNearestStream messages answering sizes[k] points each, in order, with their site
+    indices below their site_ids' length; and the call's answers as the test reads them."""
+    out, offset = [], 0
+    for n in sizes:
+        r = message(rng, n, closest)
+        r.offset = offset
+        del r.packed.site[:]
+        r.packed.site.extend(rng.integers(0, 6, n).tolist())  # 0: none; ids 1..5
+        del r.packed.site_ids[:]
+        r.packed.site_ids.extend(f"s{int(k)}" for k in rng.integers(0, 8, 5))
+        out.append(r)
+        offset += n
+    return out
+
+
+@pytest.mark.parametrize("sizes", [[1], [3, 0, 4], [1000, 1, 70000], [70000]])
+@pytest.mark.parametrize("closest", [False, True])
+def test_a_calls_messages_are_joined_in_offset_order(sizes, closest):
+    from gvd import _client  # pylint: disable=import-outside-toplevel
+    rng = np.random.default_rng(len(sizes))
+    messages = chunks(rng, sizes, closest)
+    # The messages in any order: each is placed by its offset.
+    parts = [_client._Packed(PackedAnswers.FromString(r.SerializeToString()), 0)
+             for r in reversed(messages)]
+    m = sum(sizes)
+    got = _client._join(parts, m, 2, closest)
+    names = [(r.packed.site_ids[i - 1] if i else None) for r in messages for i in r.packed.site]
+    assert got.site_ids.tolist() == names
+    assert [got.ids[i] if i >= 0 else None for i in got.site_indices] == names
+    assert len(set(got.ids)) == len(got.ids)
+    for field, column in (("distance", got.distances), ("error_bound", got.error_bounds),
+                          ("exact", got.exact), ("feature_index", got.feature_indices),
+                          ("feature_kind", got.feature_kinds)):
+        want = [v for r in messages for v in getattr(r.packed, field)]
+        assert column.tolist() == want, field
+        assert column.flags.writeable, field  # the caller's arrays, not views of the bytes
+    if closest:
+        want = [v for r in messages for v in r.packed.closest]
+        assert got.closest.shape == (m, 2) and got.closest.ravel().tolist() == want
+    assert got.version == max(r.version for r in messages)
+
+
+@pytest.mark.parametrize("offsets,m", [([0, 2], 7), ([0, 4], 7), ([1, 3], 7), ([0, 3], 6)])
+def test_answers_that_do_not_cover_the_points_once_are_refused(offsets, m):
+    from gvd import _client  # pylint: disable=import-outside-toplevel
+    rng = np.random.default_rng(9)
+    messages = chunks(rng, [3, 4], False)
+    parts = []
+    for r, offset in zip(messages, offsets):
+        r.offset = offset
+        parts.append(_client._Packed(PackedAnswers.FromString(r.SerializeToString()), 0))
+    with pytest.raises(gvd.GvdError) as e:
+        _client._join(parts, m, 2, False)
+    assert e.value.code.name == "INTERNAL"
+
+
+def test_a_missing_column_or_a_site_past_the_ids_is_refused():
+    from gvd import _client  # pylint: disable=import-outside-toplevel
+    rng = np.random.default_rng(3)
+    for damage in ("error_bound", "site", "closest"):
+        (r,) = chunks(rng, [5], True)
+        if damage == "site":
+            r.packed.site[2] = 6  # five ids
+        else:
+            del getattr(r.packed, damage)[-1]
+        part = _client._Packed(PackedAnswers.FromString(r.SerializeToString()), 0)
+        with pytest.raises(gvd.GvdError) as e:
+            _client._join([part], 5, 2, True)
+        assert e.value.code.name == "INTERNAL", damage

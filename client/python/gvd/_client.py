@@ -432,66 +432,75 @@ class _Packed:
     start: int
 
 
+# The optional columns of an answer, each with its type and its value where a message omits it.
+_COLUMNS = ((_packed.ERROR_BOUND, np.float64, 0.0), (_packed.EXACT, bool, False),
+            (_packed.FEATURE_INDEX, np.uint32, 0), (_packed.FEATURE_KIND, np.int32, 0))
+
+
 def _join(parts: List[_Packed], m: int, dims: int, closest: bool) -> NearestResult:
+    """The answers of one call's messages, checked to cover its m points once, in order, as
+    one result (an empty message anywhere). Each column is its messages' arrays joined (a lone message's are used as they
+    are: an interactive call's answer costs a few microseconds here)."""
     index: Dict[str, int] = {}
-    site = np.full(m, -1, dtype=np.int64)
-    distance = np.full(m, np.inf)
-    bound = np.zeros(m)
-    exact = np.zeros(m, dtype=bool)
-    feature_index = np.zeros(m, dtype=np.uint32)
-    feature_kind = np.zeros(m, dtype=np.int32)
-    near = np.full((m, dims), np.nan) if closest else None
-    grad = np.full((m, dims), np.nan) if closest else None
+    sites: List[np.ndarray] = []
+    distances: List[np.ndarray] = []
+    columns: Dict[int, List[np.ndarray]] = {number: [] for number, _, _ in _COLUMNS}
+    near: List[np.ndarray] = []
+    grad: List[np.ndarray] = []
     version = 0
     covered = 0
-    for part in parts:
+    for part in sorted(parts, key=lambda p: (p.start + p.answers.offset, p.answers.count)):
         a = part.answers
         version = max(version, a.version)
         lo = part.start + a.offset
         n = a.count
-        hi = lo + n
-        if hi > m:
-            raise GvdError(_grpc_code("INTERNAL"), f"answers {lo} to {hi} for {m} points")
-        for number in (_packed.ERROR_BOUND, _packed.EXACT, _packed.FEATURE_INDEX,
-                       _packed.FEATURE_KIND):
-            if number in a.arrays and len(a.arrays[number]) != n:
-                raise GvdError(_grpc_code("INTERNAL"),
-                               f"field {number} holds {len(a.arrays[number])} of {n} answers")
-        if closest and any(len(a.get(k, "<f8")) != n * dims
-                           for k in (_packed.CLOSEST, _packed.GRADIENT)):
-            raise GvdError(_grpc_code("INTERNAL"), "closest points missing from the answers")
+        if lo != covered or lo + n > m:
+            raise GvdError(_grpc_code("INTERNAL"),
+                           f"answers {lo} to {lo + n} after {covered} of {m} points")
         covered += n
-        # The chunk's sites, 1 + an index into its own site_ids (0: none): to the call's.
-        local = np.array([index.setdefault(s, len(index)) for s in a.site_ids], dtype=np.int64)
+        for number, dtype, default in _COLUMNS:
+            values = a.arrays.get(number)
+            if values is not None and len(values) != n:
+                raise GvdError(_grpc_code("INTERNAL"),
+                               f"field {number} holds {len(values)} of {n} answers")
+            columns[number].append(np.full(n, default, dtype=dtype) if values is None
+                                   else values.astype(dtype, copy=False))
+        if closest:
+            for number, out in ((_packed.CLOSEST, near), (_packed.GRADIENT, grad)):
+                values = a.get(number, "<f8")
+                if len(values) != n * dims:
+                    raise GvdError(_grpc_code("INTERNAL"), "closest points missing from the answers")
+                out.append(values.reshape(n, dims))
+        # The message's sites, 1 + an index into its own site_ids (0: none), to the call's
+        # (-1: none, the last entry).
+        local = np.array([index.setdefault(s, len(index)) for s in a.site_ids] + [-1],
+                         dtype=np.int64)
         idx = a.get(_packed.SITE, "u8")
         if len(idx) != n:
             raise GvdError(_grpc_code("INTERNAL"), f"{len(idx)} sites for {n} distances")
-        found = idx != 0
-        if len(idx) and found.any() and int(idx[found].max()) > len(local):
-            raise GvdError(_grpc_code("INTERNAL"), "a site index past the chunk's site_ids")
-        named = np.full(n, -1, dtype=np.int64)
-        named[found] = local[idx[found].astype(np.int64) - 1]
-        site[lo:hi] = named
-        distance[lo:hi] = a.get(_packed.DISTANCE, "<f8")
-        for number, target in ((_packed.ERROR_BOUND, bound), (_packed.EXACT, exact),
-                               (_packed.FEATURE_INDEX, feature_index),
-                               (_packed.FEATURE_KIND, feature_kind)):
-            values = a.arrays.get(number)
-            if values is not None:
-                target[lo:hi] = values
-        if closest:
-            near[lo:hi] = a.get(_packed.CLOSEST, "<f8").reshape(n, dims)
-            grad[lo:hi] = a.get(_packed.GRADIENT, "<f8").reshape(n, dims)
+        if n and int(idx.max()) >= len(local):
+            raise GvdError(_grpc_code("INTERNAL"), "a site index past the message's site_ids")
+        sites.append(local[idx.astype(np.int64) - 1])
+        distances.append(a.get(_packed.DISTANCE, "<f8"))
     if covered != m:
         raise GvdError(_grpc_code("INTERNAL"), f"{covered} answers for {m} points")
-    ids = [""] * len(index)
-    for s, i in index.items():
-        ids[i] = s
-    named = np.array(ids + [None], dtype=object)
-    return NearestResult(version=version, site_ids=named[site], site_indices=site, ids=ids,
-                         distances=distance, error_bounds=bound, exact=exact,
-                         feature_indices=feature_index, feature_kinds=feature_kind,
-                         closest=near, gradient=grad)
+
+    def joined(arrays: List[np.ndarray], dtype: Any, shape: tuple = ()) -> np.ndarray:
+        if len(arrays) == 1:  # the caller's to change: a copy of a view of the bytes read
+            return arrays[0] if arrays[0].flags.writeable else arrays[0].copy()
+        return np.concatenate(arrays) if arrays else np.zeros((0,) + shape, dtype=dtype)
+
+    ids = list(index)  # in the order of their indices
+    site = joined(sites, np.int64)
+    return NearestResult(
+        version=version, site_ids=np.array(ids + [None], dtype=object)[site],
+        site_indices=site, ids=ids, distances=joined(distances, np.float64),
+        error_bounds=joined(columns[_packed.ERROR_BOUND], np.float64),
+        exact=joined(columns[_packed.EXACT], bool),
+        feature_indices=joined(columns[_packed.FEATURE_INDEX], np.uint32),
+        feature_kinds=joined(columns[_packed.FEATURE_KIND], np.int32),
+        closest=joined(near, np.float64, (dims,)) if closest else None,
+        gradient=joined(grad, np.float64, (dims,)) if closest else None)
 
 
 def site_from_dict(d: Mapping[str, Any]) -> pb.Site:

@@ -178,7 +178,7 @@ def _from_message(r: pb.FindNearestStreamResponse) -> PackedAnswers:
                                   (FEATURE_INDEX, p.feature_index, np.uint64),
                                   (FEATURE_KIND, p.feature_kind, np.uint64),
                                   (CLOSEST, p.closest, "<f8"), (GRADIENT, p.gradient, "<f8")):
-        if len(values):
-            out.arrays[number] = np.array(values, dtype=dtype)
+        if len(values):  # a list first: NumPy reads a repeated field one number at a time
+            out.arrays[number] = np.array(list(values), dtype=dtype)
     return out
 
