@@ -15,7 +15,8 @@ gvd_packages() {
       echo libgtest-dev libgmock-dev libbenchmark-dev libnanoflann-dev libqhull-dev openssl curl \
         shellcheck yamllint python3-yaml chromium chromium-driver python3-selenium \
         python3-openvdb postgresql iproute2 \
-        python3-venv python3-pytest python3-grpcio python3-protobuf python3-numpy
+        python3-venv python3-pytest python3-grpcio python3-protobuf python3-numpy \
+        libfreetype-dev fonts-dejavu-core fonts-cantarell
       ;;
     node)  # the TypeScript client's tests (client/ts), where no Node.js is installed
       echo nodejs npm

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <utility>
 
+#include "render/kernel/bezier.h"
 #include "render/kernel/segment_tree.h"
 
 namespace gvd {
@@ -21,6 +22,7 @@ double SegmentDistance(Vec2 q, Vec2 a, Vec2 b, double* t) {
 
 double ExactDistance(Vec2 q, const Geometry& g) {
   if (const auto* p = std::get_if<PointSite>(&g)) return Distance(q, p->p);  // the hot path
+  if (const auto* b = std::get_if<BezierSite>(&g)) return NearestOnBezier(q, b->control).distance;
   double best = INFINITY;
   ForEachSegment(g, [&](Vec2 a, Vec2 b) { best = std::min(best, SegmentDistance(q, a, b)); });
   return best;
@@ -66,6 +68,15 @@ FeatureHit FeatureOf(const Geometry& g, double d, uint32_t i, double t) {
 }  // namespace
 
 FeatureHit NearestFeature(Vec2 q, const Geometry& g) {
+  if (const auto* b = std::get_if<BezierSite>(&g)) {
+    const CurvePoint c = NearestOnBezier(q, b->control);
+    if (c.t == 0) return {c.distance, FeatureKind::kVertex, 0, c.point};
+    if (c.t == 1) {
+      return {c.distance, FeatureKind::kVertex, static_cast<uint32_t>(b->control.size() - 1),
+              c.point};
+    }
+    return {c.distance, FeatureKind::kCurve, 0, c.point};
+  }
   double best = INFINITY, best_t = 0;
   uint32_t i = 0, best_i = 0;
   ForEachSegment(g, [&](Vec2 a, Vec2 b) {
@@ -81,20 +92,35 @@ FeatureHit NearestFeature(Vec2 q, const Geometry& g) {
   return FeatureOf(g, best, best_i, best_t);
 }
 
+// A Bezier's segment tree holds its flattening, which the rasterizer draws; its distances are
+// the curve's.
 FeatureHit NearestFeature(Vec2 q, const Site& site) {
-  if (site.segment_tree == nullptr) return NearestFeature(q, site.geometry);
+  if (site.segment_tree == nullptr || std::holds_alternative<BezierSite>(site.geometry)) {
+    return NearestFeature(q, site.geometry);
+  }
   const SegmentTree::Hit hit = site.segment_tree->Nearest(q);
   return FeatureOf(site.geometry, hit.distance, hit.index, hit.t);
 }
 
 double ExactDistance(Vec2 q, const Site& site) {
-  return site.segment_tree ? site.segment_tree->Nearest(q).distance
-                           : ExactDistance(q, site.geometry);
+  return site.segment_tree && !std::holds_alternative<BezierSite>(site.geometry)
+             ? site.segment_tree->Nearest(q).distance
+             : ExactDistance(q, site.geometry);
+}
+
+double DrawnDistance(Vec2 q, const Site& site) {
+  if (!std::holds_alternative<BezierSite>(site.geometry)) return ExactDistance(q, site);
+  if (site.segment_tree) return site.segment_tree->Nearest(q).distance;
+  double best = INFINITY;
+  ForEachSegment(site.geometry, [&](Vec2 a, Vec2 b) { best = std::min(best, SegmentDistance(q, a, b)); });
+  return best;
 }
 
 double FarthestDistance(const Window& rect, const Site& site) {
-  return site.segment_tree ? site.segment_tree->Farthest(rect)
-                           : FarthestDistance(rect, site.geometry);
+  if (site.segment_tree == nullptr) return FarthestDistance(rect, site.geometry);
+  // A Bezier's tree holds its flattening, within its tolerance of the curve.
+  const auto* b = std::get_if<BezierSite>(&site.geometry);
+  return site.segment_tree->Farthest(rect) + (b ? b->tolerance : 0.0);
 }
 
 bool InsidePolygon(Vec2 q, const std::vector<Vec2>& v) {
@@ -118,14 +144,6 @@ double SiteValue(Vec2 q, const Site& site) {
     }
   }
   return site.multiplicative * d + site.additive;
-}
-
-Vec2 BezierPoint(const std::vector<Vec2>& control, double t) {
-  std::vector<Vec2> p = control;
-  for (size_t k = p.size() - 1; k > 0; --k) {
-    for (size_t i = 0; i < k; ++i) p[i] = p[i] + t * (p[i + 1] - p[i]);
-  }
-  return p[0];
 }
 
 std::vector<Vec2> Flatten(const std::vector<Vec2>& control, double tolerance) {
@@ -184,6 +202,11 @@ Window BoundingBox(const Geometry& g) {
     add(a);
     add(b);
   });
+  // The curve strays from its flattening by up to the tolerance.
+  if (const auto* b = std::get_if<BezierSite>(&g)) {
+    w = {w.min_x - b->tolerance, w.min_y - b->tolerance, w.max_x + b->tolerance,
+         w.max_y + b->tolerance};
+  }
   return w;
 }
 
@@ -199,6 +222,8 @@ double FarthestDistance(const Window& rect, const Geometry& g) {
     for (Vec2 c : corners) m = std::max(m, SegmentDistance(c, a, b));
     best = std::min(best, m);
   });
+  // A Bezier's segments are its flattening's, within its tolerance of the curve.
+  if (const auto* b = std::get_if<BezierSite>(&g)) best += b->tolerance;
   return best;
 }
 

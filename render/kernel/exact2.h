@@ -7,6 +7,7 @@
 #include <limits>
 #include <vector>
 
+#include "render/kernel/bezier.h"
 #include "render/kernel/grid2.h"
 #include "render/kernel/site2.h"
 
@@ -44,6 +45,9 @@ FeatureHit NearestFeature(Vec2 q, const Geometry& g);
 
 // The same for a site, through its segment tree when it has one (the same values).
 double ExactDistance(Vec2 q, const Site& site);
+// The distance to the site as the rasterizer draws it: a Bezier's flattening (within its
+// tolerance of the curve), any other site's ExactDistance.
+double DrawnDistance(Vec2 q, const Site& site);
 FeatureHit NearestFeature(Vec2 q, const Site& site);
 double FarthestDistance(const Window& rect, const Site& site);
 
@@ -65,8 +69,6 @@ inline constexpr uint32_t kMaxBezierPieces = 4096;
 // A Bezier site. tolerance 0 means a thousandth of the control polygon's length (or 1e-9 if
 // that is 0).
 BezierSite MakeBezier(std::vector<Vec2> control, double tolerance);
-// A point of the Bezier curve at parameter t, by de Casteljau.
-Vec2 BezierPoint(const std::vector<Vec2>& control, double t);
 
 // The smallest axis-aligned rectangle holding the geometry.
 Window BoundingBox(const Geometry& g);

@@ -5,6 +5,7 @@
 // structures without a new alternative in any of the 2D code.
 #pragma once
 
+#include <algorithm>
 #include <optional>
 #include <variant>
 
@@ -52,6 +53,15 @@ struct Kernel2 {
   static double Tolerance(const Site& s) {
     const auto* b = std::get_if<BezierSite>(&s.geometry);
     return b ? b->tolerance * s.multiplicative : 0;
+  }
+  // The scale of a curve's measuring error (BezierDistanceError's extent, times the weight);
+  // 0 for every other kind.
+  static double CurveExtent(const Site& s) {
+    const auto* b = std::get_if<BezierSite>(&s.geometry);
+    if (b == nullptr) return 0;
+    double extent = 0;
+    for (Vec2 p : b->control) extent = std::max(extent, Length(p));
+    return extent * s.multiplicative;
   }
   // Readies a site that enters a table: its segment tree, for sites of many segments.
   static void Prepare(Site& s) { IndexSegments(s); }

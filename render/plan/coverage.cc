@@ -297,8 +297,10 @@ void TileCover::Candidates(PixelRect tile, std::vector<uint32_t>* out) const {
   // nearest to its middle; every site whose least value there can reach U is a candidate.
   ExactNearest s0 = index.Nearest(c);
   const SiteView best = SiteView::Of(sites_, static_cast<uint32_t>(s0.index));
-  if (PresentOnDisc(best, s0.distance, h, margin_)) {
-    double upper = best.multiplicative() * (s0.distance + h) + best.additive();
+  // As drawn (a curve's flattening): the boxes the index searches hold both.
+  const double d0 = best.DrawnDistanceFrom(c);
+  if (PresentOnDisc(best, d0, h, margin_)) {
+    double upper = best.multiplicative() * (d0 + h) + best.additive();
     // Rounding slack on the search radius keeps the candidate set a superset.
     index.Within(c, ((upper - least_.additive) / least_.multiplicative + h) * (1 + 1e-12), out);
   } else if (double reach = PresenceReach(); std::isfinite(reach)) {
@@ -354,7 +356,7 @@ double TileCover::KeepIn(PixelRect tile, std::span<const uint32_t> candidates,
   size_t s1 = SIZE_MAX;  // the site that gives the bound
   for (size_t k = 0; k < candidates.size(); ++k) {
     views[k] = SiteView::Of(sites, candidates[k]);
-    dist[k] = views[k].DistanceFrom(c);
+    dist[k] = views[k].DrawnDistanceFrom(c);
     if (!PresentOnDisc(views[k], dist[k], h, margin)) continue;
     const double worst = farthest ? low(k) : high(k);
     if (Beats(kDiagram, worst, bound)) {

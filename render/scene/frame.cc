@@ -124,7 +124,8 @@ std::optional<NearestAnswer> Frame::Nearest(Vec2 q) const {
         best = {s, value, 0, true};
       }
     }
-    best.error_bound = error_.curve;
+    best.error_bound = snapshot_->CurveError(best.distance);
+    best.exact = true;
     return best;
   };
   // Far outside the window, a site that is a candidate at q need not be present at the
@@ -172,8 +173,10 @@ std::optional<NearestAnswer> Frame::Nearest(Vec2 q) const {
   // Every centre holds a site, none a candidate at q: q lies within a few pixels of some
   // site's max_distance or side. Score them all.
   if (!best.found) return score_all();
-  best.error_bound =
-      std::max(0.0, nearest ? best.distance - limit : limit - best.distance) + error_.curve;
+  // The raster holds curves' flattenings, within error_.curve of the curves.
+  best.error_bound = std::max(0.0, nearest ? best.distance - limit : limit - best.distance) +
+                     error_.curve + snapshot_->CurveError(best.distance);
+  best.exact = best.error_bound == 0;
   best.runner_up = runner_up;
   return best;
 }
@@ -227,7 +230,8 @@ NearestAnswer Frame::Refine(Vec2 q, const NearestAnswer& answer) const {
   } else {
     for (uint32_t s = 0; s < sites().size(); ++s) consider(s);
   }
-  best.error_bound = error_.curve;
+  best.error_bound = snapshot_->CurveError(best.distance);
+  best.exact = true;
   return best;
 }
 

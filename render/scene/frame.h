@@ -28,6 +28,9 @@ struct NearestAnswer {
   // The value at q of the best other site stored around q (+inf, or -inf in kFarthest, when
   // there is none): when it is within error_bound of distance, either site may be the best.
   double runner_up = INFINITY;
+  // Certified: every site that could beat it was measured exactly, so error_bound is only
+  // the rounding of measuring curves (Snapshot::CurveError; 0 in a scene without curves).
+  bool exact = false;
   bool ambiguous() const {
     return found && error_bound > 0 && std::abs(runner_up - distance) <= error_bound;
   }

@@ -247,7 +247,8 @@ uint64_t BasicScene<K>::NearestExact(const std::vector<Point>& points, std::vect
   auto answer = [&](Point q, uint32_t slot, double value) {
     const Site* site = slots.get(slot);
     const auto f = features ? K::Feature(q, *site) : typename K::Hit{};
-    return ExactAnswer{site->id, value, f.kind, f.index, f.closest, true, slot, snapshot->curve()};
+    return ExactAnswer{site->id, value,     f.kind, f.index, f.closest,
+                       true,     slot,      snapshot->CurveError(value)};
   };
   // Cancellation is checked about every million site evaluations: every 4,096 points when
   // the index answers, more often when each point scores every site.

@@ -168,7 +168,7 @@ class BasicScene {
     Point closest;  // the site's point nearest to q (FeatureHit::closest)
     bool found = false;
     uint32_t slot = 0;  // the site's slot in the answering version's table
-    // The snapshot's curve(): exact to the sites as stored, whose Beziers are flattened.
+    // The rounding of measuring curves (Snapshot::CurveError): 0 without curves.
     double error_bound = 0;
   };
   // `cancelled`, when given, is polled every few thousand points; once it says true the

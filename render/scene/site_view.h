@@ -25,10 +25,10 @@ struct SiteView {
   double multiplicative() const { return site ? site->multiplicative : 1; }
   double additive() const { return site ? site->additive : 0; }
   double max_distance() const { return site ? site->max_distance : INFINITY; }
-  // ExactDistance, FarthestDistance and SiteValue of the site (a plain point's value is its
-  // distance).
-  double DistanceFrom(Vec2 q) const {
-    return site ? ExactDistance(q, *site) : Distance(q, point);
+  // DrawnDistance (what the raster's planning measures), FarthestDistance and SiteValue of
+  // the site (a plain point's value is its distance).
+  double DrawnDistanceFrom(Vec2 q) const {
+    return site ? DrawnDistance(q, *site) : Distance(q, point);
   }
   double FarthestFrom(const Window& box) const {
     return site ? FarthestDistance(box, *site) : box.FarthestDistance(point);

@@ -128,7 +128,7 @@ BasicSnapshotBuilder<K>::BasicSnapshotBuilder(std::shared_ptr<const Snapshot> ba
       size_(base_->size()),
       non_plain_(base_->non_plain_),
       curves_(base_->curves_),
-      curve_(base_->curve_),
+      curve_extent_(base_->curve_extent_),
       ink_(base_->ink_),
       bytes_(base_->bytes_) {}
 
@@ -153,9 +153,9 @@ void BasicSnapshotBuilder<K>::Put(Site site) {
     ++size_;
   }
   non_plain_ += !site.plain();
-  if (const double tolerance = K::Tolerance(site); tolerance > 0) {
+  if (K::Tolerance(site) > 0) {
     ++curves_;
-    curve_ = std::max(curve_, tolerance);
+    curve_extent_ = std::max(curve_extent_, K::CurveExtent(site));
   }
   ink_ += K::Ink(site);
   bytes_ += SiteBytes(site);
@@ -197,7 +197,7 @@ std::shared_ptr<const BasicSiteSnapshot<K>> BasicSnapshotBuilder<K>::Build(uint6
   s->version_ = version;
   s->non_plain_ = non_plain_;
   s->curves_ = curves_;
-  s->curve_ = curves_ == 0 ? 0 : curve_;
+  s->curve_extent_ = curves_ == 0 ? 0 : curve_extent_;
   // Rounding of the sums must not leave a little ink in an emptied scene.
   s->ink_ = size_ == 0 ? 0 : std::max(0.0, ink_);
   s->bytes_ = bytes_;

@@ -91,10 +91,13 @@ class BasicSiteSnapshot {
   // The least weights over the sites (SlotTable::least), found once when the version is
   // built, for the queries that bound their search with them.
   const LeastWeights& least() const { return least_; }
-  // At least the largest K::Tolerance of its sites (a Bezier's tolerance times its weight):
-  // how far an exact measure of the sites as stored may be from their true geometry. The
-  // largest since the scene last held no such site (a removal does not lower it); 0 then.
-  double curve() const { return curve_; }
+  // How far a site's exact value `value` at a point may be from the truth: 0 unless the
+  // version holds curves, which are measured within BezierDistanceError of the truth (twice
+  // that here, for the value and the values it was compared with). Their extent is the
+  // largest K::CurveExtent since the scene last held no curve (a removal does not lower it).
+  double CurveError(double value) const {
+    return curves_ == 0 ? 0 : 2 * BezierDistanceError(std::abs(value), curve_extent_);
+  }
   // The summed length of the sites' segments (TotalLength): how much line the coverage's
   // tiles must resolve (DefaultTilePx).
   double ink() const { return ink_; }
@@ -116,7 +119,7 @@ class BasicSiteSnapshot {
   IdMap ids_;
   size_t non_plain_ = 0;
   size_t curves_ = 0;  // sites with a tolerance
-  double curve_ = 0;
+  double curve_extent_ = 0;
   double ink_ = 0;
   size_t bytes_ = 0;
   LeastWeights least_;
@@ -177,7 +180,7 @@ class BasicSnapshotBuilder {
   size_t size_;
   size_t non_plain_;
   size_t curves_;
-  double curve_;
+  double curve_extent_;
   double ink_;
   size_t bytes_;
   std::vector<uint32_t> changed_, taken_, freed_;

@@ -138,6 +138,7 @@ std::optional<NearestAnswer> Volume::Nearest(Vec3 q, Hit3* feature) const {
   // the raster's site bounding the search.
   if (!grid_.box.Contains(q)) return finish(Refine(q, best));
   best.error_bound = std::max(0.0, best.distance - limit);
+  best.exact = best.error_bound == 0;
   best.runner_up = runner_up;
   return finish(best);
 }
@@ -171,6 +172,7 @@ NearestAnswer Volume::Refine(Vec3 q, const NearestAnswer& answer) const {
     for (uint32_t s = 0; s < sites().size(); ++s) consider(s);
   }
   best.error_bound = 0;
+  best.exact = true;
   return best;
 }
 

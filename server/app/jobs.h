@@ -372,7 +372,7 @@ void BasicNearestJob<S>::AnswerExact() {
   rows_.reserve(exact_answers_.size());
   for (const auto& a : exact_answers_) {
     rows_.push_back({a.found ? &a.site_id : nullptr, a.slot, a.distance, a.error_bound,
-                     a.error_bound == 0, a.feature_kind, a.feature_index});
+                     /*exact=*/true, a.feature_kind, a.feature_index});
     if (query_.closest) closest_.push_back(a.found ? a.closest : Point(NAN));
   }
   this->Finish(absl::OkStatus());
@@ -437,7 +437,7 @@ void BasicNearestJob<S>::AnswerFrom(const std::shared_ptr<const Frame>& frame) {
           f = K::Feature(q, *site);
         }
         rows_[i] = {&site->id, a->site_index, a->distance, a->error_bound,
-                    a->error_bound == 0, f.kind, f.index};
+                    a->exact, f.kind, f.index};
         if (query_.closest) closest_[i] = f.closest;
         return true;
       });

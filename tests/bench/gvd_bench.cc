@@ -274,6 +274,33 @@ void BM_FrameNearest(benchmark::State& state) {
 }
 BENCHMARK(BM_FrameNearest);
 
+// One point's distance to a Bezier curve (random control points and query points in the unit
+// square): Arg 0 the curve's own (ExactDistance, render/kernel/bezier.h), Arg 1 its
+// flattening's as drawn at the default tolerance (a thousandth of the control polygon:
+// DrawnDistance), the measure answers used before; 3 or 4 control points.
+void BM_BezierDistance(benchmark::State& state) {
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<Site> curves;
+  std::vector<Vec2> q;
+  for (int k = 0; k < 1024; ++k) {
+    std::vector<Vec2> control;
+    for (int i = 0; i < state.range(1); ++i) control.push_back({u(rng), u(rng)});
+    Site s{"c", MakeBezier(control, 0)};
+    IndexSegments(s);
+    curves.push_back(std::move(s));
+    q.push_back({u(rng), u(rng)});
+  }
+  const bool drawn = state.range(0) == 1;
+  size_t i = 0;
+  for (auto _ : state) {
+    const size_t k = i++ & 1023;
+    benchmark::DoNotOptimize(drawn ? DrawnDistance(q[k], curves[k]) : ExactDistance(q[k], curves[k]));
+  }
+  state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_BezierDistance)->ArgsProduct({{0, 1}, {3, 4}});
+
 // The reference: nanoflann's kd-tree, nearest neighbour of one point, one thread.
 struct Cloud {
   std::vector<Vec2> pts;

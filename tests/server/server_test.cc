@@ -75,7 +75,7 @@ class ServerTest : public testing::SharedServerTest {
   static void ExpectContract(const std::vector<Site>& sites, Vec2 q, const v1::NearestSite& n) {
     auto it = std::find_if(sites.begin(), sites.end(), [&](const Site& s) { return s.id == n.site_id(); });
     ASSERT_NE(it, sites.end()) << "unknown site " << n.site_id();
-    const double tolerance = oracle::Tolerance(q, n.distance());
+    const double tolerance = oracle::Tolerance(q, n.distance()) + oracle::CurveRounding(n.distance(), *it);
     EXPECT_NEAR(n.distance(), oracle::Distance(q, it->geometry), tolerance) << n.site_id();
     EXPECT_TRUE(testing::IsNearestFeature(q, it->geometry, n.feature_kind(), n.feature_index()))
         << n.site_id() << " feature " << n.feature_kind() << " " << n.feature_index();
@@ -525,7 +525,7 @@ TEST_F(ServerTest, MinVersionWaitsAndHonoursTheDeadline) {
 // Every kind moves (a point into empty space takes a large cell), and each answer is checked
 // against the oracle over that version's sites: one from the frame before the moves, or from
 // any version before the read's, names a site where it no longer is. Beziers are measured to
-// their flattenings, so their tolerance is in every answer's bound.
+// the true curves, so the answers are certified, their bound the rounding of that measure.
 TEST_F(ServerTest, CommittedVersionsAreAnsweredBeforeTheirRender) {
   Window w{0, 0, 1, 1};
   Create("unrendered", w, 128, 128);
@@ -572,11 +572,13 @@ TEST_F(ServerTest, CommittedVersionsAreAnsweredBeforeTheirRender) {
     for (size_t i = 0; i < q.size(); ++i) {
       const v1::NearestSite& n = response.results(int(i));
       ExpectContract(sites, q[i], n);
-      // Exact to the sites as stored, within the curves' tolerance of the true ones.
-      EXPECT_LE(n.distance(), oracle::BestSite(q[i], sites).value + oracle::Tolerance(q[i], n.distance()))
+      // Certified: the best distance to the true curves, within the rounding of measuring
+      // them (every control point lies within 3 of the origin).
+      const double rounding = 0x1p-41 * (n.distance() + 3);
+      EXPECT_LE(n.distance(), oracle::BestSite(q[i], sites).value + oracle::Tolerance(q[i], n.distance()) + rounding)
           << "round " << round << " point " << i;
-      EXPECT_EQ(n.error_bound(), curve_tolerance);
-      EXPECT_FALSE(n.exact());
+      EXPECT_LE(n.error_bound(), rounding);
+      EXPECT_TRUE(n.exact());
     }
   }
   // Without curves, the same answers are certified exact.

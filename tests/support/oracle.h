@@ -35,7 +35,8 @@ inline Real ToSegment(Vec2 q, Vec2 a, Vec2 b, Real* t_out = nullptr) {
 }
 
 // The segments of a geometry in feature order: (a, b, edge index). A point is one degenerate
-// segment; a polygon closes; a Bezier's are its flattening's.
+// segment; a polygon closes; a Bezier's are its flattening's (what the rasterizer draws; its
+// distance is the curve's: CurveDistance).
 inline std::vector<std::pair<Vec2, Vec2>> Segments(const Geometry& g) {
   std::vector<std::pair<Vec2, Vec2>> out;
   auto chain = [&out](const std::vector<Vec2>& v, bool closed) {
@@ -50,11 +51,95 @@ inline std::vector<std::pair<Vec2, Vec2>> Segments(const Geometry& g) {
   return out;
 }
 
-// Euclidean distance from q to the geometry (a polygon's boundary, whatever its side).
-inline double Distance(Vec2 q, const Geometry& g) {
+// Distance from q to the geometry as the rasterizer draws it: a Bezier's flattening.
+inline double DrawnDistance(Vec2 q, const Geometry& g) {
   Real best = std::numeric_limits<Real>::infinity();
   for (auto [a, b] : Segments(g)) best = std::min(best, ToSegment(q, a, b));
   return static_cast<double>(best);
+}
+
+// The Bezier curve (3 or 4 control points) at t: its Bernstein polynomials written out.
+inline void CurveAt(const std::vector<Vec2>& c, Real t, Real* x, Real* y) {
+  const Real s = 1 - t;
+  const Real w3[3] = {s * s, 2 * s * t, t * t};
+  const Real w4[4] = {s * s * s, 3 * s * s * t, 3 * s * t * t, t * t * t};
+  const Real* w = c.size() == 3 ? w3 : w4;
+  *x = *y = 0;
+  for (size_t i = 0; i < c.size(); ++i) {
+    *x += w[i] * c[i].x;
+    *y += w[i] * c[i].y;
+  }
+}
+
+// Distance from q to the true curve, and the parameter of a nearest point: its least over the
+// ends, the roots of the derivative of the squared distance (found by bisection between the
+// signs it takes at 1,024 even steps) and the least of the squared distance near each
+// sampled local minimum (golden-section search over the two steps around it).
+inline Real CurveDistance(Vec2 q, const std::vector<Vec2>& c, Real* t_out = nullptr) {
+  auto squared = [&](Real t) {
+    Real x, y;
+    CurveAt(c, t, &x, &y);
+    return (x - q.x) * (x - q.x) + (y - q.y) * (y - q.y);
+  };
+  // Half the squared distance's derivative: (B - q) . B'.
+  auto slope = [&](Real t) {
+    Real x, y, dx = 0, dy = 0;
+    CurveAt(c, t, &x, &y);
+    const Real s = 1 - t;
+    const Real w2[2] = {s, t};
+    const Real w3[3] = {s * s, 2 * s * t, t * t};
+    const Real* w = c.size() == 3 ? w2 : w3;
+    for (size_t i = 0; i + 1 < c.size(); ++i) {
+      dx += w[i] * (Real(c[i + 1].x) - c[i].x);
+      dy += w[i] * (Real(c[i + 1].y) - c[i].y);
+    }
+    return (x - q.x) * dx + (y - q.y) * dy;
+  };
+  constexpr int kSteps = 1024;
+  Real best_t = 0, best = squared(0);
+  auto consider = [&](Real t) {
+    const Real v = squared(t);
+    if (v < best) {
+      best = v;
+      best_t = t;
+    }
+  };
+  consider(1);
+  std::vector<Real> g(kSteps + 1), f(kSteps + 1);
+  for (int k = 0; k <= kSteps; ++k) {
+    g[k] = squared(Real(k) / kSteps);
+    f[k] = slope(Real(k) / kSteps);
+  }
+  for (int k = 0; k < kSteps; ++k) {
+    if (f[k] < 0 && f[k + 1] >= 0) {
+      Real lo = Real(k) / kSteps, hi = Real(k + 1) / kSteps;
+      for (int i = 0; i < 100; ++i) {
+        const Real mid = (lo + hi) / 2;
+        (slope(mid) < 0 ? lo : hi) = mid;
+      }
+      consider(lo);
+      consider(hi);
+    }
+    if (k > 0 && g[k] <= g[k - 1] && g[k] <= g[k + 1]) {
+      const Real ratio = (std::sqrt(Real(5)) - 1) / 2;
+      Real lo = Real(k - 1) / kSteps, hi = Real(k + 1) / kSteps;
+      for (int i = 0; i < 120; ++i) {
+        const Real a = hi - ratio * (hi - lo), b = lo + ratio * (hi - lo);
+        (squared(a) < squared(b) ? hi : lo) = squared(a) < squared(b) ? b : a;
+      }
+      consider(lo);
+      consider(hi);
+    }
+  }
+  if (t_out) *t_out = best_t;
+  return std::sqrt(best);
+}
+
+// Euclidean distance from q to the geometry (a polygon's boundary, whatever its side; a
+// Bezier's true curve).
+inline double Distance(Vec2 q, const Geometry& g) {
+  if (auto* b = std::get_if<BezierSite>(&g)) return static_cast<double>(CurveDistance(q, b->control));
+  return DrawnDistance(q, g);
 }
 
 // Even-odd rule by counting the edges that a ray from q towards +x crosses.
@@ -70,9 +155,10 @@ inline bool Inside(Vec2 q, const std::vector<Vec2>& v) {
 }
 
 // The site's value at q, or +infinity where it is no candidate: beyond max_distance, or on
-// the side of a polygon it excludes (the boundary belongs to both sides).
-inline double Value(Vec2 q, const Site& s) {
-  const double d = Distance(q, s.geometry);
+// the side of a polygon it excludes (the boundary belongs to both sides). drawn: of the
+// geometry as the rasterizer draws it (DrawnDistance), for what a raster shows.
+inline double Value(Vec2 q, const Site& s, bool drawn = false) {
+  const double d = drawn ? DrawnDistance(q, s.geometry) : Distance(q, s.geometry);
   if (d > s.max_distance) return INFINITY;
   if (auto* poly = std::get_if<PolygonSite>(&s.geometry)) {
     if (poly->side != Side::kBoth && d > 0 &&
@@ -89,11 +175,27 @@ struct Best {
   bool found = false;
 };
 
-// The best site at q by brute force: least (nearest) or greatest (farthest) finite value.
-inline Best BestSite(Vec2 q, std::span<const Site> sites, Diagram diagram = Diagram::kNearest) {
+// The best site at q by brute force: least (nearest) or greatest (farthest) finite value
+// (drawn: of the geometry as drawn, as Value).
+inline Best BestSite(Vec2 q, std::span<const Site> sites, Diagram diagram = Diagram::kNearest,
+                     bool drawn = false) {
   Best best;
   for (size_t i = 0; i < sites.size(); ++i) {
-    const double v = Value(q, sites[i]);
+    // A curve lies within its control points' box: one whose box is farther than the best
+    // value found cannot beat it (which spares measuring most curves).
+    if (const auto* b = std::get_if<BezierSite>(&sites[i].geometry);
+        b && best.found && diagram == Diagram::kNearest && !drawn) {
+      Real dx = 0, dy = 0;
+      Real lo_x = b->control[0].x, hi_x = lo_x, lo_y = b->control[0].y, hi_y = lo_y;
+      for (Vec2 p : b->control) {
+        lo_x = std::min<Real>(lo_x, p.x), hi_x = std::max<Real>(hi_x, p.x);
+        lo_y = std::min<Real>(lo_y, p.y), hi_y = std::max<Real>(hi_y, p.y);
+      }
+      dx = std::max<Real>({lo_x - q.x, Real(q.x) - hi_x, 0});
+      dy = std::max<Real>({lo_y - q.y, Real(q.y) - hi_y, 0});
+      if (sites[i].multiplicative * std::hypot(dx, dy) + sites[i].additive > best.value) continue;
+    }
+    const double v = Value(q, sites[i], drawn);
     if (!std::isfinite(v)) continue;
     if (!best.found || (diagram == Diagram::kNearest ? v < best.value : v > best.value)) {
       best = {i, v, true};
@@ -109,10 +211,21 @@ inline double Tolerance(Vec2 q, double value, double weight = 1) {
   return 16 * std::numeric_limits<double>::epsilon() * scale;
 }
 
+// How far the service's measure of a site's value may be from the oracle's beyond Tolerance:
+// the API's limit on the rounding of measuring a curve (Bezier in the API: 2^-41 of the
+// value and the curve's largest |control point|, times its weight), 0 for other kinds.
+inline double CurveRounding(double value, const Site& s) {
+  const auto* b = std::get_if<BezierSite>(&s.geometry);
+  if (b == nullptr) return 0;
+  double extent = 0;
+  for (Vec2 p : b->control) extent = std::max(extent, std::hypot(p.x, p.y));
+  return 0x1p-41 * (std::abs(value) + s.multiplicative * extent);
+}
+
 // Distance from q to one named feature of the geometry, or NaN when the geometry has no such
 // feature. Vertices: a point's 0; a segment's a = 0, b = 1; a polyline's or polygon's vertex
 // i; a Bezier's endpoints by their control-point index. Edges: a segment's 0; edge i of a
-// polyline or polygon from vertex i to the next. Curve 0: a Bezier's flattening.
+// polyline or polygon from vertex i to the next. Curve 0: a Bezier's curve.
 inline double FeatureDistance(Vec2 q, const Geometry& g, FeatureKind kind, uint32_t index) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   auto at = [&](Vec2 p) { return static_cast<double>(ToSegment(q, p, p)); };

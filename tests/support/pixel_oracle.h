@@ -17,7 +17,7 @@ namespace gvd {
 
 // The site's value ignoring its max_distance and side.
 inline double Unrestricted(Vec2 p, const Site& s) {
-  return s.multiplicative * oracle::Distance(p, s.geometry) + s.additive;
+  return s.multiplicative * oracle::DrawnDistance(p, s.geometry) + s.additive;
 }
 
 // Whether the site may be drawn at p: within max_distance + margin (the margin widened by
@@ -25,7 +25,7 @@ inline double Unrestricted(Vec2 p, const Site& s) {
 // margin of the boundary (render/kernel/grid2.h: DrawMargin).
 inline bool MayBeDrawn(Vec2 p, const Site& s, const Frame& f) {
   const double margin = DrawMargin(f.grid()) * (1 + 1e-5);
-  double d = oracle::Distance(p, s.geometry);
+  double d = oracle::DrawnDistance(p, s.geometry);
   if (d > (s.max_distance + margin + f.grid().pixel_size() / 8) * f.error().overestimate)
     return false;
   if (const auto* poly = std::get_if<PolygonSite>(&s.geometry)) {
@@ -48,7 +48,8 @@ struct PixelReport {
 //  - the stored value D is the stored site's value within the meshes' error (never below
 //    it by more than the arithmetic slack), and the site is present at p;
 //  - when that site is a candidate at p, it is within 2 eps (times the weight) of the best;
-//  - D bounds the best value at p as the frame's error model says (what queries rely on).
+//  - D bounds the best value at p as the frame's error model says (what queries rely on),
+//    the drawn flattenings of curves within the model's curve term of the curves.
 inline PixelReport CheckEveryPixel(const Frame& f, const SiteTable& sites, const std::string& what) {
   const Grid& g = f.grid();
   const ErrorModel& e = f.error();
@@ -87,8 +88,10 @@ inline PixelReport CheckEveryPixel(const Frame& f, const SiteTable& sites, const
         ++report.band;
         continue;
       }
-      if (nearest ? !(e.LowerBound(stored) <= truth.value)
-                  : !(e.UpperBound(stored) >= truth.value)) {
+      // The oracle's values are the true curves', the raster's their flattenings' (within
+      // the error model's curve term).
+      if (nearest ? !(e.LowerBound(stored) - e.curve <= truth.value)
+                  : !(e.UpperBound(stored) + e.curve >= truth.value)) {
         fail("the error model's bound fails");
       }
       if (!std::isfinite(oracle::Value(p, s))) {
@@ -96,7 +99,7 @@ inline PixelReport CheckEveryPixel(const Frame& f, const SiteTable& sites, const
         continue;
       }
       double gap = nearest ? v - truth.value : truth.value - v;
-      if (!(gap <= 2 * excess + 2 * slack)) fail("stored site not within 2 eps of the best");
+      if (!(gap <= 2 * excess + 2 * slack + e.curve)) fail("stored site not within 2 eps of the best");
     }
   }
   return report;

@@ -54,7 +54,7 @@ class RenderGLTest : public GlTest {
           continue;
         }
         double stored = f.distance_at(i, j);
-        double to_stored = oracle::Distance(p, sites[id - 1].geometry);
+        double to_stored = oracle::DrawnDistance(p, sites[id - 1].geometry);
         oracle::Best truth = oracle::BestSite(p, sites);
         double slack = e.Slack(stored);
         worst = std::max(worst, std::abs(stored - to_stored) / g.pixel_size());

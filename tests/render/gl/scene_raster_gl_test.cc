@@ -50,7 +50,7 @@ class SceneRasterGLTest : public GlTest {
         const Site* sa = inc.sites().get(a - 1);
         const Site* sb = ref.sites().get(b - 1);
         ASSERT_TRUE(sa && sb) << when << ": pixel " << i << "," << j << " names a free slot";
-        double da = oracle::Distance(p, sa->geometry), db = oracle::Distance(p, sb->geometry);
+        double da = oracle::DrawnDistance(p, sa->geometry), db = oracle::DrawnDistance(p, sb->geometry);
         const bool checked = (j * g.width + i) % oracle_stride == 0;
         double truth = checked ? oracle::BestSite(p, live).value : std::min(da, db);
         double eps = inc.error().max_excess, slack = inc.error().Slack(inc.distance_at(i, j));

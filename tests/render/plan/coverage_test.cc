@@ -18,7 +18,7 @@ namespace {
 // A site's value as drawn (render/plan/coverage.h): present DrawMargin beyond its max_distance
 // and beyond the boundary of the side of a polygon it excludes; +infinity elsewhere.
 double DrawnValue(Vec2 q, const Site& s, double margin) {
-  const double d = oracle::Distance(q, s.geometry);
+  const double d = oracle::DrawnDistance(q, s.geometry);
   if (d > s.max_distance + margin) return INFINITY;
   if (auto* poly = std::get_if<PolygonSite>(&s.geometry)) {
     if (poly->side != Side::kBoth && d > margin &&
@@ -93,7 +93,7 @@ void ExpectCovered(const Grid& grid, const SiteTable& sites, uint32_t tile_px = 
       }
       for (size_t s = 0; s < sites.size() && std::isfinite(best); ++s) {
         if (DrawnValue(p, sites[s], DrawMargin(grid)) != best) continue;
-        const double d = oracle::Distance(p, sites[s].geometry);
+        const double d = oracle::DrawnDistance(p, sites[s].geometry);
         if (!(d <= cov.radius[s])) {
           ++failures;
           ADD_FAILURE() << "pixel " << i << "," << j << ": best site " << s << " at " << d
@@ -322,7 +322,7 @@ TEST(Coverage, NeededSegmentsHoldTheNearestPointWhereTheSiteIsBest) {
               double best = INFINITY;
               for (const Site& other : sites) best = std::min(best, DrawnValue(p, other, margin));
               if (DrawnValue(p, site, margin) != best) continue;
-              const double dist = oracle::Distance(p, site.geometry);
+              const double dist = oracle::DrawnDistance(p, site.geometry);
               bool held = false;
               for (uint32_t n : needed) {
                 ASSERT_LT(n, segments.size());
@@ -430,7 +430,7 @@ void ExpectListed(const Grid& grid, const SiteTable& sites, const std::string& w
       const Vec2 p = grid.Center(i, j);
       double best = INFINITY;
       for (size_t s = 0; s < sites.size(); ++s) {
-        d[s] = oracle::Distance(p, sites[s].geometry);
+        d[s] = oracle::DrawnDistance(p, sites[s].geometry);
         best = std::min(best, d[s]);
       }
       const size_t t = size_t{j / kScanTile} * tiles_x + i / kScanTile;

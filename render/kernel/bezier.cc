@@ -1,0 +1,267 @@
+#include "render/kernel/bezier.h"
+
+#include <algorithm>
+#include <array>
+#include <cassert>
+#include <cmath>
+#include <limits>
+
+#include "render/kernel/exact2.h"  // SegmentDistance
+
+namespace gvd {
+namespace {
+
+constexpr double kUnit = std::numeric_limits<double>::epsilon() / 2;  // 2^-53
+// Pieces are halved at most this often: a piece of 2^-60 of the parameter is shorter than an
+// ulp of the curve's size, so its bounds meet.
+constexpr int kMaxDepth = 60;
+
+using Controls = std::array<Vec2, 4>;
+
+// A piece of the curve: the parameters [a, b] and its control points, relative to q.
+struct Piece {
+  double a = 0, b = 1;
+  Controls p;
+  int depth = 0;
+};
+
+// De Casteljau's split at 1/2 of the degree-n control points p.
+void Halve(const Controls& p, int n, Controls* left, Controls* right) {
+  Controls w = p;
+  (*left)[0] = w[0];
+  (*right)[n] = w[n];
+  for (int k = 1; k <= n; ++k) {
+    for (int i = 0; i + k <= n; ++i) w[i] = 0.5 * (w[i] + w[i + 1]);
+    (*left)[k] = w[0];
+    (*right)[n - k] = w[n - k];
+  }
+}
+
+// The product of Bernstein polynomials of degrees n and n - 1 has degree 2n - 1, its
+// coefficient k being sum over i + j = k of C(n, i) C(n - 1, j) / C(2n - 1, k) x_i y_j.
+double Weight(int n, int i, int j) {
+  static constexpr double kBinomial[6][6] = {{1}, {1, 1}, {1, 2, 1}, {1, 3, 3, 1},
+                                             {1, 4, 6, 4, 1}, {1, 5, 10, 10, 5, 1}};
+  return kBinomial[n][i] * kBinomial[n - 1][j] / kBinomial[2 * n - 1][i + j];
+}
+
+enum class Signs { kUnknown, kNoMinimum, kOneMinimum };
+
+// What the signs of f = (B - q) . B' on the piece say: no minimum of the distance inside it
+// (f of one sign, or one change from + to -: a maximum), one minimum (one change from - to
+// +), or nothing certain. slack: how far the piece's control points may be from the exact
+// ones.
+Signs ReadSigns(const Controls& p, int n, double slack) {
+  std::array<Vec2, 3> d;  // B' = sum of d_j b_j^(n-1)
+  double d_max = 0, p_max = 0;
+  for (int j = 0; j < n; ++j) {
+    d[j] = double(n) * (p[j + 1] - p[j]);
+    d_max = std::max(d_max, Length(d[j]));
+  }
+  for (int i = 0; i <= n; ++i) p_max = std::max(p_max, Length(p[i]));
+  int signs[6];
+  const int m = 2 * n - 1;
+  for (int k = 0; k <= m; ++k) {
+    double c = 0, size = 0;
+    for (int i = std::max(0, k - (n - 1)); i <= std::min(n, k); ++i) {
+      const int j = k - i;
+      const double w = Weight(n, i, j);
+      c += w * glm::dot(p[i], d[j]);
+      size += w * Length(p[i]) * Length(d[j]);
+    }
+    // The sum's rounding, and the control points' error: each moves c by at most slack times
+    // the other factor (the weights sum to 1), the derivative's points by 2n slack.
+    const double error = 16 * kUnit * size + 2 * slack * (d_max + 2 * n * p_max);
+    signs[k] = c > error ? 1 : c < -error ? -1 : 0;
+    if (signs[k] == 0) return Signs::kUnknown;
+  }
+  int changes = 0;
+  for (int k = 0; k < m; ++k) changes += signs[k] != signs[k + 1];
+  if (changes == 0 || (changes == 1 && signs[0] > 0)) return Signs::kNoMinimum;
+  return changes == 1 ? Signs::kOneMinimum : Signs::kUnknown;
+}
+
+// The degree-n Bezier with control points p at t, by de Casteljau.
+Vec2 At(Controls p, int n, double t) {
+  for (int k = n; k > 0; --k) {
+    for (int i = 0; i < k; ++i) p[i] = p[i] + t * (p[i + 1] - p[i]);
+  }
+  return p[0];
+}
+
+// The minimum within a piece that holds exactly one (f < 0 at its start, > 0 at its end):
+// Newton's method on f, kept within a bracket whose ends have certain signs, to a bracket
+// narrow enough that the distance over it is known within `enough`. Returns false where the
+// signs stop being certain first (the caller then halves the piece instead). On success,
+// *s is the piece's parameter of the point found, *distance that point's distance from q.
+bool Converge(const Controls& p, int n, double slack, double enough, double* s,
+              double* distance) {
+  Controls d, dd;
+  double d_max = 0, p_max = 0;
+  for (int j = 0; j < n; ++j) {
+    d[j] = double(n) * (p[j + 1] - p[j]);
+    d_max = std::max(d_max, Length(d[j]));
+  }
+  for (int j = 0; j + 1 < n; ++j) dd[j] = double(n - 1) * (d[j + 1] - d[j]);
+  for (int i = 0; i <= n; ++i) p_max = std::max(p_max, Length(p[i]));
+  // f's rounding at a point, as ReadSigns bounds its coefficients'.
+  const double error = 8 * (n + 2) * kUnit * p_max * d_max + 2 * slack * (d_max + 2 * n * p_max);
+  struct Value {
+    double f, slope;
+  };
+  auto at = [&](double t) {
+    const Vec2 b = At(p, n, t), b1 = At(d, n - 1, t), b2 = At(dd, n - 2, t);
+    return Value{glm::dot(b, b1), glm::dot(b1, b1) + glm::dot(b, b2)};
+  };
+  double dd_max = 0;
+  for (int j = 0; j + 1 < n; ++j) dd_max = std::max(dd_max, Length(dd[j]));
+  // How much nearer than the point at t (distance `at_t`, f there `f`) the minimum in a
+  // bracket of width w around t may be: |B'| <= d_max on the piece, so at most d_max w; and
+  // as the squared distance's slope is 2f, with |f'| <= d_max^2 + p_max dd_max, at most
+  // 2 (|f| + error + |f'| w) w / at_t, the better bound near a minimum.
+  auto gap = [&](double w, double f, double at_t) {
+    const double linear = d_max * w;
+    const double quadratic =
+        2 * (std::abs(f) + error + (d_max * d_max + p_max * dd_max) * w) * w / at_t;
+    return at_t > 0 ? std::min(linear, quadratic) : linear;
+  };
+  double lo = 0, hi = 1, t = 0.5;
+  for (int step = 0; step < 64; ++step) {
+    const Value v = at(t);
+    if (v.f > error) {
+      hi = t;
+    } else if (v.f < -error) {
+      lo = t;
+    } else {
+      // f is within its rounding of 0 here: certify a bracket a little way either side.
+      if (!(v.slope > 0)) return false;
+      const double step_out = 4 * error / v.slope;
+      const double a = std::max(lo, t - step_out), b = std::min(hi, t + step_out);
+      if ((a > lo && !(at(a).f < -error)) || (b < hi && !(at(b).f > error))) return false;
+      lo = a;
+      hi = b;
+    }
+    const double here = Length(At(p, n, t));
+    if (gap(hi - lo, v.f, here) <= enough) {
+      *s = t;
+      *distance = here;
+      return true;
+    }
+    const double next = v.slope > 0 ? t - v.f / v.slope : NAN;
+    t = next > lo && next < hi ? next : 0.5 * (lo + hi);
+  }
+  return false;
+}
+
+// A few Newton steps on f from an interior t, each kept only where it brings the curve's
+// point nearer q: a piece whose bounds met has left t within some ulps of the scale of a
+// minimum, and this takes it to the minimum's own rounding.
+void Polish(Vec2 q, const Controls& p, int n, CurvePoint* best) {
+  Controls d, dd;
+  for (int j = 0; j < n; ++j) d[j] = double(n) * (p[j + 1] - p[j]);
+  for (int j = 0; j + 1 < n; ++j) dd[j] = double(n - 1) * (d[j + 1] - d[j]);
+  for (int step = 0; step < 4 && best->t > 0 && best->t < 1; ++step) {
+    const Vec2 r = best->point - q, b1 = At(d, n - 1, best->t), b2 = At(dd, n - 2, best->t);
+    const double f = glm::dot(r, b1), slope = glm::dot(b1, b1) + glm::dot(r, b2);
+    if (!(slope > 0) || f == 0) return;
+    const double t = std::clamp(best->t - f / slope, 0.0, 1.0);
+    const Vec2 point = At(p, n, t);
+    const double distance = Distance(q, point);
+    if (!(distance < best->distance)) return;
+    *best = {t, point, distance};
+  }
+}
+
+}  // namespace
+
+Vec2 BezierPoint(const std::vector<Vec2>& control, double t) {
+  assert(control.size() == 3 || control.size() == 4);
+  Controls p;
+  std::copy(control.begin(), control.end(), p.begin());
+  return At(p, static_cast<int>(control.size()) - 1, t);
+}
+
+CurvePoint NearestOnBezier(Vec2 q_given, const std::vector<Vec2>& control) {
+  assert(control.size() == 3 || control.size() == 4);
+  const int n = static_cast<int>(control.size()) - 1;
+  // Coordinates far from 1 in size are scaled by a power of 2 (exactly), so that no
+  // difference overflows and no square underflows; the point found is scaled back.
+  double size = std::max(std::abs(q_given.x), std::abs(q_given.y));
+  for (Vec2 c : control) size = std::max({size, std::abs(c.x), std::abs(c.y)});
+  const int exponent = size > 0x1p500 || (size > 0 && size < 0x1p-500) ? -std::ilogb(size) : 0;
+  const Vec2 q{std::ldexp(q_given.x, exponent), std::ldexp(q_given.y, exponent)};
+  Controls points;
+  for (int i = 0; i <= n; ++i) {
+    points[i] = {std::ldexp(control[i].x, exponent), std::ldexp(control[i].y, exponent)};
+  }
+  Piece whole;
+  double scale = 0;  // the largest distance from q to a control point
+  for (int i = 0; i <= n; ++i) {
+    whole.p[i] = points[i] - q;
+    scale = std::max(scale, Length(whole.p[i]));
+  }
+  // The best point found: an end to begin with.
+  double best = Length(whole.p[0]), best_t = 0;
+  if (const double end = Length(whole.p[n]); end < best) {
+    best = end;
+    best_t = 1;
+  }
+  if (scale > 0) {
+    // A piece is done once its bounds are within this of each other.
+    const double enough = 64 * kUnit * scale;
+    std::array<Piece, 2 * kMaxDepth + 4> stack;
+    int top = 0;
+    stack[top++] = whole;
+    while (top > 0) {
+      const Piece piece = stack[--top];
+      const Controls& p = piece.p;
+      // Each halving rounds each control point by at most n ulps of the scale.
+      const double slack = (piece.depth * n + 2) * kUnit * scale;
+      // The curve lies within `bulge` of its chord, so no point of it is nearer than `lower`,
+      // less the rounding of the piece's points and of this sum (`slack` and a few ulps).
+      double bulge = 0;
+      for (int i = 1; i < n; ++i) bulge = std::max(bulge, SegmentDistance(p[i], p[0], p[n]));
+      const double lower = SegmentDistance(Vec2(0), p[0], p[n]) - bulge;
+      if (lower - slack - 8 * kUnit * scale > best) continue;
+      // Points of the curve: the ends and the middle.
+      Controls left, right;
+      Halve(p, n, &left, &right);
+      const double ends[3] = {Length(p[0]), Length(left[n]), Length(p[n])};
+      const double ts[3] = {piece.a, 0.5 * (piece.a + piece.b), piece.b};
+      double upper = INFINITY;
+      for (int k = 0; k < 3; ++k) {
+        upper = std::min(upper, ends[k]);
+        if (ends[k] < best) {
+          best = ends[k];
+          best_t = ts[k];
+        }
+      }
+      // Done: halving cannot narrow the bounds past the rounding, which is not in them.
+      if (!(upper - lower > enough) || piece.depth >= kMaxDepth) continue;
+      const Signs signs = ReadSigns(p, n, slack);
+      if (signs == Signs::kNoMinimum) continue;  // its least is at an end
+      double s, distance;
+      if (signs == Signs::kOneMinimum && Converge(p, n, slack, enough, &s, &distance)) {
+        if (distance < best) {
+          best = distance;
+          best_t = piece.a + s * (piece.b - piece.a);
+        }
+        continue;
+      }
+      stack[top++] = {0.5 * (piece.a + piece.b), piece.b, right, piece.depth + 1};
+      stack[top++] = {piece.a, 0.5 * (piece.a + piece.b), left, piece.depth + 1};
+    }
+  }
+  CurvePoint out;
+  out.t = best_t;
+  out.point = best_t == 0 ? points[0] : best_t == 1 ? points[n] : At(points, n, best_t);
+  out.distance = Distance(q, out.point);
+  Polish(q, points, n, &out);
+  if (exponent != 0) {
+    out.point = {std::ldexp(out.point.x, -exponent), std::ldexp(out.point.y, -exponent)};
+    out.distance = Distance(q_given, out.point);
+  }
+  return out;
+}
+
+}  // namespace gvd
