@@ -38,12 +38,19 @@ void Halve(const Controls& p, int n, Controls* left, Controls* right) {
 }
 
 // The product of Bernstein polynomials of degrees n and n - 1 has degree 2n - 1, its
-// coefficient k being sum over i + j = k of C(n, i) C(n - 1, j) / C(2n - 1, k) x_i y_j.
-double Weight(int n, int i, int j) {
-  static constexpr double kBinomial[6][6] = {{1}, {1, 1}, {1, 2, 1}, {1, 3, 3, 1},
-                                             {1, 4, 6, 4, 1}, {1, 5, 10, 10, 5, 1}};
-  return kBinomial[n][i] * kBinomial[n - 1][j] / kBinomial[2 * n - 1][i + j];
-}
+// coefficient k being sum over i + j = k of C(n, i) C(n - 1, j) / C(2n - 1, k) x_i y_j:
+// kWeights[n][i][j], for n = 2 and 3.
+constexpr auto kWeights = [] {
+  constexpr double kBinomial[6][6] = {{1}, {1, 1}, {1, 2, 1}, {1, 3, 3, 1},
+                                      {1, 4, 6, 4, 1}, {1, 5, 10, 10, 5, 1}};
+  std::array<std::array<std::array<double, 3>, 4>, 4> w{};
+  for (int n = 2; n <= 3; ++n) {
+    for (int i = 0; i <= n; ++i) {
+      for (int j = 0; j < n; ++j) w[n][i][j] = kBinomial[n][i] * kBinomial[n - 1][j] / kBinomial[2 * n - 1][i + j];
+    }
+  }
+  return w;
+}();
 
 enum class Signs { kUnknown, kNoMinimum, kOneMinimum };
 
@@ -62,16 +69,15 @@ Signs ReadSigns(const Controls& p, int n, double slack) {
   int signs[6];
   const int m = 2 * n - 1;
   for (int k = 0; k <= m; ++k) {
-    double c = 0, size = 0;
+    double c = 0;
     for (int i = std::max(0, k - (n - 1)); i <= std::min(n, k); ++i) {
       const int j = k - i;
-      const double w = Weight(n, i, j);
-      c += w * glm::dot(p[i], d[j]);
-      size += w * Length(p[i]) * Length(d[j]);
+      c += kWeights[n][i][j] * glm::dot(p[i], d[j]);
     }
-    // The sum's rounding, and the control points' error: each moves c by at most slack times
-    // the other factor (the weights sum to 1), the derivative's points by 2n slack.
-    const double error = 16 * kUnit * size + 2 * slack * (d_max + 2 * n * p_max);
+    // The sum's rounding (its terms' sizes sum to at most p_max d_max, as the weights sum to
+    // 1), and the control points' error: each moves c by at most slack times the other
+    // factor, the derivative's points by 2n slack.
+    const double error = 16 * kUnit * p_max * d_max + 2 * slack * (d_max + 2 * n * p_max);
     signs[k] = c > error ? 1 : c < -error ? -1 : 0;
     if (signs[k] == 0) return Signs::kUnknown;
   }
