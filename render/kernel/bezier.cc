@@ -52,6 +52,25 @@ constexpr auto kWeights = [] {
   return w;
 }();
 
+// The control points of B' (d, degree n - 1) and of B'' (dd, degree n - 2), and the
+// largest |d_j|.
+double Derivatives(const Controls& p, int n, Controls* d, Controls* dd) {
+  double d_max = 0;
+  for (int j = 0; j < n; ++j) {
+    (*d)[j] = double(n) * (p[j + 1] - p[j]);
+    d_max = std::max(d_max, Length((*d)[j]));
+  }
+  for (int j = 0; j + 1 < n; ++j) (*dd)[j] = double(n - 1) * ((*d)[j + 1] - (*d)[j]);
+  return d_max;
+}
+
+// The largest |p_i| of the degree-n control points p.
+double Largest(const Controls& p, int n) {
+  double m = 0;
+  for (int i = 0; i <= n; ++i) m = std::max(m, Length(p[i]));
+  return m;
+}
+
 enum class Signs { kUnknown, kNoMinimum, kOneMinimum };
 
 // What the signs of f = (B - q) . B' on the piece say: no minimum of the distance inside it
@@ -59,13 +78,8 @@ enum class Signs { kUnknown, kNoMinimum, kOneMinimum };
 // +), or nothing certain. slack: how far the piece's control points may be from the exact
 // ones.
 Signs ReadSigns(const Controls& p, int n, double slack) {
-  std::array<Vec2, 3> d;  // B' = sum of d_j b_j^(n-1)
-  double d_max = 0, p_max = 0;
-  for (int j = 0; j < n; ++j) {
-    d[j] = double(n) * (p[j + 1] - p[j]);
-    d_max = std::max(d_max, Length(d[j]));
-  }
-  for (int i = 0; i <= n; ++i) p_max = std::max(p_max, Length(p[i]));
+  Controls d, dd;  // B' = sum of d_j b_j^(n-1)
+  const double d_max = Derivatives(p, n, &d, &dd), p_max = Largest(p, n);
   int signs[6];
   const int m = 2 * n - 1;
   for (int k = 0; k <= m; ++k) {
@@ -103,13 +117,7 @@ Vec2 At(Controls p, int n, double t) {
 bool Converge(const Controls& p, int n, double slack, double enough, double* s,
               double* distance) {
   Controls d, dd;
-  double d_max = 0, p_max = 0;
-  for (int j = 0; j < n; ++j) {
-    d[j] = double(n) * (p[j + 1] - p[j]);
-    d_max = std::max(d_max, Length(d[j]));
-  }
-  for (int j = 0; j + 1 < n; ++j) dd[j] = double(n - 1) * (d[j + 1] - d[j]);
-  for (int i = 0; i <= n; ++i) p_max = std::max(p_max, Length(p[i]));
+  const double d_max = Derivatives(p, n, &d, &dd), p_max = Largest(p, n);
   // f's rounding at a point, as ReadSigns bounds its coefficients'.
   const double error = 8 * (n + 2) * kUnit * p_max * d_max + 2 * slack * (d_max + 2 * n * p_max);
   struct Value {
@@ -119,8 +127,7 @@ bool Converge(const Controls& p, int n, double slack, double enough, double* s,
     const Vec2 b = At(p, n, t), b1 = At(d, n - 1, t), b2 = At(dd, n - 2, t);
     return Value{glm::dot(b, b1), glm::dot(b1, b1) + glm::dot(b, b2)};
   };
-  double dd_max = 0;
-  for (int j = 0; j + 1 < n; ++j) dd_max = std::max(dd_max, Length(dd[j]));
+  const double dd_max = Largest(dd, n - 2);
   // How much nearer than the point at t (distance `at_t`, f there `f`) the minimum in a
   // bracket of width w around t may be: |B'| <= d_max on the piece, so at most d_max w; and
   // as the squared distance's slope is 2f, with |f'| <= d_max^2 + p_max dd_max, at most
@@ -164,8 +171,7 @@ bool Converge(const Controls& p, int n, double slack, double enough, double* s,
 // minimum, and this takes it to the minimum's own rounding.
 void Polish(Vec2 q, const Controls& p, int n, CurvePoint* best) {
   Controls d, dd;
-  for (int j = 0; j < n; ++j) d[j] = double(n) * (p[j + 1] - p[j]);
-  for (int j = 0; j + 1 < n; ++j) dd[j] = double(n - 1) * (d[j + 1] - d[j]);
+  Derivatives(p, n, &d, &dd);
   for (int step = 0; step < 4 && best->t > 0 && best->t < 1; ++step) {
     const Vec2 r = best->point - q, b1 = At(d, n - 1, best->t), b2 = At(dd, n - 2, best->t);
     const double f = glm::dot(r, b1), slope = glm::dot(b1, b1) + glm::dot(r, b2);

@@ -20,12 +20,22 @@ double SegmentDistance(Vec2 q, Vec2 a, Vec2 b, double* t) {
   return Distance(q, a + u * ab);
 }
 
-double ExactDistance(Vec2 q, const Geometry& g) {
-  if (const auto* p = std::get_if<PointSite>(&g)) return Distance(q, p->p);  // the hot path
-  if (const auto* b = std::get_if<BezierSite>(&g)) return NearestOnBezier(q, b->control).distance;
+namespace {
+
+// The least distance from q to the geometry's segments (ForEachSegment: a Bezier's are its
+// flattening's).
+double SegmentsDistance(Vec2 q, const Geometry& g) {
   double best = INFINITY;
   ForEachSegment(g, [&](Vec2 a, Vec2 b) { best = std::min(best, SegmentDistance(q, a, b)); });
   return best;
+}
+
+}  // namespace
+
+double ExactDistance(Vec2 q, const Geometry& g) {
+  if (const auto* p = std::get_if<PointSite>(&g)) return Distance(q, p->p);  // the hot path
+  if (const auto* b = std::get_if<BezierSite>(&g)) return NearestOnBezier(q, b->control).distance;
+  return SegmentsDistance(q, g);
 }
 
 namespace {
@@ -110,10 +120,8 @@ double ExactDistance(Vec2 q, const Site& site) {
 
 double DrawnDistance(Vec2 q, const Site& site) {
   if (!std::holds_alternative<BezierSite>(site.geometry)) return ExactDistance(q, site);
-  if (site.segment_tree) return site.segment_tree->Nearest(q).distance;
-  double best = INFINITY;
-  ForEachSegment(site.geometry, [&](Vec2 a, Vec2 b) { best = std::min(best, SegmentDistance(q, a, b)); });
-  return best;
+  return site.segment_tree ? site.segment_tree->Nearest(q).distance
+                           : SegmentsDistance(q, site.geometry);
 }
 
 double FarthestDistance(const Window& rect, const Site& site) {

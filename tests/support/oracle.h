@@ -125,7 +125,11 @@ inline Real CurveDistance(Vec2 q, const std::vector<Vec2>& c, Real* t_out = null
       Real lo = Real(k - 1) / kSteps, hi = Real(k + 1) / kSteps;
       for (int i = 0; i < 120; ++i) {
         const Real a = hi - ratio * (hi - lo), b = lo + ratio * (hi - lo);
-        (squared(a) < squared(b) ? hi : lo) = squared(a) < squared(b) ? b : a;
+        if (squared(a) < squared(b)) {
+          hi = b;
+        } else {
+          lo = a;
+        }
       }
       consider(lo);
       consider(hi);
