@@ -5,6 +5,7 @@
 #include <cassert>
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include "render/kernel/exact2.h"  // SegmentDistance
 
@@ -23,6 +24,27 @@ struct Piece {
   double a = 0, b = 1;
   Controls p;
   int depth = 0;
+};
+
+// Room for the pieces waiting to be read, left uninitialized: zeroing it would cost more than
+// a short search (each pop pushes at most two halves, one level deeper).
+class PieceStack {
+ public:
+  PieceStack() {}  // NOLINT: the slots are written before they are read
+  bool empty() const { return top_ == 0; }
+  void push(const Piece& piece) {
+    assert(top_ < static_cast<int>(slots_.size()));
+    std::construct_at(&slots_[top_++].piece, piece);
+  }
+  Piece pop() { return slots_[--top_].piece; }
+
+ private:
+  union Slot {
+    Slot() {}
+    Piece piece;
+  };
+  std::array<Slot, kMaxDepth + 2> slots_;
+  int top_ = 0;
 };
 
 // De Casteljau's split at 1/2 of the degree-n control points p.
@@ -122,10 +144,11 @@ bool Converge(const Controls& p, int n, double slack, double enough, double* s,
   const double error = 8 * (n + 2) * kUnit * p_max * d_max + 2 * slack * (d_max + 2 * n * p_max);
   struct Value {
     double f, slope;
+    Vec2 b;  // B(t)
   };
   auto at = [&](double t) {
     const Vec2 b = At(p, n, t), b1 = At(d, n - 1, t), b2 = At(dd, n - 2, t);
-    return Value{glm::dot(b, b1), glm::dot(b1, b1) + glm::dot(b, b2)};
+    return Value{glm::dot(b, b1), glm::dot(b1, b1) + glm::dot(b, b2), b};
   };
   const double dd_max = Largest(dd, n - 2);
   // How much nearer than the point at t (distance `at_t`, f there `f`) the minimum in a
@@ -154,7 +177,7 @@ bool Converge(const Controls& p, int n, double slack, double enough, double* s,
       lo = a;
       hi = b;
     }
-    const double here = Length(At(p, n, t));
+    const double here = Length(v.b);
     if (gap(hi - lo, v.f, here) <= enough) {
       *s = t;
       *distance = here;
@@ -201,11 +224,12 @@ CurvePoint NearestOnBezier(Vec2 q_given, const std::vector<Vec2>& control) {
   double size = std::max(std::abs(q_given.x), std::abs(q_given.y));
   for (Vec2 c : control) size = std::max({size, std::abs(c.x), std::abs(c.y)});
   const int exponent = size > 0x1p500 || (size > 0 && size < 0x1p-500) ? -std::ilogb(size) : 0;
-  const Vec2 q{std::ldexp(q_given.x, exponent), std::ldexp(q_given.y, exponent)};
+  const auto scaled = [exponent](Vec2 v) {
+    return exponent == 0 ? v : Vec2(std::ldexp(v.x, exponent), std::ldexp(v.y, exponent));
+  };
+  const Vec2 q = scaled(q_given);
   Controls points;
-  for (int i = 0; i <= n; ++i) {
-    points[i] = {std::ldexp(control[i].x, exponent), std::ldexp(control[i].y, exponent)};
-  }
+  for (int i = 0; i <= n; ++i) points[i] = scaled(control[i]);
   Piece whole;
   double scale = 0;  // the largest distance from q to a control point
   for (int i = 0; i <= n; ++i) {
@@ -221,11 +245,10 @@ CurvePoint NearestOnBezier(Vec2 q_given, const std::vector<Vec2>& control) {
   if (scale > 0) {
     // A piece is done once its bounds are within this of each other.
     const double enough = 64 * kUnit * scale;
-    std::array<Piece, 2 * kMaxDepth + 4> stack;
-    int top = 0;
-    stack[top++] = whole;
-    while (top > 0) {
-      const Piece piece = stack[--top];
+    PieceStack stack;
+    stack.push(whole);
+    while (!stack.empty()) {
+      const Piece piece = stack.pop();
       const Controls& p = piece.p;
       // Each halving rounds each control point by at most n ulps of the scale.
       const double slack = (piece.depth * n + 2) * kUnit * scale;
@@ -260,8 +283,8 @@ CurvePoint NearestOnBezier(Vec2 q_given, const std::vector<Vec2>& control) {
         }
         continue;
       }
-      stack[top++] = {0.5 * (piece.a + piece.b), piece.b, right, piece.depth + 1};
-      stack[top++] = {piece.a, 0.5 * (piece.a + piece.b), left, piece.depth + 1};
+      stack.push({0.5 * (piece.a + piece.b), piece.b, right, piece.depth + 1});
+      stack.push({piece.a, 0.5 * (piece.a + piece.b), left, piece.depth + 1});
     }
   }
   CurvePoint out;
