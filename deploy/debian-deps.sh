@@ -16,7 +16,7 @@ gvd_packages() {
         shellcheck yamllint python3-yaml chromium chromium-driver python3-selenium \
         python3-openvdb postgresql iproute2 \
         python3-venv python3-pytest python3-grpcio python3-protobuf python3-numpy \
-        libfreetype-dev fonts-dejavu-core fonts-cantarell
+        libfreetype-dev fonts-dejavu-core fonts-cantarell assimp-testmodels
       ;;
     node)  # the TypeScript client's tests (client/ts), where no Node.js is installed
       echo nodejs npm

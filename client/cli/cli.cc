@@ -2,7 +2,13 @@
 
 #include <google/protobuf/util/json_util.h>
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <charconv>
+#include <cstring>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -107,6 +113,9 @@ Flags:
   --token TOKEN        bearer token, or $GVD_TOKEN
   --tls-ca FILE        use TLS, trusting this CA (PEM); --tls-cert FILE --tls-key FILE add a
                        client certificate
+  --memory-limit MIB   what reading one file may take (default 2048): a model is read in a
+                       child process held to it; a site list (up to 16 times its size to
+                       read), an image (twice) or a PEM file past it is refused unread
 )";
 
 [[noreturn]] void Usage(const std::string& message) {
@@ -207,6 +216,49 @@ uint64_t MinVersion(const Args& a) {
   uint64_t mv;
   if (!absl::SimpleAtoi(*v, &mv)) Usage("--min-version needs a version number");
   return mv;
+}
+
+bool ReadFileWithin(const Args& a, const std::string& path, uint64_t factor, std::string* out,
+                    std::string* error) {
+  const uint64_t most = a.memory_limit / factor;
+  const std::string name = path == "-" ? "standard input" : path;
+  auto refuse = [&](const std::string& size) {
+    *error = absl::StrCat(name, ": ", size, "; using it takes up to ", factor,
+                          " times its size, over the memory limit of ", a.memory_limit >> 20,
+                          " MiB (--memory-limit)");
+    return false;
+  };
+  const int fd = path == "-" ? 0 : open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    *error = absl::StrCat("cannot read ", path, ": ", std::strerror(errno));
+    return false;
+  }
+  struct stat st;
+  const bool regular = fstat(fd, &st) == 0 && S_ISREG(st.st_mode);
+  if (regular && static_cast<uint64_t>(st.st_size) > most) {
+    if (fd != 0) close(fd);
+    return refuse(absl::StrCat(static_cast<uint64_t>(st.st_size) >> 20, " MiB"));
+  }
+  out->clear();
+  if (regular) out->reserve(static_cast<size_t>(st.st_size));
+  char buffer[1 << 16];
+  ssize_t n = 0;
+  while ((n = read(fd, buffer, sizeof buffer)) != 0) {
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) break;
+    if (out->size() + static_cast<size_t>(n) > most) {
+      if (fd != 0) close(fd);
+      return refuse(absl::StrCat("more than ", most >> 20, " MiB"));
+    }
+    out->append(buffer, static_cast<size_t>(n));
+  }
+  const int read_errno = errno;
+  if (fd != 0) close(fd);
+  if (n < 0) {
+    *error = absl::StrCat("cannot read ", path, ": ", std::strerror(read_errno));
+    return false;
+  }
+  return true;
 }
 
 }  // namespace gvd::cli

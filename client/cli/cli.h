@@ -22,6 +22,8 @@ struct Args {
   bool exact = false;
   double timeout = 30;
   std::string token, tls_ca, tls_cert, tls_key;
+  // --memory-limit MIB: what reading one file (a model, a site list, an image) may take.
+  uint64_t memory_limit = uint64_t{2048} << 20;
   std::map<std::string, std::string> options;  // command flags such as --window
   std::vector<std::string> words;
 };
@@ -45,6 +47,11 @@ void ParseSize(const std::string& text, uint32_t* width, uint32_t* height,
 const std::string* Option(const Args& a, const char* name);
 // --min-version V, or 0.
 uint64_t MinVersion(const Args& a);
+// The whole of the file at `path` ("-": standard input) as *out, where using it takes at most
+// `factor` times its size, within --memory-limit: a larger file is refused before it is read
+// (standard input once it has passed the size), false with *error naming the file and the limit.
+bool ReadFileWithin(const Args& a, const std::string& path, uint64_t factor, std::string* out,
+                    std::string* error);
 
 // Prints "gvd: CODE: message" to stderr; returns 1.
 int Fail(const grpc::Status& s);
@@ -70,10 +77,6 @@ int Mosaic(const Args& a, Client& client);
 
 // The commands of 3D scenes (cli_space.cc): volume (a scene's distances as an OpenVDB file).
 int Volume(const Args& a, Client& client);
-
-// The triangles of a model file (OBJ, STL, PLY, glTF, COLLADA, ... : what Assimp reads), its
-// scene graph flattened with its transforms, as a mesh; false with *error naming the file.
-bool ReadModel(const std::string& path, v1::Mesh* mesh, std::string* error);
 
 // "X,Y,Z" (a 3D point of a command's words).
 void ParsePoint3(const std::string& text, v1::Point* p);

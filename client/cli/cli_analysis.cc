@@ -320,11 +320,11 @@ int Mosaic(const Args& a, Client& client) {
   } else {
     Usage(absl::StrCat("OUT (", out, ") must end in .png, .jpg, .jpeg, .webp, .ppm, .pgm or .pnm"));
   }
-  std::ifstream in(w[1], std::ios::binary);
-  std::stringstream bytes;
-  bytes << in.rdbuf();
-  if (!in) return WriteFailed(absl::NotFoundError(absl::StrCat("cannot read ", w[1])));
-  r.set_image(bytes.str());
+  // The image's bytes, and the request holding them.
+  std::string error;
+  if (!ReadFileWithin(a, w[1], 2, r.mutable_image(), &error)) {
+    return WriteFailed(absl::InvalidArgumentError(error));
+  }
   const auto start = std::chrono::steady_clock::now();
   v1::RenderMosaicResponse response;
   if (auto s = client.RenderMosaic(r, &response); !s.ok()) return Fail(s);

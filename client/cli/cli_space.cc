@@ -1,8 +1,5 @@
-// The gvd tool's 3D side: models read through Assimp (sites add mesh ID --file MODEL), and a
-// scene's distances written as an OpenVDB volume (volume SCENE -o OUT.vdb).
-#include <assimp/Importer.hpp>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
+// The gvd tool's 3D side: a scene's distances written as an OpenVDB volume (volume SCENE -o
+// OUT.vdb); models are read by model.h.
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>
 
@@ -21,40 +18,6 @@ void ParsePoint3(const std::string& text, v1::Point* p) {
   p->set_x(Number(c[0], "X"));
   p->set_y(Number(c[1], "Y"));
   p->set_z(Number(c[2], "Z"));
-}
-
-bool ReadModel(const std::string& path, v1::Mesh* mesh, std::string* error) {
-  Assimp::Importer importer;
-  // Points and lines are dropped (SortByPType with the removal below); polygons are split
-  // into triangles; instances and node transforms are applied (PreTransformVertices).
-  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
-  const aiScene* scene = importer.ReadFile(
-      path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_SortByPType |
-                aiProcess_PreTransformVertices);
-  if (scene == nullptr) {
-    *error = absl::StrCat(path, ": cannot read it as a model: ", importer.GetErrorString());
-    return false;
-  }
-  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
-    const aiMesh* part = scene->mMeshes[m];
-    const uint32_t base = static_cast<uint32_t>(mesh->xyz_size() / 3);
-    for (unsigned v = 0; v < part->mNumVertices; ++v) {
-      const aiVector3D& p = part->mVertices[v];
-      mesh->add_xyz(p.x);
-      mesh->add_xyz(p.y);
-      mesh->add_xyz(p.z);
-    }
-    for (unsigned f = 0; f < part->mNumFaces; ++f) {
-      const aiFace& face = part->mFaces[f];
-      if (face.mNumIndices != 3) continue;
-      for (unsigned k = 0; k < 3; ++k) mesh->add_triangles(base + face.mIndices[k]);
-    }
-  }
-  if (mesh->triangles_size() == 0) {
-    *error = absl::StrCat(path, ": the model has no triangles");
-    return false;
-  }
-  return true;
 }
 
 // volume SCENE -o OUT.vdb [--window BOX] [--size WxHxD]: the scene's clearance field as an

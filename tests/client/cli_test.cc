@@ -177,6 +177,51 @@ TEST_F(CliTest, SitesFromJsonAndTextFiles) {
   EXPECT_NE(r.out.find("bad.txt:1: expected \"ID X Y\""), std::string::npos) << r.out;
 }
 
+// Every file the CLI reads keeps to --memory-limit: Assimp's OutOfMemory.off (309 bytes that
+// declare 353,535,235,358 vertices) and a site list whose reading would pass the limit are
+// refused by name, naming the limit, before anything reaches the server; a model of
+// Assimp's invalid/ corpus that does read (malformed2.obj: five quads of a cube) is stored
+// whole; a FeatureCollection without "features" is an error, not a crash.
+TEST_F(CliTest, FilesAreReadWithinTheMemoryLimit) {
+  ASSERT_EQ(Gvd("scene create limits --window 0,0,-1,4,4,2 --size 8x8x8").exit_code, 0);
+  const std::string oom = "/usr/share/assimp/models/invalid/OutOfMemory.off";
+  Result r = Gvd("--memory-limit 64 --scene limits sites add mesh oom --file " + oom);
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_EQ(r.out, "gvd: " + oom + ": reading it takes more than the memory limit of 64 MiB "
+                   "(--memory-limit)\n");
+  r = Gvd("--scene limits sites add mesh cube --file /usr/share/assimp/models/invalid/malformed2.obj");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  r = Gvd("--scene limits sites ls");
+  EXPECT_NE(r.out.find("cube\tmesh\t"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\t10 triangles"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("oom"), std::string::npos) << r.out;
+  ASSERT_EQ(Gvd("scene rm limits").exit_code, 0);
+
+  // 2 MiB of sites: reading a site list takes up to 16 times its size, over 16 MiB.
+  std::string big = "[";
+  for (int i = 0; big.size() < (2u << 20); ++i) {
+    big += absl::StrCat(i ? "," : "", R"({"id": "p)", i, R"(", "point": {"x": 0.5, "y": 0.5}})");
+  }
+  const std::string list = WriteFile("big.json", big + "]");
+  r = Gvd("--memory-limit 16 sites add --file " + list);
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_EQ(r.out, "gvd: " + list + ": 2 MiB; using it takes up to 16 times its size, over the "
+                   "memory limit of 16 MiB (--memory-limit)\n");
+  r = Run("cat " + list + " | " + GVD_CLI_PATH + " --server " + server_->address() +
+          " --memory-limit 16 sites add --file -");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_EQ(r.out, "gvd: standard input: more than 1 MiB; using it takes up to 16 times its "
+                   "size, over the memory limit of 16 MiB (--memory-limit)\n");
+  r = Gvd("--memory-limit 0 sites ls");
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("--memory-limit needs a number of MiB from 1 to 2^40, not 0"),
+            std::string::npos) << r.out;
+  const std::string geo = WriteFile("nofeatures.geojson", R"({"type": "FeatureCollection"})");
+  r = Gvd("sites add --file " + geo);
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_EQ(r.out, "gvd: " + geo + ": a FeatureCollection needs \"features\", an array\n");
+}
+
 TEST_F(CliTest, ErrorsAreReportedWithTheirStatus) {
   Result r = Gvd("scene create x --window 0,0,1,1 --size 0x10");
   EXPECT_EQ(r.exit_code, 1);
