@@ -1,6 +1,6 @@
 // A bounding-volume hierarchy over the segments of one site with many of them (a long
 // polyline, a polygon of many vertices, a finely flattened curve), so that the exact
-// functions of exact.h cost about O(log n) for it instead of O(n). It changes none of their
+// functions of exact2.h cost about O(log n) for it instead of O(n). It changes none of their
 // values, only how fast they are found: ties still go to the first segment in ForEachSegment
 // order.
 #pragma once
@@ -19,7 +19,7 @@ class SegmentTree {
   // Sites with fewer segments are scanned in a loop, which is as fast.
   static constexpr size_t kMinSegments = 32;
 
-  // The tree of the geometry's segments (ForEachSegment, exact.h).
+  // The tree of the geometry's segments (ForEachSegment, exact2.h).
   explicit SegmentTree(const Geometry& g);
 
   size_t size() const { return a_.size(); }

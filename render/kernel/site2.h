@@ -42,16 +42,16 @@ struct PolygonSite {
   Side side = Side::kBoth;
 };
 
-// A quadratic (3 control points) or cubic (4) Bezier curve, represented by `flat`: a
-// polyline through points of the curve within `tolerance` of it (see Flatten in exact.h).
-// Distances to the site are distances to `flat`.
+// A quadratic (3 control points) or cubic (4) Bezier curve. Its distances are the curve's
+// own (NearestOnBezier, bezier.h); the rasterizer draws `flat`, a polyline through points of
+// the curve within `tolerance` of it (Flatten in exact2.h).
 struct BezierSite {
   std::vector<Vec2> control;
   double tolerance = 0;
   std::vector<Vec2> flat;
 };
 
-// Every site kind; new kinds are added here, in exact.cc and in the rasterizer's primitives.
+// Every site kind; new kinds are added here, in exact2.cc and in the rasterizer's primitives.
 using Geometry = std::variant<PointSite, SegmentSite, PolylineSite, PolygonSite, BezierSite>;
 
 // What a site's part nearest to a point is (NearestSite.feature_kind in the API); faces are
@@ -71,7 +71,7 @@ struct Site {
   double max_distance = INFINITY;
   // The geometry's segments in a tree, for sites of many segments (IndexSegments, which the
   // slot table calls as a site enters it); null otherwise. The exact functions taking a Site
-  // (exact.h) use it: it changes how fast they find a value, never the value.
+  // (exact2.h) use it: it changes how fast they find a value, never the value.
   std::shared_ptr<const SegmentTree> segment_tree;
 
   bool weighted() const { return additive != 0 || multiplicative != 1; }

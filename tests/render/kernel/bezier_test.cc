@@ -6,9 +6,6 @@
 // TrueType's quadratics (DejaVu Sans) and CFF's cubics (Cantarell), read by FreeType.
 #include "render/kernel/bezier.h"
 
-#include <ft2build.h>
-#include FT_FREETYPE_H
-#include FT_OUTLINE_H
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -17,6 +14,7 @@
 #include <vector>
 
 #include "render/kernel/exact2.h"
+#include "tests/support/glyphs.h"
 #include "tests/support/oracle.h"
 
 namespace gvd {
@@ -137,67 +135,15 @@ TEST(BezierNearest, AdversarialCurvesAgreeWithTheOracle) {
   EXPECT_NEAR(p.distance, 0.21365062, 5e-9);
 }
 
-// A glyph outline's pieces, in em units: quadratics, cubics and segments, as FreeType
-// decomposes them.
-struct Outline {
-  std::vector<std::vector<Vec2>> curves;
-  Vec2 at;
-  double scale = 1;
-};
-
-std::vector<std::vector<Vec2>> GlyphCurves(const char* path, const std::string& text) {
-  FT_Library library;
-  EXPECT_EQ(FT_Init_FreeType(&library), 0);
-  FT_Face face;
-  EXPECT_EQ(FT_New_Face(library, path, 0, &face), 0) << path;
-  Outline out;
-  out.scale = 1.0 / face->units_per_EM;
-  FT_Outline_Funcs funcs{};
-  funcs.move_to = [](const FT_Vector* to, void* user) {
-    auto* o = static_cast<Outline*>(user);
-    o->at = Vec2{to->x * o->scale, to->y * o->scale};
-    return 0;
-  };
-  funcs.line_to = [](const FT_Vector* to, void* user) {
-    auto* o = static_cast<Outline*>(user);
-    o->at = Vec2{to->x * o->scale, to->y * o->scale};
-    return 0;
-  };
-  funcs.conic_to = [](const FT_Vector* c, const FT_Vector* to, void* user) {
-    auto* o = static_cast<Outline*>(user);
-    const Vec2 end{to->x * o->scale, to->y * o->scale};
-    o->curves.push_back({o->at, {c->x * o->scale, c->y * o->scale}, end});
-    o->at = end;
-    return 0;
-  };
-  funcs.cubic_to = [](const FT_Vector* c1, const FT_Vector* c2, const FT_Vector* to, void* user) {
-    auto* o = static_cast<Outline*>(user);
-    const Vec2 end{to->x * o->scale, to->y * o->scale};
-    o->curves.push_back({o->at, {c1->x * o->scale, c1->y * o->scale},
-                         {c2->x * o->scale, c2->y * o->scale}, end});
-    o->at = end;
-    return 0;
-  };
-  for (char ch : text) {
-    const FT_UInt glyph = FT_Get_Char_Index(face, static_cast<unsigned char>(ch));
-    EXPECT_NE(glyph, 0u) << ch;
-    EXPECT_EQ(FT_Load_Glyph(face, glyph, FT_LOAD_NO_SCALE), 0) << ch;
-    EXPECT_EQ(FT_Outline_Decompose(&face->glyph->outline, &funcs, &out), 0) << ch;
-  }
-  FT_Done_Face(face);
-  FT_Done_FreeType(library);
-  return out.curves;
-}
-
 TEST(BezierNearest, GlyphOutlinesAgreeWithTheOracle) {
   const struct {
     const char* path;
     size_t degree;
-  } fonts[] = {{"/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf", 3},
-               {"/usr/share/fonts/opentype/cantarell/Cantarell-Regular.otf", 4}};
+  } fonts[] = {{testing::kTrueTypeFont, 3},
+               {testing::kCffFont, 4}};
   std::mt19937_64 rng(11);
   for (const auto& font : fonts) {
-    const auto curves = GlyphCurves(font.path, "gvd&Q@8sS");
+    const auto curves = testing::GlyphCurves(font.path, "gvd&Q@8sS");
     ASSERT_GT(curves.size(), 40u) << font.path;
     int checked = 0;
     for (const auto& control : curves) {
