@@ -22,7 +22,7 @@ cmake -S . -B build/asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGVD_WERROR
   -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" >/dev/null
 cmake --build build/asan --target gvd_unit_tests gvd_core_tests gvd_render_gl_tests gvd_integration_tests \
   gvd_server_unit_tests gvd_app_tests gvd_app_gl_tests gvd-server gvd gvd_fuzz_requests_replay gvd_fuzz_geometry_replay \
-  gvd_fuzz_store_replay gvd_fuzz_http_replay
+  gvd_fuzz_store_replay gvd_fuzz_http_replay gvd_fuzz_model_replay
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 (cd build/asan && ASAN_OPTIONS=detect_leaks=1 ctest --output-on-failure -j "$jobs" -R '^(Cone|Build|Frame|Exact|Nearest|Coverage|SiteIndex|Snapshot|SceneCore|Codec|Store\.|CpuPool|BoundaryEdges|TraceBoundaries|NeighborPairs|HiddenSites|GeometryMeetsBox|TrianglesFromEdges|Volume|fuzz_)')
 # Some tests run in the plain build only, as they run no code of this build that the tests
@@ -31,7 +31,7 @@ export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 # here; the soak runs (soak_*) are a minute of the mixed load LoadTest drives here; the
 # image tests (container_*, compose_*) run no code of this build.
 (cd build/asan && ASAN_OPTIONS=detect_leaks=0 ctest --output-on-failure -j "$jobs" --timeout 900 \
-  -E '^(Cone|Build|Frame|Exact|Nearest|Coverage|SiteIndex|Snapshot|SceneCore|Codec|Store\.|CpuPool|BoundaryEdges|TraceBoundaries|NeighborPairs|HiddenSites|GeometryMeetsBox|TrianglesFromEdges|Volume|fuzz_|deploy_lint|browser_|container_|compose_|python_client|ts_client|soak_)')
+  -E '^(Cone|Build|Frame|Exact|Nearest|Coverage|SiteIndex|Snapshot|SceneCore|Codec|Store\.|CpuPool|BoundaryEdges|TraceBoundaries|NeighborPairs|HiddenSites|GeometryMeetsBox|TrianglesFromEdges|Volume|fuzz_|deploy_lint|docs_links|browser_|container_|compose_|python_client|ts_client|soak_)')
 
 cmake -S . -B build/tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGVD_WERROR=OFF \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="$opt" -DCMAKE_CXX_FLAGS="-fsanitize=thread" -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=thread" >/dev/null
