@@ -4,8 +4,9 @@
 // Assimp believes the counts a file declares: Assimp's own invalid/OutOfMemory.off, 309
 // bytes, declares 353,535,235,358 vertices, and a reader in process would allocate them. So
 // the import runs in a child process (fork) that keeps to a memory limit: the address space
-// it may add (RLIMIT_AS), or under a sanitizer, whose shadow memory needs an address space
-// of terabytes, the bytes its allocations hold (the sanitizer's allocation hooks); and CPU
+// it may add (RLIMIT_AS), or under ASan, whose shadow memory needs an address space of
+// terabytes, the bytes its allocations hold (the allocation hooks; TSan maps an allocation's
+// shadow before its hook runs, so under TSan the limit does not hold); and CPU
 // time (RLIMIT_CPU). A file the import cannot finish within the limits, or that makes the
 // importer die, is refused with an error naming the file and the limit, as is an unreadable
 // one; what comes back is checked

@@ -40,7 +40,7 @@ cmake --build build/tsan --target gvd_core_tests gvd_integration_tests gvd_serve
 export TSAN_OPTIONS="halt_on_error=1 suppressions=$root/tests/sanitizers/tsan.supp"
 (cd build/tsan && ctest --output-on-failure -j "$jobs" --timeout 900 \
   -R '^(SceneCore|SceneRegistry|Replicas|ReplicaFaults|Engines/LogStore|ServiceThreads|Store|CpuPool|PendingEventTest|MemoryBudgetUnit|FairRenders|ServerTest|SpaceServerTest|LoadTest|CrashTest|CliTest|MetricsTest|AnalysisServerTest|AnalysisLimitsTest|WatchTest|WatchDrain|WatchReplicas|HttpTest|HttpSecurity|HttpDrain|MosaicServerTest)\.' \
-  -E '^(CliTest\.(EveryKindAndAnImage|A3DSceneFromAModelFileToOpenVdb)|(Server|SpaceServer)Test\.TenThousand.*)$')
+  -E '^(CliTest\.(EveryKindAndAnImage|A3DSceneFromAModelFileToOpenVdb|FilesAreReadWithinTheMemoryLimit)|(Server|SpaceServer)Test\.TenThousand.*)$')
 # A3DSceneFromAModelFileToOpenVdb is left out of TSan only: the single-threaded CLI's OpenVDB
 # export runs Debian's uninstrumented OpenVDB, whose initialize() takes a mutex TSan sees
 # unlocked only (a false report); the server side of 3D scenes runs under TSan in
@@ -51,4 +51,8 @@ export TSAN_OPTIONS="halt_on_error=1 suppressions=$root/tests/sanitizers/tsan.su
 # EveryKindAndAnImage is left out of TSan only: the single-threaded CLI's GeoJSON parsing
 # (protobuf Struct maps, inlined from Debian's uninstrumented protobuf) crashes under TSan
 # instrumentation; it passes in the plain, ASan and UBSan runs.
+# FilesAreReadWithinTheMemoryLimit is left out of TSan only, for the same GeoJSON parsing and
+# because TSan maps shadow memory for an allocation before its allocation hook can refuse it:
+# the CLI's model child cannot keep to --memory-limit under TSan (client/cli/model.h). It runs
+# under ASan, whose hook refuses the allocation first.
 echo "sanitizer builds pass"
