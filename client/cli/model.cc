@@ -223,8 +223,7 @@ bool ReadModel(const ModelSource& source, const ModelLimits& limits, v1::Mesh* m
     *error = absl::StrCat(source.path, ": reading it takes more than ", limit);
     return false;
   }
-  if (WIFSIGNALED(status) && (WTERMSIG(status) == SIGXCPU || WTERMSIG(status) == SIGKILL) &&
-      answer.empty()) {
+  if (WIFSIGNALED(status) && WTERMSIG(status) == SIGXCPU && answer.empty()) {
     *error = absl::StrCat(source.path, ": reading it takes more than ", limits.cpu_seconds,
                           " s of CPU time, the model importer's limit");
     return false;
