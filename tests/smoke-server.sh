@@ -28,11 +28,16 @@ gvd --scene demo sites add a 10 10 b 80 20 c 50 90 >/dev/null
 gvd --scene demo nearest 60 60 --exact | grep -q $'^60\t60\tc\t31.622776601683793\t0\tyes'
 gvd --scene demo neighbors --min-version 2 2>/dev/null | grep -q '^a b$'
 # The README's curl call, and the web app.
-curl -sf -H 'Content-Type: application/json' \
+# Each body is read whole before it is searched: grep -q stops reading at its match, and
+# under pipefail curl's write error (23) on the closed pipe would fail the script.
+answer=$(curl -sf -H 'Content-Type: application/json' \
   -d '{"sceneId": "demo", "points": [{"x": 12, "y": 11}], "exact": true}' \
-  "$http/gvd.v1.VoronoiService/FindNearest" | grep -q '"siteId":"a","distance":2.23606797749979'
-curl -sf "$http/" | grep -q '<title>gvd — nearest-object selection</title>'
-curl -sf "$http/app.js" | grep -q 'pointerrawupdate'
+  "$http/gvd.v1.VoronoiService/FindNearest")
+[[ $answer == *'"siteId":"a","distance":2.23606797749979'* ]]
+page=$(curl -sf "$http/")
+[[ $page == *'<title>gvd — nearest-object selection</title>'* ]]
+app=$(curl -sf "$http/app.js")
+[[ $app == *pointerrawupdate* ]]
 kill -TERM "$server"
 wait "$server"
 echo "smoke-server: the README's first command builds, serves and stops cleanly"
