@@ -2,9 +2,6 @@
 // invalid/ corpus and every model beside it. Each file is read, with a mesh that holds the
 // file's surface, or refused with an error naming it (and the memory limit where that is
 // the cause); nothing crashes the reader and nothing takes more than the limit.
-#include <assimp/Importer.hpp>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -13,6 +10,7 @@
 #include <sstream>
 
 #include "client/cli/model.h"
+#include "tests/support/assimp_direct.h"
 #include "tests/support/oracle3.h"
 
 namespace gvd {
@@ -71,30 +69,6 @@ std::vector<Triangle> ObjFaces(const std::filesystem::path& path) {
     }
     if (corners.size() != f.size() || corners.size() < 3) continue;
     for (size_t k = 1; k + 1 < corners.size(); ++k) out.push_back({corners[0], corners[k], corners[k + 1]});
-  }
-  return out;
-}
-
-// What Assimp reads in this process from the same file with the CLI's steps: the oracle of
-// what the child sent back (asked only once the child has read the file within the limit).
-std::vector<Triangle> Direct(const std::filesystem::path& path) {
-  Assimp::Importer importer;
-  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
-  const aiScene* scene = importer.ReadFile(
-      path.string(), aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
-                         aiProcess_SortByPType | aiProcess_PreTransformVertices);
-  std::vector<Triangle> out;
-  if (scene == nullptr) return out;
-  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
-    const aiMesh* part = scene->mMeshes[m];
-    auto at = [&](unsigned i) {
-      const aiVector3D& p = part->mVertices[i];
-      return Vec3(p.x, p.y, p.z);
-    };
-    for (unsigned f = 0; f < part->mNumFaces; ++f) {
-      const aiFace& face = part->mFaces[f];
-      if (face.mNumIndices == 3) out.push_back({at(face.mIndices[0]), at(face.mIndices[1]), at(face.mIndices[2])});
-    }
   }
   return out;
 }
@@ -164,10 +138,11 @@ TEST(ModelFiles, EveryAssimpModelIsReadWholeOrRefusedByName) {
     const uint32_t vertices = static_cast<uint32_t>(mesh.xyz_size() / 3);
     ASSERT_EQ(mesh.triangles_size() % 3, 0) << path;
     for (uint32_t i : mesh.triangles()) ASSERT_LT(i, vertices) << path;
-    const std::vector<Triangle> got = Triangles(mesh), direct = Direct(entry.path());
+    const std::vector<Triangle> got = Triangles(mesh);
+    const auto direct = testing::AssimpTriangles(path);
     ASSERT_EQ(got.size(), direct.size()) << path;
     for (size_t t = 0; t < got.size(); ++t) {
-      ASSERT_TRUE(got[t].a == direct[t].a && got[t].b == direct[t].b && got[t].c == direct[t].c)
+      ASSERT_TRUE(got[t].a == direct[t][0] && got[t].b == direct[t][1] && got[t].c == direct[t][2])
           << path << " triangle " << t;
     }
   }
