@@ -166,9 +166,22 @@ def points_of(site, key):
     return [(p.get("x", 0.0), p.get("y", 0.0)) for p in site.get(key, [])]
 
 
+def path_pieces(site):
+    """A path's pieces, subpath after subpath: (control points, closed), a line's its two ends."""
+    for sub in site["path"].get("subpaths", []):
+        v = points_of(sub, "points")
+        degrees = sub.get("degrees") or [1] * (len(v) - 1)
+        k = 0
+        for d in degrees:
+            yield v[k:k + d + 1], sub.get("closed", False)
+            k += d
+        if sub.get("closed", False) and v[k] != v[0]:
+            yield [v[k], v[0]], True
+
+
 def distance(q, site):
-    """Euclidean distance from q to the site's geometry (a polygon's boundary): Pick's measure,
-    weights and sides aside."""
+    """Euclidean distance from q to the site's geometry (a polygon's boundary, a path's pieces):
+    Pick's measure, weights and sides aside."""
     if "point" in site:
         p = site["point"]
         return math.hypot(q[0] - p.get("x", 0.0), q[1] - p.get("y", 0.0))
@@ -180,6 +193,8 @@ def distance(q, site):
         v = points_of(site["polyline"], "points") if "polyline" in site else points_of(site["polygon"], "vertices")
         pairs = list(zip(v, v[1:])) + ([(v[-1], v[0])] if "polygon" in site else [])
         return min(to_segment(q, a, b) for a, b in pairs)
+    if "path" in site:
+        return min(to_segment(q, *c) if len(c) == 2 else to_bezier(q, c) for c, _ in path_pieces(site))
     return to_bezier(q, points_of(site["bezier"], "controlPoints"))
 
 
@@ -192,19 +207,36 @@ def inside(q, v):
     return result
 
 
+def inside_path(q, site):
+    """Whether q is inside a path of lines (its closed subpaths' winding number by its fill rule);
+    the inside of curves is their drawn polylines', which this oracle does not know."""
+    winding = 0
+    for c, closed in path_pieces(site):
+        assert len(c) == 2, "the oracle knows the inside of paths of lines only"
+        (ax, ay), (bx, by) = c
+        if closed and (ay > q[1]) != (by > q[1]) and q[0] < ax + (q[1] - ay) * (bx - ax) / (by - ay):
+            winding += 1 if by > ay else -1
+    return winding % 2 == 1 if site["path"].get("fillRule") == "FILL_RULE_EVEN_ODD" else winding != 0
+
+
 def value(q, site):
     """The site's value in the diagram (a DIAGRAM_NEAREST one): m d + a, or infinity where the site
-    does not reach (beyond max_distance, or on the side of a polygon it leaves out)."""
+    does not reach (beyond max_distance, or on the side of a polygon or path it leaves out)."""
     d = distance(q, site)
     if site.get("maxDistance") and d > site["maxDistance"]:
         return math.inf
-    side = site.get("polygon", {}).get("side", "SIDE_UNSPECIFIED")
-    if side != "SIDE_UNSPECIFIED" and d > 0 and inside(q, points_of(site["polygon"], "vertices")) != (side == "SIDE_INSIDE"):
-        return math.inf
+    side = site.get("polygon", site.get("path", {})).get("side", "SIDE_UNSPECIFIED")
+    if side != "SIDE_UNSPECIFIED" and d > 0:
+        within = inside(q, points_of(site["polygon"], "vertices")) if "polygon" in site else inside_path(q, site)
+        if within != (side == "SIDE_INSIDE"):
+            return math.inf
     return site.get("multiplicativeWeight", 1) * d + site.get("additiveWeight", 0)
 
 
 def slack(site):
-    """How far the server's distance may be from the oracle's: a Bezier is measured to its
-    flattening, within the tolerance; all else to rounding."""
-    return site["bezier"].get("tolerance", 0.0) + 1e-9 if "bezier" in site else 1e-9
+    """How far the server's distance may be from the oracle's: a Bezier, or a path's curves, is
+    drawn as its flattening, within the tolerance; all else to rounding."""
+    for kind in ("bezier", "path"):
+        if kind in site:
+            return site[kind].get("tolerance", 0.0) + 1e-9
+    return 1e-9

@@ -48,9 +48,10 @@ Sites (of the scene named by --scene, default "default"):
                                        transforms applied
   gvd sites add --file PATH   JSON: [{"id": "a", "point": {"x": 1, "y": 2}}, ...] or
                               {"sites": [...]} (every kind: "segment", "polyline",
-                              "polygon", "bezier", as in the API); GeoJSON: a
-                              FeatureCollection of Point, LineString and Polygon (outer
-                              ring) features, id from the feature's "id" or properties.id,
+                              "polygon", "bezier", "path", as in the API); GeoJSON: a
+                              FeatureCollection of Point, LineString, Polygon and
+                              MultiPolygon features (a polygon with holes, or many, is
+                              one path site), id from the feature's "id" or properties.id,
                               weights from properties additive_weight,
                               multiplicative_weight, max_distance, side; or text lines
                               "ID X Y"; PATH - reads stdin

@@ -201,27 +201,47 @@ bool ReadGeoJson(const std::string& text, const std::string& path,
       for (const Value& v : coords->list_value().values()) {
         ok = ok && point(v, site->mutable_polyline()->add_points());
       }
-    } else if (t == "Polygon") {
-      if (coords->list_value().values_size() != 1) {
-        return fail(i, "polygons with holes are not supported: give the outer ring only");
+    } else if (t == "Polygon" || t == "MultiPolygon") {
+      // A ring's points, without the repeated first point that closes it.
+      auto ring = [&](const Value& r, google::protobuf::RepeatedPtrField<gvd::v1::Point>* out) {
+        for (const Value& v : r.list_value().values()) ok = ok && point(v, out->Add());
+        const int n = out->size();
+        if (n > 1 && out->Get(0).x() == out->Get(n - 1).x() && out->Get(0).y() == out->Get(n - 1).y()) {
+          out->RemoveLast();
+        }
+      };
+      std::vector<const Value*> rings;
+      if (t == "Polygon") {
+        for (const Value& r : coords->list_value().values()) rings.push_back(&r);
+      } else {
+        for (const Value& polygon : coords->list_value().values()) {
+          for (const Value& r : polygon.list_value().values()) rings.push_back(&r);
+        }
       }
-      auto* poly = site->mutable_polygon();
-      for (const Value& v : coords->list_value().values(0).list_value().values()) {
-        ok = ok && point(v, poly->add_vertices());
-      }
-      int n = poly->vertices_size();
-      if (n > 1 && poly->vertices(0).x() == poly->vertices(n - 1).x() &&
-          poly->vertices(0).y() == poly->vertices(n - 1).y()) {
-        poly->mutable_vertices()->RemoveLast();
-      }
-      if (const Value* side = field(p, "side")) {
-        const std::string& sv = side->string_value();
-        if (sv == "outside") poly->set_side(gvd::v1::Polygon::SIDE_OUTSIDE);
-        else if (sv == "inside") poly->set_side(gvd::v1::Polygon::SIDE_INSIDE);
+      if (rings.empty()) return fail(i, "a polygon needs at least one ring");
+      gvd::v1::Polygon::Side side = gvd::v1::Polygon::SIDE_UNSPECIFIED;
+      if (const Value* s = field(p, "side")) {
+        const std::string& sv = s->string_value();
+        if (sv == "outside") side = gvd::v1::Polygon::SIDE_OUTSIDE;
+        else if (sv == "inside") side = gvd::v1::Polygon::SIDE_INSIDE;
         else if (!sv.empty()) return fail(i, "properties.side must be \"outside\" or \"inside\"");
       }
+      if (rings.size() == 1) {  // a polygon
+        ring(*rings[0], site->mutable_polygon()->mutable_vertices());
+        site->mutable_polygon()->set_side(side);
+      } else {  // one path of closed rings of lines: holes by the even-odd rule
+        auto* path = site->mutable_path();
+        for (const Value* r : rings) {
+          auto* sub = path->add_subpaths();
+          ring(*r, sub->mutable_points());
+          sub->set_closed(true);
+        }
+        path->set_fill_rule(gvd::v1::Path::FILL_RULE_EVEN_ODD);
+        path->set_side(side);
+      }
     } else {
-      return fail(i, absl::StrCat("geometry type ", t, " is not supported (Point, LineString, Polygon)"));
+      return fail(i, absl::StrCat("geometry type ", t,
+                                  " is not supported (Point, LineString, Polygon, MultiPolygon)"));
     }
     if (!ok) return fail(i, "coordinates must be [x, y] numbers");
     if (const Value* v = field(p, "additive_weight")) site->set_additive_weight(v->number_value());
@@ -551,6 +571,25 @@ int SitesCommand(const Args& a, Client& client) {
       }
       if (s.has_point()) {
         std::cout << s.id() << "\t" << Num(s.point().x()) << "\t" << Num(s.point().y()) << "\n";
+        continue;
+      }
+      if (s.has_path()) {  // as SVG's path data: M start, then L, Q or C a piece; Z closes
+        std::cout << s.id() << "\tpath\t";
+        auto at = [](const gvd::v1::Point& q) { return absl::StrCat(Num(q.x()), ",", Num(q.y())); };
+        const char* space = "";
+        for (const auto& sub : s.path().subpaths()) {
+          std::cout << space << "M " << at(sub.points(0));
+          int k = 1;
+          for (uint32_t d : sub.degrees()) {
+            // A closed subpath's last line, back to its start, is its Z.
+            if (sub.closed() && d == 1 && k + 1 == sub.points_size()) break;
+            std::cout << " " << (d == 1 ? "L" : d == 2 ? "Q" : "C");
+            for (uint32_t i = 0; i < d; ++i) std::cout << " " << at(sub.points(k++));
+          }
+          if (sub.closed()) std::cout << " Z";
+          space = " ";
+        }
+        std::cout << "\n";
         continue;
       }
       std::vector<gvd::v1::Point> pts;

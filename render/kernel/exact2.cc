@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "render/kernel/bezier.h"
+#include "render/kernel/path2.h"
 #include "render/kernel/segment_tree.h"
 
 namespace gvd {
@@ -35,7 +36,26 @@ double SegmentsDistance(Vec2 q, const Geometry& g) {
 double ExactDistance(Vec2 q, const Geometry& g) {
   if (const auto* p = std::get_if<PointSite>(&g)) return Distance(q, p->p);  // the hot path
   if (const auto* b = std::get_if<BezierSite>(&g)) return NearestOnBezier(q, b->control).distance;
+  if (const auto* path = std::get_if<PathSite>(&g)) return PathDistance(q, *path);
   return SegmentsDistance(q, g);
+}
+
+double DrawnTolerance(const Geometry& g) {
+  if (const auto* b = std::get_if<BezierSite>(&g)) return b->tolerance;
+  const auto* path = std::get_if<PathSite>(&g);
+  return path && path->curved ? path->tolerance : 0.0;
+}
+
+Side SideOf(const Geometry& g) {
+  if (const auto* poly = std::get_if<PolygonSite>(&g)) return poly->side;
+  if (const auto* path = std::get_if<PathSite>(&g)) return path->side;
+  return Side::kBoth;
+}
+
+bool InsideOf(Vec2 q, const Geometry& g) {
+  if (const auto* poly = std::get_if<PolygonSite>(&g)) return InsidePolygon(q, poly->vertices);
+  if (const auto* path = std::get_if<PathSite>(&g)) return InsidePath(q, *path);
+  return false;
 }
 
 namespace {
@@ -49,6 +69,9 @@ std::pair<Vec2, Vec2> SegmentAt(const Geometry& g, uint32_t i) {
     const auto& v = poly->vertices;
     return {v[i], v[(i + 1) % v.size()]};
   }
+  if (const auto* path = std::get_if<PathSite>(&g)) {  // of lines only: segment i is piece i
+    return {path->pieces[i].control[0], path->pieces[i].control[1]};
+  }
   const auto& flat = std::get<BezierSite>(g).flat;
   return {flat[i], flat[i + 1]};
 }
@@ -61,6 +84,10 @@ FeatureHit FeatureOf(const Geometry& g, double d, uint32_t i, double t) {
                              : FeatureHit{d, FeatureKind::kEdge, i, a + t * (b - a)};
   if (const auto* poly = std::get_if<PolygonSite>(&g)) {
     if (best.kind == FeatureKind::kVertex) best.index %= poly->vertices.size();
+  } else if (const auto* path = std::get_if<PathSite>(&g)) {
+    if (best.kind == FeatureKind::kVertex) {
+      best.index = t == 0 ? path->pieces[i].first_joint : path->pieces[i].last_joint;
+    }
   } else if (const auto* bez = std::get_if<BezierSite>(&g)) {
     uint32_t last = static_cast<uint32_t>(bez->flat.size() - 1);
     if (best.kind == FeatureKind::kVertex && best.index == 0) {
@@ -87,6 +114,7 @@ FeatureHit NearestFeature(Vec2 q, const Geometry& g) {
     }
     return {c.distance, FeatureKind::kCurve, 0, c.point};
   }
+  if (const auto* path = std::get_if<PathSite>(&g)) return PathNearestFeature(q, *path);
   double best = INFINITY, best_t = 0;
   uint32_t i = 0, best_i = 0;
   ForEachSegment(g, [&](Vec2 a, Vec2 b) {
@@ -102,33 +130,42 @@ FeatureHit NearestFeature(Vec2 q, const Geometry& g) {
   return FeatureOf(g, best, best_i, best_t);
 }
 
-// A Bezier's segment tree holds its flattening, which the rasterizer draws; its distances are
-// the curve's.
-FeatureHit NearestFeature(Vec2 q, const Site& site) {
+namespace {
+
+// Whether the segments of the site's tree are its geometry (not a curve's drawn polylines).
+bool TreeIsExact(const Site& site) {
   if (site.segment_tree == nullptr || std::holds_alternative<BezierSite>(site.geometry)) {
-    return NearestFeature(q, site.geometry);
+    return false;
   }
+  const auto* path = std::get_if<PathSite>(&site.geometry);
+  return path == nullptr || !path->curved;
+}
+
+}  // namespace
+
+// The segment tree of a Bezier or of a path with curves holds their drawn polylines; their
+// distances are the curves'.
+FeatureHit NearestFeature(Vec2 q, const Site& site) {
+  if (!TreeIsExact(site)) return NearestFeature(q, site.geometry);
   const SegmentTree::Hit hit = site.segment_tree->Nearest(q);
   return FeatureOf(site.geometry, hit.distance, hit.index, hit.t);
 }
 
 double ExactDistance(Vec2 q, const Site& site) {
-  return site.segment_tree && !std::holds_alternative<BezierSite>(site.geometry)
-             ? site.segment_tree->Nearest(q).distance
-             : ExactDistance(q, site.geometry);
+  return TreeIsExact(site) ? site.segment_tree->Nearest(q).distance
+                           : ExactDistance(q, site.geometry);
 }
 
 double DrawnDistance(Vec2 q, const Site& site) {
-  if (!std::holds_alternative<BezierSite>(site.geometry)) return ExactDistance(q, site);
+  if (DrawnTolerance(site.geometry) == 0) return ExactDistance(q, site);
   return site.segment_tree ? site.segment_tree->Nearest(q).distance
                            : SegmentsDistance(q, site.geometry);
 }
 
 double FarthestDistance(const Window& rect, const Site& site) {
   if (site.segment_tree == nullptr) return FarthestDistance(rect, site.geometry);
-  // A Bezier's tree holds its flattening, within its tolerance of the curve.
-  const auto* b = std::get_if<BezierSite>(&site.geometry);
-  return site.segment_tree->Farthest(rect) + (b ? b->tolerance : 0.0);
+  // A curve's drawn polyline is within its tolerance of it.
+  return site.segment_tree->Farthest(rect) + DrawnTolerance(site.geometry);
 }
 
 bool InsidePolygon(Vec2 q, const std::vector<Vec2>& v) {
@@ -145,24 +182,26 @@ bool InsidePolygon(Vec2 q, const std::vector<Vec2>& v) {
 double SiteValue(Vec2 q, const Site& site) {
   double d = ExactDistance(q, site);
   if (d > site.max_distance) return INFINITY;
-  if (const auto* poly = std::get_if<PolygonSite>(&site.geometry)) {
-    if (poly->side != Side::kBoth && d > 0 &&
-        InsidePolygon(q, poly->vertices) != (poly->side == Side::kInside)) {
-      return INFINITY;
-    }
+  const Side side = SideOf(site.geometry);
+  if (side != Side::kBoth && d > 0 && InsideOf(q, site.geometry) != (side == Side::kInside)) {
+    return INFINITY;
   }
   return site.multiplicative * d + site.additive;
 }
 
-std::vector<Vec2> Flatten(const std::vector<Vec2>& control, double tolerance) {
-  assert(control.size() == 3 || control.size() == 4);
-  assert(tolerance > 0);
+double FlattenBound(const std::vector<Vec2>& control) {
   const double deg = static_cast<double>(control.size() - 1);
   double m = 0;
   for (size_t i = 0; i + 2 < control.size(); ++i) {
     m = std::max(m, Length(control[i + 2] - 2.0 * control[i + 1] + control[i]));
   }
-  double n = std::ceil(std::sqrt(deg * (deg - 1) / 8 * m / tolerance));
+  return deg * (deg - 1) / 8 * m;
+}
+
+std::vector<Vec2> Flatten(const std::vector<Vec2>& control, double tolerance) {
+  assert(control.size() == 3 || control.size() == 4);
+  assert(tolerance > 0);
+  double n = std::ceil(std::sqrt(FlattenBound(control) / tolerance));
   uint32_t pieces = !(n >= 1) ? 1 : n >= kMaxBezierPieces ? kMaxBezierPieces : uint32_t(n);
   std::vector<Vec2> flat(pieces + 1);
   for (uint32_t i = 0; i <= pieces; ++i) flat[i] = BezierPoint(control, double(i) / pieces);
@@ -178,13 +217,7 @@ BezierSite MakeBezier(std::vector<Vec2> control, double tolerance) {
     tolerance = length > 0 ? length / 1000 : 1e-9;
   }
   // Past kMaxBezierPieces the bound says how far the flattening may stray: state that.
-  const double deg = static_cast<double>(control.size() - 1);
-  double m = 0;
-  for (size_t i = 0; i + 2 < control.size(); ++i) {
-    m = std::max(m, Length(control[i + 2] - 2.0 * control[i + 1] + control[i]));
-  }
-  double floor_tol = deg * (deg - 1) / 8 * m / (double(kMaxBezierPieces) * kMaxBezierPieces);
-  tolerance = std::max(tolerance, floor_tol);
+  tolerance = std::max(tolerance, FlattenBound(control) / (double(kMaxBezierPieces) * kMaxBezierPieces));
   BezierSite b;
   b.flat = Flatten(control, tolerance);
   b.control = std::move(control);
@@ -199,6 +232,7 @@ double TotalLength(const Geometry& g) {
 }
 
 Window BoundingBox(const Geometry& g) {
+  if (const auto* path = std::get_if<PathSite>(&g)) return PathBox(*path);
   Window w{INFINITY, INFINITY, -INFINITY, -INFINITY};
   auto add = [&](Vec2 p) {
     w.min_x = std::min(w.min_x, p.x);
@@ -220,6 +254,7 @@ Window BoundingBox(const Geometry& g) {
 
 double FarthestDistance(const Window& rect, const Geometry& g) {
   if (const auto* p = std::get_if<PointSite>(&g)) return rect.FarthestDistance(p->p);
+  if (const auto* path = std::get_if<PathSite>(&g)) return PathFarthestDistance(rect, *path);
   // d(., g) <= d(., s) for each segment s, and d(., s) is convex (s is convex), so its
   // maximum over the rectangle is at a corner.
   const Vec2 corners[4] = {{rect.min_x, rect.min_y}, {rect.max_x, rect.min_y},

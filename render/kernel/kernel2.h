@@ -47,20 +47,22 @@ struct Kernel2 {
   static double Value(Point q, const Site& s) { return SiteValue(q, s); }
   // The length of line the site draws (TotalLength), summed over a scene as its ink.
   static double Ink(const Site& s) { return TotalLength(s.geometry); }
-  // How far the site's distances may be from its true geometry's, in value: a Bezier's
-  // tolerance (its flattening stands in for the curve) times its multiplicative weight; 0
-  // for every other kind.
-  static double Tolerance(const Site& s) {
-    const auto* b = std::get_if<BezierSite>(&s.geometry);
-    return b ? b->tolerance * s.multiplicative : 0;
-  }
+  // How far the site's distances may be from its true geometry's, in value: the tolerance
+  // of a Bezier's or a path's curves (their drawn polylines stand in for them) times its
+  // multiplicative weight; 0 for every other kind.
+  static double Tolerance(const Site& s) { return DrawnTolerance(s.geometry) * s.multiplicative; }
   // The scale of a curve's measuring error (BezierDistanceError's extent, times the weight);
   // 0 for every other kind.
   static double CurveExtent(const Site& s) {
-    const auto* b = std::get_if<BezierSite>(&s.geometry);
-    if (b == nullptr) return 0;
     double extent = 0;
-    for (Vec2 p : b->control) extent = std::max(extent, Length(p));
+    if (const auto* b = std::get_if<BezierSite>(&s.geometry)) {
+      for (Vec2 p : b->control) extent = std::max(extent, Length(p));
+    } else if (const auto* path = std::get_if<PathSite>(&s.geometry); path && path->curved) {
+      for (const PathPiece& piece : path->pieces) {
+        if (piece.degree == 1) continue;
+        for (int i = 0; i <= piece.degree; ++i) extent = std::max(extent, Length(piece.control[i]));
+      }
+    }
     return extent * s.multiplicative;
   }
   // Readies a site that enters a table: its segment tree, for sites of many segments.

@@ -48,41 +48,38 @@ int LineCrossing(Vec2 q, Vec2 a, Vec2 b) {
   return b.y > a.y ? 1 : -1;
 }
 
-// The same for the degree-n curve with control points p, split until each piece is settled.
-int CurveCrossings(Vec2 q, const std::array<Vec2, 4>& p, int n, int depth) {
-  bool all_above = true, none_above = true, all_right = true, none_right = true;
-  bool rising = true, falling = true;
-  for (int i = 0; i <= n; ++i) {
-    const bool above = p[i].y > q.y, right = p[i].x > q.x;
-    all_above = all_above && above;
-    none_above = none_above && !above;
-    all_right = all_right && right;
-    none_right = none_right && !right;
-    if (i > 0) {
-      rising = rising && p[i].y >= p[i - 1].y;
-      falling = falling && p[i].y <= p[i - 1].y;
-    }
-  }
-  // The curve lies in its control points' hull: wholly above, below or left of q, it does
-  // not cross the ray (or its ends' states agree, and it crosses as often up as down).
-  if (all_above || none_above || none_right) return 0;
-  // Monotone in y (its control points' y are), it crosses q's level once; right of q, there.
-  if ((rising || falling) && all_right) return p[n].y > p[0].y ? 1 : -1;
-  if (depth >= 48) return LineCrossing(q, p[0], p[n]);
-  std::array<Vec2, 4> w = p, left, right;
-  left[0] = w[0];
-  right[n] = w[n];
-  for (int k = 1; k <= n; ++k) {
-    for (int i = 0; i + k <= n; ++i) w[i] = 0.5 * (w[i] + w[i + 1]);
-    left[k] = w[0];
-    right[n - k] = w[n - k];
-  }
-  return CurveCrossings(q, left, n, depth + 1) + CurveCrossings(q, right, n, depth + 1);
-}
-
 }  // namespace
 
-PathSite MakePath(std::vector<Subpath> subpaths, FillRule fill, Side side, double tolerance) {
+std::string PathContractError(const std::vector<Subpath>& subpaths, Side side) {
+  if (subpaths.empty()) return "has no subpath";
+  for (size_t i = 0; i < subpaths.size(); ++i) {
+    const Subpath& s = subpaths[i];
+    const std::string at = "subpath " + std::to_string(i);
+    if (s.degrees.empty()) return at + " has no piece";
+    size_t points = 1;
+    for (size_t k = 0; k < s.degrees.size(); ++k) {
+      if (s.degrees[k] < 1 || s.degrees[k] > 3) {
+        return at + ": piece " + std::to_string(k) + " has degree " +
+               std::to_string(s.degrees[k]) + "; each is 1 (a line), 2 or 3 (a Bezier)";
+      }
+      points += s.degrees[k];
+    }
+    if (s.points.size() != points) {
+      return at + " has " + std::to_string(s.points.size()) + " points; its pieces take " +
+             std::to_string(points);
+    }
+    for (Vec2 p : s.points) {
+      if (!std::isfinite(p.x) || !std::isfinite(p.y)) return at + " has a point that is not finite";
+    }
+    if (side != Side::kBoth && !s.closed) {
+      return at + " is open; a path restricted to a side has only closed subpaths";
+    }
+  }
+  return "";
+}
+
+PathSite MakePath(std::vector<Subpath> subpaths, FillRule fill, Side side, double tolerance,
+                  size_t max_points) {
   PathSite path;
   path.fill = fill;
   path.side = side;
@@ -100,20 +97,40 @@ PathSite MakePath(std::vector<Subpath> subpaths, FillRule fill, Side side, doubl
       piece.degree = s.degrees[k];
       assert(piece.degree >= 1 && piece.degree <= 3 && at + piece.degree < s.points.size());
       for (int i = 0; i <= piece.degree; ++i) piece.control[i] = s.points[at + i];
-      for (int i = 0; i < piece.degree; ++i) length += Distance(piece.control[i], piece.control[i + 1]);
+      // A thousandth of each, so that the sum stays finite wherever the points' box does.
+      for (int i = 0; i < piece.degree; ++i) length += Distance(piece.control[i], piece.control[i + 1]) / 1000;
       at += piece.degree;
       piece.first_joint = first_joint + static_cast<uint32_t>(k);
       const bool last = k + 1 == s.degrees.size();
       piece.last_joint = last && s.closed ? first_joint : piece.first_joint + 1;
       piece.closed = s.closed;
+      path.curved = path.curved || piece.degree > 1;
       path.pieces.push_back(piece);
     }
     path.joints = first_joint + static_cast<uint32_t>(s.degrees.size()) + (s.closed ? 0 : 1);
   }
-  if (!(tolerance > 0)) tolerance = length > 0 ? length / 1000 : 1e-9;
-  // MakeBezier widens a tolerance its curve's flattening cannot keep.
+  if (!(tolerance > 0)) tolerance = length > 0 ? length : 1e-9;
+  // Curve i takes ceil(sqrt(k_i / tolerance)) pieces, k_i its FlattenBound, at most
+  // kMaxBezierPieces (as MakeBezier, the tolerance widens to what each can keep), and one
+  // point more; a line two points. So the drawn points are at most
+  // 2 lines + 2 curves + sqrt(1 / tolerance) sum sqrt(k_i), which a tolerance of
+  // (sum sqrt(k_i) / (max_points - 2 lines - 2 curves))^2 keeps within max_points.
+  size_t lines = 0, curves = 0;
+  double roots = 0;
   for (const PathPiece& piece : path.pieces) {
-    if (piece.degree > 1) tolerance = std::max(tolerance, MakeBezier(ControlOf(piece), tolerance).tolerance);
+    if (piece.degree == 1) {
+      ++lines;
+      continue;
+    }
+    ++curves;
+    const double k = FlattenBound(ControlOf(piece));
+    tolerance = std::max(tolerance, k / (double(kMaxBezierPieces) * kMaxBezierPieces));
+    roots += std::sqrt(k);
+  }
+  assert(max_points > 2 * lines + 3 * curves);
+  if (2 * lines + 2 * curves + roots / std::sqrt(tolerance) > double(max_points)) {
+    const double room = double(max_points - 2 * lines - 2 * curves);
+    tolerance = std::max(tolerance, (roots / room) * (roots / room) * (1 + 1e-12));
   }
   path.tolerance = tolerance;
   for (PathPiece& piece : path.pieces) {
@@ -155,10 +172,9 @@ FeatureHit PathNearestFeature(Vec2 q, const PathSite& path) {
 
 int PathWinding(Vec2 q, const PathSite& path) {
   int winding = 0;
-  for (const PathPiece& piece : path.pieces) {
-    if (!piece.closed) continue;
-    winding += piece.degree == 1 ? LineCrossing(q, piece.control[0], piece.control[1])
-                                 : CurveCrossings(q, piece.control, piece.degree, 0);
+  for (uint32_t k = 0; k < path.pieces.size(); ++k) {
+    if (!path.pieces[k].closed) continue;
+    ForEachPieceSegment(path, k, [&](Vec2 a, Vec2 b) { winding += LineCrossing(q, a, b); });
   }
   return winding;
 }

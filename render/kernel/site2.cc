@@ -4,8 +4,9 @@ namespace gvd {
 
 bool Site::plain() const {
   if (weighted() || std::isfinite(max_distance)) return false;
-  const auto* polygon = std::get_if<PolygonSite>(&geometry);
-  return polygon == nullptr || polygon->side == Side::kBoth;
+  if (const auto* polygon = std::get_if<PolygonSite>(&geometry)) return polygon->side == Side::kBoth;
+  if (const auto* path = std::get_if<PathSite>(&geometry)) return path->side == Side::kBoth;
+  return true;
 }
 
 }  // namespace gvd

@@ -51,8 +51,52 @@ struct BezierSite {
   std::vector<Vec2> flat;
 };
 
+// How closed outlines bound an inside (SVG's fill-rule): a point is inside where their
+// winding number around it is not 0, or is odd.
+enum class FillRule : uint8_t { kNonZero, kEvenOdd };
+
+// A path's subpath as given: its start, then each piece's points after the previous piece's
+// end (1 for a line, 2 for a quadratic, 3 for a cubic), as `degrees` says.
+struct Subpath {
+  std::vector<Vec2> points;
+  std::vector<uint8_t> degrees;
+  // Closed: its last piece ends at its start. MakePath (path2.h) adds a line back to the
+  // start where the last point is elsewhere (as SVG's Z does); that line is then its last
+  // piece.
+  bool closed = false;
+};
+
+// One piece of a path: degree + 1 control points (a line's are its ends).
+struct PathPiece {
+  std::array<Vec2, 4> control;
+  uint8_t degree = 1;
+  uint32_t first_joint = 0, last_joint = 0;  // the joints it starts and ends at
+  uint32_t flat_begin = 0;  // its polyline in PathSite::flat: flat_begin .. next's - 1
+  bool closed = false;      // of a closed subpath
+};
+
+// One object of lines and curves (an SVG <path>, a glyph's outline, a polygon with holes)
+// as one site: path2.h says what it is and how its features are numbered; MakePath builds
+// one. Its closed subpaths' drawn polylines bound an inside, by its fill rule; with kOutside
+// (kInside) it is a candidate only outside (inside) it, or on its outline. A path with a
+// side has only closed subpaths.
+struct PathSite {
+  std::vector<Subpath> subpaths;
+  FillRule fill = FillRule::kNonZero;
+  Side side = Side::kBoth;
+  // How far the drawn polylines of the curves may stray from them (as a Bezier's).
+  double tolerance = 0;
+  // Derived by MakePath: the pieces in feature order, and the polyline drawn for each (a
+  // line's two ends, a curve's flattening), piece after piece.
+  std::vector<PathPiece> pieces;
+  std::vector<Vec2> flat;
+  uint32_t joints = 0;
+  bool curved = false;  // whether a piece is a curve
+};
+
 // Every site kind; new kinds are added here, in exact2.cc and in the rasterizer's primitives.
-using Geometry = std::variant<PointSite, SegmentSite, PolylineSite, PolygonSite, BezierSite>;
+using Geometry =
+    std::variant<PointSite, SegmentSite, PolylineSite, PolygonSite, BezierSite, PathSite>;
 
 // What a site's part nearest to a point is (NearestSite.feature_kind in the API); faces are
 // the 3D kernel's (site3.h).

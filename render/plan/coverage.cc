@@ -40,15 +40,13 @@ bool BeatsSomewhere(Vec2 s, Vec2 s1, const Window& c) {
 bool PresentOnDisc(const SiteView& s, double d, double h, double margin) {
   if (s.plain_point()) return true;
   if (!(d + h <= s.site->max_distance + margin)) return false;
-  const auto* poly = std::get_if<PolygonSite>(&s.site->geometry);
-  return poly == nullptr || poly->side == Side::kBoth;
+  return SideOf(s.site->geometry) == Side::kBoth;
 }
 
-// False when the site is a polygon restricted to its inside whose box, grown by the margin,
-// misses the cell: it is present nowhere there.
+// False when the site is a polygon or path restricted to its inside whose box, grown by the
+// margin, misses the cell: it is present nowhere there.
 bool InsideReach(const SiteView& s, const Window& cell, double margin) {
-  const auto* poly = s.site ? std::get_if<PolygonSite>(&s.site->geometry) : nullptr;
-  if (poly == nullptr || poly->side != Side::kInside) return true;
+  if (s.site == nullptr || SideOf(s.site->geometry) != Side::kInside) return true;
   Window b = BoundingBox(s.site->geometry);
   return b.min_x - margin <= cell.max_x && cell.min_x <= b.max_x + margin &&
          b.min_y - margin <= cell.max_y && cell.min_y <= b.max_y + margin;
@@ -84,35 +82,43 @@ std::vector<PieceRegion> Regions(const Site& site) {
 constexpr uint32_t kNone = UINT32_MAX;
 std::vector<std::array<uint32_t, 4>> PiecesOfSegments(const Geometry& g) {
   std::vector<uint32_t> edges;  // the segments of positive length, in order
-  uint32_t count = 0;
+  std::vector<bool> degenerate;
   ForEachSegment(g, [&](Vec2 a, Vec2 b) {
-    if (a.x != b.x || a.y != b.y) edges.push_back(count);
-    ++count;
+    degenerate.push_back(a.x == b.x && a.y == b.y);
+    if (!degenerate.back()) edges.push_back(static_cast<uint32_t>(degenerate.size() - 1));
   });
-  std::vector<std::array<uint32_t, 4>> out(count, {kNone, kNone, kNone, kNone});
+  std::vector<std::array<uint32_t, 4>> out(degenerate.size(), {kNone, kNone, kNone, kNone});
   const uint32_t n = static_cast<uint32_t>(edges.size());
-  if (n == 0) {  // every vertex at one point: one fan
-    for (auto& pieces : out) pieces[0] = 0;
-    return out;
-  }
   for (uint32_t e = 0; e < n; ++e) {
     out[edges[e]][0] = 2 * e;
     out[edges[e]][1] = 2 * e + 1;
   }
-  const uint32_t fans = 2 * n;
-  if (std::holds_alternative<PolygonSite>(g)) {  // joint i: the end of edge i, start of i + 1
-    for (uint32_t i = 0; i < n; ++i) {
-      out[edges[i]][3] = fans + i;
-      out[edges[(i + 1) % n]][2] = fans + i;
+  // The fans, chain after chain as ForEachPiece draws them.
+  uint32_t fan = 2 * n, e = 0;
+  ForEachChain(g, [&](uint32_t begin, uint32_t end, bool closed) {
+    const uint32_t first = e;
+    while (e < n && edges[e] < end) ++e;
+    const uint32_t m = e - first;
+    auto at = [&](uint32_t i) { return edges[first + i]; };
+    if (m == 0) {  // every vertex at one point: one fan
+      for (uint32_t i = begin; i < end; ++i) out[i][0] = fan;
+      ++fan;
+    } else if (closed) {  // joint i: the end of edge i, start of i + 1
+      for (uint32_t i = 0; i < m; ++i) {
+        out[at(i)][3] = fan + i;
+        out[at((i + 1) % m)][2] = fan + i;
+      }
+      fan += m;
+    } else {  // the chain's two ends, then its joints
+      out[at(0)][2] = fan;
+      out[at(m - 1)][3] = fan + 1;
+      for (uint32_t i = 0; i + 1 < m; ++i) {
+        out[at(i)][3] = fan + 2 + i;
+        out[at(i + 1)][2] = fan + 2 + i;
+      }
+      fan += m + 1;
     }
-  } else {  // the chain's two ends, then its joints
-    out[edges[0]][2] = fans;
-    out[edges[n - 1]][3] = fans + 1;
-    for (uint32_t i = 0; i + 1 < n; ++i) {
-      out[edges[i]][3] = fans + 2 + i;
-      out[edges[i + 1]][2] = fans + 2 + i;
-    }
-  }
+  });
   return out;
 }
 
@@ -273,9 +279,8 @@ double TileCover::PresenceReach() const {
     for (uint32_t s = 0; s < sites_.size() && std::isfinite(reach); ++s) {
       const Site* site = sites_.get(s);
       if (site == nullptr) continue;
-      const auto* poly = std::get_if<PolygonSite>(&site->geometry);
-      // An inside-only polygon is present within DrawMargin of its box at most.
-      reach = poly && poly->side == Side::kInside ? reach : std::max(reach, site->max_distance);
+      // An inside-only polygon or path is present within DrawMargin of its box at most.
+      reach = SideOf(site->geometry) == Side::kInside ? reach : std::max(reach, site->max_distance);
     }
     reach_ = reach;
   });
@@ -467,9 +472,9 @@ Side TileCover::TileSide(const Grid& grid, PixelRect tile, const Site& site) {
   const double h = Distance({box.min_x, box.min_y}, {box.max_x, box.max_y}) / 2 + Rounding(c);
   // The boundary is farther than the margin from every centre: none is on it, nor near it,
   // and all lie on the side of c.
-  if (!(ExactDistance(c, site) - h > DrawMargin(grid) * (1 + 1e-12))) return Side::kBoth;
-  return InsidePolygon(c, std::get<PolygonSite>(site.geometry).vertices) ? Side::kInside
-                                                                           : Side::kOutside;
+  // (The drawn outline's distance: the rasterizer tests the side of that.)
+  if (!(DrawnDistance(c, site) - h > DrawMargin(grid) * (1 + 1e-12))) return Side::kBoth;
+  return InsideOf(c, site.geometry) ? Side::kInside : Side::kOutside;
 }
 
 void TileCover::CoverDown(PixelRect tile, uint32_t leaf_px, const Leaf& leaf) const {

@@ -165,10 +165,10 @@ class TileCover {
   static void NeededSegments(const Grid& grid, PixelRect tile, const Site& site, double upper,
                              std::vector<uint32_t>* out);
 
-  // For a polygon: Side::kInside (kOutside) when every pixel centre of `tile` lies inside
-  // (outside) it and farther than DrawMargin from its boundary, so that a polygon restricted
-  // to a side is present at all of them or at none; Side::kBoth when the boundary comes
-  // nearer. CONTRACT: the site is a polygon.
+  // For a polygon or a path: Side::kInside (kOutside) when every pixel centre of `tile` lies
+  // inside (outside) it and farther than DrawMargin from its drawn boundary, so that a site
+  // restricted to a side is present at all of them or at none; Side::kBoth when the boundary
+  // comes nearer. CONTRACT: the site is a polygon or a path.
   static Side TileSide(const Grid& grid, PixelRect tile, const Site& site);
 
  private:

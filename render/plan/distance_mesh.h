@@ -58,10 +58,11 @@ FanRange FanTriangles(double from, double to, uint32_t n);
 // the half on the left of the direction given (so that the halves of a tent, one on each
 // side, can be drawn apart), then f(p, from, to) for each
 // vertex, which gets a fan over the directions (radians, from <= to <= from + 2 pi) in which
-// it is the site's nearest point: all of them for a point, the half-plane beyond the end of
-// an open chain, the wedge between the normals of the two edges at a joint (empty on the
-// inner side of the turn). A point q whose nearest point on the site is inside an edge lies in that
-// edge's slab; one whose nearest point is a vertex v lies beyond the end of the edge
+// it is the site's nearest point: all of them for a point (or a chain of one point), the
+// half-plane beyond the end of an open chain, the wedge between the normals of the two edges
+// at a joint (empty on the inner side of the turn), chain after chain (ForEachChain,
+// exact2.h). A point q whose nearest point on the site is inside an edge lies in that edge's
+// slab; one whose nearest point is a vertex v lies beyond the end of the edge
 // arriving at v and before the start of the edge leaving it: in v's wedge.
 template <class F, class G>
 void ForEachPiece(const Geometry& geometry, F&& f, G&& g) {
@@ -70,39 +71,56 @@ void ForEachPiece(const Geometry& geometry, F&& f, G&& g) {
     f(p->p, 0.0, 2 * kPi);
     return;
   }
-  thread_local std::vector<std::pair<Vec2, Vec2>> edges;
+  // The edges of positive length, chain after chain (ForEachChain): each chain's range of
+  // them, its first point and whether it is closed. A chain without any is a point.
+  struct ChainEdges {
+    size_t begin, end;
+    Vec2 start;
+    bool closed;
+  };
+  thread_local std::vector<std::pair<Vec2, Vec2>> segments, edges;
+  thread_local std::vector<ChainEdges> chains;
+  segments.clear();
   edges.clear();
-  Vec2 any;
-  ForEachSegment(geometry, [&](Vec2 a, Vec2 b) {
-    any = a;
-    if (a.x != b.x || a.y != b.y) edges.emplace_back(a, b);
+  chains.clear();
+  ForEachSegment(geometry, [&](Vec2 a, Vec2 b) { segments.emplace_back(a, b); });
+  ForEachChain(geometry, [&](uint32_t begin, uint32_t end, bool closed) {
+    const size_t first = edges.size();
+    for (uint32_t i = begin; i < end; ++i) {
+      const auto [a, b] = segments[i];
+      if (a.x != b.x || a.y != b.y) edges.emplace_back(a, b);
+    }
+    chains.push_back({first, edges.size(), segments[begin].first, closed});
   });
-  if (edges.empty()) {  // every vertex at one point
-    f(any, 0.0, 2 * kPi);
-    return;
-  }
   auto angle = [](Vec2 from, Vec2 to) { return std::atan2(to.y - from.y, to.x - from.x); };
   for (const auto& [a, b] : edges) {
     g(a, b);
     g(b, a);
   }
-  const bool closed = std::holds_alternative<PolygonSite>(geometry);
-  if (!closed) {
-    const double first = angle(edges.front().second, edges.front().first);
-    const double last = angle(edges.back().first, edges.back().second);
-    f(edges.front().first, first - kPi / 2, first + kPi / 2);
-    f(edges.back().second, last - kPi / 2, last + kPi / 2);
-  }
-  const size_t joints = closed ? edges.size() : edges.size() - 1;
-  for (size_t i = 0; i < joints; ++i) {
-    const auto& [a, v] = edges[i];
-    const Vec2 b = edges[(i + 1) % edges.size()].second;
-    // Beyond the arriving edge: within pi/2 of its direction c1; before the leaving edge:
-    // within pi/2 of its reverse c2. Both half-planes meet in the wedge around the middle.
-    const double c1 = angle(a, v), c2 = angle(b, v);
-    const double delta = std::remainder(c2 - c1, 2 * kPi);
-    const double half = kPi / 2 - std::abs(delta) / 2;
-    f(v, c1 + delta / 2 - half, c1 + delta / 2 + half);
+  for (const ChainEdges& chain : chains) {
+    const size_t n = chain.end - chain.begin;
+    if (n == 0) {  // every vertex at one point
+      f(chain.start, 0.0, 2 * kPi);
+      continue;
+    }
+    auto edge = [&](size_t i) { return edges[chain.begin + i]; };
+    if (!chain.closed) {
+      const double first = angle(edge(0).second, edge(0).first);
+      const double last = angle(edge(n - 1).first, edge(n - 1).second);
+      f(edge(0).first, first - kPi / 2, first + kPi / 2);
+      f(edge(n - 1).second, last - kPi / 2, last + kPi / 2);
+    }
+    const size_t joints = chain.closed ? n : n - 1;
+    for (size_t i = 0; i < joints; ++i) {
+      const auto [a, v] = edge(i);
+      const Vec2 b = edge((i + 1) % n).second;
+      // Beyond the arriving edge: within pi/2 of its direction c1; before the leaving edge:
+      // within pi/2 of its reverse c2. Both half-planes meet in the wedge around the middle.
+      const double c1 = angle(a, v), c2 = angle(b, v);
+      const double delta = std::remainder(c2 - c1, 2 * kPi);
+      const double half = kPi / 2 - std::abs(delta) / 2;
+      f(v, c1 + delta / 2 - half, c1 + delta / 2 + half);
+    }
   }
 }
 

@@ -10,8 +10,7 @@ namespace gvd {
 
 void ErrorTally::Live(const Site& site) {
   max_weight_ = std::max(max_weight_, site.multiplicative);
-  const auto* poly = std::get_if<PolygonSite>(&site.geometry);
-  if (std::isfinite(site.max_distance) || (poly && poly->side != Side::kBoth)) {
+  if (std::isfinite(site.max_distance) || SideOf(site.geometry) != Side::kBoth) {
     limited_presence_ = true;
   }
   curve_slack_ = std::max(curve_slack_, Kernel2::Tolerance(site));

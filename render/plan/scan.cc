@@ -30,7 +30,7 @@ void ScanTile(const ScanInput& in, size_t t, uint32_t x0, uint32_t y0, float* be
               uint32_t* id) {
   constexpr uint32_t kTile = kScanTile, kPixels = kScanPixels;
   alignas(32) float px[kPixels], py[kPixels], xs[kTile], ys[kTile], d2[kPixels];
-  alignas(32) bool inside[kPixels];
+  alignas(32) int32_t winding[kPixels];
   const TileLists& lists = in.lists;
   for (uint32_t i = 0; i < kTile; ++i) {
     xs[i] = (static_cast<float>(x0 + i) + 0.5f) * in.pw;
@@ -66,8 +66,8 @@ void ScanTile(const ScanInput& in, size_t t, uint32_t x0, uint32_t y0, float* be
       py[j * kTile + i] = ys[j];
     }
   }
-  // The least distance from each pixel to the segment (a, b) into d2, squared, and the
-  // even-odd crossings of a ray towards +x into `inside` (when `side`).
+  // The least distance from each pixel to the segment (a, b) into d2, squared, and its
+  // crossing of a ray towards +x into `winding` (when `side`): 1 upwards, -1 downwards.
   auto visit = [&](const glm::vec4& s, bool side) {
     const float ax = s.x, ay = s.y, abx = s.z - s.x, aby = s.w - s.y;
     const float len2 = abx * abx + aby * aby;
@@ -79,10 +79,11 @@ void ScanTile(const ScanInput& in, size_t t, uint32_t x0, uint32_t y0, float* be
       d2[i] = std::min(d2[i], dx * dx + dy * dy);
     }
     if (!side) return;
+    const int32_t up = s.w > s.y ? 1 : -1;
     for (uint32_t i = 0; i < kPixels; ++i) {
       if ((s.y > py[i]) != (s.w > py[i]) &&
           px[i] < s.x + (py[i] - s.y) / (s.w - s.y) * (s.z - s.x)) {
-        inside[i] = !inside[i];
+        winding[i] += up;
       }
     }
   };
@@ -90,12 +91,13 @@ void ScanTile(const ScanInput& in, size_t t, uint32_t x0, uint32_t y0, float* be
   auto take = [&](const ComputeSite& s, bool side) {
     const float m = s.weight.x, a = s.weight.y, reach = s.weight.z;
     const uint32_t site = s.info.x;
-    const bool want_inside = s.info.w == 2;
+    const bool want_inside = (s.info.w & 3) == 2, nonzero = (s.info.w & 4) != 0;
     for (uint32_t i = 0; i < kPixels; ++i) {
       const float d = std::sqrt(d2[i]);
       const float value = m * d + a;
       bool present = d <= reach;
-      if (side) present = present && (d <= in.margin || inside[i] == want_inside);
+      const bool inside = nonzero ? winding[i] != 0 : (winding[i] & 1) != 0;
+      if (side) present = present && (d <= in.margin || inside == want_inside);
       const bool better = value < best[i] || (value == best[i] && site < id[i]);
       best[i] = present && better ? value : best[i];
       id[i] = present && better ? site : id[i];
@@ -104,9 +106,9 @@ void ScanTile(const ScanInput& in, size_t t, uint32_t x0, uint32_t y0, float* be
   // Sites scanned whole.
   for (uint32_t k = at[1]; k < next[1]; ++k) {
     const ComputeSite& s = in.sites[lists.sites[k]];
-    const bool side = s.info.w != 0;
+    const bool side = (s.info.w & 3) != 0;
     std::fill(d2, d2 + kPixels, INFINITY);
-    std::fill(inside, inside + kPixels, false);
+    std::fill(winding, winding + kPixels, 0);
     for (uint32_t g = s.info.y; g < s.info.y + s.info.z; ++g) visit(in.segments[g], side);
     take(s, side);
   }
@@ -132,9 +134,10 @@ PerFragmentSite PerFragmentOf(const Site& site, uint32_t id, double reach, Vec2 
     segments->emplace_back(rel(p), rel(q));
     ++count;
   });
-  uint32_t side = 0;
-  if (const auto* poly = std::get_if<PolygonSite>(&site.geometry)) {
-    side = poly->side == Side::kOutside ? 1 : poly->side == Side::kInside ? 2 : 0;
+  const Side where = SideOf(site.geometry);
+  uint32_t side = where == Side::kOutside ? 1 : where == Side::kInside ? 2 : 0;
+  if (const auto* path = std::get_if<PathSite>(&site.geometry)) {
+    if (path->fill == FillRule::kNonZero) side |= 4;
   }
   return {(*segments)[first],
           glm::vec3(site.multiplicative, site.additive, reach),

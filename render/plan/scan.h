@@ -36,7 +36,9 @@ PerFragmentSite PerFragmentOf(const Site& site, uint32_t id, double reach, Vec2 
 struct ComputeSite {
   glm::vec4 first;   // its first segment
   glm::vec4 weight;  // (m, a, reach, unused)
-  glm::uvec4 info;   // (slot + 1, first segment, segment count, side: 0 both, 1 outside, 2 inside)
+  // (slot + 1, first segment, segment count, side: bits 0-1 0 both, 1 outside, 2 inside;
+  // bit 2 the nonzero rule, else even-odd)
+  glm::uvec4 info;
 };
 static_assert(sizeof(ComputeSite) == 12 * 4);
 

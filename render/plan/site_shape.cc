@@ -55,9 +55,7 @@ uint32_t SegmentBucket(uint32_t needed) {
 
 bool PerFragment(const DrawParams& params, const Site& site) {
   if (params.mode == RenderMode::kExact) return true;
-  if (const auto* poly = std::get_if<PolygonSite>(&site.geometry)) {
-    if (poly->side != Side::kBoth) return true;
-  }
+  if (SideOf(site.geometry) != Side::kBoth) return true;
   return params.diagram == Diagram::kFarthest && !std::holds_alternative<PointSite>(site.geometry);
 }
 

@@ -53,8 +53,7 @@ Coverage TileCandidates(const Grid& grid, const SlotTable& slots, const SiteInde
             continue;
           }
           const Site& site = *slots.get(slot);
-          const auto* poly = std::get_if<PolygonSite>(&site.geometry);
-          if (poly && poly->side != Side::kBoth) {
+          if (const Side side = SideOf(site.geometry); side != Side::kBoth) {
             // Scanned whole where its boundary comes near the tile; elsewhere present at all
             // of its centres (then as if it had no side) or at none.
             const Side where = TileCover::TileSide(grid, rect, site);
@@ -62,7 +61,7 @@ Coverage TileCandidates(const Grid& grid, const SlotTable& slots, const SiteInde
               row.sites.push_back(slot);
               continue;
             }
-            if (where != poly->side) continue;
+            if (where != side) continue;
           }
           needed.clear();
           TileCover::NeededSegments(grid, rect, site, upper, &needed);

@@ -10,6 +10,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "render/kernel/exact3.h"
+#include "render/kernel/path2.h"
 
 namespace gvd {
 namespace {
@@ -25,7 +26,7 @@ constexpr uint8_t kSettingsFormat = 1;
 constexpr uint8_t kSettingsFormat3 = 2;
 
 // Geometry tags, one per alternative of Geometry; never reused.
-enum Tag : uint8_t { kPoint = 1, kSegment = 2, kPolyline = 3, kPolygon = 4, kBezier = 5 };
+enum Tag : uint8_t { kPoint = 1, kSegment = 2, kPolyline = 3, kPolygon = 4, kBezier = 5, kPath = 10 };
 // And one per alternative of Geometry3.
 enum Tag3 : uint8_t { kPoint3 = 6, kSegment3 = 7, kTriangle3 = 8, kMesh3 = 9 };
 
@@ -113,6 +114,7 @@ class Reader {
     return points;
   }
   void Fail() { ok_ = false; }
+  bool ok() const { return ok_; }
   // OK when every read fitted and nothing is left over.
   absl::Status Done(const char* what) const {
     if (ok_ && in_.empty()) return absl::OkStatus();
@@ -178,6 +180,7 @@ bool KeepsContract(const Site& site) {
                  std::isfinite(g.tolerance) && g.tolerance >= 0 && g.flat.size() >= 2 &&
                  Finite(g.flat);
         }
+        if constexpr (std::is_same_v<T, PathSite>) return true;  // checked as decoded
       },
       site.geometry);
 }
@@ -294,12 +297,25 @@ std::string EncodeSite(const Site& site) {
           w.Put(kPolygon);
           w.Put(static_cast<uint8_t>(g.side));
           w.Put(g.vertices);
-        } else {
-          static_assert(std::is_same_v<T, BezierSite>);
+        } else if constexpr (std::is_same_v<T, BezierSite>) {
           w.Put(kBezier);
           w.Put(g.tolerance);
           w.Put(g.control);
           w.Put(g.flat);
+        } else {
+          // Its subpaths as MakePath left them and its tolerance, from which MakePath
+          // derives the rest again.
+          static_assert(std::is_same_v<T, PathSite>);
+          w.Put(kPath);
+          w.Put(static_cast<uint8_t>(g.fill));
+          w.Put(static_cast<uint8_t>(g.side));
+          w.Put(g.tolerance);
+          w.Put(static_cast<uint32_t>(g.subpaths.size()));
+          for (const Subpath& s : g.subpaths) {
+            w.Put(static_cast<uint8_t>(s.closed));
+            w.PutArray(s.degrees);
+            w.Put(s.points);
+          }
         }
       },
       site.geometry);
@@ -335,6 +351,37 @@ absl::StatusOr<Site> DecodeSite<Site>(std::string_view bytes) {
       b.control = r.GetPoints();
       b.flat = r.GetPoints();
       site.geometry = std::move(b);
+      break;
+    }
+    case kPath: {
+      const uint8_t fill = r.Get<uint8_t>(), side = r.Get<uint8_t>();
+      const double tolerance = r.Get<double>();
+      if (fill > static_cast<uint8_t>(FillRule::kEvenOdd) ||
+          side > static_cast<uint8_t>(Side::kInside) || !(tolerance > 0)) {
+        r.Fail();
+      }
+      // One by one: each takes bytes, so a damaged count cannot allocate past the input.
+      std::vector<Subpath> subpaths;
+      for (uint32_t n = r.Get<uint32_t>(); n > 0 && r.ok(); --n) {
+        Subpath& s = subpaths.emplace_back();
+        const uint8_t closed = r.Get<uint8_t>();
+        if (closed > 1) r.Fail();
+        s.closed = closed != 0;
+        s.degrees = r.GetArray<uint8_t>();
+        s.points = r.GetPoints();
+      }
+      // As MakePath left them: closed ones end at their start, and the tolerance is one it
+      // keeps.
+      bool as_left = r.ok() && PathContractError(subpaths, static_cast<Side>(side)).empty();
+      for (const Subpath& s : subpaths) as_left = as_left && (!s.closed || s.points.back() == s.points.front());
+      if (!as_left) {
+        r.Fail();
+        break;
+      }
+      PathSite path = MakePath(std::move(subpaths), static_cast<FillRule>(fill),
+                               static_cast<Side>(side), tolerance);
+      if (path.tolerance != tolerance) r.Fail();
+      site.geometry = std::move(path);
       break;
     }
     default:

@@ -257,6 +257,11 @@ size_t SiteBytes(const Site& site) {
         } else if constexpr (std::is_same_v<G, BezierSite>) {
           bytes += (g.control.size() + g.flat.size()) * sizeof(Vec2);
           segments = g.flat.empty() ? 0 : g.flat.size() - 1;
+        } else if constexpr (std::is_same_v<G, PathSite>) {
+          for (const Subpath& s : g.subpaths) bytes += s.points.size() * sizeof(Vec2) + s.degrees.size();
+          bytes += g.subpaths.size() * sizeof(Subpath) + g.pieces.size() * sizeof(PathPiece) +
+                   g.flat.size() * sizeof(Vec2);
+          segments = g.flat.size() - g.pieces.size();
         }
       },
       site.geometry);

@@ -249,6 +249,28 @@ function demoSites() {
     const a = p();
     sites.push({ id: `bezier-${i}`, bezier: { controlPoints: [a, p(a.x, a.y, 10), p(a.x, a.y, 10), p(a.x, a.y, 12)], tolerance: 0.02 } });
   }
+  // Paths: rounded rectangles (lines and quarter circles as cubics) with a rounded hole, one
+  // site each, every other one restricted to its outside.
+  const k = 0.5523;  // a quarter circle's cubic handles, in radii
+  for (let i = 0; i < 4; ++i) {
+    const c = p(), w = u(4, 8), h = u(4, 8), r = Math.min(w, h) / 3;
+    const x0 = c.x - w / 2, x1 = c.x + w / 2, y0 = c.y - h / 2, y1 = c.y + h / 2;
+    const at = (x, y) => ({ x, y });
+    const outer = {
+      points: [at(x0 + r, y0), at(x1 - r, y0), at(x1 - r + k * r, y0), at(x1, y0 + r - k * r), at(x1, y0 + r),
+        at(x1, y1 - r), at(x1, y1 - r + k * r), at(x1 - r + k * r, y1), at(x1 - r, y1),
+        at(x0 + r, y1), at(x0 + r - k * r, y1), at(x0, y1 - r + k * r), at(x0, y1 - r),
+        at(x0, y0 + r), at(x0, y0 + r - k * r), at(x0 + r - k * r, y0), at(x0 + r, y0)],
+      degrees: [1, 3, 1, 3, 1, 3, 1, 3],
+      closed: true,
+    };
+    // A rounded hole of four quadratics, clockwise (so a hole by either fill rule).
+    const q = r / 2, hole = { points: [at(c.x + q, c.y)], degrees: [2, 2, 2, 2], closed: true };
+    for (const [cx, cy, ex, ey] of [[q, -q, 0, -q], [-q, -q, -q, 0], [-q, q, 0, q], [q, q, q, 0]]) {
+      hole.points.push(at(c.x + cx, c.y + cy), at(c.x + ex, c.y + ey));
+    }
+    sites.push({ id: `path-${i}`, path: { subpaths: [outer, hole], side: i % 2 ? 'SIDE_OUTSIDE' : undefined } });
+  }
   return sites;
 }
 
@@ -476,6 +498,21 @@ function tracePath(context, site, closeRing = true) {
     const v = pts(site.polyline ? site.polyline.points : site.polygon.vertices);
     v.forEach((p, i) => (i ? context.lineTo(...p) : context.moveTo(...p)));
     if (site.polygon && closeRing) context.closePath();
+  } else if (site.path) {
+    for (const sub of site.path.subpaths ?? []) {
+      const v = pts(sub.points);
+      if (v.length === 0) continue;
+      context.moveTo(...v[0]);
+      const degrees = sub.degrees?.length ? sub.degrees : v.slice(1).map(() => 1);
+      let k = 1;
+      for (const d of degrees) {
+        if (d === 1 && k < v.length) context.lineTo(...v[k]);
+        if (d === 2 && k + 1 < v.length) context.quadraticCurveTo(...v[k], ...v[k + 1]);
+        if (d === 3 && k + 2 < v.length) context.bezierCurveTo(...v[k], ...v[k + 1], ...v[k + 2]);
+        k += d;
+      }
+      if (sub.closed && closeRing) context.closePath();
+    }
   } else if (site.bezier) {
     const c = pts(site.bezier.controlPoints);
     if (c.length > 0) context.moveTo(...c[0]);
@@ -561,7 +598,7 @@ function featureName(kind, index) {
 }
 
 function kindOf(site) {
-  return ['point', 'segment', 'polyline', 'polygon', 'bezier', 'triangle', 'mesh'].find((k) => site?.[k]) ?? '–';
+  return ['point', 'segment', 'polyline', 'polygon', 'bezier', 'path', 'triangle', 'mesh'].find((k) => site?.[k]) ?? '–';
 }
 
 function percentile(sorted, p) {

@@ -53,7 +53,7 @@ def P(x, y):
 
 def mixed_sites(seed):
     """Every kind, with weights (which Pick ignores), coincident points, sites outside the
-    window [0, 100]^2, and a huge weight."""
+    window [0, 100]^2, and a huge weight; paths of one and of two subpaths, with a side."""
     rnd = random.Random(seed)
     u = rnd.uniform
     sites = []
@@ -79,6 +79,21 @@ def mixed_sites(seed):
             "controlPoints": [P(x, y), P(x + u(-10, 10), y + u(-10, 10)), P(x + u(-10, 10), y + u(-10, 10)),
                               P(x + u(-12, 12), y + u(-12, 12))],
             "tolerance": 0.01}})
+    for i in range(4):  # one object each: a rounded frame of lines and cubics, a square with a hole
+        x, y, w = u(5, 85), u(5, 85), u(6, 10)
+        k = 0.5523 * w / 4
+        if i % 2 == 0:
+            outer = {"points": [P(x + w / 4, y), P(x + w, y), P(x + w, y + w), P(x, y + w), P(x, y + w / 4),
+                                P(x, y + w / 4 - k), P(x + w / 4 - k, y), P(x + w / 4, y)],
+                     "degrees": [1, 1, 1, 1, 3], "closed": True}
+            path = {"subpaths": [outer, {"points": [P(x + w / 2, y + w / 2), P(x + w, y + 1.5 * w)]}],
+                    "tolerance": 0.01}
+        else:
+            square = lambda a, b, s: [P(a, b), P(a + s, b), P(a + s, b + s), P(a, b + s)]
+            path = {"subpaths": [{"points": square(x, y, w), "closed": True},
+                                 {"points": square(x + w / 4, y + w / 4, w / 2), "closed": True}],
+                    "fillRule": "FILL_RULE_EVEN_ODD", "side": "SIDE_OUTSIDE" if i == 1 else "SIDE_INSIDE"}
+        sites.append({"id": f"path{i}", "path": path})
     sites.append({"id": "twin-a", "point": P(50.5, 50.5)})
     sites.append({"id": "twin-b", "point": P(50.5, 50.5)})
     sites.append({"id": "outside", "point": P(-8, 40)})

@@ -128,12 +128,24 @@ TEST_F(CliTest, EveryKindAndAnImage) {
     {"type": "Feature", "properties": {"id": "gl", "additive_weight": 0.5},
      "geometry": {"type": "LineString", "coordinates": [[0, 0], [1, 3]]}},
     {"type": "Feature", "properties": {"id": "gg", "side": "inside"},
-     "geometry": {"type": "Polygon", "coordinates": [[[3, 3], [5, 3], [4, 5], [3, 3]]]}}]})");
+     "geometry": {"type": "Polygon", "coordinates": [[[3, 3], [5, 3], [4, 5], [3, 3]]]}},
+    {"type": "Feature", "id": "holed",
+     "geometry": {"type": "Polygon", "coordinates": [[[6, 6], [9, 6], [9, 9], [6, 9], [6, 6]],
+                                                     [[7, 7], [7, 8], [8, 8], [8, 7], [7, 7]]]}}]})");
   Result r = Gvd("--scene kinds sites add --file " + geo);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   r = Gvd("--scene kinds sites ls");
   EXPECT_NE(r.out.find("g\tpolygon\t6,1\t9,1\t8,4\n"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("gg\tpolygon\t3,3\t5,3\t4,5\n"), std::string::npos) << r.out;
+  // A polygon with a hole is one path site, its rings closed subpaths.
+  EXPECT_NE(r.out.find("holed\tpath\tM 6,6 L 9,6 L 9,9 L 6,9 Z M 7,7 L 7,8 L 8,8 L 8,7 Z\n"),
+            std::string::npos)
+      << r.out;
+  // Inside the hole, 0.2 from its left side: piece 4, from (7, 7) to (7, 8) (pieces 0-3 are
+  // the outer ring's).
+  r = Gvd("--scene kinds nearest 7.2 7.5 --exact");
+  EXPECT_NE(r.out.find("\tholed\t"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\tedge 4\n"), std::string::npos) << r.out;
   r = Gvd("--scene kinds nearest 2.5 1.4 --exact");
   EXPECT_NE(r.out.find("\ts\t"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("\tedge 0\n"), std::string::npos) << r.out;

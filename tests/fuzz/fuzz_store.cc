@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <string_view>
 
+#include "render/kernel/path2.h"
 #include "render/scene/codec.h"
 #include "render/scene/scene.h"
 #include "tests/support/oracle.h"
@@ -41,6 +42,10 @@ void CheckContract(const gvd::Site& s) {
   }
   if (const auto* g = std::get_if<gvd::PolygonSite>(&s.geometry)) {
     Check(g->vertices.size() >= 3 && AllFinite(g->vertices));
+  }
+  if (const auto* g = std::get_if<gvd::PathSite>(&s.geometry)) {
+    Check(gvd::PathContractError(g->subpaths, g->side).empty() && g->tolerance > 0);
+    Check(!g->pieces.empty() && g->flat.size() >= 2 * g->pieces.size() && AllFinite(g->flat));
   }
   if (const auto* g = std::get_if<gvd::BezierSite>(&s.geometry)) {
     Check(g->control.size() == 3 || g->control.size() == 4);

@@ -5,6 +5,7 @@
 #include <fstream>
 #include <string>
 
+#include "render/kernel/path2.h"
 #include "render/scene/codec.h"
 #include "gvd/v1/voronoi.pb.h"
 
@@ -82,7 +83,10 @@ int main(int argc, char** argv) {
       {"segment", gvd::SegmentSite{{0.1, 0.1}, {0.9, 0.4}}},
       {"polyline", gvd::PolylineSite{{{0, 0}, {0.5, 0.5}, {0.2, 0.9}}}},
       {"polygon", gvd::PolygonSite{{{0.2, 0.2}, {0.8, 0.2}, {0.5, 0.8}}, gvd::Side::kInside}},
-      {"bezier", bezier}};
+      {"bezier", bezier},
+      {"path", gvd::MakePath({{{{0.1, 0.1}, {0.9, 0.1}, {0.9, 0.9}, {0.5, 1}, {0.1, 0.9}}, {1, 1, 2}, true},
+                              {{{0.4, 0.4}, {0.6, 0.5}, {0.7, 0.6}, {0.5, 0.7}}, {3}, false}},
+                             gvd::FillRule::kEvenOdd, gvd::Side::kBoth, 0.01)}};
   for (gvd::Site site : sites) {
     site.additive = site.id == "segment" ? 0.25 : 0;
     site.multiplicative = site.id == "polyline" ? 2 : 1;

@@ -15,6 +15,7 @@ import pytest
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 import gvd  # noqa: E402
+from gvd.v1 import voronoi_pb2  # noqa: E402
 from gvdtest import Server  # noqa: E402
 
 SERVER = os.environ.get("GVD_SERVER", "build/test/server/gvd-server")
@@ -111,15 +112,27 @@ def test_sites_of_every_kind_and_pick(client):
         {"id": "seg", "type": "LineString", "coordinates": [[5, 0], [5, 4]]},
         {"id": "poly", "type": "Polygon", "coordinates": [[[7, 7], [9, 7], [9, 9], [7, 7]]]},
         {"id": "json", "segment": {"a": {"x": 0, "y": 9}, "b": {"x": 2, "y": 9}}},
+        # A polygon with a hole: one path site of two closed rings, even-odd.
+        {"id": "holed", "type": "Polygon", "coordinates": [[[1, 4], [4, 4], [4, 7], [1, 7], [1, 4]],
+                                                          [[2, 5], [3, 5], [3, 6], [2, 6], [2, 5]]]},
     ])
     listed = {s["id"]: s for s in client.list_sites(sid)}
-    assert set(listed) == {"pt", "seg", "poly", "json"}
+    assert set(listed) == {"pt", "seg", "poly", "json", "holed"}
     assert listed["seg"]["segment"]["b"] == {"x": 5.0, "y": 4.0}
+    holed = listed["holed"]["path"]
+    assert holed["fillRule"] == "FILL_RULE_EVEN_ODD"
+    assert [len(s["points"]) for s in holed["subpaths"]] == [5, 5]  # each ring and its closing line
+    assert all(s["closed"] and s["degrees"] == [1] * 4 for s in holed["subpaths"])
     picked = client.pick(sid, 5.5, 2)
     assert picked.found and picked.site_id == "seg" and picked.distance == 0.5
+    # In the hole, 0.25 from its left side: the hole's closing line, piece 7 (pieces 0-3 are
+    # the outer ring's).
+    picked = client.pick(sid, 2.25, 5.5)
+    assert picked.found and picked.site_id == "holed" and picked.distance == 0.25
+    assert picked.feature_kind == voronoi_pb2.FEATURE_KIND_EDGE and picked.feature_index == 7
     v2 = client.delete_sites(sid, ["pt"])
     assert v2 == v + 1
-    assert {s["id"] for s in client.list_sites(sid)} == {"seg", "poly", "json"}
+    assert {s["id"] for s in client.list_sites(sid)} == {"seg", "poly", "json", "holed"}
 
 
 def test_relaxed_writes_are_seen_at_once(client):

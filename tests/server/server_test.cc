@@ -887,7 +887,7 @@ TEST_F(ServerTest, ClosestPointsAndGradients) {
   Generator gen(2611);
   std::vector<Site> sites;
   for (int k = 0; k < 140; ++k) {
-    Site site{"k" + std::to_string(k), gen.Kind(k % 7)};
+    Site site{"k" + std::to_string(k), gen.Kind(k % Generator::kKinds)};
     if (k % 5 == 1) site.additive = gen.U(0, 0.05);
     if (k % 5 == 2) site.multiplicative = gen.U(0.8, 2);
     sites.push_back(site);

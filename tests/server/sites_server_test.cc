@@ -8,6 +8,7 @@
 
 #include "gvd/client.h"
 #include "render/kernel/exact2.h"
+#include "render/kernel/path2.h"
 #include "tests/support/server_process.h"
 #include "tests/support/test_scenes.h"
 // After protobuf's headers: OpenImageIO's would hide its byte-swap functions.
@@ -28,10 +29,10 @@ std::vector<Site> MixedSites(uint64_t seed) {
   auto u = [&](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); };
   auto p = [&] { return Vec2{u(-1, 11), u(-1, 11)}; };
   std::vector<Site> sites;
-  for (int i = 0; i < 30; ++i) {
+  for (int i = 0; i < 36; ++i) {
     Geometry g;
     Vec2 a = p();
-    switch (i % 6) {
+    switch (i < 30 ? i % 6 : 6) {
       case 0: g = PointSite{a}; break;
       case 1: g = SegmentSite{a, {a.x + u(-2, 2), a.y + u(-2, 2)}}; break;
       case 2: g = PolylineSite{{a, {a.x + 1, a.y + u(-1, 1)}, {a.x + 2, a.y + u(-1, 1)}}}; break;
@@ -40,8 +41,20 @@ std::vector<Site> MixedSites(uint64_t seed) {
         g = PolygonSite{{a, {a.x + u(0.5, 2), a.y}, {a.x + u(0, 2), a.y + u(0.5, 2)}},
                         i % 12 == 3 ? Side::kOutside : i % 12 == 9 ? Side::kInside : Side::kBoth};
         break;
-      default:
+      case 5:
         g = MakeBezier({a, {a.x + u(-2, 2), a.y + 2}, {a.x + 2, a.y + u(-2, 2)}, p()}, 0.01);
+        break;
+      default: {  // a rounded square (lines and cubics) with a square hole, or an open hook
+        const double r = u(1, 2), k = 0.55 * r / 2;
+        Subpath outer{{{a.x + r / 2, a.y}, {a.x + r, a.y}, {a.x + r + k, a.y}, {a.x + 1.5 * r, a.y + r / 2 - k},
+                       {a.x + 1.5 * r, a.y + r / 2}, {a.x + 1.5 * r, a.y + r}, {a.x, a.y + r}},
+                      {1, 3, 1, 1}, true};
+        Subpath hole{{{a.x + 0.5, a.y + 0.2}, {a.x + 0.5, a.y + 0.6}, {a.x + 0.9, a.y + 0.6}, {a.x + 0.9, a.y + 0.2}},
+                     {1, 1, 1}, true};
+        const Side side = i % 3 == 0 ? Side::kOutside : i % 3 == 1 ? Side::kInside : Side::kBoth;
+        if (side == Side::kBoth) hole = {{a, {a.x + 1, a.y + 1}, {a.x + 2, a.y}}, {2}, false};
+        g = MakePath({outer, hole}, i % 2 ? FillRule::kEvenOdd : FillRule::kNonZero, side, 0.01);
+      }
     }
     Site s{"s" + std::to_string(i), g};
     if (i % 5 == 1) s.additive = u(0, 1);
@@ -78,6 +91,13 @@ TEST_F(SitesServerTest, MixedScenesAnswerWithinTheirBound) {
     if (const auto* b = std::get_if<BezierSite>(&s.geometry)) {
       for (Vec2 p : b->control) extent = std::max(extent, s.multiplicative * Length(p));
     }
+    if (const auto* path = std::get_if<PathSite>(&s.geometry)) {
+      for (const PathPiece& piece : path->pieces) {
+        for (int i = 0; piece.degree > 1 && i <= piece.degree; ++i) {
+          extent = std::max(extent, s.multiplicative * Length(piece.control[i]));
+        }
+      }
+    }
   }
   ASSERT_GT(extent, 0);
   int scene = 0;
@@ -112,7 +132,7 @@ TEST_F(SitesServerTest, MixedScenesAnswerWithinTheirBound) {
           // The API's limit on the rounding of measuring curves.
           const double curves = 0x1p-41 * (std::abs(n.distance()) + extent);
           const double tolerance = oracle::Tolerance(qs[k], n.distance(), s.multiplicative) +
-                                   (std::holds_alternative<BezierSite>(s.geometry) ? curves : 0);
+                                   (oracle::CurveRounding(n.distance(), s) > 0 ? curves : 0);
           ASSERT_NEAR(n.distance(), oracle::Value(qs[k], s), tolerance) << id << " query " << k;
           ASSERT_TRUE(IsNearestFeature(qs[k], s.geometry, n.feature_kind(), n.feature_index()))
               << id << " query " << k << " feature " << n.feature_kind() << " "
@@ -193,6 +213,52 @@ TEST_F(SitesServerTest, BadSitesAreRefusedByName) {
          s.mutable_bezier()->set_tolerance(-1);
        }),
        StatusCode::INVALID_ARGUMENT, "sites[1].bezier.tolerance is -1"},
+      {upsert([&](auto& s) { s.mutable_path(); }), StatusCode::INVALID_ARGUMENT,
+       "sites[1].path has no subpath"},
+      {upsert([&](auto& s) {
+         auto* sub = s.mutable_path()->add_subpaths();
+         pts(sub->mutable_points(), {{0, 0}, {1, 1}, {2, 0}, {3, 1}});
+         sub->add_degrees(1);
+         sub->add_degrees(4);
+       }),
+       StatusCode::INVALID_ARGUMENT, "sites[1].path.subpaths[0].degrees[1] is 4"},
+      {upsert([&](auto& s) {
+         s.mutable_path()->add_subpaths();
+         auto* sub = s.mutable_path()->add_subpaths();
+         pts(sub->mutable_points(), {{0, 0}, {1, 1}, {2, 0}, {3, 1}});
+         sub->add_degrees(3);
+         sub->add_degrees(1);
+       }),
+       StatusCode::INVALID_ARGUMENT, "sites[1].path.subpaths[0].points has 0 points"},
+      {upsert([&](auto& s) {
+         auto* sub = s.mutable_path()->add_subpaths();
+         pts(sub->mutable_points(), {{0, 0}, {1, 1}, {2, 0}, {3, 1}});
+         sub->add_degrees(3);
+         sub->add_degrees(1);
+       }),
+       StatusCode::INVALID_ARGUMENT,
+       "sites[1].path.subpaths[0].points has 4 points; its start and the pieces of its degrees take 5"},
+      {upsert([&](auto& s) {
+         auto* sub = s.mutable_path()->add_subpaths();
+         pts(sub->mutable_points(), {{0, 0}, {1, 1}, {2, 0}});
+         s.mutable_path()->set_side(v1::Polygon::SIDE_INSIDE);
+       }),
+       StatusCode::INVALID_ARGUMENT,
+       "sites[1].path: subpath 0 is open; a path restricted to a side has only closed subpaths"},
+      {upsert([&](auto& s) {
+         pts(s.mutable_path()->add_subpaths()->mutable_points(), {{0, 0}, {1, 1}});
+         s.mutable_path()->set_fill_rule(static_cast<v1::Path::FillRule>(9));
+       }),
+       StatusCode::INVALID_ARGUMENT, "sites[1].path.fill_rule is 9"},
+      {upsert([&](auto& s) {
+         pts(s.mutable_path()->add_subpaths()->mutable_points(), {{0, 0}, {1, nan}});
+       }),
+       StatusCode::INVALID_ARGUMENT, "sites[1].path.subpaths[0].points[1].y is NaN"},
+      {upsert([&](auto& s) {
+         pts(s.mutable_path()->add_subpaths()->mutable_points(), {{0, 0}, {1, 1}});
+         s.mutable_path()->set_tolerance(-1);
+       }),
+       StatusCode::INVALID_ARGUMENT, "sites[1].path.tolerance is -1"},
       {upsert([&](auto& s) {
          SetPoint({1, 1}, s.mutable_point());
          s.set_additive_weight(-0.5);

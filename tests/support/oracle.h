@@ -35,8 +35,8 @@ inline Real ToSegment(Vec2 q, Vec2 a, Vec2 b, Real* t_out = nullptr) {
 }
 
 // The segments of a geometry in feature order: (a, b, edge index). A point is one degenerate
-// segment; a polygon closes; a Bezier's are its flattening's (what the rasterizer draws; its
-// distance is the curve's: CurveDistance).
+// segment; a polygon closes; a Bezier's are its flattening's, a path's its pieces' drawn
+// polylines (what the rasterizer draws; their distances are the curves': CurveDistance).
 inline std::vector<std::pair<Vec2, Vec2>> Segments(const Geometry& g) {
   std::vector<std::pair<Vec2, Vec2>> out;
   auto chain = [&out](const std::vector<Vec2>& v, bool closed) {
@@ -48,6 +48,14 @@ inline std::vector<std::pair<Vec2, Vec2>> Segments(const Geometry& g) {
   if (auto* l = std::get_if<PolylineSite>(&g)) chain(l->points, false);
   if (auto* poly = std::get_if<PolygonSite>(&g)) chain(poly->vertices, true);
   if (auto* b = std::get_if<BezierSite>(&g)) chain(b->flat, false);
+  if (auto* path = std::get_if<PathSite>(&g)) {
+    for (size_t k = 0; k < path->pieces.size(); ++k) {
+      const size_t end = k + 1 < path->pieces.size() ? path->pieces[k + 1].flat_begin : path->flat.size();
+      for (size_t i = path->pieces[k].flat_begin; i + 1 < end; ++i) {
+        out.push_back({path->flat[i], path->flat[i + 1]});
+      }
+    }
+  }
   return out;
 }
 
@@ -139,10 +147,45 @@ inline Real CurveDistance(Vec2 q, const std::vector<Vec2>& c, Real* t_out = null
   return std::sqrt(best);
 }
 
+// The distance from q to the box of the points.
+inline Real BoxDistance(Vec2 q, const std::vector<Vec2>& points) {
+  Real lo_x = points[0].x, hi_x = lo_x, lo_y = points[0].y, hi_y = lo_y;
+  for (Vec2 p : points) {
+    lo_x = std::min<Real>(lo_x, p.x), hi_x = std::max<Real>(hi_x, p.x);
+    lo_y = std::min<Real>(lo_y, p.y), hi_y = std::max<Real>(hi_y, p.y);
+  }
+  const Real dx = std::max<Real>({lo_x - q.x, Real(q.x) - hi_x, 0});
+  const Real dy = std::max<Real>({lo_y - q.y, Real(q.y) - hi_y, 0});
+  return std::hypot(dx, dy);
+}
+
+// A path's piece as given: its control points.
+inline std::vector<Vec2> PieceControl(const PathPiece& p) {
+  return {p.control.begin(), p.control.begin() + p.degree + 1};
+}
+inline Real PieceDistance(Vec2 q, const PathPiece& p) {
+  return p.degree == 1 ? ToSegment(q, p.control[0], p.control[1]) : CurveDistance(q, PieceControl(p));
+}
+
 // Euclidean distance from q to the geometry (a polygon's boundary, whatever its side; a
-// Bezier's true curve).
+// Bezier's true curve; a path's true pieces).
 inline double Distance(Vec2 q, const Geometry& g) {
   if (auto* b = std::get_if<BezierSite>(&g)) return static_cast<double>(CurveDistance(q, b->control));
+  if (auto* path = std::get_if<PathSite>(&g)) {
+    // A piece lies within its control points' box: one whose box is farther than the best
+    // distance found cannot be nearer. Taken nearest box first, that spares most curves.
+    std::vector<std::pair<Real, size_t>> order;
+    for (size_t k = 0; k < path->pieces.size(); ++k) {
+      order.push_back({BoxDistance(q, PieceControl(path->pieces[k])), k});
+    }
+    std::sort(order.begin(), order.end());
+    Real best = std::numeric_limits<Real>::infinity();
+    for (const auto& [box, k] : order) {
+      if (box > best) break;
+      best = std::min(best, PieceDistance(q, path->pieces[k]));
+    }
+    return static_cast<double>(best);
+  }
   return DrawnDistance(q, g);
 }
 
@@ -158,17 +201,44 @@ inline bool Inside(Vec2 q, const std::vector<Vec2>& v) {
   return inside;
 }
 
+// Whether q is inside a path: the winding number of its closed subpaths' drawn polylines
+// (the API's Path: the inside is theirs), counted along a ray towards +x, by its fill rule.
+inline bool InsidePath(Vec2 q, const PathSite& path) {
+  int winding = 0;
+  for (size_t k = 0; k < path.pieces.size(); ++k) {
+    if (!path.pieces[k].closed) continue;
+    const size_t end = k + 1 < path.pieces.size() ? path.pieces[k + 1].flat_begin : path.flat.size();
+    for (size_t i = path.pieces[k].flat_begin; i + 1 < end; ++i) {
+      const Vec2 a = path.flat[i], b = path.flat[i + 1];
+      if ((a.y > q.y) == (b.y > q.y)) continue;
+      const Real x = Real(a.x) + (Real(q.y) - a.y) * (Real(b.x) - a.x) / (Real(b.y) - a.y);
+      if (Real(q.x) < x) winding += b.y > a.y ? 1 : -1;
+    }
+  }
+  return path.fill == FillRule::kEvenOdd ? winding % 2 != 0 : winding != 0;
+}
+
+// The side a polygon or path is restricted to, and whether q is inside it.
+inline Side SideOf(const Geometry& g) {
+  if (auto* poly = std::get_if<PolygonSite>(&g)) return poly->side;
+  if (auto* path = std::get_if<PathSite>(&g)) return path->side;
+  return Side::kBoth;
+}
+inline bool InsideOf(Vec2 q, const Geometry& g) {
+  if (auto* poly = std::get_if<PolygonSite>(&g)) return Inside(q, poly->vertices);
+  if (auto* path = std::get_if<PathSite>(&g)) return oracle::InsidePath(q, *path);
+  return false;
+}
+
 // The site's value at q, or +infinity where it is no candidate: beyond max_distance, or on
-// the side of a polygon it excludes (the boundary belongs to both sides). drawn: of the
-// geometry as the rasterizer draws it (DrawnDistance), for what a raster shows.
+// the side of a polygon or path it excludes (the boundary belongs to both sides). drawn: of
+// the geometry as the rasterizer draws it (DrawnDistance), for what a raster shows.
 inline double Value(Vec2 q, const Site& s, bool drawn = false) {
   const double d = drawn ? DrawnDistance(q, s.geometry) : Distance(q, s.geometry);
   if (d > s.max_distance) return INFINITY;
-  if (auto* poly = std::get_if<PolygonSite>(&s.geometry)) {
-    if (poly->side != Side::kBoth && d > 0 &&
-        Inside(q, poly->vertices) != (poly->side == Side::kInside)) {
-      return INFINITY;
-    }
+  const Side side = oracle::SideOf(s.geometry);
+  if (side != Side::kBoth && d > 0 && oracle::InsideOf(q, s.geometry) != (side == Side::kInside)) {
+    return INFINITY;
   }
   return static_cast<double>(Real(s.multiplicative) * d + s.additive);
 }
@@ -184,24 +254,35 @@ struct Best {
 inline Best BestSite(Vec2 q, std::span<const Site> sites, Diagram diagram = Diagram::kNearest,
                      bool drawn = false) {
   Best best;
+  // A curve lies within its control points' box: one whose box is farther than the best value
+  // found cannot beat it. Curves taken last, nearest box first, that spares measuring most.
+  std::vector<std::pair<Real, size_t>> order;
   for (size_t i = 0; i < sites.size(); ++i) {
-    // A curve lies within its control points' box: one whose box is farther than the best
-    // value found cannot beat it (which spares measuring most curves).
-    if (const auto* b = std::get_if<BezierSite>(&sites[i].geometry);
-        b && best.found && diagram == Diagram::kNearest && !drawn) {
-      Real dx = 0, dy = 0;
-      Real lo_x = b->control[0].x, hi_x = lo_x, lo_y = b->control[0].y, hi_y = lo_y;
-      for (Vec2 p : b->control) {
-        lo_x = std::min<Real>(lo_x, p.x), hi_x = std::max<Real>(hi_x, p.x);
-        lo_y = std::min<Real>(lo_y, p.y), hi_y = std::max<Real>(hi_y, p.y);
-      }
-      dx = std::max<Real>({lo_x - q.x, Real(q.x) - hi_x, 0});
-      dy = std::max<Real>({lo_y - q.y, Real(q.y) - hi_y, 0});
-      if (sites[i].multiplicative * std::hypot(dx, dy) + sites[i].additive > best.value) continue;
+    const auto* b = std::get_if<BezierSite>(&sites[i].geometry);
+    const auto* path = std::get_if<PathSite>(&sites[i].geometry);
+    if (!(b || path) || drawn) {
+      order.push_back({-1, i});
+      continue;
     }
+    std::vector<Vec2> points;
+    if (b) points = b->control;
+    for (const PathPiece& p : path ? path->pieces : std::vector<PathPiece>{}) {
+      for (Vec2 c : PieceControl(p)) points.push_back(c);
+    }
+    // And one whose box is beyond its max_distance is no candidate at all.
+    const Real box = BoxDistance(q, points);
+    if (box > sites[i].max_distance) continue;
+    order.push_back({diagram == Diagram::kNearest ? sites[i].multiplicative * box + sites[i].additive : -1, i});
+  }
+  std::stable_sort(order.begin(), order.end(),
+                   [](const auto& x, const auto& y) { return x.first < y.first; });
+  for (const auto& [bound, i] : order) {
+    if (bound >= 0 && best.found && bound > best.value) break;
     const double v = Value(q, sites[i], drawn);
     if (!std::isfinite(v)) continue;
-    if (!best.found || (diagram == Diagram::kNearest ? v < best.value : v > best.value)) {
+    // Ties: the lowest index.
+    if (!best.found || (diagram == Diagram::kNearest ? v < best.value : v > best.value) ||
+        (v == best.value && i < best.index)) {
       best = {i, v, true};
     }
   }
@@ -219,17 +300,26 @@ inline double Tolerance(Vec2 q, double value, double weight = 1) {
 // the API's limit on the rounding of measuring a curve (Bezier in the API: 2^-41 of the
 // value and the curve's largest |control point|, times its weight), 0 for other kinds.
 inline double CurveRounding(double value, const Site& s) {
-  const auto* b = std::get_if<BezierSite>(&s.geometry);
-  if (b == nullptr) return 0;
   double extent = 0;
-  for (Vec2 p : b->control) extent = std::max(extent, std::hypot(p.x, p.y));
-  return 0x1p-41 * (std::abs(value) + s.multiplicative * extent);
+  bool curved = false;
+  if (const auto* b = std::get_if<BezierSite>(&s.geometry)) {
+    curved = true;
+    for (Vec2 p : b->control) extent = std::max(extent, std::hypot(p.x, p.y));
+  } else if (const auto* path = std::get_if<PathSite>(&s.geometry)) {
+    for (const PathPiece& piece : path->pieces) {
+      if (piece.degree == 1) continue;
+      curved = true;
+      for (Vec2 p : PieceControl(piece)) extent = std::max(extent, std::hypot(p.x, p.y));
+    }
+  }
+  return curved ? 0x1p-41 * (std::abs(value) + s.multiplicative * extent) : 0;
 }
 
 // Distance from q to one named feature of the geometry, or NaN when the geometry has no such
 // feature. Vertices: a point's 0; a segment's a = 0, b = 1; a polyline's or polygon's vertex
-// i; a Bezier's endpoints by their control-point index. Edges: a segment's 0; edge i of a
-// polyline or polygon from vertex i to the next. Curve 0: a Bezier's curve.
+// i; a Bezier's endpoints by their control-point index; a path's joints. Edges: a segment's
+// 0; edge i of a polyline or polygon from vertex i to the next; a path's line pieces. Curves:
+// a Bezier's 0; a path's curve pieces.
 inline double FeatureDistance(Vec2 q, const Geometry& g, FeatureKind kind, uint32_t index) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   auto at = [&](Vec2 p) { return static_cast<double>(ToSegment(q, p, p)); };
@@ -249,6 +339,24 @@ inline double FeatureDistance(Vec2 q, const Geometry& g, FeatureKind kind, uint3
   };
   if (auto* l = std::get_if<PolylineSite>(&g)) return chain(l->points, false);
   if (auto* poly = std::get_if<PolygonSite>(&g)) return chain(poly->vertices, true);
+  if (auto* path = std::get_if<PathSite>(&g)) {
+    // Joints as the API's Path numbers them, from the subpaths as given: each piece's
+    // start, and an open subpath's end; pieces in order.
+    std::vector<Vec2> joints;
+    for (const Subpath& sub : path->subpaths) {
+      size_t at = 0;
+      for (uint8_t d : sub.degrees) {
+        joints.push_back(sub.points[at]);
+        at += d;
+      }
+      if (!sub.closed) joints.push_back(sub.points[at]);
+    }
+    if (kind == FeatureKind::kVertex) return index < joints.size() ? at(joints[index]) : nan;
+    if (index >= path->pieces.size()) return nan;
+    const PathPiece& piece = path->pieces[index];
+    if (kind != (piece.degree == 1 ? FeatureKind::kEdge : FeatureKind::kCurve)) return nan;
+    return static_cast<double>(PieceDistance(q, piece));
+  }
   const auto& b = std::get<BezierSite>(g);
   if (kind == FeatureKind::kVertex && (index == 0 || index + 1 == b.control.size())) {
     return at(b.control[index]);

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "render/kernel/exact2.h"
+#include "render/kernel/path2.h"
 #include "tests/support/oracle.h"
 #include "render/scene/frame.h"
 
@@ -22,19 +23,14 @@ inline double Unrestricted(Vec2 p, const Site& s) {
 
 // Whether the site may be drawn at p: within max_distance + margin (the margin widened by
 // what a fan's corners and float arithmetic add), and on its polygon's side or within
-// margin of the boundary (render/kernel/grid2.h: DrawMargin).
+// margin of the boundary (render/kernel/grid2.h: DrawMargin); a path's drawn boundary.
 inline bool MayBeDrawn(Vec2 p, const Site& s, const Frame& f) {
   const double margin = DrawMargin(f.grid()) * (1 + 1e-5);
   double d = oracle::DrawnDistance(p, s.geometry);
   if (d > (s.max_distance + margin + f.grid().pixel_size() / 8) * f.error().overestimate)
     return false;
-  if (const auto* poly = std::get_if<PolygonSite>(&s.geometry)) {
-    if (poly->side != Side::kBoth && d > margin &&
-        oracle::Inside(p, poly->vertices) != (poly->side == Side::kInside)) {
-      return false;
-    }
-  }
-  return true;
+  const Side side = oracle::SideOf(s.geometry);
+  return side == Side::kBoth || d <= margin || oracle::InsideOf(p, s.geometry) == (side == Side::kInside);
 }
 
 struct PixelReport {
@@ -50,7 +46,19 @@ struct PixelReport {
 //  - when that site is a candidate at p, it is within 2 eps (times the weight) of the best;
 //  - D bounds the best value at p as the frame's error model says (what queries rely on),
 //    the drawn flattenings of curves within the model's curve term of the curves.
-inline PixelReport CheckEveryPixel(const Frame& f, const SiteTable& sites, const std::string& what) {
+//  The oracle's best site at each centre (oracle::BestSite, row by row) may come from
+//  `truths`, computed once for several frames of one grid, sites and diagram (Truths).
+inline std::vector<oracle::Best> Truths(const Grid& g, const SiteTable& sites, Diagram diagram) {
+  std::vector<oracle::Best> out;
+  out.reserve(g.pixel_count());
+  for (uint32_t j = 0; j < g.height; ++j) {
+    for (uint32_t i = 0; i < g.width; ++i) out.push_back(oracle::BestSite(g.Center(i, j), sites, diagram));
+  }
+  return out;
+}
+
+inline PixelReport CheckEveryPixel(const Frame& f, const SiteTable& sites, const std::string& what,
+                                   const std::vector<oracle::Best>* truths = nullptr) {
   const Grid& g = f.grid();
   const ErrorModel& e = f.error();
   const double excess = e.max_excess;
@@ -60,7 +68,8 @@ inline PixelReport CheckEveryPixel(const Frame& f, const SiteTable& sites, const
   for (uint32_t j = 0; j < g.height && failures < 5; ++j) {
     for (uint32_t i = 0; i < g.width && failures < 5; ++i) {
       Vec2 p = g.Center(i, j);
-      oracle::Best truth = oracle::BestSite(p, sites, e.diagram);
+      const oracle::Best truth = truths ? (*truths)[size_t{j} * g.width + i]
+                                        : oracle::BestSite(p, sites, e.diagram);
       uint32_t id = f.id_at(i, j);
       auto fail = [&](const std::string& why) {
         ++failures;
@@ -94,7 +103,9 @@ inline PixelReport CheckEveryPixel(const Frame& f, const SiteTable& sites, const
                   : !(e.UpperBound(stored) + e.curve >= truth.value)) {
         fail("the error model's bound fails");
       }
-      if (!std::isfinite(oracle::Value(p, s))) {
+      // (The best site's value is the truth's: a curve measured once.)
+      const double value = id - 1 == truth.index ? truth.value : oracle::Value(p, s);
+      if (!std::isfinite(value)) {
         ++report.band;
         continue;
       }
@@ -107,6 +118,12 @@ inline PixelReport CheckEveryPixel(const Frame& f, const SiteTable& sites, const
 
 // Random geometry of each kind, around the unit window (partly outside it).
 struct Generator {
+  // Kind(k) for k < kKinds gives a point, segment, polyline, polygon (both sides, outside,
+  // inside), Bezier, path (both sides, outside, inside), as kKindNames says.
+  static constexpr int kKinds = 10;
+  static constexpr const char* kKindNames[kKinds] = {
+      "point",  "segment", "polyline",     "polygon",     "polygon outside",
+      "polygon inside", "bezier", "path", "path outside", "path inside"};
   std::mt19937_64 rng;
   explicit Generator(uint64_t seed) : rng(seed) {}
   double U(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); }
@@ -140,11 +157,34 @@ struct Generator {
         poly.side = kind == 3 ? Side::kBoth : kind == 4 ? Side::kOutside : Side::kInside;
         return poly;
       }
-      default: {
+      case 6: {
         Vec2 a = P();
         std::vector<Vec2> control{a, Near(a, 0.3), Near(a, 0.3)};
         if (U(0, 1) < 0.5) control.push_back(Near(a, 0.3));
         return MakeBezier(control, 0.002);
+      }
+      default: {  // loops of lines and curves around one centre, open ones with no side
+        const Vec2 c = P();
+        std::vector<Subpath> subpaths(1 + int(U(0, 3)));
+        double scale = U(0.1, 0.25);
+        for (Subpath& s : subpaths) {
+          s.closed = kind != 7 || U(0, 1) < 0.7;
+          const int n = 2 + int(U(0, 5));
+          for (int k = 0; k <= n; ++k) {
+            const double t = 2 * M_PI * (k + U(0, 0.8)) / n, r = scale * U(0.4, 1);
+            const Vec2 p{c.x + r * std::cos(t), c.y + r * std::sin(t)};
+            if (k > 0) {
+              const int degree = 1 + int(U(0, 3));
+              for (int i = 1; i < degree; ++i) s.points.push_back(Near(s.points.back(), 0.1));
+              s.degrees.push_back(static_cast<uint8_t>(degree));
+            }
+            s.points.push_back(p);
+          }
+          scale *= U(0.3, 0.8);  // the next loop nested within, often
+        }
+        const Side side = kind == 7 ? Side::kBoth : kind == 8 ? Side::kOutside : Side::kInside;
+        return MakePath(subpaths, U(0, 1) < 0.5 ? FillRule::kNonZero : FillRule::kEvenOdd,
+                        side, 0.002);
       }
     }
   }

@@ -3,6 +3,7 @@
 // directory.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -10,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "render/kernel/path2.h"
 #include "render/kernel/site2.h"
 #include "server/store/store.h"
 
@@ -59,6 +61,20 @@ inline bool SameSite(const Site& a, const Site& b) {
     const auto& h = std::get<PolygonSite>(b.geometry);
     return g->side == h.side && SamePoints(g->vertices, h.vertices);
   }
+  if (auto* p = std::get_if<PathSite>(&a.geometry)) {
+    const auto& q = std::get<PathSite>(b.geometry);
+    if (p->fill != q.fill || p->side != q.side || !SameBits(p->tolerance, q.tolerance) ||
+        p->subpaths.size() != q.subpaths.size() || !SamePoints(p->flat, q.flat)) {
+      return false;
+    }
+    for (size_t i = 0; i < p->subpaths.size(); ++i) {
+      const Subpath &s = p->subpaths[i], &t = q.subpaths[i];
+      if (s.closed != t.closed || s.degrees != t.degrees || !SamePoints(s.points, t.points)) {
+        return false;
+      }
+    }
+    return true;
+  }
   const auto& c = std::get<BezierSite>(a.geometry);
   const auto& d = std::get<BezierSite>(b.geometry);
   return SameBits(c.tolerance, d.tolerance) && SamePoints(c.control, d.control) &&
@@ -81,12 +97,26 @@ inline Site RandomSite(std::mt19937_64& rng, int kind, const std::string& id) {
   s.additive = rng() % 2 ? 0 : std::abs(value());
   s.multiplicative = rng() % 2 ? 1 : 1 + std::abs(u(rng));
   s.max_distance = rng() % 2 ? INFINITY : 1 + std::abs(u(rng));
-  switch (kind % 5) {
+  switch (kind % 6) {
     case 0: s.geometry = PointSite{{value(), value()}}; break;
     case 1: s.geometry = SegmentSite{{value(), value()}, {value(), value()}}; break;
     case 2: s.geometry = PolylineSite{points(2 + rng() % 40)}; break;
     case 3: s.geometry = PolygonSite{points(3 + rng() % 40), static_cast<Side>(rng() % 3)}; break;
-    default: s.geometry = BezierSite{points(3 + rng() % 2), std::abs(value()), points(2 + rng() % 90)};
+    case 4: s.geometry = BezierSite{points(3 + rng() % 2), std::abs(value()), points(2 + rng() % 90)}; break;
+    default: {
+      std::vector<Subpath> subpaths(1 + rng() % 3);
+      for (Subpath& sub : subpaths) {
+        sub.closed = rng() % 2;
+        sub.points = points(1);
+        for (size_t k = 1 + rng() % 6; k > 0; --k) {
+          sub.degrees.push_back(static_cast<uint8_t>(1 + rng() % 3));
+          for (Vec2 p : points(sub.degrees.back())) sub.points.push_back(p);
+        }
+      }
+      const bool closed = std::all_of(subpaths.begin(), subpaths.end(), [](const Subpath& s) { return s.closed; });
+      s.geometry = MakePath(subpaths, static_cast<FillRule>(rng() % 2),
+                            closed ? static_cast<Side>(rng() % 3) : Side::kBoth, rng() % 2 ? 0 : std::abs(value()));
+    }
   }
   return s;
 }

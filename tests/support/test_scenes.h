@@ -49,7 +49,8 @@ inline void SetPoint(Vec2 p, v1::Point* out) {
   out->set_y(p.y);
 }
 
-// The API's form of a render-layer site (Bezier: its control points and tolerance).
+// The API's form of a render-layer site (Bezier: its control points and tolerance; path: its
+// subpaths as MakePath left them and its tolerance).
 inline v1::Site ToProtoSite(const Site& s) {
   v1::Site out;
   out.set_id(s.id);
@@ -68,6 +69,20 @@ inline v1::Site ToProtoSite(const Site& s) {
   } else if (const auto* b = std::get_if<BezierSite>(&s.geometry)) {
     for (Vec2 q : b->control) SetPoint(q, out.mutable_bezier()->add_control_points());
     out.mutable_bezier()->set_tolerance(b->tolerance);
+  } else if (const auto* path = std::get_if<PathSite>(&s.geometry)) {
+    v1::Path* to = out.mutable_path();
+    for (const Subpath& from : path->subpaths) {
+      v1::Path::Subpath* sub = to->add_subpaths();
+      for (Vec2 q : from.points) SetPoint(q, sub->add_points());
+      for (uint8_t d : from.degrees) sub->add_degrees(d);
+      sub->set_closed(from.closed);
+    }
+    to->set_fill_rule(path->fill == FillRule::kEvenOdd ? v1::Path::FILL_RULE_EVEN_ODD
+                                                       : v1::Path::FILL_RULE_NONZERO);
+    to->set_side(path->side == Side::kOutside  ? v1::Polygon::SIDE_OUTSIDE
+                 : path->side == Side::kInside ? v1::Polygon::SIDE_INSIDE
+                                               : v1::Polygon::SIDE_UNSPECIFIED);
+    to->set_tolerance(path->tolerance);
   }
   out.set_additive_weight(s.additive);
   out.set_multiplicative_weight(s.multiplicative);

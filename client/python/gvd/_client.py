@@ -505,7 +505,8 @@ def _join(parts: List[_Packed], m: int, dims: int, closest: bool) -> NearestResu
 
 def site_from_dict(d: Mapping[str, Any]) -> pb.Site:
     """A gvd.v1.Site from the API's JSON form, or from a GeoJSON-like geometry with an "id":
-    Point, LineString (a polyline; two points: a segment) or Polygon (its outer ring)."""
+    Point, LineString (a polyline; two points: a segment), Polygon (one ring: a polygon; with
+    holes: a path of its rings, even-odd) or MultiPolygon (a path of all its rings)."""
     if "type" in d and "coordinates" in d:
         kind, c = d["type"], d["coordinates"]
         rest = {k: v for k, v in d.items() if k not in ("type", "coordinates")}
@@ -519,12 +520,19 @@ def site_from_dict(d: Mapping[str, Any]) -> pb.Site:
             site.segment.b.x, site.segment.b.y = c[1][0], c[1][1]
         elif kind == "LineString":
             site.polyline.points.extend(pb.Point(x=p[0], y=p[1]) for p in c)
-        elif kind == "Polygon":
-            ring = c[0][:-1] if len(c[0]) > 1 and list(c[0][0]) == list(c[0][-1]) else c[0]
-            site.polygon.vertices.extend(pb.Point(x=p[0], y=p[1]) for p in ring)
+        elif kind in ("Polygon", "MultiPolygon"):
+            rings = [r[:-1] if len(r) > 1 and list(r[0]) == list(r[-1]) else r
+                     for r in (c if kind == "Polygon" else [r for p in c for r in p])]
+            if len(rings) == 1:
+                site.polygon.vertices.extend(pb.Point(x=p[0], y=p[1]) for p in rings[0])
+            else:
+                for r in rings:
+                    sub = site.path.subpaths.add(closed=True)
+                    sub.points.extend(pb.Point(x=p[0], y=p[1]) for p in r)
+                site.path.fill_rule = pb.Path.FILL_RULE_EVEN_ODD
         else:
             raise ValueError(f"site {d.get('id')!r}: GeoJSON type {kind!r} is not a site "
-                             "(Point, LineString or Polygon)")
+                             "(Point, LineString, Polygon or MultiPolygon)")
         return site
     return json_format.ParseDict(dict(d), pb.Site())
 

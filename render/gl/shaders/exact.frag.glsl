@@ -12,11 +12,11 @@ layout(location = 0) out uint o_site;
 void main() {
   p = (gl_FragCoord.xy - u_origin) * u_pixel;  // the grid's pixel (0, 0) is at u_origin
   d = 3.0e38;
-  inside = false;
+  winding = 0;
   visit(v_first);  // a point's only segment comes with the instance: no buffer read
   for (uint i = v_info.y + 1u; i < v_info.y + v_info.z; ++i) visit(segments[i]);
   if (d > v_weight.z) discard;
-  if (v_info.w != 0u && d > u_margin && inside != (v_info.w == 2u)) discard;
+  if (wrong_side(v_info.w)) discard;
   gl_FragDepth = (v_weight.x * d + v_weight.y) * u_inv_depth;
   o_site = v_info.x;
 }

@@ -1,9 +1,9 @@
 #version 450 core
 // Per-fragment sites, instanced quads: `rect` = (x0, y0, x1, y1), `weight` = (m, a, reach),
 // `first` = the site's first segment (also in the buffer), `info` = (site, index of the first
-// segment, segment count, side: 0 both, 1 outside, 2 inside). The
-// fragment takes the least distance over the site's segments (a point is one of length 0),
-// tests the polygon's side by the even-odd rule, and writes m d + a as depth.
+// segment, segment count, side as segments.glsl says). The fragment takes the least distance
+// over the site's segments (a point is one of length 0), tests a polygon's or a path's side
+// by its rule, and writes m d + a as depth.
 layout(location = 0) in vec3 unit;
 layout(location = 1) in vec4 rect;
 layout(location = 2) in vec3 weight;

@@ -10,7 +10,7 @@ layout(local_size_x = 8, local_size_y = 8) in;
 struct Site {
   vec4 first;   // the first segment (a, b)
   vec4 weight;  // (m, a, reach, unused)
-  uvec4 info;   // (site, index of the first segment, segment count, side: 0 both, 1 outside, 2 inside)
+  uvec4 info;   // (site, index of the first segment, segment count, side as segments.glsl says)
 };
 layout(std430, binding = 0) readonly buffer Segments { vec4 segments[]; };
 layout(std430, binding = 1) readonly buffer Sites { Site sites[]; };
@@ -53,11 +53,11 @@ void main() {
   for (uint k = offsets[at + 1u]; k < offsets[at + 4u]; ++k) {
     Site s = sites[candidates[k]];
     d = 3.0e38;
-    inside = false;
+    winding = 0;
     visit(s.first);
     for (uint i = s.info.y + 1u; i < s.info.y + s.info.z; ++i) visit(segments[i]);
     if (d > s.weight.z) continue;
-    if (s.info.w != 0u && d > u_margin && inside != (s.info.w == 2u)) continue;
+    if (wrong_side(s.info.w)) continue;
     float value = s.weight.x * d + s.weight.y;
     if (value < best || (value == best && s.info.x < id)) {
       best = value;

@@ -6,6 +6,7 @@
 #include "absl/strings/str_cat.h"
 #include "render/kernel/exact2.h"
 #include "render/kernel/exact3.h"
+#include "render/kernel/path2.h"
 #include "server/log.h"
 
 namespace gvd {
@@ -125,6 +126,87 @@ absl::Status ToSite(const v1::Site& s, const FieldPath& field, const ServerLimit
       site->geometry = MakeBezier(std::move(control), tol);
       break;
     }
+    case v1::Site::kPath: {
+      const v1::Path& in = s.path();
+      const FieldPath path = field.Member("path");
+      if (in.subpaths().empty()) {
+        return Invalid(absl::StrCat(path.str(), " has no subpath (site ", Quoted(s.id()), ")"));
+      }
+      std::vector<Subpath> subpaths(in.subpaths().size());
+      size_t total = 0;
+      const FieldPath list = path.Member("subpaths");  // outlives the paths below it
+      for (int i = 0; i < in.subpaths().size(); ++i) {
+        const v1::Path::Subpath& from = in.subpaths(i);
+        const FieldPath at = list[i];
+        Subpath& to = subpaths[i];
+        if (auto st = points(from.points(), at.Member("points"), 2, &to.points); !st.ok()) return st;
+        total += to.points.size();
+        if (total > limits.max_vertices_per_site) {
+          return absl::ResourceExhaustedError(absl::StrCat(
+              path.str(), " has more than ", limits.max_vertices_per_site,
+              " points in its subpaths; that is the limit (--max-vertices-per-site)"));
+        }
+        size_t taken = 1;
+        for (int k = 0; k < from.degrees().size(); ++k) {
+          const uint32_t d = from.degrees(k);
+          if (d < 1 || d > 3) {
+            return Invalid(absl::StrCat(at.Member("degrees")[k].str(), " is ", d,
+                                        "; a piece is of degree 1 (a line), 2 or 3 (a Bezier) (site ",
+                                        Quoted(s.id()), ")"));
+          }
+          to.degrees.push_back(static_cast<uint8_t>(d));
+          taken += d;
+        }
+        if (from.degrees().empty()) {
+          to.degrees.assign(to.points.size() - 1, 1);
+          taken = to.points.size();
+        }
+        if (taken != to.points.size()) {
+          return Invalid(absl::StrCat(at.Member("points").str(), " has ", to.points.size(),
+                                      " points; its start and the pieces of its degrees take ",
+                                      taken, " (site ", Quoted(s.id()), ")"));
+        }
+        to.closed = from.closed();
+      }
+      FillRule fill = FillRule::kNonZero;
+      switch (in.fill_rule()) {
+        case v1::Path::FILL_RULE_UNSPECIFIED:
+        case v1::Path::FILL_RULE_NONZERO:
+          break;
+        case v1::Path::FILL_RULE_EVEN_ODD:
+          fill = FillRule::kEvenOdd;
+          break;
+        default:
+          return Invalid(absl::StrCat(path.str(), ".fill_rule is ", in.fill_rule(),
+                                      "; it must be FILL_RULE_UNSPECIFIED, FILL_RULE_NONZERO or "
+                                      "FILL_RULE_EVEN_ODD"));
+      }
+      Side side = Side::kBoth;
+      switch (in.side()) {
+        case v1::Polygon::SIDE_UNSPECIFIED:
+          break;
+        case v1::Polygon::SIDE_OUTSIDE:
+          side = Side::kOutside;
+          break;
+        case v1::Polygon::SIDE_INSIDE:
+          side = Side::kInside;
+          break;
+        default:
+          return Invalid(absl::StrCat(path.str(), ".side is ", in.side(),
+                                      "; it must be SIDE_UNSPECIFIED, SIDE_OUTSIDE or SIDE_INSIDE"));
+      }
+      const double tol = in.tolerance();
+      if (!std::isfinite(tol) || tol < 0) {
+        return Invalid(absl::StrCat(path.str(), ".tolerance is ", FormatNumber(tol),
+                                    "; it must be finite and not negative (0 means a "
+                                    "thousandth of the control polygons' length)"));
+      }
+      if (const std::string why = PathContractError(subpaths, side); !why.empty()) {
+        return Invalid(absl::StrCat(path.str(), ": ", why, " (site ", Quoted(s.id()), ")"));
+      }
+      site->geometry = MakePath(std::move(subpaths), fill, side, tol, 4 * limits.max_vertices_per_site);
+      break;
+    }
     case v1::Site::kTriangle:
     case v1::Site::kMesh:
       return Invalid(absl::StrCat(field.str(), ".", s.has_triangle() ? "triangle" : "mesh",
@@ -191,11 +273,13 @@ absl::Status ToSite(const v1::Site& s, const FieldPath& field, const ServerLimit
     case v1::Site::kPolyline:
     case v1::Site::kPolygon:
     case v1::Site::kBezier:
+    case v1::Site::kPath:
       return Invalid(
           absl::StrCat(field.str(), " is a ",
                        s.has_polyline()  ? "polyline"
                        : s.has_polygon() ? "polygon"
-                                         : "bezier",
+                       : s.has_bezier()  ? "bezier"
+                                         : "path",
                        "; a 3D scene takes point, segment, triangle and mesh sites (site ",
                        Quoted(s.id()), ")"));
     case v1::Site::GEOMETRY_NOT_SET:
@@ -301,6 +385,20 @@ void ToProto(const Site& site, v1::Site* out) {
   } else if (const auto* b = std::get_if<BezierSite>(&site.geometry)) {
     for (Vec2 q : b->control) ToProto(q, out->mutable_bezier()->add_control_points());
     out->mutable_bezier()->set_tolerance(b->tolerance);
+  } else if (const auto* path = std::get_if<PathSite>(&site.geometry)) {
+    v1::Path* to = out->mutable_path();
+    for (const Subpath& from : path->subpaths) {
+      v1::Path::Subpath* sub = to->add_subpaths();
+      for (Vec2 q : from.points) ToProto(q, sub->add_points());
+      for (uint8_t d : from.degrees) sub->add_degrees(d);
+      sub->set_closed(from.closed);
+    }
+    to->set_fill_rule(path->fill == FillRule::kEvenOdd ? v1::Path::FILL_RULE_EVEN_ODD
+                                                       : v1::Path::FILL_RULE_NONZERO);
+    to->set_side(path->side == Side::kOutside  ? v1::Polygon::SIDE_OUTSIDE
+                 : path->side == Side::kInside ? v1::Polygon::SIDE_INSIDE
+                                               : v1::Polygon::SIDE_UNSPECIFIED);
+    to->set_tolerance(path->tolerance);
   }
   if (site.additive != 0) out->set_additive_weight(site.additive);
   if (site.multiplicative != 1) out->set_multiplicative_weight(site.multiplicative);

@@ -38,7 +38,7 @@ TEST_F(AnalysisGLTest, ZoomWindowsHoldAgainstTheOracle) {
   Generator gen(41);
   SiteTable sites;
   for (int s = 0; s < 21; ++s) {
-    Site site{std::to_string(s), gen.Kind(s % 7)};
+    Site site{std::to_string(s), gen.Kind(s % Generator::kKinds)};
     if (s % 4 == 1) site.additive = gen.U(0, 0.1);
     if (s % 4 == 2) site.multiplicative = gen.U(0.5, 2);
     if (s % 5 == 3) site.max_distance = gen.U(0.1, 0.4);

@@ -9,6 +9,7 @@
 
 #include "render/plan/coverage.h"
 #include "render/kernel/exact2.h"
+#include "render/kernel/path2.h"
 #include "render/gl/scene_raster.h"
 #include "tests/support/gl_fixture.h"
 #include "tests/support/oracle.h"
@@ -23,6 +24,7 @@ class SitesGLTest : public GlTest {
   // compute shader (Rasterizer::native_scan), and checks every pixel.
   void RenderAndCheck(const Grid& grid, const SiteTable& sites, const std::string& what,
                       Diagram diagram = Diagram::kNearest, PixelReport* report = nullptr) {
+    const std::vector<oracle::Best> truths = Truths(grid, sites, diagram);
     for (RenderMode mode : kModes) {
       for (FullRender path : kPaths) {
         for (bool other_scan : {false, true}) {
@@ -36,7 +38,7 @@ class SitesGLTest : public GlTest {
                                    : native != other_scan     ? ", native"
                                                               : ", shader";
           PixelReport r = CheckEveryPixel(
-              *f, sites, what + " (" + Name(mode) + ", " + Name(path) + scan + ")");
+              *f, sites, what + " (" + Name(mode) + ", " + Name(path) + scan + ")", &truths);
           if (report) *report = r;
         }
       }
@@ -47,16 +49,14 @@ class SitesGLTest : public GlTest {
 const Grid kGrid{{0, 0, 1, 1}, 96, 96};
 
 TEST_F(SitesGLTest, EachKindAgainstTheOracle) {
-  const char* kinds[] = {"point",          "segment",         "polyline", "polygon",
-                         "polygon outside", "polygon inside", "bezier"};
-  for (int kind = 1; kind < 7; ++kind) {
+  for (int kind = 1; kind < Generator::kKinds; ++kind) {
     for (uint64_t seed = 1; seed <= 2; ++seed) {
       Generator gen(seed * 100 + kind);
       SiteTable sites;
       for (int s = 0; s < 10; ++s) sites.push_back({std::to_string(s), gen.Kind(kind)});
       // A few points, so that one-sided polygons leave something to find elsewhere.
       for (int s = 0; s < 3; ++s) sites.push_back({"p" + std::to_string(s), gen.Kind(0)});
-      RenderAndCheck(kGrid, sites, std::string(kinds[kind]) + " seed " + std::to_string(seed));
+      RenderAndCheck(kGrid, sites, std::string(Generator::kKindNames[kind]) + " seed " + std::to_string(seed));
     }
   }
 }
@@ -140,12 +140,67 @@ TEST_F(SitesGLTest, PolygonSidesClaimOnlyTheirSide) {
   }
 }
 
+// Paths restricted to a side, by each fill rule, on every path of the rasterizer: two squares
+// turning the same way, a smaller one within a larger one, whose inner square is inside by
+// the nonzero rule (winding 2) and a hole by the even-odd rule; and a ring of curves (a
+// rounded square of lines and cubics) around a hole of quadratics turning the other way. Of
+// the pixels farther than the margin from the outline, the path holds none on the side it
+// leaves out, and every one on its side where it is clearly nearer than a point beside it.
+TEST_F(SitesGLTest, PathSidesFollowTheirFillRule) {
+  const Subpath outer{{{0.1, 0.1}, {0.9, 0.1}, {0.9, 0.9}, {0.1, 0.9}}, {1, 1, 1}, true};
+  const Subpath inner{{{0.3, 0.3}, {0.7, 0.3}, {0.7, 0.7}, {0.3, 0.7}}, {1, 1, 1}, true};
+  const double k = 0.5523 * 0.2;
+  const Subpath rounded{{{0.3, 0.1}, {0.7, 0.1}, {0.7 + k, 0.1}, {0.9, 0.3 - k}, {0.9, 0.3},
+                         {0.9, 0.9}, {0.1, 0.9}, {0.1, 0.3}, {0.1, 0.3 - k}, {0.3 - k, 0.1}, {0.3, 0.1}},
+                        {1, 3, 1, 1, 1, 3}, true};
+  const Subpath hole{{{0.6, 0.5}, {0.6, 0.4}, {0.5, 0.4}, {0.4, 0.4}, {0.4, 0.5}, {0.4, 0.6},
+                      {0.5, 0.6}, {0.6, 0.6}, {0.6, 0.5}},
+                     {2, 2, 2, 2}, true};
+  struct Case {
+    std::vector<Subpath> subpaths;
+    FillRule fill;
+    const char* what;
+  };
+  for (const Case& c : {Case{{outer, inner}, FillRule::kNonZero, "nested, nonzero"},
+                        Case{{outer, inner}, FillRule::kEvenOdd, "nested, even-odd"},
+                        Case{{rounded, hole}, FillRule::kNonZero, "rounded ring"}}) {
+    for (Side side : {Side::kInside, Side::kOutside}) {
+      const PathSite path = MakePath(c.subpaths, c.fill, side, kGrid.pixel_size() / 4);
+      const SiteTable sites = {{"path", path}, {"p", PointSite{{0.5, 0.95}}}};
+      const std::string what = std::string(c.what) + (side == Side::kInside ? ", inside" : ", outside");
+      RenderAndCheck(kGrid, sites, what);
+      for (RenderMode mode : kModes) {
+        for (FullRender full : kPaths) {
+          auto f = Render(kGrid, sites, mode, Diagram::kNearest, full);
+          size_t owned = 0, want = 0;
+          for (uint32_t j = 0; j < kGrid.height; ++j) {
+            for (uint32_t i = 0; i < kGrid.width; ++i) {
+              const Vec2 p = kGrid.Center(i, j);
+              if (oracle::DrawnDistance(p, path) <= DrawMargin(kGrid)) continue;
+              // Present on its side; there it is the best where clearly nearer than the point.
+              const bool in = oracle::InsidePath(p, path) == (side == Side::kInside);
+              const bool nearer = oracle::Distance(p, path) + 2 * kGrid.pixel_size() <
+                                  oracle::Distance(p, sites[1].geometry);
+              ASSERT_TRUE(in || f->id_at(i, j) != 1) << what << " (" << Name(mode) << ", "
+                                                     << Name(full) << ") pixel " << i << "," << j;
+              want += in && nearer;
+              owned += in && nearer && f->id_at(i, j) == 1;
+            }
+          }
+          EXPECT_GT(want, 500u) << what;
+          EXPECT_EQ(owned, want) << what;
+        }
+      }
+    }
+  }
+}
+
 TEST_F(SitesGLTest, WeightsAgainstTheOracle) {
   for (uint64_t seed = 1; seed <= 3; ++seed) {
     Generator gen(seed);
     SiteTable sites;
     for (int s = 0; s < 14; ++s) {
-      Site site{std::to_string(s), gen.Kind(s % 7)};
+      Site site{std::to_string(s), gen.Kind(s % Generator::kKinds)};
       site.additive = gen.U(0, 1) < 0.5 ? gen.U(0, 0.3) : 0;
       site.multiplicative = gen.U(0, 1) < 0.5 ? gen.U(0.3, 3) : 1;
       sites.push_back(site);
@@ -159,7 +214,7 @@ TEST_F(SitesGLTest, MaxDistanceLeavesPixelsEmpty) {
     Generator gen(seed + 50);
     SiteTable sites;
     for (int s = 0; s < 12; ++s) {
-      Site site{std::to_string(s), gen.Kind(s % 7)};
+      Site site{std::to_string(s), gen.Kind(s % Generator::kKinds)};
       site.max_distance = gen.U(0.02, 0.2);
       if (s % 3 == 0) site.multiplicative = gen.U(0.5, 2);
       sites.push_back(site);
@@ -188,7 +243,7 @@ TEST_F(SitesGLTest, FarthestAgainstTheOracle) {
     Generator gen(seed + 70);
     SiteTable sites;
     for (int s = 0; s < 10; ++s) {
-      Site site{std::to_string(s), gen.Kind(s % 7)};
+      Site site{std::to_string(s), gen.Kind(s % Generator::kKinds)};
       if (s % 2) site.multiplicative = gen.U(0.5, 2);
       if (s % 3 == 0) site.additive = gen.U(0, 0.2);
       if (s == 4) site.max_distance = 0.5;
@@ -254,7 +309,7 @@ TEST_F(SitesGLTest, MixedSceneAnswersWithinBound) {
   Generator gen(2026);
   SiteTable sites;
   for (int s = 0; s < 28; ++s) {
-    Site site{std::to_string(s), gen.Kind(s % 7)};
+    Site site{std::to_string(s), gen.Kind(s % Generator::kKinds)};
     if (s % 4 == 1) site.additive = gen.U(0, 0.1);
     if (s % 4 == 2) site.multiplicative = gen.U(0.5, 2);
     if (s % 5 == 3) site.max_distance = gen.U(0.1, 0.3);
@@ -309,7 +364,7 @@ TEST_F(SitesGLTest, IncrementalUpdatesOfEveryKindHoldAgainstTheOracle) {
           changes.emplace_back(id, std::nullopt);
           continue;
         }
-        Site s{id, gen.Kind(int(gen.U(0, 7)))};
+        Site s{id, gen.Kind(int(gen.U(0, Generator::kKinds)))};
         if (gen.U(0, 1) < 0.3) s.multiplicative = gen.U(0.5, 2);
         if (gen.U(0, 1) < 0.3) s.max_distance = gen.U(0.1, 0.4);
         live[id] = s;

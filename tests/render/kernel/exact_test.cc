@@ -19,14 +19,18 @@ TEST(ExactVsOracle, DistancesFeaturesSidesAndValues) {
   Generator gen(404);
   int checked = 0;
   for (int k = 0; k < 600; ++k) {
-    Site site{"s", gen.Kind(k % 7)};
+    Site site{"s", gen.Kind(k % Generator::kKinds)};
     if (k % 3 == 1) site.additive = gen.U(0, 0.5);
     if (k % 3 == 2) site.multiplicative = gen.U(0.5, 4);
     if (k % 4 == 3) site.max_distance = gen.U(0.05, 0.5);
     std::vector<Vec2> queries;
     for (int i = 0; i < 20; ++i) queries.push_back(gen.P());
     queries.push_back({1e6, -3e5});
-    for (auto [a, b] : oracle::Segments(site.geometry)) {
+    // (A path's every seventh segment: it has hundreds.)
+    const size_t step = std::holds_alternative<PathSite>(site.geometry) ? 7 : 1;
+    const auto segments = oracle::Segments(site.geometry);
+    for (size_t i = 0; i < segments.size(); i += step) {
+      const auto [a, b] = segments[i];
       queries.push_back(a);
       queries.push_back(0.5 * (a + b) + Vec2{1e-3, -2e-3});
       queries.push_back(a + Vec2{1e-9, 1e-9});
@@ -53,6 +57,10 @@ TEST(ExactVsOracle, DistancesFeaturesSidesAndValues) {
       }
       if (auto* poly = std::get_if<PolygonSite>(&site.geometry); poly && d > 1e-12) {
         ASSERT_EQ(InsidePolygon(q, poly->vertices), oracle::Inside(q, poly->vertices));
+      }
+      if (auto* path = std::get_if<PathSite>(&site.geometry);
+          path && oracle::DrawnDistance(q, site.geometry) > 1e-12) {
+        ASSERT_EQ(InsidePath(q, *path), oracle::InsidePath(q, *path));
       }
       ++checked;
     }

@@ -51,14 +51,14 @@ std::shared_ptr<const Frame> Scan(const Grid& grid, const SiteTable& sites) {
                                        values.data(), snapshot);
 }
 
-// Sites: ten of one kind (or of every kind, kind 7) around the unit window, some weighted,
+// Sites: ten of one kind (or of every kind, kind Generator::kKinds) around the unit window, some weighted,
 // some with a max_distance, and three points so that one-sided polygons leave something
 // elsewhere.
 SiteTable RandomSites(uint64_t seed, int kind) {
   Generator gen(seed);
   SiteTable sites;
   for (int s = 0; s < 10; ++s) {
-    Site& site = sites.emplace_back(Site{std::to_string(s), gen.Kind(kind == 7 ? s % 7 : kind)});
+    Site& site = sites.emplace_back(Site{std::to_string(s), gen.Kind(kind == Generator::kKinds ? s % Generator::kKinds : kind)});
     if (gen.U(0, 1) < 0.3) site.multiplicative = gen.U(0.5, 3);
     if (gen.U(0, 1) < 0.3) site.additive = gen.U(0, 0.2);
     if (gen.U(0, 1) < 0.2) site.max_distance = gen.U(0.05, 0.5);
@@ -71,7 +71,7 @@ SiteTable RandomSites(uint64_t seed, int kind) {
 const Grid kGrid{{0, 0, 1, 1}, 90, 61};
 
 TEST(ScanTest, EveryKindAgainstTheOracle) {
-  for (int kind = 0; kind <= 7; ++kind) {
+  for (int kind = 0; kind <= Generator::kKinds; ++kind) {
     for (uint64_t seed = 1; seed <= 3; ++seed) {
       const SiteTable sites = RandomSites(seed * 100 + kind, kind);
       auto frame = Scan(kGrid, sites);
