@@ -17,6 +17,7 @@
 #include "render/gl/rasterizer.h"
 #include "render/gl/scene_raster.h"
 #include "render/gl/render_loop.h"
+#include "render/kernel/path2.h"
 #include "server/app/registry.h"
 #include "server/grpc/service.h"
 #include "server/store/sqlite_store.h"
@@ -250,6 +251,103 @@ BENCHMARK(BM_UpdateOneSite)
     ->Args({1, 256})
     ->Args({1, 1024})
     ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+// 2'. Objects of lines and curves, each one path site (range(0) 0) or each piece its own
+// site (1: the lines segments, the curves Beziers), 1,000 at 1024 x 1024, computed: rounded
+// rectangles (four lines, four cubic corners) around a rounded hole (four quadratics), 12
+// pieces each. range(1): 0 a full render, 1 one object moved (its sites removed and added
+// again elsewhere, the frame updated), 2 a certified query (Frame::Nearest, then Refine).
+std::vector<Subpath> RoundedFrame(Vec2 c, double w, double h) {
+  const double r = std::min(w, h) / 3, k = 0.5523 * r, q = r / 2;
+  const double x0 = c.x - w / 2, x1 = c.x + w / 2, y0 = c.y - h / 2, y1 = c.y + h / 2;
+  Subpath outer{{{x0 + r, y0}, {x1 - r, y0}, {x1 - r + k, y0}, {x1, y0 + r - k}, {x1, y0 + r},
+                 {x1, y1 - r}, {x1, y1 - r + k}, {x1 - r + k, y1}, {x1 - r, y1},
+                 {x0 + r, y1}, {x0 + r - k, y1}, {x0, y1 - r + k}, {x0, y1 - r},
+                 {x0, y0 + r}, {x0, y0 + r - k}, {x0 + r - k, y0}, {x0 + r, y0}},
+                {1, 3, 1, 3, 1, 3, 1, 3}, true};
+  Subpath hole{{{c.x + q, c.y}, {c.x + q, c.y - q}, {c.x, c.y - q}, {c.x - q, c.y - q},
+                {c.x - q, c.y}, {c.x - q, c.y + q}, {c.x, c.y + q}, {c.x + q, c.y + q}, {c.x + q, c.y}},
+               {2, 2, 2, 2}, true};
+  return {outer, hole};
+}
+
+// The object's sites: one path, or its pieces.
+std::vector<Site> ObjectSites(const std::string& id, Vec2 c, double w, double h, bool pieces,
+                              double tolerance) {
+  const PathSite path = MakePath(RoundedFrame(c, w, h), FillRule::kNonZero, Side::kBoth, tolerance);
+  if (!pieces) return {Site{id, path}};
+  std::vector<Site> out;
+  for (size_t k = 0; k < path.pieces.size(); ++k) {
+    const PathPiece& p = path.pieces[k];
+    Site s{id + "/" + std::to_string(k), SegmentSite{p.control[0], p.control[1]}};
+    if (p.degree > 1) {
+      s.geometry = MakeBezier({p.control.begin(), p.control.begin() + p.degree + 1}, tolerance);
+    }
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
+void BM_PathObjects(benchmark::State& state) {
+  Gl& gl = Gl::Get();
+  if (!gl.context) return state.SkipWithError("no EGL context");
+  const bool pieces = state.range(0) == 1;
+  const int what = static_cast<int>(state.range(1));
+  Grid grid{kUnit, 1024, 1024};
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(0, 1), size(0.02, 0.04);
+  const double tolerance = grid.pixel_size() / 4;
+  constexpr int kObjects = 1000;
+  SiteTable sites;
+  std::vector<SiteChange> all;
+  for (int i = 0; i < kObjects; ++i) {
+    for (Site& s : ObjectSites(std::to_string(i), {u(rng), u(rng)}, size(rng), size(rng), pieces, tolerance)) {
+      all.push_back({s.id, s.geometry});
+      sites.push_back(std::move(s));
+    }
+  }
+  if (what == 0) {
+    for (auto _ : state) {
+      auto frame = RenderOnce(*gl.rasterizer, grid, grid.pixel_size(), 1, sites, nullptr,
+                              RenderMode::kExact);
+      if (!frame.ok()) return state.SkipWithError("render failed");
+    }
+    state.counters["sites"] = static_cast<double>(sites.size());
+    return;
+  }
+  auto scene = std::move(*SceneRaster::Create(grid, grid.pixel_size(), RenderMode::kExact));
+  auto snapshot = SiteSnapshot::Empty(1);
+  std::vector<uint32_t> free_slots;
+  snapshot = Advance(snapshot, std::move(all), &free_slots);
+  auto frame = scene->Apply(*gl.rasterizer, snapshot);
+  if (!frame.ok()) return state.SkipWithError("render failed");
+  if (what == 1) {
+    int next = 0;
+    for (auto _ : state) {
+      const std::string id = std::to_string(next++ % kObjects);
+      std::vector<SiteChange> change;
+      for (Site& s : ObjectSites(id, {u(rng), u(rng)}, size(rng), size(rng), pieces, tolerance)) {
+        change.push_back({s.id, std::move(s.geometry)});
+      }
+      snapshot = Advance(snapshot, std::move(change), &free_slots);
+      frame = scene->Apply(*gl.rasterizer, snapshot);
+      if (!frame.ok()) return state.SkipWithError("render failed");
+    }
+    return;
+  }
+  auto q = RandomPoints(1 << 12, 3);
+  size_t i = 0;
+  for (auto _ : state) {
+    const Vec2 p = q[i++ & (q.size() - 1)];
+    auto a = (*frame)->Nearest(p);
+    benchmark::DoNotOptimize((*frame)->Refine(p, *a));
+  }
+  state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_PathObjects)
+    ->ArgsProduct({{0, 1}, {0, 1, 2}})
+    ->Unit(benchmark::kMicrosecond)
     ->UseRealTime();
 
 // 3. Queries on 100,000 sites at 1024 x 1024.
