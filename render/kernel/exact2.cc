@@ -212,9 +212,11 @@ std::vector<Vec2> Flatten(const std::vector<Vec2>& control, double tolerance) {
 
 BezierSite MakeBezier(std::vector<Vec2> control, double tolerance) {
   if (!(tolerance > 0)) {
-    double length = 0;
-    for (size_t i = 0; i + 1 < control.size(); ++i) length += Distance(control[i], control[i + 1]);
-    tolerance = length > 0 ? length / 1000 : 1e-9;
+    // A thousandth of the control polygon's length, summed piece by piece: a huge curve's
+    // polygon may be longer than a double holds while each of its pieces is not.
+    double thousandth = 0;
+    for (size_t i = 0; i + 1 < control.size(); ++i) thousandth += Distance(control[i], control[i + 1]) / 1000;
+    tolerance = thousandth > 0 ? thousandth : 1e-9;
   }
   // Past kMaxBezierPieces the bound says how far the flattening may stray: state that.
   tolerance = std::max(tolerance, FlattenBound(control) / (double(kMaxBezierPieces) * kMaxBezierPieces));

@@ -24,6 +24,7 @@
 
 #include <gtest/gtest.h>
 
+#include "render/kernel/exact2.h"
 #include "render/scene/codec.h"
 #include "render/scene/scene.h"
 #include "server/store/sqlite_store.h"
@@ -160,6 +161,25 @@ TEST(Codec, ValuesNoAcceptedSiteHadAreDataLoss) {
   for (size_t i = 0; i < scenes.size(); ++i) {
     EXPECT_EQ(DecodeSettings(EncodeSettings(scenes[i])).status().code(),
               absl::StatusCode::kDataLoss) << i;
+  }
+}
+
+// A curve whose coordinates are finite but whose control polygon is longer than a double holds is
+// accepted by the server (its coordinates and box are finite), so it must load again after a
+// restart: its default tolerance is finite where each piece is, and infinite where the curve
+// bends past what a double holds, which the bound then states honestly.
+TEST(Codec, HugeCurvesTheServerAcceptsDecode) {
+  // A straight curve: each piece 1.7e308 long, their sum past DBL_MAX, no bend.
+  const Site straight{"s", MakeBezier({{-1.7e308, 0}, {0, 0}, {1.7e308, 0}}, 0)};
+  const auto& b = std::get<BezierSite>(straight.geometry);
+  EXPECT_TRUE(std::isfinite(b.tolerance)) << b.tolerance;
+  EXPECT_GE(b.tolerance, 1.7e308 / 1000);
+  // A bend past DBL_MAX: c2 - 2 c1 + c0 overflows.
+  const Site bent{"b", MakeBezier({{-8e307, 0}, {8e307, 1}, {-8e307, 2}}, 0)};
+  for (const Site& site : {straight, bent}) {
+    auto back = DecodeSite<Site>(EncodeSite(site));
+    ASSERT_TRUE(back.ok()) << site.id << ": " << back.status();
+    EXPECT_TRUE(SameSite(site, *back)) << site.id;
   }
 }
 
