@@ -16,7 +16,8 @@ gvd_packages() {
         shellcheck yamllint python3-yaml chromium chromium-driver python3-selenium \
         python3-openvdb postgresql iproute2 \
         python3-venv python3-pytest python3-grpcio python3-protobuf python3-numpy \
-        libfreetype-dev fonts-dejavu-core fonts-cantarell assimp-testmodels
+        libfreetype-dev fonts-dejavu-core fonts-cantarell assimp-testmodels \
+        python3-svgelements python3-defusedxml libwacom-common gdal-data
       ;;
     node)  # the TypeScript client's tests (client/ts), where no Node.js is installed
       echo nodejs npm

@@ -43,7 +43,8 @@ double ExactDistance(Vec2 q, const Geometry& g) {
 double DrawnTolerance(const Geometry& g) {
   if (const auto* b = std::get_if<BezierSite>(&g)) return b->tolerance;
   const auto* path = std::get_if<PathSite>(&g);
-  return path && path->curved ? path->tolerance : 0.0;
+  if (path == nullptr) return 0.0;
+  return (path->curved ? path->tolerance : 0.0) + path->approximation;
 }
 
 Side SideOf(const Geometry& g) {

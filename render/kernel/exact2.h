@@ -30,8 +30,8 @@ void ForEachSegment(const Geometry& g, F&& f);
 template <class F>
 void ForEachChain(const Geometry& g, F&& f);
 
-// How far the geometry's segments (ForEachSegment) may stray from it: a Bezier's tolerance,
-// a path's when it has curves, else 0.
+// How far the geometry's segments (ForEachSegment) may stray from the shape it stands for: a
+// Bezier's tolerance; a path's when it has curves, plus its approximation; else 0.
 double DrawnTolerance(const Geometry& g);
 
 // Where the site is restricted to: a polygon's or a path's side, else Side::kBoth.

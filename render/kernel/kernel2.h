@@ -51,6 +51,12 @@ struct Kernel2 {
   // of a Bezier's or a path's curves (their drawn polylines stand in for them) times its
   // multiplicative weight; 0 for every other kind.
   static double Tolerance(const Site& s) { return DrawnTolerance(s.geometry) * s.multiplicative; }
+  // How far a site's pieces may be from the shape they stand for, in value (a path's
+  // approximation, times its weight where that exceeds 1, so that it bounds distances too).
+  static double ShapeError(const Site& s) {
+    const auto* path = std::get_if<PathSite>(&s.geometry);
+    return path ? path->approximation * std::max(1.0, s.multiplicative) : 0.0;
+  }
   // The scale of a curve's measuring error (BezierDistanceError's extent, times the weight);
   // 0 for every other kind.
   static double CurveExtent(const Site& s) {

@@ -42,6 +42,7 @@ struct Kernel3 {
   // No 3D structure is sized by the length of its sites' lines.
   static double Ink(const Site&) { return 0; }
   static double Tolerance(const Site&) { return 0; }  // every distance is the geometry's
+  static double ShapeError(const Site&) { return 0; }
   static double CurveExtent(const Site&) { return 0; }
   // A mesh comes ready from MakeMesh; nothing else needs readying.
   static void Prepare(Site&) {}

@@ -86,6 +86,10 @@ struct PathSite {
   Side side = Side::kBoth;
   // How far the drawn polylines of the curves may stray from them (as a Bezier's).
   double tolerance = 0;
+  // How far the pieces may be from the shape they stand for (an arc or ellipse written as
+  // cubics, say): finite, 0 or more, given with the path and added to every bound of its
+  // distances (DrawnTolerance, K::ShapeError). MakePath leaves it 0.
+  double approximation = 0;
   // Derived by MakePath: the pieces in feature order, and the polyline drawn for each (a
   // line's two ends, a curve's flattening), piece after piece.
   std::vector<PathPiece> pieces;

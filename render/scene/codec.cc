@@ -26,7 +26,17 @@ constexpr uint8_t kSettingsFormat = 1;
 constexpr uint8_t kSettingsFormat3 = 2;
 
 // Geometry tags, one per alternative of Geometry; never reused.
-enum Tag : uint8_t { kPoint = 1, kSegment = 2, kPolyline = 3, kPolygon = 4, kBezier = 5, kPath = 10 };
+// kApproximatePath: a path with an approximation (PathSite::approximation), which follows its
+// tolerance; kPath has none.
+enum Tag : uint8_t {
+  kPoint = 1,
+  kSegment = 2,
+  kPolyline = 3,
+  kPolygon = 4,
+  kBezier = 5,
+  kPath = 10,
+  kApproximatePath = 11,
+};
 // And one per alternative of Geometry3.
 enum Tag3 : uint8_t { kPoint3 = 6, kSegment3 = 7, kTriangle3 = 8, kMesh3 = 9 };
 
@@ -304,12 +314,13 @@ std::string EncodeSite(const Site& site) {
           w.Put(g.flat);
         } else {
           // Its subpaths as MakePath left them and its tolerance, from which MakePath
-          // derives the rest again.
+          // derives the rest again, and its approximation where it has one.
           static_assert(std::is_same_v<T, PathSite>);
-          w.Put(kPath);
+          w.Put(g.approximation == 0 ? kPath : kApproximatePath);
           w.Put(static_cast<uint8_t>(g.fill));
           w.Put(static_cast<uint8_t>(g.side));
           w.Put(g.tolerance);
+          if (g.approximation != 0) w.Put(g.approximation);
           w.Put(static_cast<uint32_t>(g.subpaths.size()));
           for (const Subpath& s : g.subpaths) {
             w.Put(static_cast<uint8_t>(s.closed));
@@ -327,7 +338,7 @@ absl::StatusOr<Site> DecodeSite<Site>(std::string_view bytes) {
   Reader r(bytes);
   Site site;
   GetHeader(r, &site);
-  switch (r.Get<uint8_t>()) {
+  switch (const uint8_t tag = r.Get<uint8_t>(); tag) {
     case kPoint:
       site.geometry = PointSite{r.GetVec2()};
       break;
@@ -353,11 +364,14 @@ absl::StatusOr<Site> DecodeSite<Site>(std::string_view bytes) {
       site.geometry = std::move(b);
       break;
     }
-    case kPath: {
+    case kPath:
+    case kApproximatePath: {
       const uint8_t fill = r.Get<uint8_t>(), side = r.Get<uint8_t>();
       const double tolerance = r.Get<double>();
+      const double approximation = tag == kApproximatePath ? r.Get<double>() : 0.0;
       if (fill > static_cast<uint8_t>(FillRule::kEvenOdd) ||
-          side > static_cast<uint8_t>(Side::kInside) || !(tolerance > 0)) {
+          side > static_cast<uint8_t>(Side::kInside) || !(tolerance > 0) ||
+          (tag == kApproximatePath && !(approximation > 0 && std::isfinite(approximation)))) {
         r.Fail();
       }
       // One by one: each takes bytes, so a damaged count cannot allocate past the input.
@@ -381,6 +395,7 @@ absl::StatusOr<Site> DecodeSite<Site>(std::string_view bytes) {
       PathSite path = MakePath(std::move(subpaths), static_cast<FillRule>(fill),
                                static_cast<Side>(side), tolerance);
       if (path.tolerance != tolerance) r.Fail();
+      path.approximation = approximation;
       site.geometry = std::move(path);
       break;
     }

@@ -129,6 +129,7 @@ BasicSnapshotBuilder<K>::BasicSnapshotBuilder(std::shared_ptr<const Snapshot> ba
       non_plain_(base_->non_plain_),
       curves_(base_->curves_),
       curve_extent_(base_->curve_extent_),
+      shape_error_(base_->shape_error_),
       ink_(base_->ink_),
       bytes_(base_->bytes_) {}
 
@@ -156,6 +157,7 @@ void BasicSnapshotBuilder<K>::Put(Site site) {
   if (K::Tolerance(site) > 0) {
     ++curves_;
     curve_extent_ = std::max(curve_extent_, K::CurveExtent(site));
+    shape_error_ = std::max(shape_error_, K::ShapeError(site));
   }
   ink_ += K::Ink(site);
   bytes_ += SiteBytes(site);
@@ -198,6 +200,7 @@ std::shared_ptr<const BasicSiteSnapshot<K>> BasicSnapshotBuilder<K>::Build(uint6
   s->non_plain_ = non_plain_;
   s->curves_ = curves_;
   s->curve_extent_ = curves_ == 0 ? 0 : curve_extent_;
+  s->shape_error_ = curves_ == 0 ? 0 : shape_error_;
   // Rounding of the sums must not leave a little ink in an emptied scene.
   s->ink_ = size_ == 0 ? 0 : std::max(0.0, ink_);
   s->bytes_ = bytes_;

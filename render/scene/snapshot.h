@@ -93,10 +93,11 @@ class BasicSiteSnapshot {
   const LeastWeights& least() const { return least_; }
   // How far a site's exact value `value` at a point may be from the truth: 0 unless the
   // version holds curves, which are measured within BezierDistanceError of the truth (twice
-  // that here, for the value and the values it was compared with). Their extent is the
-  // largest K::CurveExtent since the scene last held no curve (a removal does not lower it).
+  // that here, for the value and the values it was compared with), or paths that stand for
+  // a shape within their approximation (K::ShapeError). Their extent and shape error are the
+  // largest since the scene last held no curve (a removal does not lower them).
   double CurveError(double value) const {
-    return curves_ == 0 ? 0 : 2 * BezierDistanceError(std::abs(value), curve_extent_);
+    return curves_ == 0 ? 0 : 2 * BezierDistanceError(std::abs(value), curve_extent_) + shape_error_;
   }
   // The summed length of the sites' segments (TotalLength): how much line the coverage's
   // tiles must resolve (DefaultTilePx).
@@ -120,6 +121,7 @@ class BasicSiteSnapshot {
   size_t non_plain_ = 0;
   size_t curves_ = 0;  // sites with a tolerance
   double curve_extent_ = 0;
+  double shape_error_ = 0;
   double ink_ = 0;
   size_t bytes_ = 0;
   LeastWeights least_;
@@ -181,6 +183,7 @@ class BasicSnapshotBuilder {
   size_t non_plain_;
   size_t curves_;
   double curve_extent_;
+  double shape_error_;
   double ink_;
   size_t bytes_;
   std::vector<uint32_t> changed_, taken_, freed_;

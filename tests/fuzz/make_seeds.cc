@@ -78,6 +78,14 @@ int main(int argc, char** argv) {
   settings.cone_triangles = 40;
   std::ofstream(dir + "/store/settings", std::ios::binary) << '\0' << gvd::EncodeSettings(settings);
   gvd::BezierSite bezier{{{0, 0}, {0.5, 1}, {1, 0}}, 0.01, {{0, 0}, {0.25, 0.375}, {0.5, 0.5}, {0.75, 0.375}, {1, 0}}};
+  // A circle of four cubics, as an SVG reader writes one, with its stated distance from the
+  // true circle.
+  gvd::PathSite circle = gvd::MakePath(
+      {{{{0.75, 0.5}, {0.75, 0.638}, {0.638, 0.75}, {0.5, 0.75}, {0.362, 0.75}, {0.25, 0.638}, {0.25, 0.5},
+         {0.25, 0.362}, {0.362, 0.25}, {0.5, 0.25}, {0.638, 0.25}, {0.75, 0.362}, {0.75, 0.5}},
+        {3, 3, 3, 3}, true}},
+      gvd::FillRule::kNonZero, gvd::Side::kBoth, 0.001);
+  circle.approximation = 1e-4;
   const std::vector<gvd::Site> sites = {
       {"point", gvd::PointSite{{0.25, 0.5}}},
       {"segment", gvd::SegmentSite{{0.1, 0.1}, {0.9, 0.4}}},
@@ -86,7 +94,8 @@ int main(int argc, char** argv) {
       {"bezier", bezier},
       {"path", gvd::MakePath({{{{0.1, 0.1}, {0.9, 0.1}, {0.9, 0.9}, {0.5, 1}, {0.1, 0.9}}, {1, 1, 2}, true},
                               {{{0.4, 0.4}, {0.6, 0.5}, {0.7, 0.6}, {0.5, 0.7}}, {3}, false}},
-                             gvd::FillRule::kEvenOdd, gvd::Side::kBoth, 0.01)}};
+                             gvd::FillRule::kEvenOdd, gvd::Side::kBoth, 0.01)},
+      {"circle", circle}};
   for (gvd::Site site : sites) {
     site.additive = site.id == "segment" ? 0.25 : 0;
     site.multiplicative = site.id == "polyline" ? 2 : 1;

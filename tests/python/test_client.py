@@ -4,7 +4,7 @@ carrying the server's code and message.
 
 Run: GVD_SERVER=build/test/server/gvd-server python3 -m pytest tests/python (with the
 package installed: pip install --no-build-isolation client/python in a venv made with
---system-site-packages).
+--system-site-packages). The server and client fixtures are conftest.py's.
 """
 import os
 import sys
@@ -18,24 +18,7 @@ import gvd  # noqa: E402
 from gvd.v1 import voronoi_pb2  # noqa: E402
 from gvdtest import Server  # noqa: E402
 
-SERVER = os.environ.get("GVD_SERVER", "build/test/server/gvd-server")
-
-
-@pytest.fixture(scope="module")
-def server():
-    s = Server(SERVER)
-    with open(os.path.join(s.dir, "ports")) as f:
-        grpc_port = int(f.read().split()[0])
-    s.targets = {"grpc": f"127.0.0.1:{grpc_port}", "http": s.url}
-    yield s
-    s.stop()
-
-
-@pytest.fixture(params=["grpc", "http"])
-def client(request, server):
-    with gvd.Client(server.targets[request.param]) as c:
-        c.kind = request.param
-        yield c
+from conftest import SERVER  # noqa: E402
 
 
 def brute_nearest(sites, q):

@@ -260,6 +260,11 @@ TEST_F(SitesServerTest, BadSitesAreRefusedByName) {
        }),
        StatusCode::INVALID_ARGUMENT, "sites[1].path.tolerance is -1"},
       {upsert([&](auto& s) {
+         pts(s.mutable_path()->add_subpaths()->mutable_points(), {{0, 0}, {1, 1}});
+         s.mutable_path()->set_approximation_error(nan);
+       }),
+       StatusCode::INVALID_ARGUMENT, "sites[1].path.approximation_error is NaN"},
+      {upsert([&](auto& s) {
          SetPoint({1, 1}, s.mutable_point());
          s.set_additive_weight(-0.5);
        }),

@@ -64,7 +64,7 @@ inline bool SameSite(const Site& a, const Site& b) {
   if (auto* p = std::get_if<PathSite>(&a.geometry)) {
     const auto& q = std::get<PathSite>(b.geometry);
     if (p->fill != q.fill || p->side != q.side || !SameBits(p->tolerance, q.tolerance) ||
-        p->subpaths.size() != q.subpaths.size() || !SamePoints(p->flat, q.flat)) {
+        !SameBits(p->approximation, q.approximation) || p->subpaths.size() != q.subpaths.size() || !SamePoints(p->flat, q.flat)) {
       return false;
     }
     for (size_t i = 0; i < p->subpaths.size(); ++i) {
@@ -114,8 +114,10 @@ inline Site RandomSite(std::mt19937_64& rng, int kind, const std::string& id) {
         }
       }
       const bool closed = std::all_of(subpaths.begin(), subpaths.end(), [](const Subpath& s) { return s.closed; });
-      s.geometry = MakePath(subpaths, static_cast<FillRule>(rng() % 2),
-                            closed ? static_cast<Side>(rng() % 3) : Side::kBoth, rng() % 2 ? 0 : std::abs(value()));
+      PathSite path = MakePath(subpaths, static_cast<FillRule>(rng() % 2),
+                               closed ? static_cast<Side>(rng() % 3) : Side::kBoth, rng() % 2 ? 0 : std::abs(value()));
+      if (rng() % 2) path.approximation = std::abs(value()) + 5e-324;  // finite and above 0
+      s.geometry = std::move(path);
     }
   }
   return s;

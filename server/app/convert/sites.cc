@@ -201,10 +201,17 @@ absl::Status ToSite(const v1::Site& s, const FieldPath& field, const ServerLimit
                                     "; it must be finite and not negative (0 means a "
                                     "thousandth of the control polygons' length)"));
       }
+      const double approximation = in.approximation_error();
+      if (!std::isfinite(approximation) || approximation < 0) {
+        return Invalid(absl::StrCat(path.str(), ".approximation_error is ", FormatNumber(approximation),
+                                    "; it must be finite and not negative"));
+      }
       if (const std::string why = PathContractError(subpaths, side); !why.empty()) {
         return Invalid(absl::StrCat(path.str(), ": ", why, " (site ", Quoted(s.id()), ")"));
       }
-      site->geometry = MakePath(std::move(subpaths), fill, side, tol, 4 * limits.max_vertices_per_site);
+      PathSite made = MakePath(std::move(subpaths), fill, side, tol, 4 * limits.max_vertices_per_site);
+      made.approximation = approximation;
+      site->geometry = std::move(made);
       break;
     }
     case v1::Site::kTriangle:
@@ -399,6 +406,7 @@ void ToProto(const Site& site, v1::Site* out) {
                  : path->side == Side::kInside ? v1::Polygon::SIDE_INSIDE
                                                : v1::Polygon::SIDE_UNSPECIFIED);
     to->set_tolerance(path->tolerance);
+    to->set_approximation_error(path->approximation);
   }
   if (site.additive != 0) out->set_additive_weight(site.additive);
   if (site.multiplicative != 1) out->set_multiplicative_weight(site.multiplicative);

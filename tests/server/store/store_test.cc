@@ -25,6 +25,7 @@
 #include <gtest/gtest.h>
 
 #include "render/kernel/exact2.h"
+#include "render/kernel/path2.h"
 #include "render/scene/codec.h"
 #include "render/scene/scene.h"
 #include "server/store/sqlite_store.h"
@@ -143,6 +144,12 @@ TEST(Codec, ValuesNoAcceptedSiteHadAreDataLoss) {
   for (double additive : {-1.0, nan, inf}) bad.push_back(Site{"w", PointSite{{0, 0}}, additive});
   for (double m : {0.0, -2.0, nan}) bad.push_back(Site{"w", PointSite{{0, 0}}, 0, m});
   for (double r : {0.0, -1.0, nan}) bad.push_back(Site{"w", PointSite{{0, 0}}, 0, 1, r});
+  for (double approximation : {-1.0, nan, inf}) {
+    PathSite path = MakePath({Subpath{{{0, 0}, {1, 0}, {1, 1}}, {1, 2}, true}}, FillRule::kNonZero,
+                             Side::kBoth, 0.01);
+    path.approximation = approximation;
+    bad.push_back(Site{"a", path});
+  }
   for (size_t i = 0; i < bad.size(); ++i) {
     EXPECT_EQ(DecodeSite<Site>(EncodeSite(bad[i])).status().code(), absl::StatusCode::kDataLoss) << i;
   }
