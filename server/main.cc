@@ -137,7 +137,7 @@ namespace {
 
 std::string Usage() {
   return absl::StrCat("usage: gvd-server [flags]\n\n", gvd::flags::Describe("server/main.cc"),
-                      "  --help\n\nBy default the server listens on loopback only, without TLS "
+                      "  --help\n  --version\n\nBy default the server listens on loopback only, without TLS "
                       "and without authentication.\n");
 }
 
@@ -185,6 +185,10 @@ Flags ParseFlags(int argc, char** argv) {
   const std::vector<std::string> args(argv + 1, argv + argc);
   if (gvd::flags::WantsHelp(args)) {
     std::fputs(Usage().c_str(), stdout);
+    std::exit(0);
+  }
+  if (args == std::vector<std::string>{"--version"}) {
+    std::puts("gvd-server " GVD_VERSION);
     std::exit(0);
   }
   auto expanded = gvd::flags::ExpandConfig(args);
@@ -410,7 +414,7 @@ int main(int argc, char** argv) {
   // Not serving until every stored scene is rebuilt; calls meanwhile get UNAVAILABLE.
   server->GetHealthCheckService()->SetServingStatus(false);
   gvd::Log(gvd::LogLevel::kInfo, "listening",
-           {{"address", flags.listen}, {"port", absl::StrCat(port)}});
+           {{"address", flags.listen}, {"port", absl::StrCat(port)}, {"version", GVD_VERSION}});
   // HTTP: the same core's calls, over the Connect protocol.
   std::unique_ptr<gvd::HttpServer> http;
   if (!flags.http_listen.empty()) {
