@@ -515,11 +515,11 @@ Model TwoRings() {
   return m;
 }
 
-// The README's 3D tour: a scene made by the CLI, a mesh loaded from a model file (its scene
-// graph flattened), 10,000 nearest queries with closest points and gradients against the
-// oracle, and the scene's distances written as an OpenVDB file that OpenVDB's Python reads
-// back with the same values; a file Assimp cannot read, and a model over the server's limit,
-// refused by name with nothing stored.
+// The 3D tour of client/README.md: a scene made by the CLI, a mesh loaded from a model file
+// (its scene graph flattened), 10,000 nearest queries with closest points and gradients
+// against the oracle, and the scene's distances written as an OpenVDB file that OpenVDB's
+// Python reads back with the same values; a file Assimp cannot read, and a model over the
+// server's limit, refused by name with nothing stored.
 TEST_F(CliTest, A3DSceneFromAModelFileToOpenVdb) {
   const Model model = TwoRings();
   const std::string path = WriteFile("rings.gltf", model.gltf);

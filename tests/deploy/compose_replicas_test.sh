@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # deploy/compose.yaml's "replicas" profile for real: docker-compose (through podman's Docker
-# API) starts PostgreSQL and two gvd replicas from the images; the README's tour runs against
+# API) starts PostgreSQL and two gvd replicas from the images; the replica tour of server/README.md runs against
 # their published ports (gRPC 50051 and 50052, HTTP 8080 and 8081, which must be free),
 # writing through one replica and reading through the other; a replica killed while a write
 # lands through the other catches up when started again. Answers are checked against the
@@ -111,7 +111,7 @@ for (x, y), line in zip(zip(p[::2], p[1::2]), lines):
     assert abs(dist - best) <= 1e-9 * (1 + best), f"({x}, {y}) {site} at {dist}, exactly {best}"
 EOF
 }
-# The README's tour: write through one replica, read through the other.
+# server/README.md's replica tour: write through one replica, read through the other.
 gvd 50051 scene create city --window 0,0,100,100 --size 512x512
 gvd 50051 --scene city sites add a 10 10 b 80 20 c 50 90
 out=$(gvd 50052 --scene city nearest 12 11 60 60 --min-version 2 --exact)

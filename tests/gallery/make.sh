@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Makes the README's gallery with the gvd CLI against a running gvd-server:
+# Makes the gallery of the READMEs with the gvd CLI against a running gvd-server:
 #   bash tests/gallery/make.sh [BUILD_DIR]   (default build/test)
 # The paper's cover plate (four points, a segment, a triangle and a cubic Bezier) and its
 # Figure 11 (nearest, farthest and weighted diagrams of the same sites).
