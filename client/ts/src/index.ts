@@ -7,6 +7,7 @@ import { createConnectTransport } from "@connectrpc/connect-web";
 
 import {
   FindNearestStreamRequestSchema,
+  NearestField,
   VoronoiService,
   type FindNearestStreamResponse,
   type WatchSceneResponse,
@@ -57,22 +58,50 @@ export interface NearestAnswers {
   site: Int32Array;
   distance: Float64Array;
   errorBound: Float64Array;
+  /** 1 where the answer is certified exact. */
   exact: Uint8Array;
+  /** The answering site's part nearest to the point (FeatureKind values and their index). */
+  featureKind: Int32Array;
+  featureIndex: Uint32Array;
+  /** With `closest`: per answer, the site's point nearest to the query point and the unit
+   * gradient of the distance, `dims` numbers each (NaN where no site is a candidate). */
+  closest?: Float64Array;
+  gradient?: Float64Array;
+}
+
+export interface NearestOptions {
+  /** Answer from at least this version (the API's min_version). */
+  minVersion?: bigint;
+  /** Certify every answer. */
+  exact?: boolean;
+  /** Answer from the frame alone, without refining (the API's skip_refinement). */
+  skipRefinement?: boolean;
+  /** Also each answer's closest point and gradient. */
+  closest?: boolean;
+  /** 2 (x, y per point; the default) or 3 (x, y, z per point, for a 3D scene). */
+  dims?: 2 | 3;
+  onProgress?: (done: number, total: number) => void;
 }
 
 export class GvdClient {
   constructor(readonly rpc: VoronoiClient) {}
 
   /**
-   * The nearest site to each point of `xy` (x0, y0, x1, y1, ...), sent packed and read from
-   * FindNearestStream's chunks; `onProgress(done, m)` follows them.
+   * The nearest site to each of m query points, `points` holding x0, y0, x1, y1, ... (or
+   * x, y, z each with `dims: 3`), sent packed and read from FindNearestStream's chunks;
+   * `onProgress(done, m)` follows them.
    */
   async findNearest(
     sceneId: string,
-    xy: Float64Array | number[],
-    options: { minVersion?: bigint; exact?: boolean; onProgress?: (done: number, total: number) => void } = {},
+    points: Float64Array | number[],
+    options: NearestOptions = {},
   ): Promise<NearestAnswers> {
-    const m = Math.floor(xy.length / 2);
+    const dims = options.dims ?? 2;
+    if (dims !== 2 && dims !== 3) throw new RangeError(`dims is ${dims}; it must be 2 or 3`);
+    if (points.length % dims !== 0) {
+      throw new RangeError(`points holds ${points.length} numbers, not a multiple of dims (${dims})`);
+    }
+    const m = points.length / dims;
     const answers: NearestAnswers = {
       version: 0n,
       siteIds: [],
@@ -80,16 +109,29 @@ export class GvdClient {
       distance: new Float64Array(m).fill(Infinity),
       errorBound: new Float64Array(m),
       exact: new Uint8Array(m),
+      featureKind: new Int32Array(m),
+      featureIndex: new Uint32Array(m),
     };
+    if (options.closest) {
+      answers.closest = new Float64Array(dims * m).fill(NaN);
+      answers.gradient = new Float64Array(dims * m).fill(NaN);
+    }
     const index = new Map<string, number>();
+    const packed = Array.from(points);
     const request = create(FindNearestStreamRequestSchema, {
       sceneId,
-      xy: Array.from(xy),
+      xy: dims === 2 ? packed : [],
+      xyz: dims === 3 ? packed : [],
       minVersion: options.minVersion ?? 0n,
       exact: options.exact ?? false,
+      skipRefinement: options.skipRefinement ?? false,
+      fields: options.closest
+        ? [NearestField.SITE, NearestField.DISTANCE, NearestField.ERROR_BOUND, NearestField.EXACT,
+            NearestField.FEATURE, NearestField.CLOSEST, NearestField.GRADIENT]
+        : [],
     });
     for await (const chunk of this.rpc.findNearestStream(request)) {
-      merge(answers, index, chunk);
+      merge(answers, index, chunk, dims);
       options.onProgress?.(Number(chunk.offset) + (chunk.packed?.distance.length ?? 0), m);
     }
     return answers;
@@ -102,7 +144,8 @@ export class GvdClient {
   }
 }
 
-function merge(out: NearestAnswers, index: Map<string, number>, chunk: FindNearestStreamResponse): void {
+function merge(out: NearestAnswers, index: Map<string, number>, chunk: FindNearestStreamResponse,
+  dims: number): void {
   const p = chunk.packed;
   if (!p) return;
   if (chunk.version > out.version) out.version = chunk.version;
@@ -122,5 +165,9 @@ function merge(out: NearestAnswers, index: Map<string, number>, chunk: FindNeare
     out.distance[at + k] = p.distance[k];
     if (p.errorBound.length) out.errorBound[at + k] = p.errorBound[k];
     if (p.exact.length) out.exact[at + k] = p.exact[k] ? 1 : 0;
+    if (p.featureKind.length) out.featureKind[at + k] = p.featureKind[k];
+    if (p.featureIndex.length) out.featureIndex[at + k] = p.featureIndex[k];
   }
+  if (out.closest && p.closest.length) out.closest.set(p.closest, at * dims);
+  if (out.gradient && p.gradient.length) out.gradient.set(p.gradient, at * dims);
 }

@@ -8,7 +8,7 @@ import { mkdtempSync, rmSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 
-import { Code, ConnectError, createGvdClient } from "../dist/index.js";
+import { Code, ConnectError, FeatureKind, createGvdClient } from "../dist/index.js";
 import { random, startServer } from "./support.mjs";
 
 let server, baseUrl;
@@ -52,6 +52,44 @@ for (const binary of [true, false]) {
       assert.equal(Math.sqrt(dx * dx + dy * dy), best);
       assert.equal(r.exact[k], 1);
     }
+  });
+
+  test(`3D points, closest points and gradients, as the Python client answers (${kind})`, async () => {
+    const c = createGvdClient(baseUrl, { useBinaryFormat: binary });
+    const scene = `space-${kind}`;
+    await c.rpc.createScene({ sceneId: scene, window: { maxX: 1, maxY: 1, maxZ: 1 },
+      widthPx: 16, heightPx: 16, depthPx: 16 });
+    const rnd = random(11);
+    const sites = Array.from({ length: 50 }, (_, i) => ({ id: `s${i}`, p: [rnd(), rnd(), rnd()] }));
+    const { version } = await c.rpc.upsertSites({ sceneId: scene, sites: sites.map((s) => (
+      { id: s.id, geometry: { case: "point", value: { x: s.p[0], y: s.p[1], z: s.p[2] } } })) });
+    const m = 500;
+    const xyz = new Float64Array(3 * m).map(() => rnd());
+    const r = await c.findNearest(scene, xyz, { minVersion: version, exact: true, closest: true, dims: 3 });
+    assert.equal(r.closest.length, 3 * m);
+    for (let k = 0; k < m; ++k) {
+      const q = xyz.subarray(3 * k, 3 * k + 3);
+      let best = Infinity, nearest;
+      for (const s of sites) {
+        const d = Math.hypot(q[0] - s.p[0], q[1] - s.p[1], q[2] - s.p[2]);
+        if (d < best) [best, nearest] = [d, s];
+      }
+      assert.equal(r.siteIds[r.site[k]], nearest.id, `point ${k}`);
+      assert.equal(r.exact[k], 1);
+      assert.equal(r.featureKind[k], FeatureKind.VERTEX);
+      for (let i = 0; i < 3; ++i) {
+        assert.equal(r.closest[3 * k + i], nearest.p[i]);
+        assert.ok(Math.abs(r.gradient[3 * k + i] - (q[i] - nearest.p[i]) / best) < 1e-12);
+      }
+    }
+    // Without closest, none is asked for; skipRefinement answers from the frame, within its bound.
+    const plain = await c.findNearest(scene, xyz.subarray(0, 30), { dims: 3, skipRefinement: true });
+    assert.equal(plain.closest, undefined);
+    assert.equal(plain.distance.length, 10);
+    for (let k = 0; k < 10; ++k) {
+      assert.ok(Math.abs(plain.distance[k] - r.distance[k]) <= plain.errorBound[k], `point ${k}`);
+    }
+    await assert.rejects(c.findNearest(scene, [1, 2, 3, 4], { dims: 3 }), RangeError);
   });
 
   test(`errors carry the server's code and message (${kind})`, async () => {
