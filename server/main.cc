@@ -5,6 +5,7 @@
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
 
+#include <arpa/inet.h>
 #include <sys/stat.h>
 
 #include <atomic>
@@ -124,6 +125,10 @@ ABSL_FLAG(std::vector<std::string>, http_cors_origins, {},
           "(\"https://app.example.com\"; \"*\" for any); by default none");
 ABSL_FLAG(std::string, tokens, "",
           "<FILE> require bearer tokens: one \"TOKEN read\" or \"TOKEN write\" per line");
+ABSL_FLAG(bool, allow_unauthenticated, false,
+          "serve --listen or --http-listen beyond loopback without --tokens or --tls-client-ca "
+          "(refused otherwise: anyone who reaches the port could write), for a network or a "
+          "proxy in front that authenticates");
 ABSL_FLAG(std::string, tls_cert, "",
           "<FILE> serve TLS with this certificate chain (PEM), with --tls-key");
 ABSL_FLAG(std::string, tls_key, "", "<FILE> the private key of --tls-cert (PEM)");
@@ -138,7 +143,9 @@ namespace {
 std::string Usage() {
   return absl::StrCat("usage: gvd-server [flags]\n\n", gvd::flags::Describe("server/main.cc"),
                       "  --help\n  --version\n\nBy default the server listens on loopback only, without TLS "
-                      "and without authentication.\n");
+                      "and without authentication; an API port beyond loopback needs --tokens or "
+                      "--tls-client-ca, or --allow-unauthenticated. The metrics port serves "
+                      "read-only metrics without authentication wherever it listens.\n");
 }
 
 struct Flags {
@@ -179,6 +186,20 @@ std::string ReadFile(const std::string& flag, const std::string& path) {
   std::stringstream s;
   s << in.rdbuf();
   return s.str();
+}
+
+// Whether a listening address takes connections from this machine only: a Unix socket, or a
+// host that is "localhost", in 127.0.0.0/8, or ::1 ("[::1]:PORT"). 0.0.0.0, [::], a name or an
+// interface's address reach further.
+bool LocalOnly(const std::string& address) {
+  if (absl::StartsWith(address, "unix:")) return true;
+  std::string host = address.substr(0, address.rfind(':'));
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
+  if (host == "localhost") return true;
+  in_addr v4;
+  if (inet_pton(AF_INET, host.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
+  in6_addr v6;
+  return inet_pton(AF_INET6, host.c_str(), &v6) == 1 && IN6_IS_ADDR_LOOPBACK(&v6);
 }
 
 Flags ParseFlags(int argc, char** argv) {
@@ -234,6 +255,17 @@ Flags ParseFlags(int argc, char** argv) {
   f.tls_client_ca = absl::GetFlag(FLAGS_tls_client_ca);
   f.metrics_listen = absl::GetFlag(FLAGS_metrics_listen);
   f.http_listen = absl::GetFlag(FLAGS_http_listen);
+  // An API port others can reach, open to any write, only when asked for in so many words.
+  if (f.tokens.empty() && f.tls_client_ca.empty() && !absl::GetFlag(FLAGS_allow_unauthenticated)) {
+    for (const auto& [flag, address] : {std::pair{"--listen", f.listen}, {"--http-listen", f.http_listen}}) {
+      if (!address.empty() && !LocalOnly(address)) {
+        Die(absl::StrCat(flag, " ", address,
+                         " reaches beyond loopback, where anyone who reaches it could write: give "
+                         "--tokens FILE (or --tls-client-ca), or --allow-unauthenticated to serve "
+                         "it open on purpose"));
+      }
+    }
+  }
   for (const std::string& origin : absl::GetFlag(FLAGS_http_cors_origins)) {
     if (const auto o = absl::StripAsciiWhitespace(origin); !o.empty()) f.cors_origins.emplace_back(o);
   }

@@ -42,6 +42,10 @@ for dep in by_kind.get("Deployment", []):
                 problems.append(f"volume {m['name']}: claim {v['persistentVolumeClaim']['claimName']} is not defined")
         if "nvidia.com/gpu" not in c.get("resources", {}).get("limits", {}):
             problems.append(f"container {c['name']}: no nvidia.com/gpu limit")
+        # The image listens on all of the pod's interfaces: the API needs tokens.
+        args = c.get("args", [])
+        if "--tokens" not in args or args[args.index("--tokens") + 1:][:1] == []:
+            problems.append(f"Deployment {dep['metadata']['name']}: the server runs without --tokens")
 # Each Service selects the pods of a Deployment or StatefulSet, on ports they declare.
 workloads = by_kind.get("Deployment", []) + by_kind.get("StatefulSet", [])
 for svc in by_kind.get("Service", []):
@@ -71,6 +75,26 @@ if problems:
     print("\n".join(problems))
     sys.exit(1)
 print(f"{len(docs)} manifests consistent")
+PY
+# compose: a server with no --tokens publishes its ports on the host's loopback alone.
+python3 - deploy/compose.yaml <<'PY'
+import sys
+import yaml
+
+problems = []
+services = yaml.safe_load(open(sys.argv[1]))["services"]
+for name, svc in services.items():
+    if "deploy/Dockerfile" not in str(svc.get("build", {}).get("dockerfile", "")):
+        continue
+    if "--tokens" in svc.get("command", []):
+        continue
+    for port in svc.get("ports", []):
+        if not str(port).startswith("127.0.0.1:"):
+            problems.append(f"compose service {name}: publishes {port} beyond loopback without --tokens")
+if problems:
+    print("\n".join(problems))
+    sys.exit(1)
+print("compose: every server without tokens is published on loopback only")
 PY
 # Every COPY source of the Dockerfile (context: the repository root) exists.
 grep -E '^COPY [^-]' deploy/Dockerfile | while read -r _ src _; do

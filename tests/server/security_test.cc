@@ -140,6 +140,46 @@ TEST_F(SecurityTest, ConfigFileSetsFlags) {
       << server.log();
 }
 
+// An API port beyond loopback, where anyone who reaches it could write, is served only with
+// tokens or client certificates, or when --allow-unauthenticated says so; loopback and Unix
+// sockets need neither.
+TEST_F(SecurityTest, BeyondLoopbackTheApiNeedsAuthenticationOrAnExplicitFlag) {
+  const std::string d = *dir_;
+  const std::vector<std::vector<std::string>> open = {
+      {"--listen", "0.0.0.0:0"},
+      {"--listen", "[::]:0"},
+      {"--http-listen", "0.0.0.0:0"},
+      {"--listen", "127.0.0.1:0", "--http-listen", "[::]:0"},
+  };
+  for (const auto& flags : open) {
+    testing::ServerProcess server(GVD_SERVER_PATH, flags);
+    EXPECT_NE(server.error().find(" reaches beyond loopback, where anyone who reaches it could "
+                                  "write: give --tokens FILE (or --tls-client-ca), or "
+                                  "--allow-unauthenticated"),
+              std::string::npos)
+        << flags[1] << ": " << server.error();
+  }
+  // Served: with tokens, whose absence refuses a write; with client certificates; on
+  // purpose; and on loopback or a Unix socket without anything.
+  {
+    testing::ServerProcess server(GVD_SERVER_PATH, {"--listen", "0.0.0.0:0", "--tokens", d + "/tokens"});
+    ASSERT_TRUE(server.error().empty()) << server.error();
+    EXPECT_EQ(CreateScene(server.address(), ClientOptions{}, "open").error_code(),
+              StatusCode::UNAUTHENTICATED);
+  }
+  const std::vector<std::vector<std::string>> served = {
+      {"--listen", "0.0.0.0:0", "--tls-cert", d + "/server.pem", "--tls-key", d + "/server.key",
+       "--tls-client-ca", d + "/ca.pem"},
+      {"--listen", "0.0.0.0:0", "--http-listen", "0.0.0.0:0", "--allow-unauthenticated"},
+      {"--listen", "localhost:0", "--http-listen", "127.0.0.2:0"},
+      {"--listen", "unix:" + d + "/gvd.sock"},
+  };
+  for (const auto& flags : served) {
+    testing::ServerProcess server(GVD_SERVER_PATH, flags);
+    EXPECT_TRUE(server.error().empty()) << flags[1] << ": " << server.error();
+  }
+}
+
 TEST_F(SecurityTest, CliCarriesTokenAndTls) {
   const std::string d = *dir_;
   testing::ServerProcess server(GVD_SERVER_PATH,
