@@ -29,9 +29,11 @@ export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 # here do not: the browser tests (browser_*) and the clients' (python_client, ts_client)
 # test code this build does not compile, against the calls HttpTest and ServerTest make
 # here; the soak runs (soak_*) are a minute of the mixed load LoadTest drives here; the
-# image tests (container_*, compose_*) run no code of this build.
+# image tests (container_*, compose_*) run no code of this build; the C++ client's package
+# test (cpp_client_package) links this build's client into a project built without the
+# sanitizers, whose own calls ServerTest makes here.
 (cd build/asan && ASAN_OPTIONS=detect_leaks=0 ctest --output-on-failure -j "$jobs" --timeout 900 \
-  -E '^(Cone|Build|Frame|Exact|Nearest|Coverage|SiteIndex|Snapshot|SceneCore|Codec|Store\.|CpuPool|BoundaryEdges|TraceBoundaries|NeighborPairs|HiddenSites|GeometryMeetsBox|TrianglesFromEdges|Volume|fuzz_|deploy_lint|docs_|browser_|container_|compose_|python_|ts_client|soak_)')
+  -E '^(Cone|Build|Frame|Exact|Nearest|Coverage|SiteIndex|Snapshot|SceneCore|Codec|Store\.|CpuPool|BoundaryEdges|TraceBoundaries|NeighborPairs|HiddenSites|GeometryMeetsBox|TrianglesFromEdges|Volume|fuzz_|deploy_lint|docs_|browser_|container_|compose_|python_|ts_client|cpp_client_|soak_)')
 
 cmake -S . -B build/tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGVD_WERROR=OFF \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="$opt" -DCMAKE_CXX_FLAGS="-fsanitize=thread" -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=thread" >/dev/null
