@@ -83,6 +83,7 @@ inline v1::Site ToProtoSite(const Site& s) {
                  : path->side == Side::kInside ? v1::Polygon::SIDE_INSIDE
                                                : v1::Polygon::SIDE_UNSPECIFIED);
     to->set_tolerance(path->tolerance);
+    to->set_approximation_error(path->approximation);
   }
   out.set_additive_weight(s.additive);
   out.set_multiplicative_weight(s.multiplicative);

@@ -34,6 +34,30 @@ absl::Status ToWeights(const v1::Site& s, const FieldPath& field, S* site) {
   return absl::OkStatus();
 }
 
+// A polygon's or a path's side, named `at` in a refusal, into `side`; and back.
+absl::Status ToSide(v1::Polygon::Side in, const std::string& at, Side* side) {
+  switch (in) {
+    case v1::Polygon::SIDE_UNSPECIFIED:
+      *side = Side::kBoth;
+      return absl::OkStatus();
+    case v1::Polygon::SIDE_OUTSIDE:
+      *side = Side::kOutside;
+      return absl::OkStatus();
+    case v1::Polygon::SIDE_INSIDE:
+      *side = Side::kInside;
+      return absl::OkStatus();
+    default:
+      return Invalid(absl::StrCat(at, " is ", in,
+                                  "; it must be SIDE_UNSPECIFIED, SIDE_OUTSIDE or SIDE_INSIDE"));
+  }
+}
+
+v1::Polygon::Side ToProto(Side side) {
+  return side == Side::kOutside  ? v1::Polygon::SIDE_OUTSIDE
+         : side == Side::kInside ? v1::Polygon::SIDE_INSIDE
+                                 : v1::Polygon::SIDE_UNSPECIFIED;
+}
+
 }  // namespace
 
 absl::Status ToSite(const v1::Site& s, const FieldPath& field, const ServerLimits& limits,
@@ -91,19 +115,8 @@ absl::Status ToSite(const v1::Site& s, const FieldPath& field, const ServerLimit
           !st.ok()) {
         return st;
       }
-      switch (s.polygon().side()) {
-        case v1::Polygon::SIDE_UNSPECIFIED:
-          poly.side = Side::kBoth;
-          break;
-        case v1::Polygon::SIDE_OUTSIDE:
-          poly.side = Side::kOutside;
-          break;
-        case v1::Polygon::SIDE_INSIDE:
-          poly.side = Side::kInside;
-          break;
-        default:
-          return Invalid(absl::StrCat(field.str(), ".polygon.side is ", s.polygon().side(),
-                                      "; it must be SIDE_UNSPECIFIED, SIDE_OUTSIDE or SIDE_INSIDE"));
+      if (auto st = ToSide(s.polygon().side(), polygon.Member("side").str(), &poly.side); !st.ok()) {
+        return st;
       }
       site->geometry = std::move(poly);
       break;
@@ -182,19 +195,7 @@ absl::Status ToSite(const v1::Site& s, const FieldPath& field, const ServerLimit
                                       "FILL_RULE_EVEN_ODD"));
       }
       Side side = Side::kBoth;
-      switch (in.side()) {
-        case v1::Polygon::SIDE_UNSPECIFIED:
-          break;
-        case v1::Polygon::SIDE_OUTSIDE:
-          side = Side::kOutside;
-          break;
-        case v1::Polygon::SIDE_INSIDE:
-          side = Side::kInside;
-          break;
-        default:
-          return Invalid(absl::StrCat(path.str(), ".side is ", in.side(),
-                                      "; it must be SIDE_UNSPECIFIED, SIDE_OUTSIDE or SIDE_INSIDE"));
-      }
+      if (auto st = ToSide(in.side(), path.Member("side").str(), &side); !st.ok()) return st;
       const double tol = in.tolerance();
       if (!std::isfinite(tol) || tol < 0) {
         return Invalid(absl::StrCat(path.str(), ".tolerance is ", FormatNumber(tol),
@@ -386,9 +387,7 @@ void ToProto(const Site& site, v1::Site* out) {
     for (Vec2 q : l->points) ToProto(q, out->mutable_polyline()->add_points());
   } else if (const auto* poly = std::get_if<PolygonSite>(&site.geometry)) {
     for (Vec2 q : poly->vertices) ToProto(q, out->mutable_polygon()->add_vertices());
-    out->mutable_polygon()->set_side(poly->side == Side::kOutside  ? v1::Polygon::SIDE_OUTSIDE
-                                     : poly->side == Side::kInside ? v1::Polygon::SIDE_INSIDE
-                                                                   : v1::Polygon::SIDE_UNSPECIFIED);
+    out->mutable_polygon()->set_side(ToProto(poly->side));
   } else if (const auto* b = std::get_if<BezierSite>(&site.geometry)) {
     for (Vec2 q : b->control) ToProto(q, out->mutable_bezier()->add_control_points());
     out->mutable_bezier()->set_tolerance(b->tolerance);
@@ -402,9 +401,7 @@ void ToProto(const Site& site, v1::Site* out) {
     }
     to->set_fill_rule(path->fill == FillRule::kEvenOdd ? v1::Path::FILL_RULE_EVEN_ODD
                                                        : v1::Path::FILL_RULE_NONZERO);
-    to->set_side(path->side == Side::kOutside  ? v1::Polygon::SIDE_OUTSIDE
-                 : path->side == Side::kInside ? v1::Polygon::SIDE_INSIDE
-                                               : v1::Polygon::SIDE_UNSPECIFIED);
+    to->set_side(ToProto(path->side));
     to->set_tolerance(path->tolerance);
     to->set_approximation_error(path->approximation);
   }
