@@ -2,8 +2,10 @@
 # The TypeScript client's tests: npm ci (the lock file's versions, from npm's registry); its
 # generated messages (src/gen, kept in the tree) checked against what protoc makes of proto/
 # now; then, from a copy of this folder alone with no protoc on the PATH, npm pack, and the
-# tarball installed into a new project that imports it and its browser bundle; last, the
-# build and Node's test runner against GVD_SERVER.
+# tarball installed into a new project that imports it and its browser bundle; then the
+# build and Node's test runner against GVD_SERVER; last, the selection app's copy of the bundle
+# (server/web/gvd-client.js, kept in the tree so the server builds without npm) checked against
+# the bundle just built.
 # Usage: bash client/ts/run-tests.sh GVD_SERVER
 set -euo pipefail
 cd "$(dirname "$0")"
@@ -32,3 +34,7 @@ tar --exclude=./dist --exclude='./*.tgz' -cf - . | tar -xf - -C "$work/copy"
         Code.NotFound !== 5) throw new Error("the packed client does not import");')
 echo "npm pack from the folder alone: installs and imports"
 npm test
+if ! cmp -s dist/gvd-client.bundle.js ../../server/web/gvd-client.js; then
+  echo "server/web/gvd-client.js is stale: run npm run app in client/ts" >&2
+  exit 1
+fi

@@ -9,7 +9,7 @@ std::map<std::string, std::pair<std::string, std::string>> WebApp() {
   return {{"/", index},
           {"/index.html", index},
           {"/app.js", {"text/javascript; charset=utf-8", web::kApp}},
-          {"/api.js", {"text/javascript; charset=utf-8", web::kApi}},
+          {"/gvd-client.js", {"text/javascript; charset=utf-8", web::kGvdClient}},
           {"/style.css", {"text/css; charset=utf-8", web::kStyle}}};
 }
 

@@ -5,16 +5,64 @@
 // waits for it), never from downloading the sites. The region under the cursor is tinted from
 // a LAYER_SITE_INDEX image of the same frame, which names each pixel's site. window.gvd exposes the
 // page's state to scripts and tests.
-import { Client, GvdError, bytesOf } from './api.js';
+import { Code, ConnectError, VoronoiService, createGvdClient, fromJson, toJson } from './gvd-client.js';
 
 const $ = (id) => document.getElementById(id);
 const base = $('base');
 const overlay = $('overlay');
 const stage = $('stage');
 
+// ---- calls ----------------------------------------------------------------------------------
+
+// The API's calls through the TypeScript client's browser bundle (client/ts, built into
+// gvd-client.js), in binary Connect. Requests and answers are held here in proto3's JSON
+// mapping: lowerCamelCase fields, enums by name, 64-bit integers and bytes as strings, fields at
+// their default left out.
+class Calls {
+  constructor(token) {
+    this.token = token;
+    this.rpc = createGvdClient(location.origin, { token }).rpc;
+  }
+
+  // A unary call by its name in the API ('FindNearest').
+  async call(name, request, { signal } = {}) {
+    const method = methodNamed(name);
+    const answer = await this.rpc[method.localName](fromJson(method.input, request), { signal });
+    return toJson(method.output, answer);
+  }
+
+  // A server-streaming call: onMessage(message) for each; resolves when the server ends the
+  // stream, rejects with its error or when `signal` aborts.
+  async stream(name, request, onMessage, { signal } = {}) {
+    const method = methodNamed(name);
+    for await (const message of this.rpc[method.localName](fromJson(method.input, request), { signal })) {
+      onMessage(toJson(method.output, message));
+    }
+  }
+}
+
+function methodNamed(name) {
+  const method = VoronoiService.methods.find((m) => m.name === name);
+  if (!method) throw new Error(`gvd.v1.VoronoiService has no method ${name}`);
+  return method;
+}
+
+// A refusal's Connect code as the protocol spells it ('permission_denied').
+function codeName(e) {
+  return (Code[e.code] ?? 'unknown').replace(/[A-Z]/g, (c, at) => (at ? '_' : '') + c.toLowerCase());
+}
+
+// The bytes of a protobuf `bytes` field, which JSON carries in base64.
+function bytesOf(base64) {
+  const text = atob(base64 ?? '');
+  const out = new Uint8Array(text.length);
+  for (let i = 0; i < text.length; ++i) out[i] = text.charCodeAt(i);
+  return out;
+}
+
 const params = new URLSearchParams(location.search);
 if (params.has('token')) localStorage.setItem('gvd.token', params.get('token'));
-const client = new Client('', localStorage.getItem('gvd.token') ?? '');
+let client = new Calls(localStorage.getItem('gvd.token') ?? '');
 $('token').value = client.token;
 
 const kHistory = 1000;  // hover round trips kept for the figures
@@ -61,7 +109,7 @@ const gvd = (window.gvd = {
 let errorSource = '';
 
 function showError(e, source) {
-  const text = e instanceof GvdError ? e.toString() : String(e?.message ?? e);
+  const text = e instanceof ConnectError ? `${codeName(e)}: ${e.rawMessage}` : String(e?.message ?? e);
   gvd.error = text;
   errorSource = source;
   $('error').textContent = text;
@@ -409,7 +457,7 @@ async function watch(sceneId) {
     try {
       await client.stream('WatchScene', { sceneId, afterVersion: String(state.frameVersion) }, (event) => {
         if (event.deleted) {
-          showError(new GvdError('not_found', `scene ${sceneId} was deleted`, 200), 'scenes');
+          showError(new ConnectError(`scene ${sceneId} was deleted`, Code.NotFound), 'scenes');
           controller.abort();
           loadScenes();
           return;
@@ -427,7 +475,7 @@ async function watch(sceneId) {
     } catch (e) {
       if (controller.signal.aborted) return;
       showError(e, 'watch');
-      if (['unauthenticated', 'permission_denied', 'not_found'].includes(e.code)) return;
+      if ([Code.Unauthenticated, Code.PermissionDenied, Code.NotFound].includes(e.code)) return;
     }
     await new Promise((resolve) => setTimeout(resolve, 1000));
   }
@@ -952,7 +1000,7 @@ $('max-distance').addEventListener('change', () => {
   drawOverlay();
 });
 $('token').addEventListener('change', () => {
-  client.token = $('token').value.trim();
+  client = new Calls($('token').value.trim());
   localStorage.setItem('gvd.token', client.token);
   state.sceneId = '';
   loadScenes();

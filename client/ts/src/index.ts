@@ -15,6 +15,9 @@ import {
 
 export * from "./gen/gvd/v1/voronoi_pb.js";
 export { Code, ConnectError };
+/** Messages from and to proto3's JSON mapping, for callers that hold requests and answers as
+ * plain JSON (the browser bundle has no other way to reach them). */
+export { create, fromJson, toJson } from "@bufbuild/protobuf";
 
 export interface GvdOptions {
   /** A bearer token (the server's --tokens). */
