@@ -1,7 +1,6 @@
 #include "render/gl/render_loop.h"
 
 #include <pthread.h>
-#include <sys/resource.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -17,7 +16,6 @@
 namespace gvd {
 namespace {
 
-constexpr int kRenderNice = 10;
 
 }  // namespace
 
@@ -25,9 +23,10 @@ RenderLoop::~RenderLoop() { Stop(); }
 
 absl::Status RenderLoop::Start(DevicePreference preference) {
   if (const char* hold = std::getenv(kHoldRendersVariable)) hold_path_ = hold;
-  // The CPU pool is made here, at the caller's priority: made first by a render thread, its
-  // threads would inherit the render's nice 10, and they answer queries too.
+  // The CPU pools are made here, not by the first render: made by a render thread, the
+  // process's pool would inherit its nice value, and it answers queries too.
   CpuPool::Process();
+  CpuPool::Renders();
   for (int lane = 0; lane < lanes_; ++lane) {
     threads_.emplace_back([this, lane, preference] { Run(lane, preference); });
   }
@@ -128,12 +127,9 @@ std::shared_ptr<Scene> RenderLoop::Take(int lane) {
 }
 
 void RenderLoop::Run(int lane, DevicePreference preference) {
-  // Calls come before renders: a render thread runs at nice 10 (Linux sets it per thread), so
-  // that a call's thread woken while a render holds the CPU (a full one takes many
-  // milliseconds) runs first rather than after the render's time slice. Frames still come as
-  // soon as no call wants the CPU; the weight is relative to this process's other threads.
+  // Calls come before renders (kRenderNice), the render's ParallelFor pieces included.
   pthread_setname_np(pthread_self(), "gvd-render");
-  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kRenderNice);
+  CpuPool::BecomeRenderThread();
   std::unique_ptr<GlContext> context;
   std::unique_ptr<Rasterizer> rasterizer;
   {

@@ -3,6 +3,8 @@
 #include <chrono>
 #include <utility>
 
+#include "render/scene/cpu_pool.h"
+
 namespace gvd {
 namespace {
 
@@ -95,6 +97,7 @@ void VolumeRenderer::RenderNow(Scene3& scene, RenderObserver* observer) {
 }
 
 void VolumeRenderer::Run() {
+  CpuPool::BecomeRenderThread();  // calls come before renders, as in the 2D render loop
   for (;;) {
     std::shared_ptr<Scene3> scene;
     {

@@ -1,20 +1,29 @@
 #include "render/scene/cpu_pool.h"
 
 #include <pthread.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <limits>
 
 namespace gvd {
+namespace {
 
-CpuPool::CpuPool(size_t threads, std::string name) {
+thread_local CpuPool* current_pool = nullptr;  // CpuPool::Current()'s, when set
+
+}  // namespace
+
+CpuPool::CpuPool(size_t threads, std::string name, int nice) {
   parallel_ = std::make_unique<Lane>(*this, std::numeric_limits<int>::max(),
                                      std::numeric_limits<size_t>::max(),
                                      std::numeric_limits<size_t>::max());
   name.resize(std::min<size_t>(name.size(), 15));  // the kernel's limit
   for (size_t t = 0; t < std::max<size_t>(threads, 1); ++t) {
-    threads_.emplace_back([this, name] {
+    threads_.emplace_back([this, name, nice] {
       pthread_setname_np(pthread_self(), name.c_str());
+      if (nice != 0) setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), nice);
+      current_pool = this;
       Run();
     });
   }
@@ -33,6 +42,19 @@ CpuPool::~CpuPool() {
 CpuPool& CpuPool::Process() {
   static CpuPool* pool = new CpuPool(std::max(1u, std::thread::hardware_concurrency()));
   return *pool;
+}
+
+CpuPool& CpuPool::Renders() {
+  static CpuPool* pool =
+      new CpuPool(std::max(1u, std::thread::hardware_concurrency()), "gvd-render-cpu", kRenderNice);
+  return *pool;
+}
+
+CpuPool& CpuPool::Current() { return current_pool != nullptr ? *current_pool : Process(); }
+
+void CpuPool::BecomeRenderThread() {
+  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kRenderNice);
+  current_pool = &Renders();
 }
 
 CpuPool::Lane::Lane(CpuPool& pool, int priority, size_t max_running, size_t max_queued)

@@ -1,6 +1,7 @@
-// The process's CPU pool: one thread per core for the computation that is neither the render
-// thread's nor gRPC's (answers, image encoding, analyses, and the pieces of ParallelFor), so
-// that the process runs as many busy threads as it has cores, whatever the load.
+// The process's CPU pools: one thread per core for the computation that is neither a render
+// thread's nor a transport's (answers, image encoding, analyses, and the pieces of
+// ParallelFor), so that the process runs as many busy threads as it has cores, whatever the
+// load; and as many again for the pieces of renders, at the render threads' lower priority.
 #pragma once
 
 #include <atomic>
@@ -16,19 +17,34 @@
 
 namespace gvd {
 
+// The nice value of render threads and of the pool that runs their ParallelFor pieces (Linux
+// sets it per thread): a call's thread woken while a render holds every core (a full render
+// takes many milliseconds) runs first rather than after a time slice. Frames still come as
+// soon as no call wants the CPU; the weight is relative to the process's other threads.
+inline constexpr int kRenderNice = 10;
+
 // Thread-safe. Jobs are queued on lanes; a free thread takes the oldest job of the lane of
 // highest priority that has one and is under its limit of running jobs.
 class CpuPool {
  public:
-  // `threads` threads, named `name` (what `top -H` and debuggers show; 15 characters kept).
-  explicit CpuPool(size_t threads, std::string name = "gvd-cpu");
+  // `threads` threads, named `name` (what `top -H` and debuggers show; 15 characters kept), at
+  // `nice` (0: the creating thread's).
+  explicit CpuPool(size_t threads, std::string name = "gvd-cpu", int nice = 0);
   ~CpuPool();  // CONTRACT: every lane is gone; joins the threads
   CpuPool(const CpuPool&) = delete;
   CpuPool& operator=(const CpuPool&) = delete;
 
   // The process-wide pool: hardware_concurrency() threads (at least one), made on first use
-  // and never destroyed.
+  // and never destroyed. CONTRACT: first used by a thread at nice 0 (its threads inherit it).
   static CpuPool& Process();
+  // The pool of renders' ParallelFor pieces: as many threads, at kRenderNice; made on first
+  // use, never destroyed.
+  static CpuPool& Renders();
+  // The pool ParallelFor splits work over on the calling thread: a pool thread's own, a
+  // render thread's Renders(), any other thread's Process().
+  static CpuPool& Current();
+  // Makes the calling thread a render thread: kRenderNice, and its ParallelFor on Renders().
+  static void BecomeRenderThread();
 
   size_t threads() const { return threads_.size(); }
 
@@ -78,7 +94,7 @@ class CpuPool {
 
 // Calls fn(begin, end) on disjoint ranges covering [0, n): on this thread alone when n is
 // below 2 * min_per_thread, else split into pieces of at least min_per_thread that this
-// thread and the process's pool take in turn; returns when every piece is done. Never waits
+// thread and its pool (CpuPool::Current()) take in turn; returns when every piece is done. Never waits
 // for a pool thread to be free (this thread takes whatever pieces are left), so it may be
 // called from a pool job. fn must be safe to run concurrently on disjoint ranges.
 template <class Fn>
@@ -110,7 +126,7 @@ struct State {
 
 template <class Fn>
 void ParallelFor(size_t n, size_t min_per_thread, Fn fn) {
-  CpuPool& pool = CpuPool::Process();
+  CpuPool& pool = CpuPool::Current();
   const size_t workers = pool.threads();
   const size_t pieces =
       std::min<size_t>(4 * std::max<size_t>(workers, 1), n / std::max<size_t>(min_per_thread, 1));

@@ -1,11 +1,19 @@
 // The process's CPU pool: ParallelFor's pieces, lanes' priorities and limits.
 #include <atomic>
+#include <cerrno>
+#include <condition_variable>
 #include <chrono>
 #include <future>
+#include <map>
 #include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <set>
 
 #include <gtest/gtest.h>
 
@@ -109,6 +117,42 @@ TEST(CpuPool, LanesKeepTheirLimits) {
   }
   EXPECT_EQ(done.load(), 5);
   EXPECT_EQ(most.load(), 2);
+}
+
+// The nice value of each thread that ran a piece of a ParallelFor called on this thread. Each
+// piece waits (up to 30 s) until a second thread has run one, so a pool thread always does.
+std::map<pid_t, int> NiceOfPieces() {
+  std::mutex mu;
+  std::condition_variable joined;
+  std::map<pid_t, int> nice;
+  ParallelFor(64, 1, [&](size_t, size_t) {
+    std::unique_lock<std::mutex> lock(mu);
+    errno = 0;
+    nice[gettid()] = getpriority(PRIO_PROCESS, static_cast<id_t>(gettid()));
+    joined.notify_all();
+    joined.wait_for(lock, std::chrono::seconds(30), [&] { return nice.size() >= 2; });
+  });
+  return nice;
+}
+
+// A render thread's ParallelFor pieces run at its lower priority, on threads of their own; any
+// other thread's, at the process's.
+TEST(CpuPool, ARenderThreadsPiecesRunAtItsPriority) {
+  const int base = getpriority(PRIO_PROCESS, static_cast<id_t>(gettid()));
+  if (base >= kRenderNice) GTEST_SKIP() << "the test runs at nice " << base << " already";
+  if (CpuPool::Process().threads() < 2) GTEST_SKIP() << "one core: ParallelFor runs inline";
+  const std::map<pid_t, int> plain = NiceOfPieces();
+  std::map<pid_t, int> render;
+  std::thread([&] {
+    CpuPool::BecomeRenderThread();
+    render = NiceOfPieces();
+  }).join();
+  ASSERT_GE(plain.size(), 2u);
+  ASSERT_GE(render.size(), 2u);
+  for (const auto& [tid, nice] : plain) EXPECT_EQ(nice, base) << "thread " << tid;
+  for (const auto& [tid, nice] : render) EXPECT_EQ(nice, kRenderNice) << "thread " << tid;
+  // The render's helpers are not the process pool's threads.
+  for (const auto& [tid, nice] : render) EXPECT_EQ(plain.count(tid), 0u) << "thread " << tid;
 }
 
 }  // namespace
