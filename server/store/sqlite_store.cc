@@ -287,8 +287,13 @@ void SqliteStore::Folder() {
     fold_wanted_ = false;  // a pack written from here on sets it again
     lock.unlock();
     uint64_t folded = 0;
+    const auto started = std::chrono::steady_clock::now();
     absl::StatusOr<bool> more = FoldSome(&folded);
+    const auto ended = std::chrono::steady_clock::now();
     lock.lock();
+    // The next chunk waits as long as this one took: the store's lock is the fold's half the
+    // time at most, and a commit that waited for this chunk goes before the next.
+    fold_retry_at_ = ended + (ended - started);
     if (!more.ok()) {
       // The packs stay, read as they are; the fold is tried again after 1 s, then after twice
       // as long each time it fails, up to a minute (a damaged pack keeps failing, and is
@@ -315,7 +320,47 @@ absl::StatusOr<uint64_t> SqliteStore::FoldPacks(uint64_t chunks) {
   return folded;
 }
 
+absl::Status SqliteStore::PrepareFold() {
+  std::string scene, pack;
+  uint64_t id = 0, version = 0;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    // The oldest pack first.
+    Statement p(Prepared("SELECT id, scene, version FROM site_pack ORDER BY id LIMIT 1"));
+    if (!p.ok()) return SqliteError(db_, "reading packs");
+    const int rc = sqlite3_step(p.get());
+    if (rc == SQLITE_DONE) return absl::OkStatus();
+    if (rc != SQLITE_ROW) return SqliteError(db_, "reading packs");
+    id = static_cast<uint64_t>(sqlite3_column_int64(p.get(), 0));
+    if (fold_cursor_ && fold_cursor_->id == id) return absl::OkStatus();
+    scene = ColumnText(p.get(), 1);
+    version = static_cast<uint64_t>(sqlite3_column_int64(p.get(), 2));
+    Statement sites(Prepared("SELECT sites FROM site_pack WHERE id = ?"));
+    if (!sites.ok()) return SqliteError(db_, "reading packs");
+    sites.Int(1, id);
+    if (sqlite3_step(sites.get()) != SQLITE_ROW) return SqliteError(db_, "reading packs");
+    pack = std::string(ColumnBlob(sites.get(), 0));
+  }
+  auto cursor = std::make_unique<FoldCursor>();
+  cursor->id = id;
+  cursor->pack = std::move(pack);
+  auto entries = PackEntries(cursor->pack);
+  if (!entries.ok()) return DamagedPack(scene, version);
+  cursor->entries = std::move(*entries);
+  // In id order, as Write stores rows; of two entries of one id the later stays later.
+  cursor->order = IdOrder(cursor->entries.size(), [&](size_t k) -> std::string_view {
+    return cursor->entries[k].id;
+  });
+  std::lock_guard<std::mutex> lock(mu_);
+  fold_cursor_ = std::move(cursor);
+  return absl::OkStatus();
+}
+
 absl::StatusOr<bool> SqliteStore::FoldSome(uint64_t* folded) {
+  // The pack's entries are read and put in id order outside the store's lock (for 100,000
+  // sites, tens of milliseconds that commits would otherwise wait for); each chunk checks
+  // that the pack is still the oldest, and is left to the next call when it is not.
+  if (auto s = PrepareFold(); !s.ok()) return s;
   bool found = false;
   absl::Status s = Transaction([&]() -> absl::Status {
     std::string scene;
@@ -333,21 +378,8 @@ absl::StatusOr<bool> SqliteStore::FoldSome(uint64_t* folded) {
     }
     found = true;
     if (!fold_cursor_ || fold_cursor_->id != id) {
-      auto cursor = std::make_unique<FoldCursor>();
-      cursor->id = id;
-      Statement p(Prepared("SELECT sites FROM site_pack WHERE id = ?"));
-      if (!p.ok()) return SqliteError(db_, "reading packs");
-      p.Int(1, id);
-      if (sqlite3_step(p.get()) != SQLITE_ROW) return SqliteError(db_, "reading packs");
-      cursor->pack = std::string(ColumnBlob(p.get(), 0));
-      auto entries = PackEntries(cursor->pack);
-      if (!entries.ok()) return DamagedPack(scene, version);
-      cursor->entries = std::move(*entries);
-      // In id order, as Write stores rows; of two entries of one id the later stays later.
-      cursor->order = IdOrder(cursor->entries.size(), [&](size_t k) -> std::string_view {
-        return cursor->entries[k].id;
-      });
-      fold_cursor_ = std::move(cursor);
+      fold_cursor_.reset();  // another pack came first: the next call prepares it
+      return absl::OkStatus();
     }
     const auto& entries = fold_cursor_->entries;
     const std::vector<uint32_t>& order = fold_cursor_->order;
@@ -379,7 +411,7 @@ absl::StatusOr<bool> SqliteStore::FoldSome(uint64_t* folded) {
       fold_cursor_->done = end;
     }
     return absl::OkStatus();
-  });
+  }, Durability::kRelaxed);  // a chunk lost with the machine is folded again from its pack
   if (!s.ok()) {
     // What this chunk wrote was rolled back: the pack is folded again from its start.
     std::lock_guard<std::mutex> lock(mu_);

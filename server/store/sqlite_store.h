@@ -64,7 +64,7 @@ class SqliteStore final : public SceneStore {
   struct Packing {
     size_t min_sites = 4096;
     std::chrono::milliseconds fold_after{500};
-    size_t fold_chunk = 8192;
+    size_t fold_chunk = 256;
   };
   void set_packing(Packing packing);
   // Folds packs now, in at most `chunks` transactions (of fold_chunk sites each), and returns
@@ -120,6 +120,9 @@ class SqliteStore final : public SceneStore {
   // Folds the next fold_chunk sites of a pack into site rows, in one transaction; false when
   // no pack was left. Returns through `folded` how many it folded.
   absl::StatusOr<bool> FoldSome(uint64_t* folded);
+  // The oldest pack's fold_cursor_, read and ordered (under mu_ only to read it); OK with
+  // nothing done when there is no pack or the cursor is that pack's already.
+  absl::Status PrepareFold();
   // Tells the folder a pack was written (or found at the start).
   void WantFold();
   // Folds packs once they have rested fold_after.
@@ -180,7 +183,8 @@ class SqliteStore final : public SceneStore {
   bool fold_stopping_ = false;
   std::chrono::steady_clock::time_point last_pack_;     // the last pack written
   std::chrono::steady_clock::time_point wanted_since_;  // the first not yet folded
-  std::chrono::steady_clock::time_point fold_retry_at_;  // after a failed fold
+  // When the next chunk may start: after a failed fold, or as long after a chunk as it took.
+  std::chrono::steady_clock::time_point fold_retry_at_;
   std::chrono::milliseconds fold_backoff_{1000};
   std::thread folder_;
 };
