@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
@@ -269,6 +270,7 @@ void SqliteStore::WantFold() {
 
 void SqliteStore::Folder() {
   std::unique_lock<std::mutex> lock(fold_mu_);
+  std::chrono::steady_clock::time_point last_chunk;  // when the last chunk ended
   while (!fold_stopping_) {
     if (!fold_wanted_) {
       fold_cv_.wait(lock);
@@ -277,9 +279,15 @@ void SqliteStore::Folder() {
     // A bulk load's render and the next change sets go first: the pack waits until none
     // has been written for fold_after, or ten times that since the first (packs that keep
     // coming are folded too), and a fold that failed waits for its retry.
-    const auto due = std::max(std::min(last_pack_ + packing_.fold_after,
-                                       wanted_since_ + 10 * packing_.fold_after),
-                              fold_retry_at_);
+    // Then each chunk goes between commits: once none has come for fold_idle, or
+    // fold_max_wait after the last chunk while they keep coming.
+    const std::chrono::steady_clock::time_point last_commit{
+        std::chrono::steady_clock::duration(last_commit_.load())};
+    const auto due = std::max({std::min(last_pack_ + packing_.fold_after,
+                                        wanted_since_ + 10 * packing_.fold_after),
+                               fold_retry_at_,
+                               std::min(last_commit + packing_.fold_idle,
+                                        last_chunk + packing_.fold_max_wait)});
     if (std::chrono::steady_clock::now() < due) {
       fold_cv_.wait_until(lock, due);
       continue;
@@ -287,13 +295,9 @@ void SqliteStore::Folder() {
     fold_wanted_ = false;  // a pack written from here on sets it again
     lock.unlock();
     uint64_t folded = 0;
-    const auto started = std::chrono::steady_clock::now();
     absl::StatusOr<bool> more = FoldSome(&folded);
-    const auto ended = std::chrono::steady_clock::now();
+    last_chunk = std::chrono::steady_clock::now();
     lock.lock();
-    // The next chunk waits as long as this one took: the store's lock is the fold's half the
-    // time at most, and a commit that waited for this chunk goes before the next.
-    fold_retry_at_ = ended + (ended - started);
     if (!more.ok()) {
       // The packs stay, read as they are; the fold is tried again after 1 s, then after twice
       // as long each time it fails, up to a minute (a damaged pack keeps failing, and is
@@ -784,6 +788,7 @@ absl::Status SqliteStore::Commit(const ChangeSet& changes) {
   for (const Waiter* w : group) {
     if (w->changes->durability == Durability::kSync) durability = Durability::kSync;
   }
+  last_commit_ = std::chrono::steady_clock::now().time_since_epoch().count();
   absl::Status s = Transaction([&]() -> absl::Status {
     if (group.size() == 1) {  // its failure is the transaction's: no savepoint to roll back to
       group[0]->status = Write(*group[0]->changes);

@@ -60,11 +60,15 @@ class SqliteStore final : public SceneStore {
   // Large change sets: one of at least `min_sites` puts is written as one row (a pack, one
   // sequential append) rather than a row per site, and a thread of the store's folds the
   // packs into site rows, `fold_chunk` sites a transaction, once no pack has been written for
-  // `fold_after`. Set before the store is shared.
+  // `fold_after`; each chunk waits until no commit has begun for `fold_idle`, or
+  // `fold_max_wait` after the previous chunk while commits keep coming. Set before the store
+  // is shared.
   struct Packing {
     size_t min_sites = 4096;
     std::chrono::milliseconds fold_after{500};
     size_t fold_chunk = 256;
+    std::chrono::milliseconds fold_idle{5};
+    std::chrono::milliseconds fold_max_wait{100};
   };
   void set_packing(Packing packing);
   // Folds packs now, in at most `chunks` transactions (of fold_chunk sites each), and returns
@@ -183,8 +187,9 @@ class SqliteStore final : public SceneStore {
   bool fold_stopping_ = false;
   std::chrono::steady_clock::time_point last_pack_;     // the last pack written
   std::chrono::steady_clock::time_point wanted_since_;  // the first not yet folded
-  // When the next chunk may start: after a failed fold, or as long after a chunk as it took.
-  std::chrono::steady_clock::time_point fold_retry_at_;
+  std::chrono::steady_clock::time_point fold_retry_at_;  // after a failed fold
+  // When the last commit of change sets began (steady_clock ticks): the folder goes between.
+  std::atomic<std::chrono::steady_clock::rep> last_commit_{0};
   std::chrono::milliseconds fold_backoff_{1000};
   std::thread folder_;
 };

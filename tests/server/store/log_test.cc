@@ -74,6 +74,7 @@ class Engine {
       packing.min_sites = 2;
       packing.fold_after = std::chrono::milliseconds(0);
       packing.fold_chunk = 2;
+      packing.fold_idle = std::chrono::milliseconds(0);
       (*s)->set_packing(packing);
     }
     return std::move(*s);

@@ -314,6 +314,7 @@ TEST(Store, PackedChangeSetsReadTheSameBeforeAndAfterTheirFold) {
   busy.min_sites = 4;
   busy.fold_after = std::chrono::milliseconds(0);
   busy.fold_chunk = 3;
+  busy.fold_idle = std::chrono::milliseconds(0);
   {
     SCOPED_TRACE("folded by the folder as they come");
     CheckCommitsAcrossReopens(23, &busy, true);
