@@ -324,32 +324,36 @@ absl::StatusOr<uint64_t> SqliteStore::FoldPacks(uint64_t chunks) {
   return folded;
 }
 
+absl::StatusOr<std::optional<SqliteStore::PackHead>> SqliteStore::OldestPack() {
+  Statement p(Prepared("SELECT id, scene, version FROM site_pack ORDER BY id LIMIT 1"));
+  if (!p.ok()) return SqliteError(db_, "reading packs");
+  const int rc = sqlite3_step(p.get());
+  if (rc == SQLITE_DONE) return std::nullopt;
+  if (rc != SQLITE_ROW) return SqliteError(db_, "reading packs");
+  return PackHead{static_cast<uint64_t>(sqlite3_column_int64(p.get(), 0)), ColumnText(p.get(), 1),
+                  static_cast<uint64_t>(sqlite3_column_int64(p.get(), 2))};
+}
+
 absl::Status SqliteStore::PrepareFold() {
-  std::string scene, pack;
-  uint64_t id = 0, version = 0;
+  std::optional<PackHead> head;
+  std::string pack;
   {
     std::lock_guard<std::mutex> lock(mu_);
-    // The oldest pack first.
-    Statement p(Prepared("SELECT id, scene, version FROM site_pack ORDER BY id LIMIT 1"));
-    if (!p.ok()) return SqliteError(db_, "reading packs");
-    const int rc = sqlite3_step(p.get());
-    if (rc == SQLITE_DONE) return absl::OkStatus();
-    if (rc != SQLITE_ROW) return SqliteError(db_, "reading packs");
-    id = static_cast<uint64_t>(sqlite3_column_int64(p.get(), 0));
-    if (fold_cursor_ && fold_cursor_->id == id) return absl::OkStatus();
-    scene = ColumnText(p.get(), 1);
-    version = static_cast<uint64_t>(sqlite3_column_int64(p.get(), 2));
+    auto oldest = OldestPack();
+    if (!oldest.ok()) return oldest.status();
+    head = *oldest;
+    if (!head || (fold_cursor_ && fold_cursor_->id == head->id)) return absl::OkStatus();
     Statement sites(Prepared("SELECT sites FROM site_pack WHERE id = ?"));
     if (!sites.ok()) return SqliteError(db_, "reading packs");
-    sites.Int(1, id);
+    sites.Int(1, head->id);
     if (sqlite3_step(sites.get()) != SQLITE_ROW) return SqliteError(db_, "reading packs");
     pack = std::string(ColumnBlob(sites.get(), 0));
   }
   auto cursor = std::make_unique<FoldCursor>();
-  cursor->id = id;
+  cursor->id = head->id;
   cursor->pack = std::move(pack);
   auto entries = PackEntries(cursor->pack);
-  if (!entries.ok()) return DamagedPack(scene, version);
+  if (!entries.ok()) return DamagedPack(head->scene, head->version);
   cursor->entries = std::move(*entries);
   // In id order, as Write stores rows; of two entries of one id the later stays later.
   cursor->order = IdOrder(cursor->entries.size(), [&](size_t k) -> std::string_view {
@@ -367,19 +371,10 @@ absl::StatusOr<bool> SqliteStore::FoldSome(uint64_t* folded) {
   if (auto s = PrepareFold(); !s.ok()) return s;
   bool found = false;
   absl::Status s = Transaction([&]() -> absl::Status {
-    std::string scene;
-    uint64_t id = 0, version = 0;
-    {
-      // The oldest pack first.
-      Statement p(Prepared("SELECT id, scene, version FROM site_pack ORDER BY id LIMIT 1"));
-      if (!p.ok()) return SqliteError(db_, "reading packs");
-      const int rc = sqlite3_step(p.get());
-      if (rc == SQLITE_DONE) return absl::OkStatus();
-      if (rc != SQLITE_ROW) return SqliteError(db_, "reading packs");
-      id = static_cast<uint64_t>(sqlite3_column_int64(p.get(), 0));
-      scene = ColumnText(p.get(), 1);
-      version = static_cast<uint64_t>(sqlite3_column_int64(p.get(), 2));
-    }
+    auto oldest = OldestPack();
+    if (!oldest.ok()) return oldest.status();
+    if (!*oldest) return absl::OkStatus();
+    const auto& [id, scene, version] = **oldest;
     found = true;
     if (!fold_cursor_ || fold_cursor_->id != id) {
       fold_cursor_.reset();  // another pack came first: the next call prepares it

@@ -12,6 +12,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <thread>
@@ -127,6 +128,13 @@ class SqliteStore final : public SceneStore {
   // The oldest pack's fold_cursor_, read and ordered (under mu_ only to read it); OK with
   // nothing done when there is no pack or the cursor is that pack's already.
   absl::Status PrepareFold();
+  struct PackHead {
+    uint64_t id = 0;
+    std::string scene;
+    uint64_t version = 0;  // the version that wrote it
+  };
+  // The oldest pack's, or none. CONTRACT: mu_ held.
+  absl::StatusOr<std::optional<PackHead>> OldestPack();
   // Tells the folder a pack was written (or found at the start).
   void WantFold();
   // Folds packs once they have rested fold_after.
