@@ -14,10 +14,6 @@
 #include "render/scene/cpu_pool.h"
 
 namespace gvd {
-namespace {
-
-
-}  // namespace
 
 RenderLoop::~RenderLoop() { Stop(); }
 
