@@ -47,8 +47,11 @@ class PieceStack {
   int top_ = 0;
 };
 
+// Each function below is a template on the degree n (2 or 3), so that its loops unroll.
+
 // De Casteljau's split at 1/2 of the degree-n control points p.
-void Halve(const Controls& p, int n, Controls* left, Controls* right) {
+template <int n>
+void Halve(const Controls& p, Controls* left, Controls* right) {
   Controls w = p;
   (*left)[0] = w[0];
   (*right)[n] = w[n];
@@ -76,7 +79,8 @@ constexpr auto kWeights = [] {
 
 // The control points of B' (d, degree n - 1) and of B'' (dd, degree n - 2), and the
 // largest |d_j|.
-double Derivatives(const Controls& p, int n, Controls* d, Controls* dd) {
+template <int n>
+double Derivatives(const Controls& p, Controls* d, Controls* dd) {
   double d_max = 0;
   for (int j = 0; j < n; ++j) {
     (*d)[j] = double(n) * (p[j + 1] - p[j]);
@@ -87,23 +91,42 @@ double Derivatives(const Controls& p, int n, Controls* d, Controls* dd) {
 }
 
 // The largest |p_i| of the degree-n control points p.
-double Largest(const Controls& p, int n) {
+template <int n>
+double Largest(const Controls& p) {
   double m = 0;
   for (int i = 0; i <= n; ++i) m = std::max(m, Length(p[i]));
   return m;
 }
 
+// A piece's derivatives and sizes, read once for both the reading of its signs and Newton's
+// method on it.
+template <int n>
+struct Hodograph {
+  explicit Hodograph(const Controls& p) : d_max(Derivatives<n>(p, &d, &dd)), p_max(Largest<n>(p)) {}
+  Controls d, dd;  // B' (degree n - 1) and B'' (degree n - 2)
+  double d_max, p_max;
+};
+
 enum class Signs { kUnknown, kNoMinimum, kOneMinimum };
+
+struct SignReading {
+  Signs signs = Signs::kUnknown;
+  // With kOneMinimum: where the polygon of f's coefficients crosses 0, a start for Newton's
+  // method near the root (the coefficients' polygon converges to f's graph).
+  double start = 0.5;
+};
 
 // What the signs of f = (B - q) . B' on the piece say: no minimum of the distance inside it
 // (f of one sign, or one change from + to -: a maximum), one minimum (one change from - to
 // +), or nothing certain. slack: how far the piece's control points may be from the exact
 // ones.
-Signs ReadSigns(const Controls& p, int n, double slack) {
-  Controls d, dd;  // B' = sum of d_j b_j^(n-1)
-  const double d_max = Derivatives(p, n, &d, &dd), p_max = Largest(p, n);
+template <int n>
+SignReading ReadSigns(const Controls& p, const Hodograph<n>& h, double slack) {
+  const Controls& d = h.d;  // B' = sum of d_j b_j^(n-1)
+  const double d_max = h.d_max, p_max = h.p_max;
   int signs[6];
-  const int m = 2 * n - 1;
+  double coefficients[6];
+  constexpr int m = 2 * n - 1;
   for (int k = 0; k <= m; ++k) {
     double c = 0;
     for (int i = std::max(0, k - (n - 1)); i <= std::min(n, k); ++i) {
@@ -115,16 +138,26 @@ Signs ReadSigns(const Controls& p, int n, double slack) {
     // factor, the derivative's points by 2n slack.
     const double error = 16 * kUnit * p_max * d_max + 2 * slack * (d_max + 2 * n * p_max);
     signs[k] = c > error ? 1 : c < -error ? -1 : 0;
-    if (signs[k] == 0) return Signs::kUnknown;
+    if (signs[k] == 0) return {};
+    coefficients[k] = c;
   }
-  int changes = 0;
-  for (int k = 0; k < m; ++k) changes += signs[k] != signs[k + 1];
-  if (changes == 0 || (changes == 1 && signs[0] > 0)) return Signs::kNoMinimum;
-  return changes == 1 ? Signs::kOneMinimum : Signs::kUnknown;
+  int changes = 0, at = 0;
+  for (int k = 0; k < m; ++k) {
+    if (signs[k] != signs[k + 1]) {
+      ++changes;
+      at = k;
+    }
+  }
+  if (changes == 0 || (changes == 1 && signs[0] > 0)) return {Signs::kNoMinimum};
+  if (changes != 1) return {};
+  // Coefficient k stands at k / m; the one change is from - to + between `at` and at + 1.
+  const double c0 = coefficients[at], c1 = coefficients[at + 1];
+  return {Signs::kOneMinimum, (at + c0 / (c0 - c1)) / m};
 }
 
 // The degree-n Bezier with control points p at t, by de Casteljau.
-Vec2 At(Controls p, int n, double t) {
+template <int n>
+Vec2 At(Controls p, double t) {
   for (int k = n; k > 0; --k) {
     for (int i = 0; i < k; ++i) p[i] = p[i] + t * (p[i + 1] - p[i]);
   }
@@ -133,13 +166,16 @@ Vec2 At(Controls p, int n, double t) {
 
 // The minimum within a piece that holds exactly one (f < 0 at its start, > 0 at its end):
 // Newton's method on f, kept within a bracket whose ends have certain signs, to a bracket
-// narrow enough that the distance over it is known within `enough`. Returns false where the
-// signs stop being certain first (the caller then halves the piece instead). On success,
-// *s is the piece's parameter of the point found, *distance that point's distance from q.
-bool Converge(const Controls& p, int n, double slack, double enough, double* s,
-              double* distance) {
-  Controls d, dd;
-  const double d_max = Derivatives(p, n, &d, &dd), p_max = Largest(p, n);
+// narrow enough that the distance over it is known within `enough`, from `start` in (0, 1).
+// Returns false where the signs stop being certain first (the caller then halves the piece
+// instead). On success, *s is the piece's parameter of the point found, *distance that
+// point's distance from q, and *settled whether f is within its rounding of 0 there (a
+// Newton step from it would move it by rounding alone).
+template <int n>
+bool Converge(const Controls& p, const Hodograph<n>& h, double slack, double enough,
+              double start, double* s, double* distance, bool* settled) {
+  const Controls &d = h.d, &dd = h.dd;
+  const double d_max = h.d_max, p_max = h.p_max;
   // f's rounding at a point, as ReadSigns bounds its coefficients'.
   const double error = 8 * (n + 2) * kUnit * p_max * d_max + 2 * slack * (d_max + 2 * n * p_max);
   struct Value {
@@ -147,10 +183,10 @@ bool Converge(const Controls& p, int n, double slack, double enough, double* s,
     Vec2 b;  // B(t)
   };
   auto at = [&](double t) {
-    const Vec2 b = At(p, n, t), b1 = At(d, n - 1, t), b2 = At(dd, n - 2, t);
+    const Vec2 b = At<n>(p, t), b1 = At<n - 1>(d, t), b2 = At<n - 2>(dd, t);
     return Value{glm::dot(b, b1), glm::dot(b1, b1) + glm::dot(b, b2), b};
   };
-  const double dd_max = Largest(dd, n - 2);
+  const double dd_max = Largest<n - 2>(dd);
   // How much nearer than the point at t (distance `at_t`, f there `f`) the minimum in a
   // bracket of width w around t may be: |B'| <= d_max on the piece, so at most d_max w; and
   // as the squared distance's slope is 2f, with |f'| <= d_max^2 + p_max dd_max, at most
@@ -161,9 +197,10 @@ bool Converge(const Controls& p, int n, double slack, double enough, double* s,
         2 * (std::abs(f) + error + (d_max * d_max + p_max * dd_max) * w) * w / at_t;
     return at_t > 0 ? std::min(linear, quadratic) : linear;
   };
-  double lo = 0, hi = 1, t = 0.5;
+  double lo = 0, hi = 1, t = start > 0 && start < 1 ? start : 0.5;
   for (int step = 0; step < 64; ++step) {
     const Value v = at(t);
+    const bool within = !(std::abs(v.f) > error);
     if (v.f > error) {
       hi = t;
     } else if (v.f < -error) {
@@ -181,6 +218,7 @@ bool Converge(const Controls& p, int n, double slack, double enough, double* s,
     if (gap(hi - lo, v.f, here) <= enough) {
       *s = t;
       *distance = here;
+      *settled = within;
       return true;
     }
     const double next = v.slope > 0 ? t - v.f / v.slope : NAN;
@@ -190,35 +228,27 @@ bool Converge(const Controls& p, int n, double slack, double enough, double* s,
 }
 
 // A few Newton steps on f from an interior t, each kept only where it brings the curve's
-// point nearer q: a piece whose bounds met has left t within some ulps of the scale of a
-// minimum, and this takes it to the minimum's own rounding.
-void Polish(Vec2 q, const Controls& p, int n, CurvePoint* best) {
+// point nearer q: a piece whose bounds met, or Newton's method stopped before f was within
+// its rounding of 0, has left t within some ulps of the scale of a minimum, and this takes
+// it to the minimum's own rounding.
+template <int n>
+void Polish(Vec2 q, const Controls& p, CurvePoint* best) {
   Controls d, dd;
-  Derivatives(p, n, &d, &dd);
+  Derivatives<n>(p, &d, &dd);
   for (int step = 0; step < 4 && best->t > 0 && best->t < 1; ++step) {
-    const Vec2 r = best->point - q, b1 = At(d, n - 1, best->t), b2 = At(dd, n - 2, best->t);
+    const Vec2 r = best->point - q, b1 = At<n - 1>(d, best->t), b2 = At<n - 2>(dd, best->t);
     const double f = glm::dot(r, b1), slope = glm::dot(b1, b1) + glm::dot(r, b2);
     if (!(slope > 0) || f == 0) return;
     const double t = std::clamp(best->t - f / slope, 0.0, 1.0);
-    const Vec2 point = At(p, n, t);
+    const Vec2 point = At<n>(p, t);
     const double distance = Distance(q, point);
     if (!(distance < best->distance)) return;
     *best = {t, point, distance};
   }
 }
 
-}  // namespace
-
-Vec2 BezierPoint(const std::vector<Vec2>& control, double t) {
-  assert(control.size() == 3 || control.size() == 4);
-  Controls p;
-  std::copy(control.begin(), control.end(), p.begin());
-  return At(p, static_cast<int>(control.size()) - 1, t);
-}
-
-CurvePoint NearestOnBezier(Vec2 q_given, const std::vector<Vec2>& control) {
-  assert(control.size() == 3 || control.size() == 4);
-  const int n = static_cast<int>(control.size()) - 1;
+template <int n>
+CurvePoint Nearest(Vec2 q_given, const std::vector<Vec2>& control) {
   // Coordinates far from 1 in size are scaled by a power of 2 (exactly), so that no
   // difference overflows and no square underflows; the point found is scaled back.
   double size = std::max(std::abs(q_given.x), std::abs(q_given.y));
@@ -238,6 +268,7 @@ CurvePoint NearestOnBezier(Vec2 q_given, const std::vector<Vec2>& control) {
   }
   // The best point found: an end to begin with.
   double best = Length(whole.p[0]), best_t = 0;
+  bool settled = false;  // best_t is Newton's, with f within its rounding of 0 there
   if (const double end = Length(whole.p[n]); end < best) {
     best = end;
     best_t = 1;
@@ -260,7 +291,7 @@ CurvePoint NearestOnBezier(Vec2 q_given, const std::vector<Vec2>& control) {
       if (lower - slack - 8 * kUnit * scale > best) continue;
       // Points of the curve: the ends and the middle.
       Controls left, right;
-      Halve(p, n, &left, &right);
+      Halve<n>(p, &left, &right);
       const double ends[3] = {Length(p[0]), Length(left[n]), Length(p[n])};
       const double ts[3] = {piece.a, 0.5 * (piece.a + piece.b), piece.b};
       double upper = INFINITY;
@@ -269,17 +300,22 @@ CurvePoint NearestOnBezier(Vec2 q_given, const std::vector<Vec2>& control) {
         if (ends[k] < best) {
           best = ends[k];
           best_t = ts[k];
+          settled = false;
         }
       }
       // Done: halving cannot narrow the bounds past the rounding, which is not in them.
       if (!(upper - lower > enough) || piece.depth >= kMaxDepth) continue;
-      const Signs signs = ReadSigns(p, n, slack);
-      if (signs == Signs::kNoMinimum) continue;  // its least is at an end
+      const Hodograph<n> h(p);
+      const SignReading signs = ReadSigns<n>(p, h, slack);
+      if (signs.signs == Signs::kNoMinimum) continue;  // its least is at an end
       double s, distance;
-      if (signs == Signs::kOneMinimum && Converge(p, n, slack, enough, &s, &distance)) {
+      bool at_root;
+      if (signs.signs == Signs::kOneMinimum &&
+          Converge<n>(p, h, slack, enough, signs.start, &s, &distance, &at_root)) {
         if (distance < best) {
           best = distance;
           best_t = piece.a + s * (piece.b - piece.a);
+          settled = at_root;
         }
         continue;
       }
@@ -289,14 +325,28 @@ CurvePoint NearestOnBezier(Vec2 q_given, const std::vector<Vec2>& control) {
   }
   CurvePoint out;
   out.t = best_t;
-  out.point = best_t == 0 ? points[0] : best_t == 1 ? points[n] : At(points, n, best_t);
+  out.point = best_t == 0 ? points[0] : best_t == 1 ? points[n] : At<n>(points, best_t);
   out.distance = Distance(q, out.point);
-  Polish(q, points, n, &out);
+  if (!settled) Polish<n>(q, points, &out);
   if (exponent != 0) {
     out.point = {std::ldexp(out.point.x, -exponent), std::ldexp(out.point.y, -exponent)};
     out.distance = Distance(q_given, out.point);
   }
   return out;
+}
+
+}  // namespace
+
+Vec2 BezierPoint(const std::vector<Vec2>& control, double t) {
+  assert(control.size() == 3 || control.size() == 4);
+  Controls p;
+  std::copy(control.begin(), control.end(), p.begin());
+  return control.size() == 3 ? At<2>(p, t) : At<3>(p, t);
+}
+
+CurvePoint NearestOnBezier(Vec2 q, const std::vector<Vec2>& control) {
+  assert(control.size() == 3 || control.size() == 4);
+  return control.size() == 3 ? Nearest<2>(q, control) : Nearest<3>(q, control);
 }
 
 }  // namespace gvd
