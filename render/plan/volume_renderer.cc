@@ -97,7 +97,9 @@ void VolumeRenderer::RenderNow(Scene3& scene, RenderObserver* observer) {
 }
 
 void VolumeRenderer::Run() {
-  CpuPool::BecomeRenderThread();  // calls come before renders, as in the 2D render loop
+  // Calls come before renders, as in the 2D render loop.
+  CpuPool::BecomeRenderThread();
+  CpuPool::RenderInBackground();
   for (;;) {
     std::shared_ptr<Scene3> scene;
     {
