@@ -97,9 +97,7 @@ void VolumeRenderer::RenderNow(Scene3& scene, RenderObserver* observer) {
 }
 
 void VolumeRenderer::Run() {
-  // Calls come before renders, as in the 2D render loop.
-  CpuPool::BecomeRenderThread();
-  CpuPool::RenderInBackground();
+  CpuPool::BecomeRenderThread();  // calls come before renders, as in the 2D render loop
   for (;;) {
     std::shared_ptr<Scene3> scene;
     {

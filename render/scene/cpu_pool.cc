@@ -1,7 +1,6 @@
 #include "render/scene/cpu_pool.h"
 
 #include <pthread.h>
-#include <sched.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -13,119 +12,17 @@ namespace {
 
 thread_local CpuPool* current_pool = nullptr;  // CpuPool::Current()'s, when set
 
-// The render threads, and how they run now.
-struct RenderThreads {
-  std::mutex mu;
-  std::vector<pid_t> tids;
-  int waits = 0;
-  bool background = false;
-};
-
-RenderThreads& Renderers() {
-  static auto* threads = new RenderThreads;
-  return *threads;
-}
-
-// Schedules thread `tid`, a render thread of this process, in the background (SCHED_IDLE)
-// or at kRenderNice.
-void Schedule(pid_t tid, bool background) {
-  // The nice value first: SCHED_IDLE keeps it, and leaving SCHED_IDLE is allowed up to the
-  // priority it names.
-  setpriority(PRIO_PROCESS, static_cast<id_t>(tid), kRenderNice);
-  sched_param none{};
-  sched_setscheduler(tid, background ? SCHED_IDLE : SCHED_OTHER, &none);
-}
-
-// Registers the calling thread as a render thread until it ends (its id is then no longer
-// scheduled: the system may give it to another thread).
-void JoinRenderers() {
-  RenderWait::Background();  // decided before the first render thread is scheduled
-  struct Member {
-    pid_t tid = gettid();
-    Member() {
-      RenderThreads& r = Renderers();
-      std::lock_guard<std::mutex> lock(r.mu);
-      r.tids.push_back(tid);
-      Schedule(tid, r.background);
-    }
-    ~Member() {
-      RenderThreads& r = Renderers();
-      std::lock_guard<std::mutex> lock(r.mu);
-      r.tids.erase(std::find(r.tids.begin(), r.tids.end(), tid));
-    }
-  };
-  thread_local Member member;
-}
-
 }  // namespace
 
-bool RenderWait::Background() {
-  static const bool background = [] {
-    // Renders go to the background only if the process can bring them back.
-    bool back = false;
-    std::thread([&back] {
-      sched_param none{};
-      if (setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kRenderNice) != 0 ||
-          pthread_setschedparam(pthread_self(), SCHED_IDLE, &none) != 0) {
-        return;
-      }
-      back = pthread_setschedparam(pthread_self(), SCHED_OTHER, &none) == 0;
-    }).join();
-    RenderThreads& r = Renderers();
-    std::lock_guard<std::mutex> lock(r.mu);
-    r.background = back && r.waits == 0;
-    for (pid_t tid : r.tids) Schedule(tid, r.background);
-    return back;
-  }();
-  return background;
-}
-
-RenderWait::RenderWait() {
-  Background();  // decided before the first count
-  RenderThreads& r = Renderers();
-  std::lock_guard<std::mutex> lock(r.mu);
-  if (++r.waits == 1 && r.background) {
-    r.background = false;
-    for (pid_t tid : r.tids) Schedule(tid, false);
-  }
-}
-
-RenderWait::~RenderWait() {
-  if (!held_) return;
-  RenderThreads& r = Renderers();
-  std::lock_guard<std::mutex> lock(r.mu);
-  if (--r.waits == 0 && Background()) {
-    r.background = true;
-    for (pid_t tid : r.tids) Schedule(tid, true);
-  }
-}
-
-RenderWait::RenderWait(RenderWait&& other) noexcept : held_(other.held_) { other.held_ = false; }
-
-RenderWait& RenderWait::operator=(RenderWait&& other) noexcept {
-  if (this != &other) {
-    RenderWait gone(std::move(*this));
-    held_ = other.held_;
-    other.held_ = false;
-  }
-  return *this;
-}
-
-int RenderWait::held() {
-  RenderThreads& r = Renderers();
-  std::lock_guard<std::mutex> lock(r.mu);
-  return r.waits;
-}
-
-CpuPool::CpuPool(size_t threads, std::string name, bool render) {
+CpuPool::CpuPool(size_t threads, std::string name, int nice) {
   parallel_ = std::make_unique<Lane>(*this, std::numeric_limits<int>::max(),
                                      std::numeric_limits<size_t>::max(),
                                      std::numeric_limits<size_t>::max());
   name.resize(std::min<size_t>(name.size(), 15));  // the kernel's limit
   for (size_t t = 0; t < std::max<size_t>(threads, 1); ++t) {
-    threads_.emplace_back([this, name, render] {
+    threads_.emplace_back([this, name, nice] {
       pthread_setname_np(pthread_self(), name.c_str());
-      if (render) JoinRenderers();
+      if (nice != 0) setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), nice);
       current_pool = this;
       Run();
     });
@@ -149,7 +46,7 @@ CpuPool& CpuPool::Process() {
 
 CpuPool& CpuPool::Renders() {
   static CpuPool* pool =
-      new CpuPool(std::max(1u, std::thread::hardware_concurrency()), "gvd-render-cpu", true);
+      new CpuPool(std::max(1u, std::thread::hardware_concurrency()), "gvd-render-cpu", kRenderNice);
   return *pool;
 }
 
@@ -159,8 +56,6 @@ void CpuPool::BecomeRenderThread() {
   setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kRenderNice);
   current_pool = &Renders();
 }
-
-void CpuPool::RenderInBackground() { JoinRenderers(); }
 
 CpuPool::Lane::Lane(CpuPool& pool, int priority, size_t max_running, size_t max_queued)
     : pool_(pool),

@@ -1,5 +1,4 @@
-// The process's CPU pool: ParallelFor's pieces, lanes' priorities and limits, and how render
-// threads are scheduled.
+// The process's CPU pool: ParallelFor's pieces, lanes' priorities and limits.
 #include <atomic>
 #include <cerrno>
 #include <condition_variable>
@@ -11,7 +10,6 @@
 #include <thread>
 #include <vector>
 
-#include <sched.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -155,66 +153,6 @@ TEST(CpuPool, ARenderThreadsPiecesRunAtItsPriority) {
   for (const auto& [tid, nice] : render) EXPECT_EQ(nice, kRenderNice) << "thread " << tid;
   // The render's helpers are not the process pool's threads.
   for (const auto& [tid, nice] : render) EXPECT_EQ(plain.count(tid), 0u) << "thread " << tid;
-}
-
-// How a thread is scheduled: its policy (SCHED_OTHER, SCHED_IDLE) and nice value, read from
-// the kernel.
-struct Scheduled {
-  int policy;
-  int nice;
-  bool operator==(const Scheduled& o) const { return policy == o.policy && nice == o.nice; }
-};
-std::ostream& operator<<(std::ostream& os, const Scheduled& s) {
-  return os << (s.policy == SCHED_IDLE ? "SCHED_IDLE" : s.policy == SCHED_OTHER ? "SCHED_OTHER" : "?")
-            << " nice " << s.nice;
-}
-Scheduled SchedulingOf(pid_t tid) {
-  errno = 0;
-  return {sched_getscheduler(tid), getpriority(PRIO_PROCESS, static_cast<id_t>(tid))};
-}
-
-// The render thread and the threads its ParallelFor pieces ran on.
-std::map<pid_t, Scheduled> RenderThreadsNow(pid_t render) {
-  std::map<pid_t, Scheduled> out{{render, SchedulingOf(render)}};
-  for (const auto& [tid, nice] : NiceOfPieces()) out[tid] = SchedulingOf(tid);
-  return out;
-}
-
-// While nobody waits for a render, render threads and their pieces' threads run in the
-// background; while a caller holds a RenderWait (a frame's waiter, a zoom), at kRenderNice;
-// and in the background again once the last one is gone.
-TEST(CpuPool, RenderThreadsRunInTheBackgroundWhileNoCallerWaits) {
-  if (!RenderWait::Background()) {
-    GTEST_SKIP() << "this process may not leave SCHED_IDLE (neither CAP_SYS_NICE nor an "
-                    "RLIMIT_NICE of 20 - kRenderNice): renders stay at kRenderNice";
-  }
-  if (CpuPool::Process().threads() < 2) GTEST_SKIP() << "one core: ParallelFor runs inline";
-  ASSERT_EQ(RenderWait::held(), 0);
-  const Scheduled background{SCHED_IDLE, kRenderNice}, raised{SCHED_OTHER, kRenderNice};
-  std::map<pid_t, Scheduled> idle, waited, two, again;
-  std::thread([&] {
-    CpuPool::BecomeRenderThread();
-    CpuPool::RenderInBackground();
-    const pid_t self = gettid();
-    idle = RenderThreadsNow(self);
-    {
-      RenderWait wait;
-      waited = RenderThreadsNow(self);
-      RenderWait second;
-      {
-        RenderWait moved(std::move(wait));  // the count moves with it
-      }
-      two = RenderThreadsNow(self);
-      EXPECT_EQ(RenderWait::held(), 1);
-    }
-    again = RenderThreadsNow(self);
-  }).join();
-  ASSERT_GE(idle.size(), 2u);  // the render thread and a pool thread that took pieces
-  for (const auto& [tid, s] : idle) EXPECT_EQ(s, background) << "thread " << tid;
-  for (const auto& [tid, s] : waited) EXPECT_EQ(s, raised) << "thread " << tid;
-  for (const auto& [tid, s] : two) EXPECT_EQ(s, raised) << "thread " << tid;
-  for (const auto& [tid, s] : again) EXPECT_EQ(s, background) << "thread " << tid;
-  EXPECT_EQ(RenderWait::held(), 0);
 }
 
 }  // namespace
