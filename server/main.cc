@@ -30,6 +30,7 @@
 #include "absl/strings/str_split.h"
 #include "render/gl/render_loop.h"
 #include "render/plan/volume_renderer.h"
+#include "render/scene/cpu_pool.h"
 #include "server/app/auth.h"
 #include "server/app/legacy_records.h"
 #include "server/app/memory.h"
@@ -356,7 +357,9 @@ int main(int argc, char** argv) {
             {"drm_node", renderer.device().drm_node},
             {"gl_renderer", renderer.device().gl_renderer},
             {"gl_version", renderer.device().gl_version},
-            {"render_threads", absl::StrCat(renderer.lanes())}});
+            {"render_threads", absl::StrCat(renderer.lanes())},
+            // Whether renders nobody waits for run in the background (render/scene/cpu_pool.h).
+            {"background_renders", gvd::RenderWait::Background() ? "true" : "false"}});
 
   absl::StatusOr<std::unique_ptr<gvd::SceneStore>> store;
   if (!flags.postgres.empty()) {

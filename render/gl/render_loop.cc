@@ -72,6 +72,7 @@ absl::StatusOr<std::vector<std::shared_ptr<const Frame>>> RenderLoop::RenderWind
     std::shared_ptr<const Frame> base, RenderMode mode, std::vector<Grid> grids) {
   std::promise<absl::StatusOr<std::vector<std::shared_ptr<const Frame>>>> done;
   auto result = done.get_future();
+  RenderWait waiting;  // the caller waits for the render thread
   const bool queued = Enqueue([&, base = std::move(base), grids = std::move(grids)](
                                   Rasterizer* rasterizer, ZoomRenderer* zoom) {
     if (rasterizer == nullptr) {
@@ -89,6 +90,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> RenderLoop::RenderSites(
     Diagram diagram) {
   std::promise<absl::StatusOr<std::shared_ptr<const Frame>>> done;
   auto result = done.get_future();
+  RenderWait waiting;  // the caller waits for the render thread
   const bool queued = Enqueue([&, sites = std::move(sites)](Rasterizer* rasterizer, ZoomRenderer*) {
     if (rasterizer == nullptr) {
       done.set_value(absl::UnavailableError("the server is shutting down"));
@@ -123,7 +125,7 @@ std::shared_ptr<Scene> RenderLoop::Take(int lane) {
 }
 
 void RenderLoop::Run(int lane, DevicePreference preference) {
-  // Calls come before renders (kRenderNice), the render's ParallelFor pieces included.
+  // Calls come before renders (RenderWait), the render's ParallelFor pieces included.
   pthread_setname_np(pthread_self(), "gvd-render");
   CpuPool::BecomeRenderThread();
   std::unique_ptr<GlContext> context;
@@ -142,6 +144,9 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
     } else {
       status = ctx.status();
     }
+    // The driver's threads are made: from here on, renders nobody waits for run in the
+    // background.
+    CpuPool::RenderInBackground();
     std::lock_guard<std::mutex> lock(mu_);
     if (context && lane == 0) device_ = context->info();
     if (!status.ok() && start_status_.ok()) start_status_ = status;
@@ -160,6 +165,7 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
     {
       std::lock_guard<std::mutex> lock(mu_);
       rendering_.erase(scene);
+      dirty_.Rendered(scene);
       busy_[lane] = false;
     }
     cv_.notify_all();

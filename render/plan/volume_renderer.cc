@@ -97,7 +97,9 @@ void VolumeRenderer::RenderNow(Scene3& scene, RenderObserver* observer) {
 }
 
 void VolumeRenderer::Run() {
-  CpuPool::BecomeRenderThread();  // calls come before renders, as in the 2D render loop
+  // Calls come before renders, as in the 2D render loop.
+  CpuPool::BecomeRenderThread();
+  CpuPool::RenderInBackground();
   for (;;) {
     std::shared_ptr<Scene3> scene;
     {
@@ -108,6 +110,8 @@ void VolumeRenderer::Run() {
     }
     // A scene deleted meanwhile is not rendered; its waiters were failed by its deletion.
     if (!scene->deleted()) RenderNow(*scene, observer_);
+    std::lock_guard<std::mutex> lock(mu_);
+    dirty_.Rendered(scene.get());
   }
 }
 

@@ -1,28 +1,202 @@
 #include "render/scene/cpu_pool.h"
 
 #include <pthread.h>
+#include <sched.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <limits>
+#include <optional>
+#include <set>
 
 namespace gvd {
 namespace {
 
 thread_local CpuPool* current_pool = nullptr;  // CpuPool::Current()'s, when set
 
+// The render threads, and how they run now.
+struct RenderThreads {
+  std::mutex mu;
+  std::vector<pid_t> tids;
+  int waits = 0;
+  bool background = false;
+};
+
+RenderThreads& Renderers() {
+  static auto* threads = new RenderThreads;
+  return *threads;
+}
+
+// Schedules thread `tid`, a render thread of this process, in the background (SCHED_IDLE)
+// or at kRenderNice.
+void Schedule(pid_t tid, bool background) {
+  // The nice value first: SCHED_IDLE keeps it, and leaving SCHED_IDLE is allowed up to the
+  // priority it names.
+  setpriority(PRIO_PROCESS, static_cast<id_t>(tid), kRenderNice);
+  sched_param none{};
+  sched_setscheduler(tid, background ? SCHED_IDLE : SCHED_OTHER, &none);
+}
+
+// The renders due (RenderDue), and the thread that raises the render threads while one of
+// them is late.
+struct DueRenders {
+  std::mutex mu;
+  std::condition_variable changed;  // a render came due, or one was done
+  std::multiset<std::chrono::steady_clock::time_point> since;
+};
+
+void WatchLateRenders(DueRenders& due) {
+  pthread_setname_np(pthread_self(), "gvd-render-late");
+  // Whoever made this thread, it runs as calls do: a render thread's priority would let the
+  // background starve it.
+  sched_param none{};
+  pthread_setschedparam(pthread_self(), SCHED_OTHER, &none);
+  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 0);
+  std::unique_lock<std::mutex> lock(due.mu);
+  std::optional<RenderWait> raised;
+  for (;;) {
+    if (due.since.empty()) {
+      raised.reset();
+      due.changed.wait(lock);
+      continue;
+    }
+    const auto late = *due.since.begin() + kBackgroundLag;
+    if (std::chrono::steady_clock::now() >= late) {
+      if (!raised) raised.emplace();
+      due.changed.wait(lock);
+    } else {
+      raised.reset();
+      due.changed.wait_until(lock, late);
+    }
+  }
+}
+
+DueRenders& Due() {
+  static DueRenders* due = [] {
+    auto* d = new DueRenders;
+    std::thread([d] { WatchLateRenders(*d); }).detach();  // lives as long as the process
+    return d;
+  }();
+  return *due;
+}
+
+// Registers the calling thread as a render thread until it ends (its id is then no longer
+// scheduled: the system may give it to another thread).
+void JoinRenderers() {
+  RenderWait::Background();  // decided before the first render thread is scheduled
+  struct Member {
+    pid_t tid = gettid();
+    Member() {
+      RenderThreads& r = Renderers();
+      std::lock_guard<std::mutex> lock(r.mu);
+      r.tids.push_back(tid);
+      Schedule(tid, r.background);
+    }
+    ~Member() {
+      RenderThreads& r = Renderers();
+      std::lock_guard<std::mutex> lock(r.mu);
+      r.tids.erase(std::find(r.tids.begin(), r.tids.end(), tid));
+    }
+  };
+  thread_local Member member;
+}
+
 }  // namespace
 
-CpuPool::CpuPool(size_t threads, std::string name, int nice) {
+bool RenderWait::Background() {
+  static const bool background = [] {
+    // Renders go to the background only if the process can bring them back.
+    bool back = false;
+    std::thread([&back] {
+      sched_param none{};
+      if (setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kRenderNice) != 0 ||
+          pthread_setschedparam(pthread_self(), SCHED_IDLE, &none) != 0) {
+        return;
+      }
+      back = pthread_setschedparam(pthread_self(), SCHED_OTHER, &none) == 0;
+    }).join();
+    RenderThreads& r = Renderers();
+    std::lock_guard<std::mutex> lock(r.mu);
+    r.background = back && r.waits == 0;
+    for (pid_t tid : r.tids) Schedule(tid, r.background);
+    return back;
+  }();
+  return background;
+}
+
+RenderWait::RenderWait() {
+  Background();  // decided before the first count
+  RenderThreads& r = Renderers();
+  std::lock_guard<std::mutex> lock(r.mu);
+  if (++r.waits == 1 && r.background) {
+    r.background = false;
+    for (pid_t tid : r.tids) Schedule(tid, false);
+  }
+}
+
+RenderWait::~RenderWait() {
+  if (!held_) return;
+  RenderThreads& r = Renderers();
+  std::lock_guard<std::mutex> lock(r.mu);
+  if (--r.waits == 0 && Background()) {
+    r.background = true;
+    for (pid_t tid : r.tids) Schedule(tid, true);
+  }
+}
+
+RenderWait::RenderWait(RenderWait&& other) noexcept : held_(other.held_) { other.held_ = false; }
+
+RenderWait& RenderWait::operator=(RenderWait&& other) noexcept {
+  if (this != &other) {
+    RenderWait gone(std::move(*this));
+    held_ = other.held_;
+    other.held_ = false;
+  }
+  return *this;
+}
+
+RenderDue::RenderDue() {
+  if (!RenderWait::Background()) return;
+  DueRenders& due = Due();
+  held_ = true;
+  since_ = std::chrono::steady_clock::now();
+  std::lock_guard<std::mutex> lock(due.mu);
+  if (due.since.empty()) due.changed.notify_one();
+  due.since.insert(since_);
+}
+
+RenderDue::~RenderDue() {
+  if (!held_) return;
+  DueRenders& due = Due();
+  std::lock_guard<std::mutex> lock(due.mu);
+  auto it = due.since.find(since_);
+  if (it == due.since.begin()) due.changed.notify_one();
+  due.since.erase(it);
+}
+
+int RenderDue::due() {
+  if (!RenderWait::Background()) return 0;
+  DueRenders& due = Due();
+  std::lock_guard<std::mutex> lock(due.mu);
+  return static_cast<int>(due.since.size());
+}
+
+int RenderWait::held() {
+  RenderThreads& r = Renderers();
+  std::lock_guard<std::mutex> lock(r.mu);
+  return r.waits;
+}
+
+CpuPool::CpuPool(size_t threads, std::string name, bool render) {
   parallel_ = std::make_unique<Lane>(*this, std::numeric_limits<int>::max(),
                                      std::numeric_limits<size_t>::max(),
                                      std::numeric_limits<size_t>::max());
   name.resize(std::min<size_t>(name.size(), 15));  // the kernel's limit
   for (size_t t = 0; t < std::max<size_t>(threads, 1); ++t) {
-    threads_.emplace_back([this, name, nice] {
+    threads_.emplace_back([this, name, render] {
       pthread_setname_np(pthread_self(), name.c_str());
-      if (nice != 0) setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), nice);
+      if (render) JoinRenderers();
       current_pool = this;
       Run();
     });
@@ -46,7 +220,7 @@ CpuPool& CpuPool::Process() {
 
 CpuPool& CpuPool::Renders() {
   static CpuPool* pool =
-      new CpuPool(std::max(1u, std::thread::hardware_concurrency()), "gvd-render-cpu", kRenderNice);
+      new CpuPool(std::max(1u, std::thread::hardware_concurrency()), "gvd-render-cpu", true);
   return *pool;
 }
 
@@ -56,6 +230,8 @@ void CpuPool::BecomeRenderThread() {
   setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kRenderNice);
   current_pool = &Renders();
 }
+
+void CpuPool::RenderInBackground() { JoinRenderers(); }
 
 CpuPool::Lane::Lane(CpuPool& pool, int priority, size_t max_running, size_t max_queued)
     : pool_(pool),

@@ -2,9 +2,12 @@
 // thread's nor a transport's (answers, image encoding, analyses, and the pieces of
 // ParallelFor), so that the process runs as many busy threads as it has cores, whatever the
 // load; and as many again for the pieces of renders, at the render threads' lower priority.
+// And that priority: renders run in the background unless a caller waits for one, or one has
+// waited there too long.
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstddef>
 #include <deque>
@@ -18,18 +21,72 @@
 namespace gvd {
 
 // The nice value of render threads and of the pool that runs their ParallelFor pieces (Linux
-// sets it per thread): a call's thread woken while a render holds every core (a full render
-// takes many milliseconds) runs first rather than after a time slice. Frames still come as
-// soon as no call wants the CPU; the weight is relative to the process's other threads.
+// sets it per thread) while they run in the foreground (RenderWait): below calls, and still
+// with a share of the cores when calls keep them busy.
 inline constexpr int kRenderNice = 10;
+
+// How render threads (BecomeRenderThread's) and the render pool's threads are scheduled.
+// While no caller waits for a render, they run in the background (SCHED_IDLE): a call's
+// thread takes a core from them at once, where at kRenderNice it could wait for a render's
+// time slice to end, and reads of versions not yet drawn need no render (the index answers
+// them). While a caller waits (a RenderWait is held: a frame's waiter, a zoom), every one of
+// them runs at kRenderNice, so that the render it waits for keeps its share of the cores
+// under load. A render nobody waits for is raised too once it has been due for
+// kBackgroundLag (RenderDue): the background yields to every task on the machine, and
+// another busy process must not hold a frame back without bound. A process that may not
+// leave SCHED_IDLE again (it has neither CAP_SYS_NICE nor an RLIMIT_NICE of at least
+// 20 - kRenderNice) keeps them at kRenderNice throughout.
+class RenderWait {
+ public:
+  RenderWait();   // one more caller waits: the first raises the render threads
+  ~RenderWait();  // the last one gone lowers them again
+  RenderWait(RenderWait&& other) noexcept;
+  RenderWait& operator=(RenderWait&& other) noexcept;
+  RenderWait(const RenderWait&) = delete;
+  RenderWait& operator=(const RenderWait&) = delete;
+
+  // Whether renders go to the background when nobody waits (the process may leave
+  // SCHED_IDLE again); tried once, on a thread of its own.
+  static bool Background();
+  // The RenderWaits held now.
+  static int held();
+
+ private:
+  bool held_ = true;
+};
+
+// How long a render may be due in the background before the render threads run at
+// kRenderNice for it, as if a caller waited: what a frame nobody waits for may lag behind its
+// sites, beyond its render's own time, while other processes keep every core busy. Renders
+// that keep up with updates never reach it.
+inline constexpr std::chrono::milliseconds kBackgroundLag{20};
+
+// A render due: a renderer holds one from the moment a scene is queued for a render until
+// that render is done (DirtyQueue does). While one has been held for kBackgroundLag, a thread
+// of its own (not a render thread, so the background never starves it) holds a RenderWait,
+// until none has. Thread-safe; nothing at all where renders never go to the background.
+class RenderDue {
+ public:
+  RenderDue();
+  ~RenderDue();
+  RenderDue(const RenderDue&) = delete;
+  RenderDue& operator=(const RenderDue&) = delete;
+
+  // The renders due now.
+  static int due();
+
+ private:
+  bool held_ = false;
+  std::chrono::steady_clock::time_point since_;
+};
 
 // Thread-safe. Jobs are queued on lanes; a free thread takes the oldest job of the lane of
 // highest priority that has one and is under its limit of running jobs.
 class CpuPool {
  public:
   // `threads` threads, named `name` (what `top -H` and debuggers show; 15 characters kept), at
-  // `nice` (0: the creating thread's).
-  explicit CpuPool(size_t threads, std::string name = "gvd-cpu", int nice = 0);
+  // the creating thread's priority, or scheduled as render threads (`render`).
+  explicit CpuPool(size_t threads, std::string name = "gvd-cpu", bool render = false);
   ~CpuPool();  // CONTRACT: every lane is gone; joins the threads
   CpuPool(const CpuPool&) = delete;
   CpuPool& operator=(const CpuPool&) = delete;
@@ -37,14 +94,18 @@ class CpuPool {
   // The process-wide pool: hardware_concurrency() threads (at least one), made on first use
   // and never destroyed. CONTRACT: first used by a thread at nice 0 (its threads inherit it).
   static CpuPool& Process();
-  // The pool of renders' ParallelFor pieces: as many threads, at kRenderNice; made on first
-  // use, never destroyed.
+  // The pool of renders' ParallelFor pieces: as many threads, scheduled as render threads;
+  // made on first use, never destroyed.
   static CpuPool& Renders();
   // The pool ParallelFor splits work over on the calling thread: a pool thread's own, a
   // render thread's Renders(), any other thread's Process().
   static CpuPool& Current();
   // Makes the calling thread a render thread: kRenderNice, and its ParallelFor on Renders().
   static void BecomeRenderThread();
+  // And, from now on, scheduled as RenderWait says (the background while no caller waits).
+  // Threads it made before keep kRenderNice: a GL driver's own, made with its context, which
+  // no caller could raise.
+  static void RenderInBackground();
 
   size_t threads() const { return threads_.size(); }
 

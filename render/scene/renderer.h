@@ -5,6 +5,7 @@
 #pragma once
 
 #include <deque>
+#include <map>
 #include <memory>
 #include <set>
 #include <string>
@@ -13,6 +14,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "render/scene/cpu_pool.h"
 #include "render/scene/render_stats.h"
 #include "render/scene/scene.h"
 
@@ -65,21 +67,34 @@ using Renderer = BasicRenderer<Scene>;
 using Renderer3 = BasicRenderer<Scene3>;
 
 // The scenes waiting for a render, in the order they were marked, each once: what every
-// renderer keeps. Not thread-safe: the renderer's own lock guards it.
+// renderer keeps. And the renders due (RenderDue), from a scene's queueing until the render
+// that took it is done, so that a render left in the background too long is raised. Not
+// thread-safe: the renderer's own lock guards it.
 template <class S>
 class DirtyQueue {
  public:
   // Queues the scene unless it is queued already; false then.
   bool Push(std::shared_ptr<S> scene) {
     if (!queued_.insert(scene.get()).second) return false;
+    due_.try_emplace(scene.get());
     queue_.push_back(std::move(scene));
     return true;
   }
-  // Puts a scene taken back at the head of the queue (unless it was queued again meanwhile).
+  // Puts a scene taken back at the head of the queue (unless it was queued again meanwhile),
+  // due since it was first queued.
   void PushFront(std::shared_ptr<S> scene) {
-    if (queued_.insert(scene.get()).second) queue_.push_front(std::move(scene));
+    auto taken = rendering_.extract(scene.get());
+    const bool queued = !queued_.insert(scene.get()).second;
+    if (taken) {
+      due_.erase(scene.get());
+      due_.insert(std::move(taken));
+    } else {
+      due_.try_emplace(scene.get());
+    }
+    if (!queued) queue_.push_front(std::move(scene));
   }
-  // Takes the first scene `accept` takes, in queue order; null when none.
+  // Takes the first scene `accept` takes, in queue order; null when none. Its render is due
+  // until Rendered.
   template <class Accept>
   std::shared_ptr<S> TakeFirst(Accept accept) {
     for (auto it = queue_.begin(); it != queue_.end(); ++it) {
@@ -87,20 +102,26 @@ class DirtyQueue {
       std::shared_ptr<S> taken = std::move(*it);
       queue_.erase(it);
       queued_.erase(taken.get());
+      rendering_.insert(due_.extract(taken.get()));
       return taken;
     }
     return nullptr;
   }
+  // The render of a scene taken is done (published, failed, or not needed after all).
+  void Rendered(const S* scene) { rendering_.erase(scene); }
   bool empty() const { return queue_.empty(); }
   // Empties the queue, returning what it held (to fail their waiters outside the lock).
   std::deque<std::shared_ptr<S>> TakeAll() {
     queued_.clear();
+    due_.clear();
     return std::exchange(queue_, {});
   }
 
  private:
   std::deque<std::shared_ptr<S>> queue_;
   std::set<const S*> queued_;
+  std::map<const S*, RenderDue> due_;        // the queued scenes'
+  std::map<const S*, RenderDue> rendering_;  // the scenes taken, until Rendered
 };
 
 }  // namespace gvd

@@ -420,6 +420,7 @@ uint64_t BasicScene<K>::WhenRendered(uint64_t min_version, FrameCallback done) {
   }
   std::shared_ptr<const Frame> ready;
   uint64_t token;
+  RenderWait render;  // made outside the lock: the first one reschedules the render threads
   {
     std::lock_guard<std::mutex> lock(waiters_mu_);
     token = next_token_++;
@@ -427,7 +428,7 @@ uint64_t BasicScene<K>::WhenRendered(uint64_t min_version, FrameCallback done) {
     if (current->version() >= min_version) {
       ready = std::move(current);
     } else {
-      waiters_.emplace(token, Waiter{min_version, std::move(done)});
+      waiters_.emplace(token, Waiter{min_version, std::move(done), false, std::move(render)});
     }
   }
   if (ready) done(std::move(ready));

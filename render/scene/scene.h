@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <type_traits>
@@ -21,6 +22,7 @@
 #include "render/scene/snapshot.h"
 #include "render/scene/volume.h"
 #include "render/scene/change.h"
+#include "render/scene/cpu_pool.h"
 #include "render/kernel/grid2.h"
 #include "render/kernel/kernel2.h"
 #include "render/kernel/kernel3.h"
@@ -276,6 +278,7 @@ class BasicScene {
     uint64_t min_version;
     FrameCallback done;
     bool committed = false;  // WhenCommitted's: a snapshot of min_version is enough
+    std::optional<RenderWait> render;  // WhenRendered's: renders run at a caller's priority
   };
   // Hands `frame` to `done`, through the executor when there is one.
   void Resume(FrameCallback done, std::shared_ptr<const Frame> frame);

@@ -1,4 +1,5 @@
-// The process's CPU pool: ParallelFor's pieces, lanes' priorities and limits.
+// The process's CPU pool: ParallelFor's pieces, lanes' priorities and limits, and how render
+// threads are scheduled.
 #include <atomic>
 #include <cerrno>
 #include <condition_variable>
@@ -6,10 +7,12 @@
 #include <future>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include <sched.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -18,6 +21,7 @@
 #include <gtest/gtest.h>
 
 #include "render/scene/cpu_pool.h"
+#include "render/scene/renderer.h"
 
 namespace gvd {
 namespace {
@@ -153,6 +157,152 @@ TEST(CpuPool, ARenderThreadsPiecesRunAtItsPriority) {
   for (const auto& [tid, nice] : render) EXPECT_EQ(nice, kRenderNice) << "thread " << tid;
   // The render's helpers are not the process pool's threads.
   for (const auto& [tid, nice] : render) EXPECT_EQ(plain.count(tid), 0u) << "thread " << tid;
+}
+
+// How a thread is scheduled: its policy (SCHED_OTHER, SCHED_IDLE) and nice value, read from
+// the kernel.
+struct Scheduled {
+  int policy;
+  int nice;
+  bool operator==(const Scheduled& o) const { return policy == o.policy && nice == o.nice; }
+};
+std::ostream& operator<<(std::ostream& os, const Scheduled& s) {
+  return os << (s.policy == SCHED_IDLE ? "SCHED_IDLE" : s.policy == SCHED_OTHER ? "SCHED_OTHER" : "?")
+            << " nice " << s.nice;
+}
+Scheduled SchedulingOf(pid_t tid) {
+  errno = 0;
+  return {sched_getscheduler(tid), getpriority(PRIO_PROCESS, static_cast<id_t>(tid))};
+}
+
+// The render thread and the threads its ParallelFor pieces ran on.
+std::map<pid_t, Scheduled> RenderThreadsNow(pid_t render) {
+  std::map<pid_t, Scheduled> out{{render, SchedulingOf(render)}};
+  for (const auto& [tid, nice] : NiceOfPieces()) out[tid] = SchedulingOf(tid);
+  return out;
+}
+
+// While nobody waits for a render, render threads and their pieces' threads run in the
+// background; while a caller holds a RenderWait (a frame's waiter, a zoom), at kRenderNice;
+// and in the background again once the last one is gone.
+TEST(CpuPool, RenderThreadsRunInTheBackgroundWhileNoCallerWaits) {
+  if (!RenderWait::Background()) {
+    GTEST_SKIP() << "this process may not leave SCHED_IDLE (neither CAP_SYS_NICE nor an "
+                    "RLIMIT_NICE of 20 - kRenderNice): renders stay at kRenderNice";
+  }
+  if (CpuPool::Process().threads() < 2) GTEST_SKIP() << "one core: ParallelFor runs inline";
+  ASSERT_EQ(RenderWait::held(), 0);
+  const Scheduled background{SCHED_IDLE, kRenderNice}, raised{SCHED_OTHER, kRenderNice};
+  std::map<pid_t, Scheduled> idle, waited, two, again;
+  std::thread([&] {
+    CpuPool::BecomeRenderThread();
+    CpuPool::RenderInBackground();
+    const pid_t self = gettid();
+    idle = RenderThreadsNow(self);
+    {
+      RenderWait wait;
+      waited = RenderThreadsNow(self);
+      RenderWait second;
+      {
+        RenderWait moved(std::move(wait));  // the count moves with it
+      }
+      two = RenderThreadsNow(self);
+      EXPECT_EQ(RenderWait::held(), 1);
+    }
+    again = RenderThreadsNow(self);
+  }).join();
+  ASSERT_GE(idle.size(), 2u);  // the render thread and a pool thread that took pieces
+  for (const auto& [tid, s] : idle) EXPECT_EQ(s, background) << "thread " << tid;
+  for (const auto& [tid, s] : waited) EXPECT_EQ(s, raised) << "thread " << tid;
+  for (const auto& [tid, s] : two) EXPECT_EQ(s, raised) << "thread " << tid;
+  for (const auto& [tid, s] : again) EXPECT_EQ(s, background) << "thread " << tid;
+  EXPECT_EQ(RenderWait::held(), 0);
+}
+
+// Polls the render thread `tid` until it is scheduled as `want`; when that happened, or
+// nullopt after a minute.
+std::optional<std::chrono::steady_clock::time_point> WhenScheduled(pid_t tid, Scheduled want) {
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::minutes(1);
+  while (std::chrono::steady_clock::now() < give_up) {
+    if (SchedulingOf(tid) == want) return std::chrono::steady_clock::now();
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  return std::nullopt;
+}
+
+// A render nobody waits for stays in the background while it is due for less than
+// kBackgroundLag; after that the render threads run at kRenderNice until it is done, so that
+// another busy process cannot hold it back without bound.
+TEST(CpuPool, ARenderDueTooLongIsRaised) {
+  if (!RenderWait::Background()) {
+    GTEST_SKIP() << "this process may not leave SCHED_IDLE (neither CAP_SYS_NICE nor an "
+                    "RLIMIT_NICE of 20 - kRenderNice): renders stay at kRenderNice";
+  }
+  ASSERT_EQ(RenderWait::held(), 0);
+  ASSERT_EQ(RenderDue::due(), 0);
+  const Scheduled background{SCHED_IDLE, kRenderNice}, raised{SCHED_OTHER, kRenderNice};
+  std::promise<pid_t> tid;
+  std::promise<void> finished;
+  std::thread render([&] {
+    CpuPool::BecomeRenderThread();
+    CpuPool::RenderInBackground();
+    tid.set_value(gettid());
+    finished.get_future().wait();
+  });
+  const pid_t thread = tid.get_future().get();
+  EXPECT_EQ(SchedulingOf(thread), background);
+  for (int round = 0; round < 2; ++round) {  // the second once the first is over
+    std::optional<RenderDue> first(std::in_place);
+    const auto due = std::chrono::steady_clock::now();
+    const Scheduled soon = SchedulingOf(thread);
+    // Seen before the lag ran out, it is still in the background.
+    if (std::chrono::steady_clock::now() - due < kBackgroundLag / 2) {
+      EXPECT_EQ(soon, background);
+    }
+    std::optional<RenderDue> second(std::in_place);  // a later render changes nothing
+    EXPECT_EQ(RenderDue::due(), 2);
+    const auto up = WhenScheduled(thread, raised);
+    ASSERT_TRUE(up.has_value()) << "round " << round << ": not raised in a minute";
+    EXPECT_GE(*up - due, kBackgroundLag) << "round " << round;
+    first.reset();  // the second is late too: still raised
+    EXPECT_EQ(SchedulingOf(thread), raised);
+    second.reset();  // none due: lowered again
+    EXPECT_EQ(RenderDue::due(), 0);
+    ASSERT_TRUE(WhenScheduled(thread, background).has_value()) << "round " << round
+                                                               << ": not lowered in a minute";
+    EXPECT_EQ(RenderWait::held(), 0);
+  }
+  finished.set_value();
+  render.join();
+}
+
+// A renderer's queue holds a scene's render due from its queueing until the render that took
+// it is done, and a render taken back stays due.
+TEST(CpuPool, ADirtyQueueHoldsARenderDueUntilItIsDone) {
+  if (!RenderWait::Background()) GTEST_SKIP() << "renders never go to the background here";
+  struct Fake {};
+  auto a = std::make_shared<Fake>(), b = std::make_shared<Fake>();
+  DirtyQueue<Fake> queue;
+  ASSERT_EQ(RenderDue::due(), 0);
+  EXPECT_TRUE(queue.Push(a));
+  EXPECT_FALSE(queue.Push(a));
+  EXPECT_TRUE(queue.Push(b));
+  EXPECT_EQ(RenderDue::due(), 2);
+  auto taken = queue.TakeFirst([](const Fake*) { return true; });
+  ASSERT_EQ(taken, a);
+  EXPECT_EQ(RenderDue::due(), 2);  // taken, not yet rendered
+  EXPECT_TRUE(queue.Push(a));      // changed while it renders: due again
+  EXPECT_EQ(RenderDue::due(), 3);
+  queue.Rendered(a.get());
+  EXPECT_EQ(RenderDue::due(), 2);
+  taken = queue.TakeFirst([&](const Fake* s) { return s == b.get(); });
+  ASSERT_EQ(taken, b);
+  queue.PushFront(b);  // taken back: due still, once
+  EXPECT_EQ(RenderDue::due(), 2);
+  queue.Rendered(b.get());  // nothing of b's was taken now
+  EXPECT_EQ(RenderDue::due(), 2);
+  EXPECT_EQ(queue.TakeAll().size(), 2u);
+  EXPECT_EQ(RenderDue::due(), 0);
 }
 
 }  // namespace

@@ -430,6 +430,32 @@ TEST(SceneCore, RefusedWritesChangeNothing) {
   EXPECT_EQ(scene.snapshot()->size(), 2u);
 }
 
+// A caller waiting for a frame holds the renders at a caller's priority (RenderWait) until
+// it is resumed, cancelled or failed; a caller waiting for a snapshot does not.
+TEST(SceneCore, AFramesWaiterHoldsRendersAtACallersPriority) {
+  Scene scene(Settings());
+  ASSERT_TRUE(scene.Upsert({{"a", PointSite{{0.25, 0.5}}}}, 10).ok());
+  auto emptied = scene.Delete({"a"});
+  ASSERT_TRUE(emptied.ok());
+  const int before = RenderWait::held();
+  int resumed = 0;
+  scene.WhenRendered(*emptied, [&](auto frame) { resumed += frame.ok(); });
+  EXPECT_EQ(RenderWait::held(), before + 1);
+  const uint64_t committed = scene.WhenCommitted(*emptied + 1, [](auto) {});
+  const uint64_t cancelled = scene.WhenRendered(*emptied + 1, [](auto) {});
+  EXPECT_EQ(RenderWait::held(), before + 2);
+  scene.Cancel(committed, absl::CancelledError("gone"));
+  scene.Cancel(cancelled, absl::CancelledError("gone"));
+  EXPECT_EQ(RenderWait::held(), before + 1);
+  scene.Publish(Frame::Empty(Settings().grid, Settings().eps, scene.snapshot()));
+  EXPECT_EQ(resumed, 1);
+  EXPECT_EQ(RenderWait::held(), before);
+  scene.WhenRendered(*emptied + 1, [](auto) {});
+  EXPECT_EQ(RenderWait::held(), before + 1);
+  scene.FailWaiters(absl::UnavailableError("stopping"));
+  EXPECT_EQ(RenderWait::held(), before);
+}
+
 // A durable commit holds only the writer lock: readers (and the render thread, which reads
 // the same snapshot) go on while it is under way and see the version before it.
 TEST(SceneCore, ReadersDoNotWaitForACommit) {
