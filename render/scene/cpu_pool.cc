@@ -40,11 +40,21 @@ void Schedule(pid_t tid, bool background) {
 
 // The renders due (RenderDue), and the thread that raises the render threads while one of
 // them is late.
+// The watcher is told only what it could not see for itself by looking again at the time it
+// set (every kBackgroundLag at most): a render due while it sleeps with none due, and the
+// oldest render done while it holds the threads raised. A move's render comes due and is
+// done without waking it.
 struct DueRenders {
   std::mutex mu;
-  std::condition_variable changed;  // a render came due, or one was done
+  std::condition_variable changed;
   std::multiset<std::chrono::steady_clock::time_point> since;
+  bool asleep = false;  // the watcher waits with no time set
+  bool raised = false;  // it holds a RenderWait
 };
+
+// Looks this many times, kBackgroundLag apart, after the last render due was done, before
+// sleeping until the next comes due: a burst of moves wakes it no more than this.
+constexpr int kIdleLooks = 50;
 
 void WatchLateRenders(DueRenders& due) {
   pthread_setname_np(pthread_self(), "gvd-render-late");
@@ -55,19 +65,30 @@ void WatchLateRenders(DueRenders& due) {
   setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 0);
   std::unique_lock<std::mutex> lock(due.mu);
   std::optional<RenderWait> raised;
+  int idle = 0;
   for (;;) {
-    if (due.since.empty()) {
-      raised.reset();
-      due.changed.wait(lock);
-      continue;
+    const auto now = std::chrono::steady_clock::now();
+    const bool late = !due.since.empty() && now >= *due.since.begin() + kBackgroundLag;
+    if (late != raised.has_value()) {
+      if (late) {
+        raised.emplace();
+      } else {
+        raised.reset();
+      }
+      due.raised = late;
     }
-    const auto late = *due.since.begin() + kBackgroundLag;
-    if (std::chrono::steady_clock::now() >= late) {
-      if (!raised) raised.emplace();
+    if (late) {
       due.changed.wait(lock);
+    } else if (!due.since.empty()) {
+      idle = 0;
+      due.changed.wait_until(lock, *due.since.begin() + kBackgroundLag);
+    } else if (idle < kIdleLooks) {
+      ++idle;
+      due.changed.wait_until(lock, now + kBackgroundLag);
     } else {
-      raised.reset();
-      due.changed.wait_until(lock, late);
+      due.asleep = true;
+      due.changed.wait(lock);
+      due.asleep = false;
     }
   }
 }
@@ -162,7 +183,7 @@ RenderDue::RenderDue() {
   held_ = true;
   since_ = std::chrono::steady_clock::now();
   std::lock_guard<std::mutex> lock(due.mu);
-  if (due.since.empty()) due.changed.notify_one();
+  if (due.asleep) due.changed.notify_one();
   due.since.insert(since_);
 }
 
@@ -171,7 +192,7 @@ RenderDue::~RenderDue() {
   DueRenders& due = Due();
   std::lock_guard<std::mutex> lock(due.mu);
   auto it = due.since.find(since_);
-  if (it == due.since.begin()) due.changed.notify_one();
+  if (due.raised && it == due.since.begin()) due.changed.notify_one();
   due.since.erase(it);
 }
 
