@@ -2,6 +2,8 @@
 
 #include <sqlite3.h>
 #include <fcntl.h>
+#include <pthread.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -22,6 +24,10 @@
 
 namespace gvd {
 namespace {
+
+// The folder thread's nice value (Linux sets it per thread): the fold is upkeep nobody waits
+// for.
+constexpr int kFoldNice = 10;
 
 // The connection's last error as a status naming the store's file, by what it means for a
 // caller: a full disk is RESOURCE_EXHAUSTED and failing or busy storage UNAVAILABLE (both
@@ -87,6 +93,21 @@ class Statement {
 std::string_view ColumnBlob(sqlite3_stmt* s, int i) {
   const void* p = sqlite3_column_blob(s, i);
   return std::string_view(static_cast<const char*>(p), sqlite3_column_bytes(s, i));
+}
+
+// The bytes of pack `id` read on connection `db`; nullopt when there is no such pack.
+absl::StatusOr<std::optional<std::string>> ReadPack(sqlite3* db, uint64_t id) {
+  sqlite3_stmt* raw = nullptr;
+  if (sqlite3_prepare_v2(db, "SELECT sites FROM site_pack WHERE id = ?", -1, &raw, nullptr) !=
+      SQLITE_OK) {
+    return SqliteError(db, "reading packs");
+  }
+  std::unique_ptr<sqlite3_stmt, int (*)(sqlite3_stmt*)> statement(raw, sqlite3_finalize);
+  sqlite3_bind_int64(raw, 1, static_cast<sqlite3_int64>(id));
+  const int rc = sqlite3_step(raw);
+  if (rc == SQLITE_DONE) return std::nullopt;
+  if (rc != SQLITE_ROW) return SqliteError(db, "reading packs");
+  return std::string(ColumnBlob(raw, 0));
 }
 
 std::string ColumnText(sqlite3_stmt* s, int i) {
@@ -269,6 +290,10 @@ void SqliteStore::WantFold() {
 }
 
 void SqliteStore::Folder() {
+  pthread_setname_np(pthread_self(), "gvd-store-fold");
+  // Below calls, as renders are: ordering a pack's entries takes tens of milliseconds of a
+  // core, which a call's thread woken meanwhile would otherwise wait a time slice for.
+  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kFoldNice);
   std::unique_lock<std::mutex> lock(fold_mu_);
   std::chrono::steady_clock::time_point last_chunk;  // when the last chunk ended
   while (!fold_stopping_) {
@@ -336,22 +361,42 @@ absl::StatusOr<std::optional<SqliteStore::PackHead>> SqliteStore::OldestPack() {
 
 absl::Status SqliteStore::PrepareFold() {
   std::optional<PackHead> head;
-  std::string pack;
+  std::optional<std::string> pack;
   {
     std::lock_guard<std::mutex> lock(mu_);
     auto oldest = OldestPack();
     if (!oldest.ok()) return oldest.status();
     head = *oldest;
     if (!head || (fold_cursor_ && fold_cursor_->id == head->id)) return absl::OkStatus();
-    Statement sites(Prepared("SELECT sites FROM site_pack WHERE id = ?"));
-    if (!sites.ok()) return SqliteError(db_, "reading packs");
-    sites.Int(1, head->id);
-    if (sqlite3_step(sites.get()) != SQLITE_ROW) return SqliteError(db_, "reading packs");
-    pack = std::string(ColumnBlob(sites.get(), 0));
+    if (wal_path_.empty()) {  // in memory: no other connection sees the database
+      auto read = ReadPack(db_, head->id);
+      if (!read.ok()) return read.status();
+      pack = std::move(*read);
+    }
   }
+  if (!wal_path_.empty()) {
+    std::lock_guard<std::mutex> lock(fold_read_mu_);
+    if (fold_reader_ == nullptr) {
+      const int rc = sqlite3_open_v2(path_.c_str(), &fold_reader_,
+                                     SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX, nullptr);
+      if (rc != SQLITE_OK) {
+        absl::Status s = fold_reader_ ? SqliteError(fold_reader_, "opening it to fold packs")
+                                      : absl::ResourceExhaustedError("store: out of memory");
+        sqlite3_close(fold_reader_);
+        fold_reader_ = nullptr;
+        return s;
+      }
+      sqlite3_busy_timeout(fold_reader_, 5000);
+    }
+    auto read = ReadPack(fold_reader_, head->id);
+    if (!read.ok()) return read.status();
+    pack = std::move(*read);
+  }
+  // Gone since: the scene was deleted, and the next chunk finds the next pack.
+  if (!pack) return absl::OkStatus();
   auto cursor = std::make_unique<FoldCursor>();
   cursor->id = head->id;
-  cursor->pack = std::move(pack);
+  cursor->pack = std::move(*pack);
   auto entries = PackEntries(cursor->pack);
   if (!entries.ok()) return DamagedPack(head->scene, head->version);
   cursor->entries = std::move(*entries);
@@ -439,6 +484,7 @@ SqliteStore::~SqliteStore() {
     }
   }
   if (wal_fd_ >= 0) close(wal_fd_);
+  sqlite3_close(fold_reader_);  // first: the last connection to close checkpoints the WAL
   for (const auto& [sql, stmt] : statements_) sqlite3_finalize(stmt);
   sqlite3_close(db_);
 }
@@ -800,6 +846,7 @@ absl::Status SqliteStore::Commit(const ChangeSet& changes) {
     }
     return absl::OkStatus();
   }, durability);
+  last_commit_ = std::chrono::steady_clock::now().time_since_epoch().count();
   {
     std::lock_guard<std::mutex> lock(group_mu_);
     for (Waiter* w : group) {

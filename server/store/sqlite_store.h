@@ -125,8 +125,9 @@ class SqliteStore final : public SceneStore {
   // Folds the next fold_chunk sites of a pack into site rows, in one transaction; false when
   // no pack was left. Returns through `folded` how many it folded.
   absl::StatusOr<bool> FoldSome(uint64_t* folded);
-  // The oldest pack's fold_cursor_, read and ordered (under mu_ only to read it); OK with
-  // nothing done when there is no pack or the cursor is that pack's already.
+  // The oldest pack's fold_cursor_, read and ordered; OK with nothing done when there is no
+  // pack or the cursor is that pack's already. A persistent store reads the pack on the
+  // folder's connection, outside mu_; one in memory, under mu_.
   absl::Status PrepareFold();
   struct PackHead {
     uint64_t id = 0;
@@ -186,6 +187,11 @@ class SqliteStore final : public SceneStore {
     uint64_t done = 0;            // entries of `order` folded, in transactions committed
   };
   std::unique_ptr<FoldCursor> fold_cursor_;
+  // The folder's read-only connection to a persistent store, opened by its first fold: a
+  // large load's pack is megabytes, whose reading would hold every commit up under mu_, and
+  // in WAL mode a reader does not hold up the writer. Guarded by fold_read_mu_.
+  std::mutex fold_read_mu_;
+  sqlite3* fold_reader_ = nullptr;
 
   // The folder: whether a pack may wait, since when, and its thread (started by the first).
   Packing packing_;  // guarded by mu_ and fold_mu_ (either, to read)
@@ -196,7 +202,9 @@ class SqliteStore final : public SceneStore {
   std::chrono::steady_clock::time_point last_pack_;     // the last pack written
   std::chrono::steady_clock::time_point wanted_since_;  // the first not yet folded
   std::chrono::steady_clock::time_point fold_retry_at_;  // after a failed fold
-  // When the last commit of change sets began (steady_clock ticks): the folder goes between.
+  // When the last commit of change sets began or ended (steady_clock ticks): the folder goes
+  // between. Its end too: a commit that waited for a chunk would otherwise let the next
+  // chunk start as soon as it ends.
   std::atomic<std::chrono::steady_clock::rep> last_commit_{0};
   std::chrono::milliseconds fold_backoff_{1000};
   std::thread folder_;
