@@ -29,6 +29,9 @@ namespace {
 // for.
 constexpr int kFoldNice = 10;
 
+// The WAL's size, in pages, at which a commit asks for a checkpoint: SQLite's own default.
+constexpr int kCheckpointPages = 1000;
+
 // The connection's last error as a status naming the store's file, by what it means for a
 // caller: a full disk is RESOURCE_EXHAUSTED and failing or busy storage UNAVAILABLE (both
 // pass: a later write succeeds once space is freed or the device recovers), a damaged file
@@ -205,7 +208,25 @@ absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string
     return s;
   }
   std::unique_ptr<SqliteStore> store(new SqliteStore(db, path));
-  if (persistent) store->wal_path_ = sqlite3_filename_wal(sqlite3_db_filename(db, "main"));
+  if (persistent) {
+    store->wal_path_ = sqlite3_filename_wal(sqlite3_db_filename(db, "main"));
+    // In place of SQLite's checkpoint after a commit (the hook replaces it): the store's
+    // checkpointer copies the WAL into the database beside the writer.
+    sqlite3_wal_hook(
+        db,
+        [](void* self, sqlite3* connection, const char*, int pages) {
+          auto* store = static_cast<SqliteStore*>(self);
+          if (pages < kCheckpointPages) return SQLITE_OK;
+          if (store->ckpt_failed_.load()) {
+            sqlite3_wal_checkpoint_v2(connection, nullptr, SQLITE_CHECKPOINT_PASSIVE, nullptr,
+                                      nullptr);
+          } else {
+            store->WantCheckpoint();
+          }
+          return SQLITE_OK;
+        },
+        store.get());
+  }
   sqlite3_busy_timeout(db, 5000);
   // Foreign keys stay off: checking each site row's scene made a bulk insert four to six
   // times slower once the table held other scenes' rows. The store keeps the reference
@@ -337,6 +358,55 @@ void SqliteStore::Folder() {
       if (*more) fold_wanted_ = true;
     }
   }
+}
+
+void SqliteStore::WantCheckpoint() {
+  std::lock_guard<std::mutex> lock(ckpt_mu_);
+  ckpt_wanted_ = true;
+  if (!checkpointer_.joinable()) checkpointer_ = std::thread([this] { Checkpointer(); });
+  ckpt_cv_.notify_all();
+}
+
+void SqliteStore::Checkpointer() {
+  pthread_setname_np(pthread_self(), "gvd-store-ckpt");
+  sqlite3* db = nullptr;
+  if (sqlite3_open_v2(path_.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX,
+                      nullptr) != SQLITE_OK ||
+      sqlite3_exec(db, "PRAGMA synchronous=FULL", nullptr, nullptr, nullptr) != SQLITE_OK) {
+    Log(LogLevel::kError, "store_checkpointer_failed",
+        {{"store", path_}, {"error", db ? sqlite3_errmsg(db) : "out of memory"}});
+    sqlite3_close(db);
+    ckpt_failed_ = true;  // the writer's connection checkpoints after its commits again
+    return;
+  }
+  sqlite3_busy_timeout(db, 5000);
+  std::unique_lock<std::mutex> lock(ckpt_mu_);
+  while (!ckpt_stopping_) {
+    if (!ckpt_wanted_) {
+      ckpt_cv_.wait(lock);
+      continue;
+    }
+    ckpt_wanted_ = false;
+    lock.unlock();
+    // PASSIVE: what no reader still needs is copied, and the writer goes on meanwhile; the
+    // WAL starts again from its beginning at the first commit after a complete one.
+    const int rc = sqlite3_wal_checkpoint_v2(db, nullptr, SQLITE_CHECKPOINT_PASSIVE, nullptr,
+                                             nullptr);
+    lock.lock();
+    if (rc == SQLITE_OK) {
+      ++checkpoints_;
+    } else {
+      Log(LogLevel::kWarn, "store_checkpoint_failed",
+          {{"store", path_}, {"error", sqlite3_errmsg(db)}});
+    }
+  }
+  lock.unlock();
+  sqlite3_close(db);  // not the last connection: the writer's, closed after, checkpoints
+}
+
+uint64_t SqliteStore::checkpoints() const {
+  std::lock_guard<std::mutex> lock(ckpt_mu_);
+  return checkpoints_;
 }
 
 absl::StatusOr<uint64_t> SqliteStore::FoldPacks(uint64_t chunks) {
@@ -483,6 +553,12 @@ SqliteStore::~SqliteStore() {
       Log(LogLevel::kError, "store_sync_failed", {{"store", path_}, {"error", s.ToString()}});
     }
   }
+  {
+    std::lock_guard<std::mutex> lock(ckpt_mu_);
+    ckpt_stopping_ = true;
+    ckpt_cv_.notify_all();
+  }
+  if (checkpointer_.joinable()) checkpointer_.join();
   if (wal_fd_ >= 0) close(wal_fd_);
   sqlite3_close(fold_reader_);  // first: the last connection to close checkpoints the WAL
   for (const auto& [sql, stmt] : statements_) sqlite3_finalize(stmt);

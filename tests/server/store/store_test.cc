@@ -17,6 +17,7 @@
 #include <map>
 #include <set>
 #include <memory>
+#include <mutex>
 #include <random>
 #include <string>
 #include <thread>
@@ -426,8 +427,9 @@ TEST(Store, ConcurrentWritersShareTransactionsAndFailAlone) {
   ExpectStoreHolds(**store, model);
 }
 
-// A VFS over the process's default one that counts the syncs of WAL files: the oracle of
-// which commits waited for the disk.
+// A VFS over the process's default one that counts the syncs of WAL files, the oracle of
+// which commits waited for the disk, and records the threads that synced a database file
+// (the end of a checkpoint).
 class WalSyncCounter {
  public:
   WalSyncCounter() {
@@ -442,6 +444,7 @@ class WalSyncCounter {
       auto* file = reinterpret_cast<File*>(f);
       file->real = reinterpret_cast<sqlite3_file*>(file + 1);
       file->wal = (flags & SQLITE_OPEN_WAL) != 0;
+      file->main = (flags & SQLITE_OPEN_MAIN_DB) != 0;
       file->owner = self;
       const int rc = self->real_->xOpen(self->real_, name, file->real, flags, out);
       // A file whose open failed is not closed: no methods, as in the real VFS.
@@ -456,12 +459,18 @@ class WalSyncCounter {
     sqlite3_vfs_unregister(&vfs_);
   }
   int wal_syncs() const { return wal_syncs_; }
+  // The threads that synced a database file, one entry a sync.
+  std::vector<std::thread::id> db_syncs() const {
+    std::lock_guard<std::mutex> lock(mu_);
+    return db_syncs_;
+  }
 
  private:
   struct File {
     sqlite3_file base;
     sqlite3_file* real;
     bool wal;
+    bool main;
     WalSyncCounter* owner;
   };
   static sqlite3_file* R(sqlite3_file* f) { return reinterpret_cast<File*>(f)->real; }
@@ -481,6 +490,10 @@ class WalSyncCounter {
     io.xSync = [](sqlite3_file* f, int flags) {
       auto* file = reinterpret_cast<File*>(f);
       if (file->wal) ++file->owner->wal_syncs_;
+      if (file->main) {
+        std::lock_guard<std::mutex> lock(file->owner->mu_);
+        file->owner->db_syncs_.push_back(std::this_thread::get_id());
+      }
       return R(f)->pMethods->xSync(R(f), flags);
     };
     io.xFileSize = [](sqlite3_file* f, sqlite3_int64* n) {
@@ -519,7 +532,55 @@ class WalSyncCounter {
   sqlite3_vfs vfs_;
   sqlite3_io_methods methods_{};
   std::atomic<int> wal_syncs_{0};
+  mutable std::mutex mu_;
+  std::vector<std::thread::id> db_syncs_;
 };
+
+// The WAL is copied into the database by the store's checkpointer, beside the writer: no
+// commit syncs the database file (which ends a checkpoint), yet checkpoints happen, and
+// every commit is there after a reopen.
+TEST(Store, CheckpointsRunBesideTheCommits) {
+  TempDir dir;
+  WalSyncCounter syncs;
+  StoreModel model;
+  std::mt19937_64 rng(31);
+  const auto me = std::this_thread::get_id();
+  auto mine = [&] {
+    const auto all = syncs.db_syncs();
+    return std::count(all.begin(), all.end(), me);
+  };
+  {
+    auto opened = SqliteStore::Open(dir.path() + "/data");
+    ASSERT_TRUE(opened.ok()) << opened.status();
+    SqliteStore& store = **opened;
+    store.set_relaxed_sync(std::chrono::hours(1));
+    ASSERT_TRUE(store.CreateScene(Settings("s"), 1).ok());
+    const auto before = mine();  // opening a new database may sync it
+    // Some 3,000 pages of WAL, committed here: enough for three checkpoints' worth.
+    for (uint64_t version = 2; version < 400; ++version) {
+      std::vector<std::shared_ptr<const Site>> put;
+      for (int k = 0; k < 40; ++k) {
+        put.push_back(std::make_shared<const Site>(
+            RandomSite(rng, static_cast<int>(rng()), "id" + std::to_string(rng() % 5000))));
+        model.sites["s"][put.back()->id] = *put.back();
+      }
+      ChangeSet change{"s", version, put, {}};
+      change.durability = Durability::kRelaxed;
+      ASSERT_TRUE(store.Commit(change).ok());
+      model.versions["s"] = version;
+    }
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::minutes(1);
+    while (store.checkpoints() == 0 && std::chrono::steady_clock::now() < give_up) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    EXPECT_GE(store.checkpoints(), 1u) << "no checkpoint in a minute";
+    EXPECT_EQ(mine(), before) << "a commit synced the database file: it ran a checkpoint";
+    EXPECT_GT(syncs.db_syncs().size(), static_cast<size_t>(before));
+  }
+  auto store = SqliteStore::Open(dir.path() + "/data");
+  ASSERT_TRUE(store.ok()) << store.status();
+  ExpectStoreHolds(**store, model);
+}
 
 // A relaxed commit is written without a sync of the WAL and synced by the store's flusher
 // (with a period short enough, this test waits for it) or by the next sync commit that
