@@ -29,7 +29,9 @@ struct sqlite3_stmt;
 
 namespace gvd {
 
-// Thread-safe: one connection behind a mutex (SQLite has one writer at a time anyway).
+// Thread-safe: one connection writes, behind a mutex (SQLite has one writer at a time
+// anyway); a persistent store's folder reads packs, and its checkpointer copies the WAL into
+// the database, each on a connection of its own.
 class SqliteStore final : public SceneStore {
  public:
   // Reads the records of an earlier schema, which kept each scene's CreateSceneRequest and
