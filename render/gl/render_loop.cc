@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <future>
 #include <map>
+#include <set>
 
 #include "absl/strings/str_cat.h"
 #include "render/gl/rasterizer.h"
@@ -109,7 +110,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> RenderLoop::RenderSites(
 
 std::shared_ptr<Scene> RenderLoop::Take(int lane) {
   std::shared_ptr<Scene> taken = dirty_.TakeFirst([&](const Scene* scene) {
-    if (rendering_.count(scene)) return false;
+    if (dirty_.rendering(scene)) return false;
     auto owner = owner_.find(scene);
     return owner == owner_.end() || owner->second == lane || busy_[owner->second];
   });
@@ -119,7 +120,6 @@ std::shared_ptr<Scene> RenderLoop::Take(int lane) {
     taken_from_[owner->second].push_back(scene);
   }
   owner_[scene] = lane;
-  rendering_.insert(scene);
   busy_[lane] = true;
   return taken;
 }
@@ -164,7 +164,6 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
   auto finish = [&](const Scene* scene) {
     {
       std::lock_guard<std::mutex> lock(mu_);
-      rendering_.erase(scene);
       dirty_.Rendered(scene);
       busy_[lane] = false;
     }
@@ -184,7 +183,6 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
       });
       if (stopping_) {
         if (scene) {
-          rendering_.erase(scene.get());
           dirty_.PushFront(std::move(scene));  // its waiters fail with the rest below
         }
         break;
@@ -206,7 +204,6 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
       // Held (kHoldRendersVariable): the scene goes back to the front of the queue, and the
       // loop looks again shortly, still taking zooms and a stop meanwhile.
       std::unique_lock<std::mutex> lock(mu_);
-      rendering_.erase(scene.get());
       busy_[lane] = false;
       dirty_.PushFront(std::move(scene));
       cv_.wait_for(lock, std::chrono::milliseconds(5),

@@ -11,7 +11,6 @@
 #include <map>
 #include <memory>
 #include <mutex>
-#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -102,7 +101,6 @@ class RenderLoop final : public Renderer {
   absl::Status start_status_;  // the first lane's failure, if any
   DirtyQueue<Scene> dirty_;
   std::map<const Scene*, int> owner_;      // the lane holding each scene's GPU state
-  std::set<const Scene*> rendering_;       // scenes a lane is rendering now
   std::vector<bool> busy_;                 // per lane: rendering a scene
   // Per lane: scenes other lanes took over, whose GPU state it is to release now.
   std::vector<std::vector<const Scene*>> taken_from_;

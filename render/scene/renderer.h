@@ -7,7 +7,6 @@
 #include <deque>
 #include <map>
 #include <memory>
-#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -67,16 +66,15 @@ using Renderer = BasicRenderer<Scene>;
 using Renderer3 = BasicRenderer<Scene3>;
 
 // The scenes waiting for a render, in the order they were marked, each once: what every
-// renderer keeps. And the renders due (RenderDue), from a scene's queueing until the render
-// that took it is done, so that a render left in the background too long is raised. Not
-// thread-safe: the renderer's own lock guards it.
+// renderer keeps; and the scenes taken and not yet rendered. Each holds a render due
+// (RenderDue) from its queueing until the render that took it is done, so that a render left
+// in the background too long is raised. Not thread-safe: the renderer's own lock guards it.
 template <class S>
 class DirtyQueue {
  public:
   // Queues the scene unless it is queued already; false then.
   bool Push(std::shared_ptr<S> scene) {
-    if (!queued_.insert(scene.get()).second) return false;
-    due_.try_emplace(scene.get());
+    if (!due_.try_emplace(scene.get()).second) return false;
     queue_.push_back(std::move(scene));
     return true;
   }
@@ -84,7 +82,7 @@ class DirtyQueue {
   // due since it was first queued.
   void PushFront(std::shared_ptr<S> scene) {
     auto taken = rendering_.extract(scene.get());
-    const bool queued = !queued_.insert(scene.get()).second;
+    const bool queued = due_.count(scene.get()) > 0;
     if (taken) {
       due_.erase(scene.get());
       due_.insert(std::move(taken));
@@ -101,7 +99,6 @@ class DirtyQueue {
       if (!accept(it->get())) continue;
       std::shared_ptr<S> taken = std::move(*it);
       queue_.erase(it);
-      queued_.erase(taken.get());
       rendering_.insert(due_.extract(taken.get()));
       return taken;
     }
@@ -109,17 +106,17 @@ class DirtyQueue {
   }
   // The render of a scene taken is done (published, failed, or not needed after all).
   void Rendered(const S* scene) { rendering_.erase(scene); }
+  // Whether the scene was taken and its render is not done.
+  bool rendering(const S* scene) const { return rendering_.count(scene) > 0; }
   bool empty() const { return queue_.empty(); }
   // Empties the queue, returning what it held (to fail their waiters outside the lock).
   std::deque<std::shared_ptr<S>> TakeAll() {
-    queued_.clear();
     due_.clear();
     return std::exchange(queue_, {});
   }
 
  private:
   std::deque<std::shared_ptr<S>> queue_;
-  std::set<const S*> queued_;
   std::map<const S*, RenderDue> due_;        // the queued scenes'
   std::map<const S*, RenderDue> rendering_;  // the scenes taken, until Rendered
 };

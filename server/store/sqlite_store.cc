@@ -113,6 +113,24 @@ absl::StatusOr<std::optional<std::string>> ReadPack(sqlite3* db, uint64_t id) {
   return std::string(ColumnBlob(raw, 0));
 }
 
+// How long a connection waits for another's lock before its call fails.
+constexpr int kBusyTimeoutMs = 5000;
+
+// Another connection to the store's file at `path`, for one thread of the store's alone
+// (the folder's reads, the checkpointer's copies); `what` names its purpose in an error.
+absl::StatusOr<sqlite3*> OpenConnection(const std::string& path, int flags,
+                                        const std::string& what) {
+  sqlite3* db = nullptr;
+  if (sqlite3_open_v2(path.c_str(), &db, flags | SQLITE_OPEN_NOMUTEX, nullptr) != SQLITE_OK) {
+    absl::Status s =
+        db ? SqliteError(db, what) : absl::ResourceExhaustedError("store: out of memory");
+    sqlite3_close(db);
+    return s;
+  }
+  sqlite3_busy_timeout(db, kBusyTimeoutMs);
+  return db;
+}
+
 std::string ColumnText(sqlite3_stmt* s, int i) {
   const unsigned char* p = sqlite3_column_text(s, i);
   return p ? std::string(reinterpret_cast<const char*>(p), sqlite3_column_bytes(s, i)) : "";
@@ -227,7 +245,7 @@ absl::StatusOr<std::unique_ptr<SqliteStore>> SqliteStore::Open(const std::string
         },
         store.get());
   }
-  sqlite3_busy_timeout(db, 5000);
+  sqlite3_busy_timeout(db, kBusyTimeoutMs);
   // Foreign keys stay off: checking each site row's scene made a bulk insert four to six
   // times slower once the table held other scenes' rows. The store keeps the reference
   // itself: Write stores nothing for a scene that is not stored, DeleteScene deletes its
@@ -369,17 +387,20 @@ void SqliteStore::WantCheckpoint() {
 
 void SqliteStore::Checkpointer() {
   pthread_setname_np(pthread_self(), "gvd-store-ckpt");
-  sqlite3* db = nullptr;
-  if (sqlite3_open_v2(path_.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX,
-                      nullptr) != SQLITE_OK ||
+  auto opened = OpenConnection(path_, SQLITE_OPEN_READWRITE, "opening it to checkpoint");
+  sqlite3* db = opened.ok() ? *opened : nullptr;
+  absl::Status s = opened.status();
+  if (s.ok() &&
       sqlite3_exec(db, "PRAGMA synchronous=FULL", nullptr, nullptr, nullptr) != SQLITE_OK) {
+    s = SqliteError(db, "opening it to checkpoint");
+  }
+  if (!s.ok()) {
     Log(LogLevel::kError, "store_checkpointer_failed",
-        {{"store", path_}, {"error", db ? sqlite3_errmsg(db) : "out of memory"}});
+        {{"store", path_}, {"error", s.ToString()}});
     sqlite3_close(db);
     ckpt_failed_ = true;  // the writer's connection checkpoints after its commits again
     return;
   }
-  sqlite3_busy_timeout(db, 5000);
   std::unique_lock<std::mutex> lock(ckpt_mu_);
   while (!ckpt_stopping_) {
     if (!ckpt_wanted_) {
@@ -447,16 +468,9 @@ absl::Status SqliteStore::PrepareFold() {
   if (!wal_path_.empty()) {
     std::lock_guard<std::mutex> lock(fold_read_mu_);
     if (fold_reader_ == nullptr) {
-      const int rc = sqlite3_open_v2(path_.c_str(), &fold_reader_,
-                                     SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX, nullptr);
-      if (rc != SQLITE_OK) {
-        absl::Status s = fold_reader_ ? SqliteError(fold_reader_, "opening it to fold packs")
-                                      : absl::ResourceExhaustedError("store: out of memory");
-        sqlite3_close(fold_reader_);
-        fold_reader_ = nullptr;
-        return s;
-      }
-      sqlite3_busy_timeout(fold_reader_, 5000);
+      auto opened = OpenConnection(path_, SQLITE_OPEN_READONLY, "opening it to fold packs");
+      if (!opened.ok()) return opened.status();
+      fold_reader_ = *opened;
     }
     auto read = ReadPack(fold_reader_, head->id);
     if (!read.ok()) return read.status();
