@@ -11,6 +11,7 @@
 #include <set>
 #include <thread>
 
+#include "absl/synchronization/mutex.h"
 #include "gvd/client.h"
 #include "tests/bench/bench_common.h"
 #include "render/gl/context.h"
@@ -451,6 +452,7 @@ struct InProcessServer {
   // False when no EGL context or store could be made.
   bool Start(const std::string& dir, const std::string& scene_id, uint32_t px, size_t points,
              uint64_t seed) {
+    absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);  // as gvd-server does
     if (!renderer.Start(DevicePreference::kAuto).ok()) return false;
     auto opened = SqliteStore::Open(dir);
     if (!opened.ok()) return false;
