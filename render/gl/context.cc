@@ -204,4 +204,17 @@ GlContext::~GlContext() {
   eglTerminate(display);
 }
 
+GlTurn::GlTurn(const DeviceInfo& device) {
+  static std::mutex software_turn;
+  if (device.software) lock_ = std::unique_lock<std::mutex>(software_turn, std::defer_lock);
+}
+
+void GlTurn::Take() {
+  if (lock_.mutex() != nullptr && !lock_.owns_lock()) lock_.lock();
+}
+
+void GlTurn::Give() {
+  if (lock_.owns_lock()) lock_.unlock();
+}
+
 }  // namespace gvd

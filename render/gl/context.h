@@ -3,6 +3,7 @@
 #pragma once
 
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "absl/status/statusor.h"
@@ -47,6 +48,29 @@ class GlContext {
   void* display_;  // EGLDisplay
   void* context_;  // EGLContext
   DeviceInfo info_;
+};
+
+// A thread's turn at GL on a device whose contexts must not be used at once. Mesa's software
+// rasterizer (llvmpipe) serves every context of a display from one screen, and a context's
+// flush of a resource (before a map or a read-back) reads the queued work of every other
+// context of that screen while their own threads change it: two render threads, each with a
+// context of its own, crashed there (a freed list read in lp_scene_is_resource_referenced).
+// So on a software device the threads that make GL calls take turns, each holding the turn
+// around its calls and giving it up around CPU-only work; on a hardware device the turn is
+// always free. Not thread-safe: one per thread.
+class GlTurn {
+ public:
+  explicit GlTurn(const DeviceInfo& device);
+  ~GlTurn() { Give(); }
+  GlTurn(const GlTurn&) = delete;
+  GlTurn& operator=(const GlTurn&) = delete;
+
+  void Take();  // waits for the turn, unless held already
+  void Give();  // gives it up, if held
+  bool held() const { return lock_.owns_lock(); }
+
+ private:
+  std::unique_lock<std::mutex> lock_;  // on software devices, the process's one turn
 };
 
 }  // namespace gvd

@@ -57,6 +57,10 @@ class Rasterizer {
   bool native_scan() const { return native_scan_; }
   void set_native_scan(bool native) { native_scan_ = native; }
 
+  // The calling thread's turn at GL (GlTurn), which Compute gives up during its native scan
+  // and takes back after it; null (the default): none to give up. Must outlive its use.
+  void set_gl_turn(GlTurn* turn) { gl_turn_ = turn; }
+
   // Draws the sites' distance functions (each as ShapeOf says) into `target` inside `scissor` (clearing it first
   // when `clear`). The grid's pixel (0, 0) is the target's pixel (x0, y0); the scissor is in
   // grid pixels. CONTRACT: every shape's max_value <= params.depth_scale; the grid, placed
@@ -113,6 +117,7 @@ class Rasterizer {
   int64_t max_storage_block_ = 0;  // GL_MAX_SHADER_STORAGE_BLOCK_SIZE, bytes
   bool software_ = false;
   bool native_scan_ = false;
+  GlTurn* gl_turn_ = nullptr;
   std::map<uint32_t, gl::Buffer> cones_;  // segments -> vertex buffer
 };
 

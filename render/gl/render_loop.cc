@@ -9,6 +9,7 @@
 #include <map>
 #include <set>
 
+#include "absl/cleanup/cleanup.h"
 #include "absl/strings/str_cat.h"
 #include "render/gl/rasterizer.h"
 #include "render/gl/scene_raster.h"
@@ -128,6 +129,8 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
   // Calls come before renders (RenderWait), the render's ParallelFor pieces included.
   pthread_setname_np(pthread_self(), "gvd-render");
   CpuPool::BecomeRenderThread();
+  // This lane's turn at GL (GlTurn: on a software device one lane at a time makes GL calls).
+  std::unique_ptr<GlTurn> turn;
   std::unique_ptr<GlContext> context;
   std::unique_ptr<Rasterizer> rasterizer;
   {
@@ -135,9 +138,13 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
     auto ctx = GlContext::Create(preference);
     if (ctx.ok()) {
       context = std::move(*ctx);
+      turn = std::make_unique<GlTurn>(context->info());
+      turn->Take();
       auto r = Rasterizer::Create(context->info());
+      turn->Give();
       if (r.ok()) {
         rasterizer = std::move(*r);
+        rasterizer->set_gl_turn(turn.get());
       } else {
         status = r.status();
       }
@@ -193,6 +200,9 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
       }
       dropped.swap(taken_from_[lane]);
     }
+    // GL from here to the end of this round, but around the waits below.
+    turn->Take();
+    absl::Cleanup give_turn = [&turn] { turn->Give(); };
     // Scenes another lane took over: their GPU state goes now, not at this lane's next render.
     for (const Scene* s : dropped) {
       if (!mine.count(s)) rasters.erase(s);
@@ -203,6 +213,7 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
     if (!hold_path_.empty() && access(hold_path_.c_str(), F_OK) == 0) {
       // Held (kHoldRendersVariable): the scene goes back to the front of the queue, and the
       // loop looks again shortly, still taking zooms and a stop meanwhile.
+      turn->Give();
       std::unique_lock<std::mutex> lock(mu_);
       busy_[lane] = false;
       dirty_.PushFront(std::move(scene));
@@ -226,10 +237,12 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
     // The test hook's long render of this one scene (kHoldRendersVariable).
     if (!hold_path_.empty()) {
       const std::string held = hold_path_ + "." + scene->id();
+      turn->Give();
       while (access(held.c_str(), F_OK) == 0) {
         std::unique_lock<std::mutex> lock(mu_);
         if (cv_.wait_for(lock, std::chrono::milliseconds(5), [this] { return stopping_; })) break;
       }
+      turn->Take();
     }
 
     const SceneSettings& settings = scene->settings();
@@ -256,12 +269,14 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
     double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (!frame.ok()) {
       rasters.erase(scene.get());  // the next render starts from scratch
+      turn->Give();
       if (observer_) observer_->Failed(scene->id(), sites->version(), frame.status());
       scene->FailWaiters(absl::UnavailableError(
           absl::StrCat("rendering scene \"", scene->id(), "\" failed: ", frame.status().message())));
       finish(scene.get());
       continue;
     }
+    turn->Give();  // the GL work of this round is done
     // Reported before publishing: publishing releases the queries waiting for this frame.
     if (observer_) {
       observer_->Rendered(scene->id(), sites->version(), sites->size(), render_stats, seconds);
@@ -281,9 +296,11 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
   }
   for (auto& s : left) s->FailWaiters(absl::UnavailableError("the server is shutting down"));
   for (auto& task : tasks) task(nullptr, nullptr);
+  turn->Take();
   rasters.clear();
   rasterizer.reset();
   context.reset();
+  turn->Give();
 }
 
 }  // namespace gvd

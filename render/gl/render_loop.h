@@ -34,6 +34,9 @@ namespace gvd {
 // (rendering it whole on its own context, and the first lane drops its state): so one huge
 // render holds up only its own scene, and with L lanes every other scene's update waits at
 // most for the renders already under way on the other L - 1 lanes, never for the huge one.
+// On Mesa's software device the lanes take turns at GL (GlTurn, render/gl/context.h): one
+// makes GL calls while the others compute on the CPU (the native scan) or wait; a lane
+// waiting on the test hook holds no turn.
 class RenderLoop final : public Renderer {
  public:
   // `observer` (may be null) hears of every render; it must outlive the loop.

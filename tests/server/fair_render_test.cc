@@ -3,9 +3,15 @@
 // are published meanwhile, whichever thread held their GPU state before.
 #include <gtest/gtest.h>
 
+#include <stdlib.h>
+
+#include <atomic>
 #include <chrono>
 #include <fstream>
+#include <mutex>
+#include <random>
 #include <thread>
+#include <vector>
 
 #include "gvd/client.h"
 #include "tests/support/metrics_scrape.h"
@@ -55,6 +61,73 @@ TEST(FairRenders, ALongRenderHoldsUpOnlyItsOwnScene) {
   ASSERT_GT(port, 0);
   const std::string text = testing::Scrape(port);
   EXPECT_NE(text.find("gvd_scene_render_seconds_total{scene=\"big\"}"), std::string::npos) << text;
+}
+
+// The two render threads, each with a GL context of its own, render scenes at once. On
+// Mesa's software device both contexts share one screen, and a context's flush of a resource
+// (before glBufferData, glReadPixels) reads the queued work of the other context while the
+// other's thread frees it: the server crashed in lp_scene_is_resource_referenced unless the
+// threads take turns at GL (GlTurn). glibc's malloc.perturb fills freed memory with junk, so
+// that such a read crashes instead of now and then reading stale memory that is still mapped.
+// Every move is read at its version and must be seen; the server must stop cleanly after.
+TEST(FairRenders, TwoRenderThreadsRenderAtOnce) {
+  setenv("GLIBC_TUNABLES", "glibc.malloc.perturb=165", 1);
+  testing::ServerProcess server(GVD_SERVER_PATH, {"--data", ":memory:"});
+  unsetenv("GLIBC_TUNABLES");
+  ASSERT_TRUE(server.error().empty()) << server.error();
+  ASSERT_NE(server.log().find("render_threads=2"), std::string::npos) << server.log();
+  constexpr int kScenes = 6, kSites = 400, kMoves = 3000;
+  std::mutex mu;
+  std::vector<std::string> failures;  // guarded by mu
+  auto fail = [&](std::string what) {
+    std::lock_guard<std::mutex> lock(mu);
+    failures.push_back(std::move(what));
+  };
+  std::vector<std::thread> movers;
+  for (int k = 0; k < kScenes; ++k) {
+    movers.emplace_back([&, k] {
+      const std::string id = "s" + std::to_string(k);
+      auto client = Client::Connect(server.address());
+      v1::Scene scene;
+      uint64_t version = 0;
+      if (!client->CreateScene(testing::UnitScene(id, 128, 128), &scene).ok() ||
+          !client->UpsertSites(testing::RandomPoints(id, kSites, k), &version).ok()) {
+        return fail(id + ": the scene could not be made");
+      }
+      std::mt19937_64 rng(100 + k);
+      std::uniform_real_distribution<double> unit(0, 1);
+      std::uniform_int_distribution<int> site(0, kSites - 1);
+      for (int m = 0; m < kMoves; ++m) {
+        v1::UpsertSitesRequest move;
+        move.set_scene_id(id);
+        v1::Site* s = move.add_sites();
+        s->set_id(std::to_string(site(rng)));
+        const double x = unit(rng), y = unit(rng);
+        s->mutable_point()->set_x(x);
+        s->mutable_point()->set_y(y);
+        if (auto st = client->UpsertSites(move, &version); !st.ok()) {
+          return fail(id + " move " + std::to_string(m) + ": " + st.error_message());
+        }
+        v1::FindNearestRequest read;
+        read.set_scene_id(id);
+        read.set_min_version(version);
+        v1::Point* p = read.add_points();
+        p->set_x(x);
+        p->set_y(y);
+        v1::FindNearestResponse answer;
+        if (auto st = client->FindNearest(read, &answer); !st.ok()) {
+          return fail(id + " read " + std::to_string(m) + ": " + st.error_message());
+        }
+        // The moved site is at distance 0 from the point: the answer is within its bound of it.
+        if (answer.results(0).distance() > answer.results(0).error_bound()) {
+          return fail(id + " move " + std::to_string(m) + " unseen at version " +
+                      std::to_string(version));
+        }
+      }
+    });
+  }
+  for (auto& t : movers) t.join();
+  EXPECT_TRUE(failures.empty()) << failures.front() << "\n" << server.log();
 }
 
 }  // namespace
