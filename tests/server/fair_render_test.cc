@@ -1,6 +1,7 @@
 // Render threads against the real server: a scene whose render goes on and on (held by the
 // test hook, so at any machine's speed) holds up only itself; every other scene's updates
-// are published meanwhile, whichever thread held their GPU state before.
+// are published meanwhile, whichever thread held their GPU state before. And the two render
+// threads rendering at once, each move read at its version, without a crash.
 #include <gtest/gtest.h>
 
 #include <stdlib.h>
