@@ -42,6 +42,11 @@ namespace http = beast::http;
 namespace net = boost::asio;
 namespace ssl = net::ssl;
 using tcp = net::ip::tcp;
+// A session's streams and timer run on its strand, named by its concrete type: held as
+// Asio's type-erased any_io_executor (Beast's tcp_stream), a strand goes to the heap at
+// each copy, and Beast copies its executor some twenty times a call.
+using Strand = net::strand<net::io_context::executor_type>;
+using TcpStream = beast::basic_stream<tcp, Strand>;
 using google::protobuf::Message;
 using google::protobuf::MethodDescriptor;
 
@@ -418,7 +423,7 @@ class Session final : public SessionBase {
   ~Session() override { server_->Unregister(this); }
 
   void Run() {
-    if constexpr (std::is_same_v<StreamType, beast::tcp_stream>) {
+    if constexpr (std::is_same_v<StreamType, TcpStream>) {
       Read();
     } else {
       beast::get_lowest_layer(stream_).expires_after(std::chrono::seconds(30));
@@ -883,7 +888,7 @@ class Session final : public SessionBase {
     if (closed_) return;
     closed_ = true;
     beast::error_code ec;
-    if constexpr (std::is_same_v<StreamType, beast::tcp_stream>) {
+    if constexpr (std::is_same_v<StreamType, TcpStream>) {
       stream_.socket().shutdown(tcp::socket::shutdown_send, ec);
       stream_.close();
     } else {
@@ -912,7 +917,7 @@ class Session final : public SessionBase {
   // The call under way (null before the first): the core's, its deadline, and whether it
   // has passed.
   CallPtr call_;
-  std::optional<net::steady_timer> deadline_;
+  std::optional<net::basic_waitable_timer<std::chrono::steady_clock, net::wait_traits<std::chrono::steady_clock>, Strand>> deadline_;
   uint64_t calls_ = 0;  // the calls begun: a call's number, so that a stale callback does nothing
   bool deadline_passed_ = false;
   bool unary_pending_ = false;  // a unary call's answer is still to be sent
@@ -974,7 +979,8 @@ absl::Status HttpServer::Impl::Start() {
 }
 
 void HttpServer::Impl::Accept() {
-  acceptor_.async_accept(net::make_strand(ioc_), [this](beast::error_code ec, tcp::socket socket) {
+  acceptor_.async_accept(net::make_strand(ioc_), [this](beast::error_code ec,
+                                                        tcp::socket::rebind_executor<Strand>::other socket) {
     if (ec) {
       if (!stopping_ && ec != net::error::operation_aborted) Accept();
       return;
@@ -983,12 +989,12 @@ void HttpServer::Impl::Accept() {
     // its end) waits for the client's delayed ACK of the first: 40 ms on Linux.
     socket.set_option(tcp::no_delay(true), ec);
     if (tls_) {
-      auto s = std::make_shared<Session<beast::ssl_stream<beast::tcp_stream>>>(
-          this, beast::ssl_stream<beast::tcp_stream>(std::move(socket), *tls_));
+      auto s = std::make_shared<Session<beast::ssl_stream<TcpStream>>>(
+          this, beast::ssl_stream<TcpStream>(std::move(socket), *tls_));
       Register(s);
       s->Run();
     } else {
-      auto s = std::make_shared<Session<beast::tcp_stream>>(this, beast::tcp_stream(std::move(socket)));
+      auto s = std::make_shared<Session<TcpStream>>(this, TcpStream(std::move(socket)));
       Register(s);
       s->Run();
     }
