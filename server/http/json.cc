@@ -3,6 +3,7 @@
 #include <rapidjson/error/en.h>
 #include <rapidjson/memorystream.h>
 #include <rapidjson/reader.h>
+#include <rapidjson/stringbuffer.h>
 #include <rapidjson/writer.h>
 
 #include <charconv>
@@ -23,14 +24,9 @@ using google::protobuf::FieldDescriptor;
 using google::protobuf::Message;
 using google::protobuf::Reflection;
 
-// RapidJSON's output stream over a std::string.
-struct StringOut {
-  using Ch = char;
-  std::string* s;
-  void Put(char c) { s->push_back(c); }
-  void Flush() {}
-};
-using Writer = rapidjson::Writer<StringOut>;
+// RapidJSON's own buffer: its writer reserves room for each token and then puts it
+// unchecked, where a std::string took a checked push_back per byte.
+using Writer = rapidjson::Writer<rapidjson::StringBuffer>;
 
 // A finite number in its shortest form that reads back to the same value.
 template <class T>
@@ -504,11 +500,10 @@ bool Covers(const Descriptor* type, std::set<const Descriptor*>* seen, std::stri
 }  // namespace
 
 std::string ToJson(const Message& message) {
-  std::string out;
-  StringOut stream{&out};
-  Writer w(stream);
+  rapidjson::StringBuffer out;
+  Writer w(out);
   Write(w, message);
-  return out;
+  return std::string(out.GetString(), out.GetSize());
 }
 
 absl::Status FromJson(absl::string_view json, Message* message) {
@@ -549,11 +544,10 @@ std::string JsonQuote(absl::string_view text) {
       ++i;
     }
   }
-  std::string out;
-  StringOut stream{&out};
-  Writer w(stream);
+  rapidjson::StringBuffer out;
+  Writer w(out);
   w.String(valid.data(), static_cast<rapidjson::SizeType>(valid.size()));
-  return out;
+  return std::string(out.GetString(), out.GetSize());
 }
 
 bool JsonCovers(const Descriptor* type, std::string* why) {
