@@ -69,6 +69,23 @@ class GlTurn {
   void Give();  // gives it up, if held
   bool held() const { return lock_.owns_lock(); }
 
+  // For its lifetime, the turn given up where `turn` (may be null) holds it; taken back at
+  // its end. Around CPU-only work between GL calls.
+  class Away {
+   public:
+    explicit Away(GlTurn* turn) : turn_(turn != nullptr && turn->held() ? turn : nullptr) {
+      if (turn_) turn_->Give();
+    }
+    ~Away() {
+      if (turn_) turn_->Take();
+    }
+    Away(const Away&) = delete;
+    Away& operator=(const Away&) = delete;
+
+   private:
+    GlTurn* const turn_;
+  };
+
  private:
   std::unique_lock<std::mutex> lock_;  // on software devices, the process's one turn
 };

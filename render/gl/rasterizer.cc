@@ -395,10 +395,10 @@ absl::Status Rasterizer::Compute(const Grid& grid, const DrawParams& params,
   if (native_scan_) {
     // The shader's loop as native code on every core; the result goes where the shader
     // would have written it. No GL meanwhile: other render threads may have their turn.
-    const bool turn = gl_turn_ != nullptr && gl_turn_->held();
-    if (turn) gl_turn_->Give();
-    ScanTiles(grid, lists, scan, static_cast<float>(params.depth_scale), ids, distances);
-    if (turn) gl_turn_->Take();
+    {
+      GlTurn::Away off_gl(gl_turn_);
+      ScanTiles(grid, lists, scan, static_cast<float>(params.depth_scale), ids, distances);
+    }
     upload(compute_buffers_[3], 4, ids->data(), pixels * sizeof(uint32_t));
     upload(compute_buffers_[4], 5, distances->data(), pixels * sizeof(float));
     return Resolve(grid, params, target);

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <vector>
@@ -58,8 +59,16 @@ class Rasterizer {
   void set_native_scan(bool native) { native_scan_ = native; }
 
   // The calling thread's turn at GL (GlTurn), which Compute gives up during its native scan
-  // and takes back after it; null (the default): none to give up. Must outlive its use.
+  // and takes back after it, and a full render during its planning (SceneRaster); null (the
+  // default): none to give up. Must outlive its use.
   void set_gl_turn(GlTurn* turn) { gl_turn_ = turn; }
+  GlTurn* gl_turn() const { return gl_turn_; }
+  // A test hook, called by a full render once its planning begins, with the turn given up:
+  // RenderLoop's held scene (its kHoldRendersVariable) waits there. Null: none.
+  void set_planning_hook(std::function<void()> hook) { planning_hook_ = std::move(hook); }
+  void Planning() const {
+    if (planning_hook_) planning_hook_();
+  }
 
   // Draws the sites' distance functions (each as ShapeOf says) into `target` inside `scissor` (clearing it first
   // when `clear`). The grid's pixel (0, 0) is the target's pixel (x0, y0); the scissor is in
@@ -118,6 +127,7 @@ class Rasterizer {
   bool software_ = false;
   bool native_scan_ = false;
   GlTurn* gl_turn_ = nullptr;
+  std::function<void()> planning_hook_;
   std::map<uint32_t, gl::Buffer> cones_;  // segments -> vertex buffer
 };
 

@@ -76,8 +76,9 @@ class RenderLoop final : public Renderer {
   // A test hook: when the environment variable GVD_TEST_HOLD_RENDERS names a path at Start,
   // no scene is rendered while a file exists at that path (zoom windows still run), so tests
   // can hold a version unrendered for as long as they need, whatever the machine's speed.
-  // While a file exists at that path + "." + a scene's id, a lane that takes that scene
-  // holds it as if its render went on: a long render, at any machine's speed.
+  // While a file exists at that path + "." + a scene's id, a full render of that scene
+  // waits in its plan, off GL, as if its planning went on: a long render, at any machine's
+  // speed.
   static constexpr const char* kHoldRendersVariable = "GVD_TEST_HOLD_RENDERS";
 
  private:

@@ -62,31 +62,38 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
         (params_.mode == RenderMode::kExact || rasterizer.software() || crowded)));
   Coverage cov;
   TileLists lists;
-  if (compute) {
-    cov = TileCandidates(grid_, slots, drawn_->index(), &lists);
-  } else {
-    cov = ParallelCoverage(grid_, *drawn_, grid_.all(), params_.diagram,
-                           params_.mode == RenderMode::kMesh);
-  }
-  double coverage_seconds = Seconds(start);
+  double coverage_seconds = 0;
   std::vector<SiteDraw> draws;
   double max_value = 0, area = 0;
   uint32_t max_segments = 0;
-  tally_.Reset();
-  extent_.assign(slots.size(), -1);
-  for (uint32_t s = 0; s < slots.size(); ++s) {
-    const Site* site = slots.get(s);
-    if (site == nullptr) continue;
-    tally_.Live(*site);
-    if (cov.radius[s] < 0) continue;
-    SiteDraw& d = draws.emplace_back(SiteDraw{s, cov.radius[s], cov.clip[s]});
-    if (s < cov.pieces.size()) d.pieces = std::move(cov.pieces[s]);
-    SiteShape shape = ShapeOf(grid_, params_, *site, d);
-    extent_[s] = ClippedExtent(grid_, site->geometry, shape.extent, d.clip);
-    max_value = std::max(max_value, shape.max_value);
-    max_segments = std::max(max_segments, shape.segments);
-    tally_.Drawn(grid_, *site, shape);
-    area += shape.area;
+  {
+    // The plan makes no GL call: on a software device the other render threads have their
+    // turn at GL meanwhile (it takes seconds in a scene of 100,000 crossing segments).
+    GlTurn::Away off_gl(rasterizer.gl_turn());
+    rasterizer.Planning();
+    if (compute) {
+      cov = TileCandidates(grid_, slots, drawn_->index(), &lists);
+    } else {
+      cov = ParallelCoverage(grid_, *drawn_, grid_.all(), params_.diagram,
+                             params_.mode == RenderMode::kMesh);
+    }
+    coverage_seconds = Seconds(start);
+    tally_.Reset();
+    extent_.assign(slots.size(), -1);
+    for (uint32_t s = 0; s < slots.size(); ++s) {
+      const Site* site = slots.get(s);
+      if (site == nullptr) continue;
+      tally_.Live(*site);
+      if (cov.radius[s] < 0) continue;
+      SiteDraw& d = draws.emplace_back(SiteDraw{s, cov.radius[s], cov.clip[s]});
+      if (s < cov.pieces.size()) d.pieces = std::move(cov.pieces[s]);
+      SiteShape shape = ShapeOf(grid_, params_, *site, d);
+      extent_[s] = ClippedExtent(grid_, site->geometry, shape.extent, d.clip);
+      max_value = std::max(max_value, shape.max_value);
+      max_segments = std::max(max_segments, shape.segments);
+      tally_.Drawn(grid_, *site, shape);
+      area += shape.area;
+    }
   }
   // Headroom: later increments may draw values up to twice this render's largest (or four
   // window diagonals) without a full render. Float depth keeps its relative precision at any
