@@ -7,9 +7,9 @@ Usage: fair_render.py GVD_SERVER [--polylines N] [--points N] [--size PX]
 For each --render-threads value (1, then 2) it starts GVD_SERVER on loopback (store in memory),
 creates "big" (PX x PX) and "small" (256 x 256, 100 points), then upserts N random polylines of
 M points each into "big" (the case a user met: 20 polylines of 5,000 points). Until that
-version of "big" is published, it moves one site of "small" and reads it back with
-FindNearest(min_version) over HTTP/JSON, one round trip after another, and reports how long
-those round trips took (update to published frame) and how long the big render took.
+version of "big" is published, it moves one site of "small" and polls GetScene over HTTP/JSON
+until that version is published, one move after another, and reports how long each took
+(update to published frame) and how long the big render took.
 """
 import argparse
 import json
@@ -37,6 +37,16 @@ def call(port, method, body):
     return json.loads(payload)
 
 
+def rendered(port, scene, version, pause):
+    """Returns once the scene's published frame is at `version` or later (a FindNearest at a
+    version would not wait for it: the index answers while the frame is drawn)."""
+    while True:
+        got = call(port, "GetScene", {"sceneId": scene})["scene"].get("renderedVersion", 0)
+        if int(got) >= int(version):
+            return
+        time.sleep(pause)
+
+
 def run(server, threads, args):
     work = tempfile.mkdtemp(prefix="gvd-fair-")
     proc, port = start_server(server, ":memory:", os.path.join(work, "port"),
@@ -62,8 +72,7 @@ def run(server, threads, args):
         render = {}
 
         def wait_big():
-            call(port, "FindNearest", {"sceneId": "big", "points": [{"x": 0.5, "y": 0.5}],
-                                       "minVersion": big["version"]})
+            rendered(port, "big", big["version"], 0.005)
             render["seconds"] = time.perf_counter() - start
             done.set()
         threading.Thread(target=wait_big, daemon=True).start()
@@ -72,8 +81,7 @@ def run(server, threads, args):
             t0 = time.perf_counter()
             v = call(port, "UpsertSites", {"sceneId": "small", "sites": [
                 {"id": "p0", "point": {"x": rng.random(), "y": rng.random()}}]})
-            call(port, "FindNearest", {"sceneId": "small", "points": [{"x": 0.5, "y": 0.5}],
-                                       "minVersion": v["version"]})
+            rendered(port, "small", v["version"], 0)
             rounds.append(time.perf_counter() - t0)
         done.wait()
         return render["seconds"], rounds
