@@ -370,7 +370,11 @@ absl::Status Rasterizer::Compute(const Grid& grid, const DrawParams& params,
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, binding, buffer.id());
   };
   const size_t pixels = grid.pixel_count();
-  ScanSites scan = ScanSitesOf(grid, params, sites, draws);
+  ScanSites scan;
+  {
+    GlTurn::Away off_gl(gl_turn_);  // CPU only: the sites' records
+    scan = ScanSitesOf(grid, params, sites, draws);
+  }
   std::vector<ComputeSite>& records = scan.sites;
   std::vector<glm::vec4>& segments = scan.segments;
   // What the GL's storage buffers must hold: the resolve's pixels always, the lists too for

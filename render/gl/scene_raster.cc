@@ -94,6 +94,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
       tally_.Drawn(grid_, *site, shape);
       area += shape.area;
     }
+    if (compute) IndexByDraw(draws, slots.size(), &lists);
   }
   // Headroom: later increments may draw values up to twice this render's largest (or four
   // window diagonals) without a full render. Float depth keeps its relative precision at any
@@ -104,7 +105,6 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
   std::vector<float> distances;
   double draw_seconds = 0, readback_seconds = 0;
   if (compute) {
-    IndexByDraw(draws, slots.size(), &lists);
     absl::Status s =
         rasterizer.Compute(grid_, params_, slots, draws, lists, *target_, &ids, &distances);
     // Too large for the GL's storage buffers: the same radii serve the meshes.
