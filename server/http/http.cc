@@ -46,7 +46,10 @@ using tcp = net::ip::tcp;
 // Asio's type-erased any_io_executor (Beast's tcp_stream), a strand goes to the heap at
 // each copy, and Beast copies its executor some twenty times a call.
 using Strand = net::strand<net::io_context::executor_type>;
+using StrandSocket = tcp::socket::rebind_executor<Strand>::other;
 using TcpStream = beast::basic_stream<tcp, Strand>;
+using StrandTimer = net::basic_waitable_timer<std::chrono::steady_clock,
+                                              net::wait_traits<std::chrono::steady_clock>, Strand>;
 using google::protobuf::Message;
 using google::protobuf::MethodDescriptor;
 
@@ -917,7 +920,7 @@ class Session final : public SessionBase {
   // The call under way (null before the first): the core's, its deadline, and whether it
   // has passed.
   CallPtr call_;
-  std::optional<net::basic_waitable_timer<std::chrono::steady_clock, net::wait_traits<std::chrono::steady_clock>, Strand>> deadline_;
+  std::optional<StrandTimer> deadline_;
   uint64_t calls_ = 0;  // the calls begun: a call's number, so that a stale callback does nothing
   bool deadline_passed_ = false;
   bool unary_pending_ = false;  // a unary call's answer is still to be sent
@@ -979,8 +982,7 @@ absl::Status HttpServer::Impl::Start() {
 }
 
 void HttpServer::Impl::Accept() {
-  acceptor_.async_accept(net::make_strand(ioc_), [this](beast::error_code ec,
-                                                        tcp::socket::rebind_executor<Strand>::other socket) {
+  acceptor_.async_accept(net::make_strand(ioc_), [this](beast::error_code ec, StrandSocket socket) {
     if (ec) {
       if (!stopping_ && ec != net::error::operation_aborted) Accept();
       return;
