@@ -234,19 +234,6 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
       finish(scene.get());
       continue;
     }
-    // The test hook's long render of this one scene (kHoldRendersVariable): a full render
-    // waits in its plan, where it has given up its turn at GL.
-    if (!hold_path_.empty()) {
-      rasterizer->set_planning_hook([this, held = hold_path_ + "." + scene->id()] {
-        while (access(held.c_str(), F_OK) == 0) {
-          std::unique_lock<std::mutex> lock(mu_);
-          if (cv_.wait_for(lock, std::chrono::milliseconds(5), [this] { return stopping_; })) {
-            break;
-          }
-        }
-      });
-    }
-
     const SceneSettings& settings = scene->settings();
     auto start = std::chrono::steady_clock::now();
     auto& slot = rasters[scene.get()];
@@ -267,8 +254,21 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
       continue;
     }
     RenderStats render_stats;
+    // The test hook's long render of this one scene (kHoldRendersVariable): a full render
+    // waits in its plan, where it has given up its turn at GL. Set for this render alone:
+    // zooms and other scenes' renders do not wait.
+    if (!hold_path_.empty()) {
+      rasterizer->set_planning_hook([this, held = hold_path_ + "." + scene->id()] {
+        while (access(held.c_str(), F_OK) == 0) {
+          std::unique_lock<std::mutex> lock(mu_);
+          if (cv_.wait_for(lock, std::chrono::milliseconds(5), [this] { return stopping_; })) {
+            break;
+          }
+        }
+      });
+    }
     if (slot.second) frame = slot.second->Apply(*rasterizer, sites, &render_stats);
-    rasterizer->set_planning_hook(nullptr);  // zooms and other scenes' renders do not wait
+    rasterizer->set_planning_hook(nullptr);
     double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (!frame.ok()) {
       rasters.erase(scene.get());  // the next render starts from scratch
