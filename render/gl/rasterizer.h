@@ -66,7 +66,7 @@ class Rasterizer {
   // A test hook, called by a full render once its planning begins, with the turn given up:
   // RenderLoop's held scene (its kHoldRendersVariable) waits there. Null: none.
   void set_planning_hook(std::function<void()> hook) { planning_hook_ = std::move(hook); }
-  void Planning() const {
+  void RunPlanningHook() const {
     if (planning_hook_) planning_hook_();
   }
 

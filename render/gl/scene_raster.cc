@@ -70,7 +70,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
     // The plan makes no GL call: on a software device the other render threads have their
     // turn at GL meanwhile (it takes seconds in a scene of 100,000 crossing segments).
     GlTurn::Away off_gl(rasterizer.gl_turn());
-    rasterizer.Planning();
+    rasterizer.RunPlanningHook();
     if (compute) {
       cov = TileCandidates(grid_, slots, drawn_->index(), &lists);
     } else {

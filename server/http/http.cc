@@ -48,8 +48,7 @@ using tcp = net::ip::tcp;
 using Strand = net::strand<net::io_context::executor_type>;
 using StrandSocket = tcp::socket::rebind_executor<Strand>::other;
 using TcpStream = beast::basic_stream<tcp, Strand>;
-using StrandTimer = net::basic_waitable_timer<std::chrono::steady_clock,
-                                              net::wait_traits<std::chrono::steady_clock>, Strand>;
+using StrandTimer = net::steady_timer::rebind_executor<Strand>::other;
 using google::protobuf::Message;
 using google::protobuf::MethodDescriptor;
 

@@ -24,8 +24,8 @@ using google::protobuf::FieldDescriptor;
 using google::protobuf::Message;
 using google::protobuf::Reflection;
 
-// RapidJSON's own buffer: its writer reserves room for each token and then puts it
-// unchecked, where a std::string took a checked push_back per byte.
+// Into RapidJSON's own buffer, for which its writer reserves room for each token and then
+// puts the token's bytes unchecked.
 using Writer = rapidjson::Writer<rapidjson::StringBuffer>;
 
 // A finite number in its shortest form that reads back to the same value.
