@@ -16,7 +16,7 @@ gvd_packages() {
         shellcheck yamllint python3-yaml chromium chromium-driver python3-selenium \
         python3-openvdb postgresql iproute2 \
         python3-venv python3-setuptools python3-wheel python3-pytest python3-grpcio \
-        python3-protobuf python3-numpy \
+        python3-protobuf python3-numpy python3-httptools \
         libfreetype-dev fonts-dejavu-core fonts-cantarell assimp-testmodels \
         python3-svgelements python3-defusedxml libwacom-common gdal-data
       ;;
