@@ -19,8 +19,9 @@ measures:
     the new version; PostGIS CREATE TABLE, COPY, a GiST index, ANALYZE and a KNN query;
   - a one-site move until a read sees it, p50 and p99 over N moves of a random site to a
     random place (often into empty space, where it takes a large cell): gvd an UpsertSites
-    (SYNC) and a FindNearest at its version at the moved site; PostGIS an UPDATE (autocommit)
-    and a KNN SELECT at the same point;
+    (SYNC) and a FindNearest at its version at the moved site, the moves alternating
+    between the client's two transports (gRPC and HTTP), each followed by PostGIS's of the
+    same site to the same place, an UPDATE (autocommit) and a KNN SELECT at that point;
   - a batch of N random query points in one call, the median of three runs on each side:
     gvd FindNearest (the client's packed stream), PostGIS a LATERAL KNN join over arrays
     passed as parameters;
@@ -29,8 +30,9 @@ pgbench (-M prepared -c 8 -j 2, a KNN script at random points) against h2load (-
 -t 2, a FindNearest over gRPC at one point: h2load sends one body) and wrk (-c 8 -t 2, a
 FindNearest over HTTP/JSON at random points), with p50 and p99 from their per-request logs
 (wrk: its latency distribution).
-Clients: psycopg2 and the project's Python client (gRPC), one connection each, on loopback
-(PostgreSQL on its Unix socket, as a local deployment would use it).
+Clients: psycopg2 and the project's Python client (over gRPC; over HTTP as well for the
+moves), one connection each, on loopback (PostgreSQL on its Unix socket, as a local
+deployment would use it).
 """
 import argparse
 import io
@@ -147,10 +149,16 @@ def pg_load(conn, name, sites):
     return time.perf_counter() - t0
 
 
-def moves(client, conn, name, sites, count, rng):
-    gvd_ms, pg_ms = [], []
+def moves(clients, conn, name, sites, count, rng):
+    """`count` moves on each side; gvd's alternate between the clients (a dict: transport
+    name to client), each move followed by PostGIS's of the same site to the same place."""
+    gvd_ms = {kind: [] for kind in clients}
+    pg_ms = []
+    kinds = list(clients)
     with conn.cursor() as cur:
-        for _ in range(count):
+        for k in range(count):
+            kind = kinds[k % len(kinds)]
+            client = clients[kind]
             i = int(rng.integers(len(sites)))
             site = moved(rng, sites[i])
             sites[i] = site
@@ -159,7 +167,7 @@ def moves(client, conn, name, sites, count, rng):
             t0 = time.perf_counter()
             version = client.upsert_sites(name, [message])
             answer = client.find_nearest(name, [[x, y]], min_version=version)
-            gvd_ms.append(1000 * (time.perf_counter() - t0))
+            gvd_ms[kind].append(1000 * (time.perf_counter() - t0))
             t0 = time.perf_counter()
             cur.execute(f"UPDATE {name} SET geom = ST_GeomFromText(%s) WHERE id = %s",
                         (to_wkt(site), i))
@@ -172,8 +180,13 @@ def moves(client, conn, name, sites, count, rng):
             if answer.distances[0] > answer.error_bounds[0] or row[0] != i:
                 raise SystemExit(f"move of {i} unseen: gvd {answer.site_ids[0]} at "
                                  f"{answer.distances[0]}, PostGIS {row[0]}")
-    return {"gvd_p50_ms": statistics.median(gvd_ms), "gvd_p99_ms": percentile(gvd_ms, 0.99),
-            "postgis_p50_ms": statistics.median(pg_ms), "postgis_p99_ms": percentile(pg_ms, 0.99)}
+    out = {}
+    for kind, ms in gvd_ms.items():
+        out[f"gvd_{kind}_p50_ms"] = statistics.median(ms)
+        out[f"gvd_{kind}_p99_ms"] = percentile(ms, 0.99)
+    out["postgis_p50_ms"] = statistics.median(pg_ms)
+    out["postgis_p99_ms"] = percentile(pg_ms, 0.99)
+    return out
 
 
 def batch(client, conn, name, q, runs=3):
@@ -259,7 +272,7 @@ def capacity(pg, work, grpc_port, http_port, seconds):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("server")
-    ap.add_argument("--moves", type=int, default=300)
+    ap.add_argument("--moves", type=int, default=400)
     ap.add_argument("--seconds", type=int, default=10)
     ap.add_argument("--batch", type=int, default=100_000)
     ap.add_argument("--json")
@@ -280,6 +293,7 @@ def main():
         with open(ports, encoding="ascii") as f:
             grpc_port = int(f.read().split()[0])
         client = gvd.Client(f"127.0.0.1:{grpc_port}", timeout=600)
+        http_client = gvd.Client(f"http://127.0.0.1:{http_port}", timeout=600)
         figures = {}
         for name, make in (("points", scene_points), ("segments", scene_segments),
                            ("curves", scene_curves)):
@@ -288,7 +302,8 @@ def main():
             row = {"sites": len(sites),
                    "load_gvd_ms": 1000 * gvd_load(client, name, sites),
                    "load_postgis_ms": 1000 * pg_load(conn, name, sites)}
-            row["move"] = moves(client, conn, name, sites, args.moves, rng)
+            row["move"] = moves({"grpc": client, "http": http_client}, conn, name, sites,
+                                args.moves, rng)
             row["batch"] = batch(client, conn, name, rng.random((args.batch, 2)))
             figures[name] = row
             print(name, json.dumps(row), flush=True)
@@ -309,15 +324,18 @@ def main():
 
 def print_table(f, batch_size):
     print(f"\n| scene | load until queryable, gvd / PostGIS | one-site move until a read sees it, "
-          f"p50 (p99), gvd / PostGIS | {batch_size:,}-query batch, gvd / PostGIS |")
+          f"p50 (p99), gvd over gRPC / gvd over HTTP / PostGIS | {batch_size:,}-query batch, "
+          f"gvd / PostGIS |")
     print("|---|---|---|---|")
     for name in ("points", "segments", "curves"):
         r = f[name]
         m, b = r["move"], r["batch"]
         print(f"| {name} ({r['sites']:,}) | {r['load_gvd_ms']:.0f} / {r['load_postgis_ms']:.0f} ms "
               f"({r['load_postgis_ms'] / r['load_gvd_ms']:.2f}x) | "
-              f"{m['gvd_p50_ms']:.2f} ({m['gvd_p99_ms']:.2f}) / {m['postgis_p50_ms']:.2f} "
-              f"({m['postgis_p99_ms']:.2f}) ms | {b['gvd_ms']:.0f} / {b['postgis_ms']:.0f} ms "
+              f"{m['gvd_grpc_p50_ms']:.2f} ({m['gvd_grpc_p99_ms']:.2f}) / "
+              f"{m['gvd_http_p50_ms']:.2f} ({m['gvd_http_p99_ms']:.2f}) / "
+              f"{m['postgis_p50_ms']:.2f} ({m['postgis_p99_ms']:.2f}) ms | "
+              f"{b['gvd_ms']:.0f} / {b['postgis_ms']:.0f} ms "
               f"({b['postgis_ms'] / b['gvd_ms']:.0f}x faster) |")
     c = f["capacity"]
     print("\n| single-point FindNearest, 8 connections | queries/s | p50 | p99 | vs PostGIS |")
