@@ -2,11 +2,14 @@
 connection that a real server closed (it restarted) is made anew and the call goes through;
 against a peer of the test's own, an answer that is not HTTP, one cut short, a close before
 any answer on a new connection, and an answer that never comes are each the status a caller
-can act on, and the connection is not used again."""
+can act on, and the connection is not used again. Over TLS, calls and streams reach a server
+whose certificate chains to the CA given, and fail against one it does not."""
 import socket
+import subprocess
 import threading
 import time
 
+import numpy as np
 import pytest
 
 import gvd
@@ -98,3 +101,42 @@ def test_a_broken_connection_is_a_status_and_is_not_used_again(answer, code, wor
                 assert peer.connections == tries
     finally:
         peer.close()
+
+
+@pytest.fixture(scope="module")
+def tls_server(tmp_path_factory):
+    """A server speaking TLS with a certificate for 127.0.0.1 from a CA of the test's own."""
+    d = tmp_path_factory.mktemp("tls")
+    ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"]
+    (d / "san.ext").write_text("subjectAltName=IP:127.0.0.1\n")
+    for command in (["openssl", "req", "-x509", *ec, "-keyout", "ca.key", "-out", "ca.pem",
+                     "-days", "2", "-subj", "/CN=gvd-test-ca"],
+                    ["openssl", "req", *ec, "-keyout", "server.key", "-out", "server.csr",
+                     "-subj", "/CN=127.0.0.1"],
+                    ["openssl", "x509", "-req", "-in", "server.csr", "-CA", "ca.pem", "-CAkey",
+                     "ca.key", "-CAcreateserial", "-out", "server.pem", "-days", "2",
+                     "-extfile", "san.ext"]):
+        subprocess.run(command, cwd=d, check=True, capture_output=True)
+    s = Server(SERVER, "--tls-cert", str(d / "server.pem"), "--tls-key", str(d / "server.key"))
+    s.ca = (d / "ca.pem").read_bytes()
+    yield s
+    s.stop()
+
+
+def test_https_calls_and_streams_check_the_servers_certificate(tls_server):
+    url = f"https://127.0.0.1:{tls_server.http_port}"
+    with gvd.Client(url, root_certificates=tls_server.ca, timeout=60) as c:
+        c.create_scene("tls", window=(0, 0, 1, 1), size=(64, 64))
+        v = c.upsert_points("tls", ["a", "b"], [[0.25, 0.5], [0.75, 0.5]])
+        r = c.find_nearest("tls", [[0.2, 0.5], [0.9, 0.4]], min_version=v)
+        assert r.site_ids.tolist() == ["a", "b"]
+        # A batch past one chunk comes as a stream, on a TLS connection of its own.
+        q = np.random.default_rng(3).random((gvd._client.CHUNK_POINTS + 5, 2))
+        r = c.find_nearest("tls", q, min_version=v)
+        assert r.site_ids.tolist() == np.where(q[:, 0] < 0.5, "a", "b").tolist()
+    # Without the CA the certificate is not trusted: the call fails, naming why.
+    with gvd.Client(url, timeout=60) as c:
+        with pytest.raises(gvd.GvdError) as e:
+            c.list_scenes()
+        assert e.value.code.name == "UNAVAILABLE"
+        assert "CERTIFICATE_VERIFY_FAILED" in str(e.value), e.value
