@@ -3,14 +3,15 @@
 against gvd-server alone, each move split into its upsert and its read, the slow ones listed
 with the time they came after the load.
 
-Usage: moves.py GVD_SERVER [--settle S] [--moves N] [--slow MS]
+Usage: moves.py GVD_SERVER [--settle S] [--moves N] [--slow MS] [--transport grpc|http]
 (run with a Python that has the gvd package: tests/python/run.sh builds such a venv).
 
 For each scene: the load (CreateScene, UpsertSites, a FindNearest at its version), S seconds
 of rest (0: the moves begin at once, meeting the load's render and the store's fold of its
 pack), then N moves as postgis.py makes them (an UpsertSites, SYNC, then a FindNearest at its
-version at the moved site), 0.5 ms apart. Prints each scene's p50, p99 and largest move, and
-the moves over MS milliseconds: (seconds after the first move, upsert ms, read ms).
+version at the moved site), 0.5 ms apart, through the Python client over gRPC or HTTP. Prints
+each scene's p50, p99 and largest move, the p50 of its upsert and of its read, and the moves
+over MS milliseconds: (seconds after the first move, upsert ms, read ms).
 """
 import argparse
 import os
@@ -37,23 +38,26 @@ def main():
     ap.add_argument("--settle", type=float, default=0.0)
     ap.add_argument("--moves", type=int, default=300)
     ap.add_argument("--slow", type=float, default=2.0)
+    ap.add_argument("--transport", choices=("grpc", "http"), default="grpc")
     args = ap.parse_args()
     work = tempfile.mkdtemp(prefix="gvd-moves-")
     server = None
     try:
         ports = os.path.join(work, "ports")
         with open(os.path.join(work, "gvd.log"), "w", encoding="ascii") as log:
-            server, _ = start_server(args.server, os.path.join(work, "gvd"), ports, log,
-                                     "--log-level", "warn")
+            server, http_port = start_server(args.server, os.path.join(work, "gvd"), ports,
+                                             log, "--log-level", "warn")
         with open(ports, encoding="ascii") as f:
-            client = gvd.Client(f"127.0.0.1:{int(f.read().split()[0])}", timeout=600)
+            grpc_port = int(f.read().split()[0])
+        client = gvd.Client(f"http://127.0.0.1:{http_port}" if args.transport == "http"
+                            else f"127.0.0.1:{grpc_port}", timeout=600)
         for name, make in (("points", postgis.scene_points), ("segments", postgis.scene_segments),
                            ("curves", postgis.scene_curves)):
             rng = np.random.default_rng(7)
             sites = make(rng)
             postgis.gvd_load(client, name, sites)
             time.sleep(args.settle)
-            total, slow = [], []
+            total, upserts, reads, slow = [], [], [], []
             first = time.perf_counter()
             for _ in range(args.moves):
                 i = int(rng.integers(len(sites)))
@@ -67,12 +71,16 @@ def main():
                 if answer.distances[0] > answer.error_bounds[0]:
                     raise SystemExit(f"{name}: the move of {i} unseen")
                 total.append(1000 * (t2 - t0))
+                upserts.append(1000 * (t1 - t0))
+                reads.append(1000 * (t2 - t1))
                 if total[-1] > args.slow:
                     slow.append((round(t0 - first, 3), round(1000 * (t1 - t0), 2),
                                  round(1000 * (t2 - t1), 2)))
                 time.sleep(0.0005)
             print(f"{name}: p50 {statistics.median(total):.2f} ms, p99 "
-                  f"{percentile(total, 0.99):.2f} ms, largest {max(total):.2f} ms; over "
+                  f"{percentile(total, 0.99):.2f} ms, largest {max(total):.2f} ms; upsert p50 "
+                  f"{statistics.median(upserts):.3f} ms, read p50 {statistics.median(reads):.3f} "
+                  f"ms; over "
                   f"{args.slow:g} ms (s, upsert ms, read ms): {slow}", flush=True)
     finally:
         if server:
