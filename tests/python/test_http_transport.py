@@ -60,13 +60,24 @@ class Peer:
                 return
             self.connections += 1
             self.held.append(conn)
+            # The whole request, its body too: a socket closed with bytes unread resets
+            # the connection rather than ending it.
             request = b""
-            while b"\r\n\r\n" not in request:
+            while b"\r\n\r\n" not in request or len(request) < self._length(request):
                 chunk = conn.recv(65536)
                 if not chunk:
                     break
                 request += chunk
             self.answer(conn, request)
+
+    @staticmethod
+    def _length(request):
+        head, _, _ = request.partition(b"\r\n\r\n")
+        for line in head.split(b"\r\n"):
+            name, _, value = line.partition(b":")
+            if name.strip().lower() == b"content-length":
+                return len(head) + 4 + int(value)
+        return len(head) + 4
 
     def close(self):
         self.listener.close()

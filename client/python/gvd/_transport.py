@@ -292,7 +292,7 @@ class _Connection:
         try:
             self.sock.sendall(data)
         except ConnectionError as e:
-            raise _Closed(repr(e)) from None
+            raise _Closed(f"the server closed the connection ({e!r})") from None
 
     def read_more(self, answer: _Answer) -> bool:
         """Feeds what the socket has to `answer`'s parser (waiting for at least a byte);
@@ -304,8 +304,8 @@ class _Connection:
             n = self.sock.recv_into(self.buffer)
         except ConnectionError as e:
             if answer.messages == 0:
-                raise _Closed(repr(e)) from None
-            raise
+                raise _Closed(f"the server closed the connection ({e!r})") from None
+            raise OSError(f"the server closed the connection mid-answer ({e!r})") from None
         if n == 0:
             if answer.messages == 0:
                 raise _Closed("the server closed the connection")
