@@ -20,8 +20,9 @@ measures:
   - a one-site move until a read sees it, p50 and p99 over N moves of a random site to a
     random place (often into empty space, where it takes a large cell): gvd an UpsertSites
     (SYNC) and a FindNearest at its version at the moved site, the moves alternating
-    between the client's two transports (gRPC and HTTP), each followed by PostGIS's of the
-    same site to the same place, an UPDATE (autocommit) and a KNN SELECT at that point;
+    between the client's two transports (gRPC and HTTP, N/2 each), each followed by
+    PostGIS's of the same site to the same place, an UPDATE (autocommit) and a KNN SELECT at
+    that point;
   - a batch of N random query points in one call, the median of three runs on each side:
     gvd FindNearest (the client's packed stream), PostGIS a LATERAL KNN join over arrays
     passed as parameters;
@@ -150,8 +151,8 @@ def pg_load(conn, name, sites):
 
 
 def moves(clients, conn, name, sites, count, rng):
-    """`count` moves on each side; gvd's alternate between the clients (a dict: transport
-    name to client), each move followed by PostGIS's of the same site to the same place."""
+    """`count` moves on each side, gvd's alternating between the clients (a dict: transport
+    name to client), each followed by PostGIS's of the same site to the same place."""
     gvd_ms = {kind: [] for kind in clients}
     pg_ms = []
     kinds = list(clients)
