@@ -128,18 +128,18 @@ class HttpTransport:
                       + (f"Authorization: Bearer {token}\r\n" if token else ""))
         self.local = threading.local()
 
-    def _connect(self, timeout: Optional[float]) -> "_Connection":
+    def _connect(self, method: str, timeout: Optional[float]) -> "_Connection":
         try:
             sock = socket.create_connection((self.host, self.port), timeout)
         except OSError as e:
-            raise _transport_error("connect", e) from None
+            raise _transport_error(method, e) from None
         try:
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             if self.context is not None:
                 sock = self.context.wrap_socket(sock, server_hostname=self.host)
         except OSError as e:
             sock.close()
-            raise _transport_error("connect", e) from None
+            raise _transport_error(method, e) from None
         return _Connection(sock)
 
     def _request(self, method: str, content_type: str, body: bytes,
@@ -157,7 +157,7 @@ class HttpTransport:
             conn = getattr(self.local, "conn", None)
             reused = conn is not None
             if conn is None:
-                conn = self.local.conn = self._connect(timeout)
+                conn = self.local.conn = self._connect(method, timeout)
             try:
                 conn.sock.settimeout(timeout)
                 conn.send(data)
@@ -196,7 +196,7 @@ class HttpTransport:
         thread's): each Connect envelope (a flags byte, a 4-byte length, the message) is parsed
         as soon as its last byte has come."""
         raw = body if body is not None else request.SerializeToString()
-        conn = self._connect(timeout)
+        conn = self._connect(method, timeout)
         try:
             conn.sock.settimeout(timeout)
             conn.send(self._request(method, "application/connect+proto",
