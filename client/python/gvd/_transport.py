@@ -96,8 +96,8 @@ class HttpTransport:
     A request is written to the socket whole, and its response read by httptools' parser
     (http-parser, in C). Through the standard library's http.client, which parses each
     answer's headers with the email package, a one-point query took 0.10-0.13 ms on
-    loopback, against 0.04-0.06 ms this way; a one-site move and its read, 0.62-0.67 ms over
-    gRPC against 0.49-0.52 ms this way (tests/bench/postgis.py)."""
+    loopback, against 0.04-0.06 ms this way; a one-site move and its read, 0.64-0.71 ms over
+    gRPC against 0.46-0.54 ms this way (tests/bench/postgis.py)."""
 
     def __init__(self, url: str, *, token: Optional[str], root_certificates: Optional[bytes],
                  private_key: Optional[bytes], certificate_chain: Optional[bytes], tls: bool,
