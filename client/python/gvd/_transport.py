@@ -106,16 +106,16 @@ class HttpTransport:
         parsed = urllib.parse.urlsplit(url)
         if parsed.scheme not in ("http", "https") or not parsed.hostname:
             raise ValueError(f"an HTTP target is http://HOST:PORT or https://HOST:PORT, not {url!r}")
-        self.https = parsed.scheme == "https" or tls
+        https = parsed.scheme == "https" or tls
         self.host = parsed.hostname
-        self.port = parsed.port or (443 if self.https else 80)
+        self.port = parsed.port or (443 if https else 80)
         self.prefix = parsed.path.rstrip("/")
-        if not _HEADER_SAFE.fullmatch(self.prefix) or " " in self.prefix:
+        if not _PATH_SAFE.fullmatch(self.prefix):
             raise ValueError(f"an HTTP target's path holds no spaces or control characters: {url!r}")
         if token is not None and not _HEADER_SAFE.fullmatch(token):
             raise ValueError("a token holds no control characters (it is sent in a header)")
         self.context = None
-        if self.https:
+        if https:
             self.context = ssl.create_default_context(
                 cadata=root_certificates.decode() if root_certificates else None)
             if certificate_chain and private_key:
@@ -240,8 +240,10 @@ class HttpTransport:
             self._drop(conn)
 
 
-# Header values and paths: printable ASCII and tabs (no CR or LF to end a header early).
+# Header values: printable ASCII and tabs (no CR or LF to end a header early); a path, printable
+# ASCII without spaces (one would end it in the request line).
 _HEADER_SAFE = re.compile(r"[\t\x20-\x7e]*")
+_PATH_SAFE = re.compile(r"[\x21-\x7e]*")
 # Bytes asked of the socket at a time, into the connection's own buffer.
 _RECV_BYTES = 256 << 10
 
