@@ -180,8 +180,9 @@ bool InsidePolygon(Vec2 q, const std::vector<Vec2>& v) {
   return inside;
 }
 
-double SiteValue(Vec2 q, const Site& site) {
-  double d = ExactDistance(q, site);
+double SiteValue(Vec2 q, const Site& site) { return SiteValueAt(q, site, ExactDistance(q, site)); }
+
+double SiteValueAt(Vec2 q, const Site& site, double d) {
   if (d > site.max_distance) return INFINITY;
   const Side side = SideOf(site.geometry);
   if (side != Side::kBoth && d > 0 && InsideOf(q, site.geometry) != (side == Side::kInside)) {

@@ -76,6 +76,9 @@ bool InsidePolygon(Vec2 q, const std::vector<Vec2>& vertices);
 // candidate (beyond its max_distance, or on the side of a polygon or path it excludes; the
 // boundary itself belongs to both sides).
 double SiteValue(Vec2 q, const Site& site);
+// The same from d, q's ExactDistance to the site, or NearestFeature's distance, which is the
+// same number (one search of a curve or a tree for both the value and the feature).
+double SiteValueAt(Vec2 q, const Site& site, double d);
 
 // A polyline through points of the Bezier curve (3 or 4 control points) that stays within
 // `tolerance` of it: uniform in the parameter, with n pieces where the bound

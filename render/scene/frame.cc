@@ -94,8 +94,9 @@ void Frame::PixelOf(Vec2 p, uint32_t* i, uint32_t* j) const {
 }
 
 std::optional<NearestAnswer> Frame::Nearest(Vec2 q, FeatureHit* feature) const {
-  std::optional<NearestAnswer> a = Nearest(q);
-  if (!a || !a->found) return a;
+  bool have = false;
+  std::optional<NearestAnswer> a = Nearest(q, feature, &have);
+  if (!a || !a->found || have) return a;
   // A plain point is its own nearest feature, read from the slot table's column.
   if (const Vec2 p = sites().point(a->site_index); !std::isnan(p.x)) {
     *feature = {SegmentDistance(q, p, p), FeatureKind::kVertex, 0, p};  // as NearestFeature
@@ -105,7 +106,9 @@ std::optional<NearestAnswer> Frame::Nearest(Vec2 q, FeatureHit* feature) const {
   return a;
 }
 
-std::optional<NearestAnswer> Frame::Nearest(Vec2 q) const {
+std::optional<NearestAnswer> Frame::Nearest(Vec2 q) const { return Nearest(q, nullptr, nullptr); }
+
+std::optional<NearestAnswer> Frame::Nearest(Vec2 q, FeatureHit* feature, bool* have) const {
   if (empty()) return std::nullopt;
   Vec2 c = grid_.ToPixel(q);
   uint32_t i0 = FloorCenter(c.x, grid_.width), j0 = FloorCenter(c.y, grid_.height);
@@ -155,7 +158,13 @@ std::optional<NearestAnswer> Frame::Nearest(Vec2 q) const {
                       : std::min(limit, error_.UpperBound(d) + step);
       uint32_t index = id - 1;
       if (best.found && index == best.site_index) continue;
-      double value = SiteView::Of(sites(), index).ValueAt(q);
+      // When the feature is asked for, a site's value comes from its nearest feature (one
+      // search of a curve or a tree for both); a plain point's feature is the caller's.
+      const SiteView view = SiteView::Of(sites(), index);
+      FeatureHit hit;
+      const bool with_hit = feature != nullptr && !view.plain_point();
+      if (with_hit) hit = NearestFeature(q, *view.site);
+      double value = with_hit ? SiteValueAt(q, *view.site, hit.distance) : view.ValueAt(q);
       if (!std::isfinite(value)) continue;
       if (!best.found || Beats(diagram, value, best.distance) ||
           (value == best.distance && index < best.site_index)) {
@@ -164,6 +173,8 @@ std::optional<NearestAnswer> Frame::Nearest(Vec2 q) const {
           runner_up_none = false;
         }
         best = {index, value, 0, true};
+        if (with_hit) *feature = hit;
+        if (have) *have = with_hit;
       } else if (runner_up_none || Beats(diagram, value, runner_up)) {
         runner_up = value;
         runner_up_none = false;

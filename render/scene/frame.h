@@ -121,6 +121,11 @@ class Frame {
   NearestAnswer Refine(Vec2 q, const NearestAnswer& answer) const;
 
  private:
+  // Nearest's work. With `feature`, each candidate's value comes from its nearest feature,
+  // and the answer's is left in *feature with *have set, unless its site is a plain point
+  // or every site was scored.
+  std::optional<NearestAnswer> Nearest(Vec2 q, FeatureHit* feature, bool* have) const;
+
   Frame(Grid grid, double eps, std::shared_ptr<const SiteSnapshot> sites)
       : grid_(grid), eps_(eps), snapshot_(std::move(sites)) {}
   const Tile& tile(uint32_t i, uint32_t j) const {

@@ -8,6 +8,7 @@
 
 #include "render/kernel/exact2.h"
 #include "tests/support/oracle.h"
+#include "tests/support/pixel_oracle.h"
 
 namespace gvd {
 namespace {
@@ -115,6 +116,49 @@ TEST(Frame, QueryOutsideTheWindowStillHonoursTheContract) {
   auto f = EmulatedFrame(grid, sites, 1.01, 4);
   ExpectContract(*f, sites, {2.9, 2.9});
   ExpectContract(*f, sites, {-10, 0.5});
+}
+
+// An answer with its feature asked for is the answer without (each candidate's value then
+// comes from its nearest feature: one search of a curve or a tree for both), and the feature
+// is the oracle's nearest part of the answer's site: sites of every kind, some with a
+// max_distance (no candidate where the frame holds them: every site is scored), plain
+// points (their feature is the slot table's point), random queries and queries on the sites.
+TEST(Frame, AnAnswersFeatureIsTheOraclesAndLeavesTheAnswerAsItIs) {
+  Generator gen(31);
+  SiteTable sites;
+  for (int s = 0; s < 30; ++s) {
+    Site site{std::to_string(s), gen.Kind(s % Generator::kKinds)};
+    if (s % 7 == 3) site.max_distance = gen.U(0.02, 0.2);
+    sites.push_back(std::move(site));
+  }
+  auto f = EmulatedFrame(Grid{{0, 0, 1, 1}, 24, 24}, sites, 1.05, 6);
+  std::vector<Vec2> queries;
+  for (int t = 0; t < 2000; ++t) queries.push_back(gen.P());
+  for (const Site& site : sites) {  // (every fifth segment's start: a path has hundreds)
+    const auto segments = oracle::Segments(site.geometry);
+    for (size_t k = 0; k < segments.size(); k += 5) queries.push_back(gen.Near(segments[k].first, 0.01));
+  }
+  int features = 0;
+  for (Vec2 q : queries) {
+    SCOPED_TRACE(::testing::Message() << "q (" << q.x << ", " << q.y << ")");
+    const auto plain = f->Nearest(q);
+    FeatureHit hit;
+    const auto with = f->Nearest(q, &hit);
+    ASSERT_EQ(plain.has_value(), with.has_value());
+    ASSERT_EQ(plain->found, with->found);
+    if (!plain->found) continue;
+    ASSERT_EQ(plain->site_index, with->site_index);
+    ASSERT_EQ(plain->distance, with->distance);
+    ASSERT_EQ(plain->error_bound, with->error_bound);
+    ASSERT_EQ(plain->exact, with->exact);
+    const Geometry& g = sites[with->site_index].geometry;
+    ASSERT_NEAR(hit.distance, oracle::Distance(q, g), oracle::Tolerance(q, hit.distance));
+    ASSERT_TRUE(oracle::IsNearestFeature(q, g, hit.kind, hit.index))
+        << "site " << with->site_index << " feature " << int(hit.kind) << " " << hit.index;
+    ASSERT_TRUE(oracle::IsClosestPoint(q, g, hit.kind, hit.index, hit.closest));
+    ++features;
+  }
+  EXPECT_GT(features, 2000);
 }
 
 }  // namespace
