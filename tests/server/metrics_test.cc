@@ -144,5 +144,54 @@ TEST(MetricsTest, CancelledBatchesStopWorking) {
   EXPECT_NE(text.find("gvd_rpc_in_flight{method=\"FindNearest\"} 0"), std::string::npos) << text;
 }
 
+// A stream whose client goes after a few of its many chunks: the call ends CANCELLED, the
+// server lets it go (none in flight) as its write fails, and answers the next call.
+TEST(MetricsTest, AStreamLeftMidwayEnds) {
+  testing::ServerProcess server(GVD_SERVER_PATH, {"--metrics-listen", "127.0.0.1:0"});
+  ASSERT_TRUE(server.error().empty()) << server.error();
+  int port = testing::MetricsPort(server.log());
+  ASSERT_NE(port, 0) << server.log();
+  auto client = Client::Connect(server.address());
+  v1::Scene scene;
+  ASSERT_TRUE(client->CreateScene(testing::UnitScene("s", 64, 64), &scene).ok());
+  v1::UpsertSitesRequest u;
+  u.set_scene_id("s");
+  for (int i = 0; i < 100; ++i) {
+    auto* s = u.add_sites();
+    s->set_id(std::to_string(i));
+    s->mutable_point()->set_x((i % 10) / 10.0 + 0.05);
+    s->mutable_point()->set_y((i / 10) / 10.0 + 0.05);
+  }
+  uint64_t v;
+  ASSERT_TRUE(client->UpsertSites(u, &v).ok());
+  v1::FindNearestRequest q;
+  q.set_scene_id("s");
+  for (int i = 0; i < 200000; ++i) {
+    q.add_xy((i % 1000) / 1000.0);
+    q.add_xy((i / 1000) / 200.0);
+  }
+  auto channel = grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials());
+  auto stub = v1::VoronoiService::NewStub(channel);
+  grpc::ClientContext ctx;
+  auto reader = stub->FindNearestStream(&ctx, testing::StreamOf(q, 64));
+  v1::FindNearestStreamResponse chunk;
+  for (int k = 0; k < 3; ++k) {
+    ASSERT_TRUE(reader->Read(&chunk));
+    EXPECT_EQ(chunk.offset(), 64u * k);
+    EXPECT_EQ(chunk.packed().distance_size(), 64);
+  }
+  ctx.TryCancel();
+  while (reader->Read(&chunk)) {
+  }
+  EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::CANCELLED);
+  const std::string ended = "gvd_rpc_in_flight{method=\"FindNearestStream\"} 0";
+  std::string text = testing::WaitForMetric(port, ended, 60);
+  EXPECT_NE(text.find(ended), std::string::npos) << text;
+  v1::FindNearestResponse r;
+  q.mutable_xy()->Truncate(2);
+  ASSERT_TRUE(client->FindNearest(q, &r).ok());
+  EXPECT_EQ(r.packed().distance_size(), 1);
+}
+
 }  // namespace
 }  // namespace gvd
