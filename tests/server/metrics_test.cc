@@ -15,13 +15,42 @@
 namespace gvd {
 namespace {
 
-TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
-  testing::ServerProcess server(GVD_SERVER_PATH, {"--metrics-listen", "127.0.0.1:0"});
-  ASSERT_TRUE(server.error().empty()) << server.error();
+// A server with its metrics listener, the listener's port, and a client.
+struct Metered {
+  testing::ServerProcess server{GVD_SERVER_PATH, {"--metrics-listen", "127.0.0.1:0"}};
   int port = testing::MetricsPort(server.log());
-  ASSERT_NE(port, 0) << server.log();
+  std::unique_ptr<Client> client = Client::Connect(server.address());
+};
 
-  auto client = Client::Connect(server.address());
+::testing::AssertionResult Started(const Metered& m) {
+  if (!m.server.error().empty()) return ::testing::AssertionFailure() << m.server.error();
+  if (m.port == 0) return ::testing::AssertionFailure() << "no metrics port: " << m.server.log();
+  return ::testing::AssertionSuccess();
+}
+
+// Scene "s", 64 x 64 pixels, of side x side points on a grid, with additive weights
+// 1e-3 (i % 7) when `weighted`.
+void GridScene(Client& client, int side, bool weighted) {
+  v1::Scene scene;
+  ASSERT_TRUE(client.CreateScene(testing::UnitScene("s", 64, 64), &scene).ok());
+  v1::UpsertSitesRequest u;
+  u.set_scene_id("s");
+  for (int i = 0; i < side * side; ++i) {
+    auto* s = u.add_sites();
+    s->set_id(std::to_string(i));
+    s->mutable_point()->set_x((i % side + 0.5) / side);
+    s->mutable_point()->set_y((i / side + 0.5) / side);
+    if (weighted) s->set_additive_weight(1e-3 * (i % 7));
+  }
+  uint64_t v;
+  ASSERT_TRUE(client.UpsertSites(u, &v).ok());
+}
+
+TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
+  Metered m;
+  ASSERT_TRUE(Started(m));
+  const int port = m.port;
+  auto& client = m.client;
   // A FARTHEST diagram is drawn as meshes on every device, so its full render reports a fill.
   v1::CreateSceneRequest c = testing::UnitScene("metered", 64, 64);
   c.set_diagram(v1::DIAGRAM_FARTHEST);
@@ -97,25 +126,13 @@ TEST(MetricsTest, ScrapeShowsCallsRendersCommitsAndScenes) {
 // way; the client cancels here so that the call is certain to have started first, however
 // slow the machine.)
 TEST(MetricsTest, CancelledBatchesStopWorking) {
-  testing::ServerProcess server(GVD_SERVER_PATH, {"--metrics-listen", "127.0.0.1:0"});
-  ASSERT_TRUE(server.error().empty()) << server.error();
-  int port = testing::MetricsPort(server.log());
-  ASSERT_NE(port, 0) << server.log();
-  auto client = Client::Connect(server.address());
-  v1::Scene scene;
-  ASSERT_TRUE(client->CreateScene(testing::UnitScene("s", 64, 64), &scene).ok());
+  Metered m;
+  ASSERT_TRUE(Started(m));
+  const int port = m.port;
+  auto& server = m.server;
   // Sites: 10,000 weighted points, so an exact answer scores every one of them.
-  v1::UpsertSitesRequest u;
-  u.set_scene_id("s");
-  for (int i = 0; i < 10000; ++i) {
-    auto* s = u.add_sites();
-    s->set_id(std::to_string(i));
-    s->mutable_point()->set_x((i % 100) / 100.0);
-    s->mutable_point()->set_y((i / 100) / 100.0);
-    s->set_additive_weight(1e-3 * (i % 7));
-  }
-  uint64_t v;
-  ASSERT_TRUE(client->UpsertSites(u, &v).ok());
+  GridScene(*m.client, 100, true);
+  if (::testing::Test::HasFatalFailure()) return;
   // A million points: 1e10 site evaluations, minutes of work on a few cores.
   v1::FindNearestRequest q;
   q.set_scene_id("s");
@@ -147,23 +164,13 @@ TEST(MetricsTest, CancelledBatchesStopWorking) {
 // A stream whose client goes after a few of its many chunks: the call ends CANCELLED, the
 // server lets it go (none in flight) as its write fails, and answers the next call.
 TEST(MetricsTest, AStreamLeftMidwayEnds) {
-  testing::ServerProcess server(GVD_SERVER_PATH, {"--metrics-listen", "127.0.0.1:0"});
-  ASSERT_TRUE(server.error().empty()) << server.error();
-  int port = testing::MetricsPort(server.log());
-  ASSERT_NE(port, 0) << server.log();
-  auto client = Client::Connect(server.address());
-  v1::Scene scene;
-  ASSERT_TRUE(client->CreateScene(testing::UnitScene("s", 64, 64), &scene).ok());
-  v1::UpsertSitesRequest u;
-  u.set_scene_id("s");
-  for (int i = 0; i < 100; ++i) {
-    auto* s = u.add_sites();
-    s->set_id(std::to_string(i));
-    s->mutable_point()->set_x((i % 10) / 10.0 + 0.05);
-    s->mutable_point()->set_y((i / 10) / 10.0 + 0.05);
-  }
-  uint64_t v;
-  ASSERT_TRUE(client->UpsertSites(u, &v).ok());
+  Metered m;
+  ASSERT_TRUE(Started(m));
+  const int port = m.port;
+  auto& server = m.server;
+  auto& client = m.client;
+  GridScene(*client, 10, false);
+  if (::testing::Test::HasFatalFailure()) return;
   v1::FindNearestRequest q;
   q.set_scene_id("s");
   for (int i = 0; i < 200000; ++i) {
