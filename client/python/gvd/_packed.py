@@ -79,16 +79,16 @@ def _answer_type() -> type:
     pool = descriptor_pool.DescriptorPool()
     pool.Add(f)
     descriptor = pool.FindMessageTypeByName("gvd._packed.Answers")
-    if hasattr(message_factory, "GetMessageClass"):  # protobuf 4.22 and later
+    if hasattr(message_factory, "GetMessageClass"):  # newer protobuf, which drops the factory
         return message_factory.GetMessageClass(descriptor)
-    return message_factory.MessageFactory(pool).GetPrototype(descriptor)
+    return message_factory.MessageFactory(pool).GetPrototype(descriptor)  # Debian 12's 3.21
 
 
 _Answers = _answer_type()
 
-try:  # protobuf 4.24 and later
+try:  # newer protobuf, whose messages drop UnknownFields()
     from google.protobuf.unknown_fields import UnknownFieldSet as _unknown_fields
-except ImportError:
+except ImportError:  # Debian 12's 3.21
     def _unknown_fields(message):
         return message.UnknownFields()
 
