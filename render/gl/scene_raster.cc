@@ -149,6 +149,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
     stats->pixels = grid_.pixel_count();
     stats->full = true;
   }
+  cost_.Full(Seconds(start));
   return frame_;
 }
 
@@ -185,14 +186,12 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
   if (params_.diagram == Diagram::kFarthest) return RenderAll(rasterizer, stats);
   for (uint32_t s : placed) tally_.Live(*slots.get(s));
 
-  // Each window costs about the same wherever it is (0.4 ms at 100,000 points on the 2-core
-  // machine, on one core); a full render grows with the scene (66-73 ms there, on every
-  // core), so that n / 512 windows take about as long as a full render and half its CPU.
-  // Past that, or past a few dozen in a small scene, drawing everything is cheaper. (A fixed
-  // cap sent every update that gathered more than a few dozen changes to a full render,
-  // however large the scene.)
-  const size_t max_windows = std::max<size_t>(64, drawn_->size() / 512);
-  if (placed.size() + dirty.size() > max_windows) return RenderAll(rasterizer, stats);
+  // Each change costs about the same wherever it is; a full render grows with the scene and
+  // its kind of sites, so the scene's own renders say where one becomes cheaper. (A cap of
+  // max(64, n / 512) changes, right for points, sent every update of 20,000 segments that
+  // gathered 33 moves to a full render of 200 ms, where its windows took some 40 ms.)
+  const size_t changes = placed.size() + dirty.size();
+  if (cost_.FullIsCheaper(changes, drawn_->size())) return RenderAll(rasterizer, stats);
 
   auto start = std::chrono::steady_clock::now();
   // 2. The windows to redraw: the old pieces' reach, and where each placed site can be
@@ -286,6 +285,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
     extent_[placed[k]] = won[k] < 0 ? -1 : won[k] + 0.5 * grid_.pixel_size();
   }
   if (windows.empty()) Publish({}, {}, {});  // nothing visible changed
+  cost_.Update(changes, Seconds(start));
   if (stats) {
     stats->cone_segments = max_segments;
     stats->sites_drawn = drawn;

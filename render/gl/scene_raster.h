@@ -13,6 +13,7 @@
 #include "render/scene/frame.h"
 #include "render/gl/rasterizer.h"
 #include "render/plan/error_tally.h"
+#include "render/plan/update_windows.h"
 #include "render/scene/snapshot.h"
 
 namespace gvd {
@@ -41,6 +42,8 @@ class SceneRaster {
   //    over the existing buffers, within the tiles where they can now be nearest;
   //  - deleting or moving a site clears the window its old cone reached, adds the windows
   //    its new position can win, and redraws there only the sites that can be nearest there;
+  //  - unless the changes would cost more so than one full render (UpdateCost, from this
+  //    scene's renders) or their windows cover half the grid: then everything is drawn;
   //  - in a kFarthest diagram every change draws everything.
   // Reads back only that window and publishes a frame that shares the other tiles.
   // The frame is of `sites` and its version. After an error, the buffers are undefined: make a
@@ -76,6 +79,7 @@ class SceneRaster {
 
   bool valid_ = false;          // the target holds the diagram of drawn_
   ErrorTally tally_;            // since the last full render, over the sites live at some point
+  UpdateCost cost_;             // what full renders and updates have taken here
   std::shared_ptr<const Frame> frame_;
 };
 

@@ -65,4 +65,19 @@ std::vector<UpdateWindow> UpdateWindows(const Grid& grid, const Frame& frame,
   return windows;
 }
 
+void UpdateCost::Update(size_t changes, double seconds) {
+  update_seconds_ = update_seconds_ / 2 + seconds;
+  update_changes_ = update_changes_ / 2 + static_cast<double>(changes);
+}
+
+bool UpdateCost::FullIsCheaper(size_t changes, size_t sites) const {
+  constexpr size_t kFewest = 64;
+  if (changes <= kFewest) return false;
+  if (full_seconds_ <= 0 || update_seconds_ <= 0 || update_changes_ <= 0) {
+    return changes > sites / 512;
+  }
+  return static_cast<double>(changes) * (update_seconds_ / update_changes_) > full_seconds_;
+}
+
 }  // namespace gvd
+
