@@ -42,7 +42,7 @@ class SceneRaster {
   //    over the existing buffers, within the tiles where they can now be nearest;
   //  - deleting or moving a site clears the window its old cone reached, adds the windows
   //    its new position can win, and redraws there only the sites that can be nearest there;
-  //  - unless the changes would cost more so than one full render (UpdateCost, from this
+  //  - unless the changes would cost more than one full render (UpdateCost, from this
   //    scene's renders) or their windows cover half the grid: then everything is drawn;
   //  - in a kFarthest diagram every change draws everything.
   // Reads back only that window and publishes a frame that shares the other tiles.

@@ -80,4 +80,3 @@ bool UpdateCost::FullIsCheaper(size_t changes, size_t sites) const {
 }
 
 }  // namespace gvd
-
