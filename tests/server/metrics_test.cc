@@ -15,11 +15,14 @@
 namespace gvd {
 namespace {
 
-// A server with its metrics listener, the listener's port, and a client.
+// A server with its metrics listener, the listener's port, a client, and a raw stub for
+// calls the client does not make (contexts cancelled midway).
 struct Metered {
   testing::ServerProcess server{GVD_SERVER_PATH, {"--metrics-listen", "127.0.0.1:0"}};
   int port = testing::MetricsPort(server.log());
   std::unique_ptr<Client> client = Client::Connect(server.address());
+  std::unique_ptr<v1::VoronoiService::Stub> stub = v1::VoronoiService::NewStub(
+      grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials()));
 };
 
 ::testing::AssertionResult Started(const Metered& m) {
@@ -129,7 +132,6 @@ TEST(MetricsTest, CancelledBatchesStopWorking) {
   Metered m;
   ASSERT_TRUE(Started(m));
   const int port = m.port;
-  auto& server = m.server;
   // Sites: 10,000 weighted points, so an exact answer scores every one of them.
   GridScene(*m.client, 100, true);
   if (::testing::Test::HasFatalFailure()) return;
@@ -141,8 +143,7 @@ TEST(MetricsTest, CancelledBatchesStopWorking) {
     q.add_xy((i % 1000) / 1000.0);
     q.add_xy((i / 1000) / 1000.0);
   }
-  auto channel = grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials());
-  auto stub = v1::VoronoiService::NewStub(channel);
+  auto& stub = m.stub;
   grpc::ClientContext ctx;
   ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(10));
   v1::FindNearestResponse r;
@@ -167,7 +168,6 @@ TEST(MetricsTest, AStreamLeftMidwayEnds) {
   Metered m;
   ASSERT_TRUE(Started(m));
   const int port = m.port;
-  auto& server = m.server;
   auto& client = m.client;
   GridScene(*client, 10, false);
   if (::testing::Test::HasFatalFailure()) return;
@@ -177,8 +177,7 @@ TEST(MetricsTest, AStreamLeftMidwayEnds) {
     q.add_xy((i % 1000) / 1000.0);
     q.add_xy((i / 1000) / 200.0);
   }
-  auto channel = grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials());
-  auto stub = v1::VoronoiService::NewStub(channel);
+  auto& stub = m.stub;
   grpc::ClientContext ctx;
   auto reader = stub->FindNearestStream(&ctx, testing::StreamOf(q, 64));
   v1::FindNearestStreamResponse chunk;
