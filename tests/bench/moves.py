@@ -46,6 +46,10 @@ def main():
     ap.add_argument("--slow", type=float, default=2.0)
     ap.add_argument("--transport", choices=("grpc", "http"), default="grpc")
     args = ap.parse_args()
+    if not 1 <= args.bursts <= args.moves:
+        ap.error(f"--bursts must be from 1 to --moves ({args.moves}), not {args.bursts}")
+    if args.gap < 0:
+        ap.error(f"--gap must be 0 or more milliseconds, not {args.gap:g}")
     work = tempfile.mkdtemp(prefix="gvd-moves-")
     server = None
     try:

@@ -143,12 +143,11 @@ TEST(MetricsTest, CancelledBatchesStopWorking) {
     q.add_xy((i % 1000) / 1000.0);
     q.add_xy((i / 1000) / 1000.0);
   }
-  auto& stub = m.stub;
   grpc::ClientContext ctx;
   ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(10));
   v1::FindNearestResponse r;
   grpc::Status status;
-  std::thread call([&] { status = stub->FindNearest(&ctx, q, &r); });
+  std::thread call([&] { status = m.stub->FindNearest(&ctx, q, &r); });
   std::string text = testing::WaitForMetric(port, "gvd_rpc_in_flight{method=\"FindNearest\"} 1", 120);
   EXPECT_NE(text.find("gvd_rpc_in_flight{method=\"FindNearest\"} 1"), std::string::npos) << text;
   ctx.TryCancel();
@@ -177,9 +176,8 @@ TEST(MetricsTest, AStreamLeftMidwayEnds) {
     q.add_xy((i % 1000) / 1000.0);
     q.add_xy((i / 1000) / 200.0);
   }
-  auto& stub = m.stub;
   grpc::ClientContext ctx;
-  auto reader = stub->FindNearestStream(&ctx, testing::StreamOf(q, 64));
+  auto reader = m.stub->FindNearestStream(&ctx, testing::StreamOf(q, 64));
   v1::FindNearestStreamResponse chunk;
   for (int k = 0; k < 3; ++k) {
     ASSERT_TRUE(reader->Read(&chunk));
