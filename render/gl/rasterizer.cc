@@ -401,7 +401,8 @@ absl::Status Rasterizer::Compute(const Grid& grid, const DrawParams& params,
     // would have written it. No GL meanwhile: other render threads may have their turn.
     {
       GlTurn::Away off_gl(gl_turn_);
-      ScanTiles(grid, lists, scan, static_cast<float>(params.depth_scale), ids, distances);
+      ScanTiles(grid, grid.all(), lists, scan, static_cast<float>(params.depth_scale), ids,
+                distances);
     }
     upload(compute_buffers_[3], 4, ids->data(), pixels * sizeof(uint32_t));
     upload(compute_buffers_[4], 5, distances->data(), pixels * sizeof(float));

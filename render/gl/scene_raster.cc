@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <chrono>
 #include <numbers>
+#include <optional>
 
 #include "render/kernel/exact2.h"
 #include "render/plan/coverage.h"
+#include "render/plan/scan.h"
 #include "render/plan/site_shape.h"
 #include "render/plan/tile_lists.h"
 #include "render/plan/update_windows.h"
@@ -130,6 +132,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
     readback_seconds = Seconds(read_start);
   }
   valid_ = true;
+  computed_updates_ = compute && rasterizer.native_scan();
   Publish(grid_.all(), ids, distances);
   if (stats) {
     stats->cone_segments = max_segments;
@@ -205,11 +208,21 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
   //    proof restricted to the window; the others only their new sites.
   //    The proof runs sparse: its cost follows the window and the sites near it, not the
   //    scene's size.
+  //    Computed, each window gets the scan's candidate lists of its tiles instead.
   std::vector<std::vector<SiteDraw>> draws(windows.size());
+  std::vector<TileLists> lists(computed_updates_ ? windows.size() : 0);
   uint32_t tile_px = 0;
   for (size_t w = 0; w < windows.size(); ++w) {
     if (!windows[w].clear) {
       draws[w] = std::move(windows[w].added);
+      if (computed_updates_) {
+        lists[w] = AddedCandidates(grid_, slots, *frame_, windows[w].rect, draws[w]);
+      }
+      continue;
+    }
+    if (computed_updates_) {
+      tile_px = kScanTile;
+      draws[w] = WindowCandidates(grid_, slots, drawn_->index(), windows[w].rect, &lists[w]);
       continue;
     }
     tile_px = DefaultTilePx(grid_, drawn_->size(), drawn_->ink());
@@ -249,23 +262,33 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
   for (uint32_t s : placed) boxes.push_back(BoundingBox(slots.get(s)->geometry));
   double draw_seconds = 0, readback_seconds = 0;
   PixelRect all_windows;
+  // Computed: no GL call, so other render threads may have their turn at GL meanwhile.
+  std::optional<GlTurn::Away> off_gl;
+  if (computed_updates_) off_gl.emplace(rasterizer.gl_turn());
   for (size_t w = 0; w < windows.size(); ++w) {
     const PixelRect& rect = windows[w].rect;
     auto draw_start = std::chrono::steady_clock::now();
-    if (auto s = rasterizer.Draw(grid_, params_, rect, windows[w].clear, slots, draws[w],
-                                 *target_);
-        !s.ok()) {
-      return s;
-    }
     std::vector<uint32_t> ids;
     std::vector<float> distances;
-    auto read_start = std::chrono::steady_clock::now();
-    draw_seconds += std::chrono::duration<double>(read_start - draw_start).count();
-    if (auto s = rasterizer.ReadBack(*target_, rect, params_.depth_scale, &ids, &distances);
-        !s.ok()) {
-      return s;
+    if (computed_updates_) {
+      ScanTiles(grid_, rect, lists[w], ScanSitesOf(grid_, params_, slots, draws[w]),
+                static_cast<float>(params_.depth_scale), &ids, &distances);
+      if (!windows[w].clear) OverFrame(*frame_, rect, &ids, &distances);
+      draw_seconds += Seconds(draw_start);
+    } else {
+      if (auto s = rasterizer.Draw(grid_, params_, rect, windows[w].clear, slots, draws[w],
+                                   *target_);
+          !s.ok()) {
+        return s;
+      }
+      auto read_start = std::chrono::steady_clock::now();
+      draw_seconds += std::chrono::duration<double>(read_start - draw_start).count();
+      if (auto s = rasterizer.ReadBack(*target_, rect, params_.depth_scale, &ids, &distances);
+          !s.ok()) {
+        return s;
+      }
+      readback_seconds += Seconds(read_start);
     }
-    readback_seconds += Seconds(read_start);
     for (uint32_t j = rect.y0, k = 0; j < rect.y1; ++j) {
       for (uint32_t i = rect.x0; i < rect.x1; ++i, ++k) {
         if (ids[k] == 0) continue;
@@ -289,7 +312,13 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
   if (stats) {
     stats->cone_segments = max_segments;
     stats->sites_drawn = drawn;
-    stats->fill_ratio = fill / (grid_.window.width() * grid_.window.height());
+    stats->fill_ratio =
+        computed_updates_ ? 0 : fill / (grid_.window.width() * grid_.window.height());
+    stats->computed = computed_updates_;
+    uint64_t pairs = 0;
+    for (const TileLists& l : lists) pairs += l.pairs();
+    stats->candidates_per_pixel =
+        area > 0 ? double(pairs) * kScanTile * kScanTile / double(area) : 0;
     stats->tile_px = tile_px;
     stats->coverage_seconds = coverage_seconds;
     stats->draw_seconds = draw_seconds;

@@ -45,7 +45,10 @@ class SceneRaster {
   //  - unless the changes would cost more than one full render (UpdateCost, from this
   //    scene's renders) or their windows cover half the grid: then everything is drawn;
   //  - in a kFarthest diagram every change draws everything.
-  // Reads back only that window and publishes a frame that shares the other tiles.
+  // Where the last full render was computed in native code (Rasterizer::native_scan: on a
+  // software device), the windows are computed the same way, on the CPU, from the frame
+  // (render/plan/scan.h), and the target is left as that render left it; else they are drawn
+  // into the target and read back. Either way, publishes a frame that shares the other tiles.
   // The frame is of `sites` and its version. After an error, the buffers are undefined: make a
   // new SceneRaster (the render loop does).
   absl::StatusOr<std::shared_ptr<const Frame>> Apply(Rasterizer& rasterizer,
@@ -77,7 +80,9 @@ class SceneRaster {
   std::shared_ptr<const SiteSnapshot> drawn_;  // the sites the target holds
   std::vector<double> extent_;  // per slot: how far its drawn fan reaches; < 0: not drawn
 
-  bool valid_ = false;          // the target holds the diagram of drawn_
+  bool valid_ = false;          // the frame holds the diagram of drawn_, and so does the
+                                // target unless computed_updates_
+  bool computed_updates_ = false;  // updates are computed on the CPU (the last full render was)
   ErrorTally tally_;            // since the last full render, over the sites live at some point
   UpdateCost cost_;             // what full renders and updates have taken here
   std::shared_ptr<const Frame> frame_;

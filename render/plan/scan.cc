@@ -163,26 +163,28 @@ ScanSites ScanSitesOf(const Grid& grid, const DrawParams& params, const SlotTabl
   return out;
 }
 
-void ScanTiles(const Grid& grid, const TileLists& lists, const ScanSites& sites, float none,
-               std::vector<uint32_t>* ids, std::vector<float>* values) {
+void ScanTiles(const Grid& grid, PixelRect rect, const TileLists& lists, const ScanSites& sites,
+               float none, std::vector<uint32_t>* ids, std::vector<float>* values) {
   const float margin = static_cast<float>(DrawMargin(grid));
-  const uint32_t tiles_x = (grid.width + kScanTile - 1) / kScanTile;
-  const uint32_t tiles_y = (grid.height + kScanTile - 1) / kScanTile;
+  const PixelRect region = ScanTilesAround(grid, rect);
+  const uint32_t tiles_x = (region.width() + kScanTile - 1) / kScanTile;
+  const uint32_t tiles_y = (region.height() + kScanTile - 1) / kScanTile;
   const ScanInput in{lists, sites.sites, sites.segments, static_cast<float>(grid.pixel_width()),
                      static_cast<float>(grid.pixel_height()), margin};
-  ids->resize(grid.pixel_count());
-  values->resize(grid.pixel_count());
-  ParallelFor(tiles_y, 1, [&](size_t begin, size_t end) {
+  ids->resize(rect.area());
+  values->resize(rect.area());
+  // Rows of tiles in pieces of some 64 tiles at least: a small window's on this thread.
+  ParallelFor(tiles_y, std::max<size_t>(1, 64 / tiles_x), [&](size_t begin, size_t end) {
     alignas(32) float best[kScanPixels];
     alignas(32) uint32_t id[kScanPixels];
     for (size_t ty = begin; ty < end; ++ty) {
-      const uint32_t y0 = static_cast<uint32_t>(ty) * kScanTile;
+      const uint32_t y0 = region.y0 + static_cast<uint32_t>(ty) * kScanTile;
       for (uint32_t tx = 0; tx < tiles_x; ++tx) {
-        const uint32_t x0 = tx * kScanTile;
+        const uint32_t x0 = region.x0 + tx * kScanTile;
         ScanTile(in, ty * tiles_x + tx, x0, y0, best, id);
-        for (uint32_t y = y0; y < std::min(y0 + kScanTile, grid.height); ++y) {
-          for (uint32_t x = x0; x < std::min(x0 + kScanTile, grid.width); ++x) {
-            const size_t i = size_t{y} * grid.width + x;
+        for (uint32_t y = std::max(y0, rect.y0); y < std::min(y0 + kScanTile, rect.y1); ++y) {
+          for (uint32_t x = std::max(x0, rect.x0); x < std::min(x0 + kScanTile, rect.x1); ++x) {
+            const size_t i = size_t{y - rect.y0} * rect.width() + (x - rect.x0);
             const uint32_t k = (y - y0) * kScanTile + (x - x0);
             (*ids)[i] = id[k];
             (*values)[i] = id[k] == 0 ? none : best[k];
@@ -191,6 +193,22 @@ void ScanTiles(const Grid& grid, const TileLists& lists, const ScanSites& sites,
       }
     }
   });
+}
+
+void OverFrame(const Frame& frame, PixelRect rect, std::vector<uint32_t>* ids,
+               std::vector<float>* values) {
+  for (uint32_t j = rect.y0, k = 0; j < rect.y1; ++j) {
+    for (uint32_t i = rect.x0; i < rect.x1; ++i, ++k) {
+      const uint32_t below = frame.id_at(i, j);
+      const float value = frame.distance_at(i, j);
+      const uint32_t over = (*ids)[k];
+      if (below != 0 &&
+          (over == 0 || value < (*values)[k] || (value == (*values)[k] && below < over))) {
+        (*ids)[k] = below;
+        (*values)[k] = value;
+      }
+    }
+  }
 }
 
 }  // namespace gvd

@@ -1,8 +1,9 @@
-// The scan of a computed full render, in native code: what the compute shader nearest.comp
-// does on a GPU, done on the CPU pool where llvmpipe would run the shader on one thread. Each
-// pixel centre gets the least value among its tile's candidates (render/plan/tile_lists.h)
-// present there, in float from the same inputs as the shader's. Also the per-fragment site
-// record that the shaders (exact.vert, nearest.comp) and this scan read.
+// The scan of a computed render, in native code: what the compute shader nearest.comp does on
+// a GPU, done on the CPU pool where llvmpipe would run the shader on one thread, for a full
+// render and for an incremental render's windows. Each pixel centre gets the least value
+// among its tile's candidates (render/plan/tile_lists.h) present there, in float from the
+// same inputs as the shader's. Also the per-fragment site record that the shaders
+// (exact.vert, nearest.comp) and this scan read.
 #pragma once
 
 #include <cstdint>
@@ -17,6 +18,7 @@
 #include "render/plan/coverage.h"
 #include "render/plan/site_shape.h"
 #include "render/plan/tile_lists.h"
+#include "render/scene/frame.h"
 #include "render/scene/slot_table.h"
 
 namespace gvd {
@@ -52,9 +54,17 @@ struct ScanSites {
 ScanSites ScanSitesOf(const Grid& grid, const DrawParams& params, const SlotTable& slots,
                       const std::vector<SiteDraw>& draws);
 
-// The ids and values of every pixel centre of the grid, row-major, `none` where no candidate
-// is present: nearest.comp's output. Runs on the CPU pool, tile by tile. Thread-safe.
-void ScanTiles(const Grid& grid, const TileLists& lists, const ScanSites& sites, float none,
-               std::vector<uint32_t>* ids, std::vector<float>* values);
+// The ids and values of the pixel centres of `rect` (grid.all() for a full render), row-major,
+// `none` where no candidate is present: nearest.comp's output, over the scan's tiles of
+// ScanTilesAround(grid, rect), whose lists `lists` are, row-major over them. Runs on the CPU
+// pool, tile by tile (a small window's on the calling thread). Thread-safe.
+void ScanTiles(const Grid& grid, PixelRect rect, const TileLists& lists, const ScanSites& sites,
+               float none, std::vector<uint32_t>* ids, std::vector<float>* values);
+
+// The scan of sites drawn over `frame` in `rect` (ids and values as ScanTiles gives them):
+// each pixel takes the frame's id and value instead where those are less, or equal with the
+// lower id (the scan's tie rule), as drawing the sites over the frame would keep them.
+void OverFrame(const Frame& frame, PixelRect rect, std::vector<uint32_t>* ids,
+               std::vector<float>* values);
 
 }  // namespace gvd

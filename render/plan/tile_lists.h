@@ -5,10 +5,12 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "render/kernel/grid2.h"
 #include "render/plan/coverage.h"
+#include "render/scene/frame.h"
 #include "render/scene/site_index.h"
 #include "render/scene/slot_table.h"
 
@@ -38,6 +40,9 @@ struct TileLists {
   std::vector<Point> points;
   std::vector<uint32_t> sites;
   std::vector<Segment> segments;
+
+  // The (tile, site) pairs the lists hold. O(entries).
+  uint64_t pairs() const;
 };
 static_assert(sizeof(TileLists::Point) == 4 * 4 && sizeof(TileLists::Segment) == 2 * 4);
 
@@ -48,6 +53,30 @@ static_assert(sizeof(TileLists::Point) == 4 * 4 && sizeof(TileLists::Segment) ==
 // (TileCover::CoverDown). CONTRACT: as ComputeCoverage's, in a kNearest diagram.
 Coverage TileCandidates(const Grid& grid, const SlotTable& slots, const SiteIndex& index,
                         TileLists* lists);
+
+// The scan's tiles that meet `rect` (a rectangle of the grid's pixels): its corners moved out
+// to multiples of kScanTile, but for the grid's edge. A window's lists are of these tiles,
+// row-major.
+PixelRect ScanTilesAround(const Grid& grid, PixelRect rect);
+
+// The candidate lists of the scan's tiles around `rect` (ScanTilesAround's), row-major over
+// them, by the same proof as TileCandidates' from the index: for an incremental render's
+// window cleared and computed again, at a cost that follows the window and the sites near
+// it, not the scene's size. Returns the sites the lists name, in slot order, each with the
+// radius its tiles need and their union as its clip; the lists' other sites are indices of
+// it (as after IndexByDraw). On the calling thread. CONTRACT: as TileCandidates'.
+std::vector<SiteDraw> WindowCandidates(const Grid& grid, const SlotTable& slots,
+                                       const SiteIndex& index, PixelRect rect,
+                                       TileLists* lists);
+
+// The lists of the scan's tiles around `rect` (ScanTilesAround's) for sites drawn over what
+// `frame` holds there, as an incremental render adds sites to a window it does not clear:
+// each of `added` in the tiles its clip meets, with the segments that can hold its nearest
+// point where its value is at most the frame's greatest in the tile
+// (TileCover::NeededSegments), named as indices of `added`. CONTRACT: `frame` is of `grid`,
+// and every slot of `added` holds a site of `slots`.
+TileLists AddedCandidates(const Grid& grid, const SlotTable& slots, const Frame& frame,
+                          PixelRect rect, std::span<const SiteDraw> added);
 
 // Renames the lists' other sites (TileCandidates gives slots) as indices of `draws`, which
 // the scan and the shader read. CONTRACT: draws are in slot order and hold every site the

@@ -11,6 +11,7 @@
 #include <set>
 #include <thread>
 
+#include "absl/cleanup/cleanup.h"
 #include "absl/synchronization/mutex.h"
 #include "gvd/client.h"
 #include "tests/bench/bench_common.h"
@@ -196,10 +197,15 @@ BENCHMARK(BM_Large4096)->DenseRange(0, 2)->Unit(benchmark::kMillisecond)->UseRea
 
 // 2. One-site add (0), move (1) and delete (2) in a scene of 100,000 points at 1024 x 1024:
 // the time until the new frame exists (publishing it is a pointer swap). range(1) sites
-// change at once (the changes a render finds gathered while it was busy).
+// change at once (the changes a render finds gathered while it was busy). range(2): 1 the
+// windows computed on the CPU (Rasterizer::native_scan, a software device's default), 0
+// drawn into the target and read back.
 void BM_UpdateOneSite(benchmark::State& state) {
   Gl& gl = Gl::Get();
   if (!gl.context) return state.SkipWithError("no EGL context");
+  const bool native = gl.rasterizer->native_scan();
+  gl.rasterizer->set_native_scan(state.range(2) == 1);
+  absl::Cleanup restore = [&] { gl.rasterizer->set_native_scan(native); };
   Grid grid{kUnit, 1024, 1024};
   auto scene = std::move(*SceneRaster::Create(grid, grid.pixel_size()));
   SiteTable sites = RandomSites(100000, kUnit, 6);
@@ -244,13 +250,12 @@ void BM_UpdateOneSite(benchmark::State& state) {
   state.counters["coverage_ms"] = coverage * 1e3 / state.iterations();
   state.counters["draw_ms"] = draw * 1e3 / state.iterations();
   state.counters["readback_ms"] = readback * 1e3 / state.iterations();
-  state.SetLabel(kind == 0 ? "add" : kind == 1 ? "move" : "delete");
+  state.SetLabel(std::string(kind == 0 ? "add" : kind == 1 ? "move" : "delete") +
+                 (stats.computed ? ", computed" : ", drawn"));
 }
 BENCHMARK(BM_UpdateOneSite)
-    ->ArgsProduct({{0, 1, 2}, {1}})
-    ->Args({1, 64})
-    ->Args({1, 256})
-    ->Args({1, 1024})
+    ->ArgsProduct({{0, 1, 2}, {1}, {0, 1}})
+    ->ArgsProduct({{1}, {64, 256, 1024}, {0, 1}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 

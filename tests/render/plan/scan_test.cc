@@ -15,6 +15,7 @@
 #include "render/plan/scan.h"
 #include "render/plan/site_shape.h"
 #include "render/plan/tile_lists.h"
+#include "render/plan/update_windows.h"
 #include "render/scene/frame.h"
 #include "render/scene/snapshot.h"
 #include "tests/support/oracle.h"
@@ -23,32 +24,39 @@
 namespace gvd {
 namespace {
 
-// The frame the scan gives for `sites` on `grid`, its error model as a computed render's.
-std::shared_ptr<const Frame> Scan(const Grid& grid, const SiteTable& sites) {
-  auto snapshot = SiteSnapshot::Of(1, sites);
+// The frame the scan gives for `snapshot` on `grid`, its error model as a computed render's;
+// `params` gets the render's.
+std::shared_ptr<const Frame> Scan(const Grid& grid, std::shared_ptr<const SiteSnapshot> snapshot,
+                                  DrawParams* params) {
   const SlotTable& slots = snapshot->sites();
   TileLists lists;
   Coverage cov = TileCandidates(grid, slots, snapshot->index(), &lists);
-  DrawParams params{grid.pixel_size(), RenderMode::kExact, Diagram::kNearest, 1};
+  *params = {grid.pixel_size(), RenderMode::kExact, Diagram::kNearest, 1};
   ErrorTally tally;
   std::vector<SiteDraw> draws;
   double max_value = 0;
   for (uint32_t s = 0; s < slots.size(); ++s) {
+    if (slots.get(s) == nullptr) continue;
     tally.Live(*slots.get(s));
     if (cov.radius[s] < 0) continue;
     const SiteDraw& d = draws.emplace_back(SiteDraw{s, cov.radius[s], cov.clip[s]});
-    const SiteShape shape = ShapeOf(grid, params, *slots.get(s), d);
+    const SiteShape shape = ShapeOf(grid, *params, *slots.get(s), d);
     tally.Drawn(grid, *slots.get(s), shape);
     max_value = std::max(max_value, shape.max_value);
   }
-  params.depth_scale = std::max(2 * max_value, 4 * grid.window.diagonal());
+  params->depth_scale = std::max(2 * max_value, 4 * grid.window.diagonal());
   IndexByDraw(draws, slots.size(), &lists);
   std::vector<uint32_t> ids;
   std::vector<float> values;
-  ScanTiles(grid, lists, ScanSitesOf(grid, params, slots, draws),
-            static_cast<float>(params.depth_scale), &ids, &values);
-  return std::make_shared<const Frame>(grid, params.eps, tally.Model(grid, params), ids.data(),
+  ScanTiles(grid, grid.all(), lists, ScanSitesOf(grid, *params, slots, draws),
+            static_cast<float>(params->depth_scale), &ids, &values);
+  return std::make_shared<const Frame>(grid, params->eps, tally.Model(grid, *params), ids.data(),
                                        values.data(), snapshot);
+}
+
+std::shared_ptr<const Frame> Scan(const Grid& grid, const SiteTable& sites) {
+  DrawParams params;
+  return Scan(grid, SiteSnapshot::Of(1, sites), &params);
 }
 
 // Sites: ten of one kind (or of every kind, kind Generator::kKinds) around the unit window, some weighted,
@@ -138,6 +146,86 @@ TEST(ScanTest, SitesOutsideTheWindowAndHugeWeights) {
   const Grid grid{{0, 0, 1, 1}, 40, 40};
   auto frame = Scan(grid, sites);
   CheckEveryPixel(*frame, sites, "outside and huge weights");
+}
+
+// An incremental render's windows scanned on the CPU, as SceneRaster computes them on a
+// software device: after additions alone (windows the new sites are drawn over:
+// AddedCandidates, OverFrame), then moves, a deletion and additions (windows cleared and
+// computed again: WindowCandidates) of every kind, the frame holds against the oracle at
+// every pixel.
+TEST(ScanTest, UpdatedWindowsAgainstTheOracle) {
+  int cleared = 0, drawn_over = 0;
+  for (int kind = 0; kind <= Generator::kKinds; ++kind) {
+    const std::string what = "kind " + std::to_string(kind);
+    Generator gen(1000 + kind);
+    const SiteTable sites = RandomSites(300 + kind, kind);
+    auto snapshot = SiteSnapshot::Of(1, sites);
+    DrawParams params;
+    std::shared_ptr<const Frame> frame = Scan(kGrid, snapshot, &params);
+    std::vector<uint32_t> free_slots;
+    auto update = [&](std::vector<SiteChange> changes, const std::string& when) {
+      auto after = Advance(snapshot, std::move(changes), &free_slots);
+      const SlotTable& slots = after->sites();
+      // The old pixels of what moved or went: there, the frame must be computed again.
+      std::vector<uint32_t> placed;
+      std::vector<bool> changed(slots.size(), false);
+      SlotTable::Diff(snapshot->sites(), slots, [&](uint32_t s, const Site*, const Site* now) {
+        changed[s] = true;
+        if (now) placed.push_back(s);
+      });
+      PixelRect old_pixels;
+      for (uint32_t j = 0; j < kGrid.height; ++j) {
+        for (uint32_t i = 0; i < kGrid.width; ++i) {
+          const uint32_t id = frame->id_at(i, j);
+          if (id != 0 && changed[id - 1]) old_pixels = old_pixels.Union({i, j, i + 1, j + 1});
+        }
+      }
+      std::vector<PixelRect> dirty;
+      if (!old_pixels.empty()) dirty.push_back(old_pixels);
+      DrawParams scratch;  // the frame keeps the first render's depth scale, as SceneRaster does
+      const ErrorModel error = Scan(kGrid, after, &scratch)->error();
+      for (UpdateWindow& w : UpdateWindows(kGrid, *frame, slots, placed, dirty)) {
+        TileLists lists;
+        std::vector<SiteDraw> draws;
+        if (w.clear) {
+          draws = WindowCandidates(kGrid, slots, after->index(), w.rect, &lists);
+          ++cleared;
+        } else {
+          draws = std::move(w.added);
+          lists = AddedCandidates(kGrid, slots, *frame, w.rect, draws);
+          ++drawn_over;
+        }
+        std::vector<uint32_t> ids;
+        std::vector<float> values;
+        ScanTiles(kGrid, w.rect, lists, ScanSitesOf(kGrid, params, slots, draws),
+                  static_cast<float>(params.depth_scale), &ids, &values);
+        if (!w.clear) OverFrame(*frame, w.rect, &ids, &values);
+        frame = std::make_shared<const Frame>(*frame, error, w.rect, ids.data(),
+                                              values.data(), after);
+      }
+      snapshot = after;
+      // Free slots become sites that are never a candidate (max_distance 0).
+      SiteTable table;
+      for (uint32_t s = 0; s < slots.size(); ++s) {
+        const Site* site = slots.get(s);
+        table.push_back(site ? *site : Site{"", PointSite{{1e30, 1e30}}, 0, 1, 0});
+        if (!site) table.back().max_distance = 0;
+      }
+      CheckEveryPixel(*frame, table, what + ", " + when);
+    };
+    auto geometry = [&] {
+      return gen.Kind(kind == Generator::kKinds ? int(gen.U(0, Generator::kKinds)) : kind);
+    };
+    update({{"new1", geometry()}, {"new2", geometry()}}, "after additions");
+    update({{sites[1].id, geometry()},
+            {sites[4].id, geometry()},
+            {sites[7].id, std::nullopt},
+            {"new3", geometry()}},
+           "after moves");
+    if (::testing::Test::HasFailure()) return;
+  }
+  EXPECT_GE(cleared, Generator::kKinds);
+  EXPECT_GE(drawn_over, Generator::kKinds);
 }
 
 }  // namespace
