@@ -39,8 +39,9 @@ std::vector<UpdateWindow> UpdateWindows(const Grid& grid, const Frame& frame,
 // Whether an update redraws its windows or renders everything, from what each has cost this
 // scene. A full render's time grows with the scene and the kind of its sites (on the 2-core
 // machine: 100,000 points 70-90 ms, 20,000 segments 200 ms), an update's with the changes it
-// gathered (a moved site's old reach and new place: 0.4 ms each at 100,000 points, 0.5-0.6
-// ms for segments). Not thread-safe: a scene's render thread keeps one.
+// gathered (a moved site's old reach and new place, drawn through llvmpipe: 0.4 ms each at
+// 100,000 points, 0.5-0.6 ms for segments; computed on the CPU, 0.1-0.3 ms at 100,000
+// points). Not thread-safe: a scene's render thread keeps one.
 class UpdateCost {
  public:
   // A full render took `seconds`.
