@@ -199,10 +199,11 @@ std::vector<SiteDraw> WindowCandidates(const Grid& grid, const SlotTable& slots,
   // The sites kept, by slot: what the lists name until they are renamed below.
   const auto by_slot = [](uint32_t slot) { return slot; };
   std::vector<Run> run(1);
-  const TileCover::Leaf leaf = [&](PixelRect rect, std::span<const uint32_t> kept,
+  const TileCover::Leaf leaf = [&](PixelRect leaf_rect, std::span<const uint32_t> kept,
                                    std::span<const double> radii, double upper) {
-    const uint32_t tile = (rect.y0 - region.y0) / kTile * tiles_x + (rect.x0 - region.x0) / kTile;
-    run[0].Add(grid, slots, tile, rect, kept, radii, upper, by_slot);
+    const uint32_t tile = (leaf_rect.y0 - region.y0) / kTile * tiles_x +
+                          (leaf_rect.x0 - region.x0) / kTile;
+    run[0].Add(grid, slots, tile, leaf_rect, kept, radii, upper, by_slot);
   };
   for (uint32_t y0 = region.y0; y0 < region.y1; y0 += top) {
     for (uint32_t x0 = region.x0; x0 < region.x1; x0 += top) {
@@ -211,8 +212,8 @@ std::vector<SiteDraw> WindowCandidates(const Grid& grid, const SlotTable& slots,
     }
   }
   std::vector<SiteDraw> draws;
-  Assemble(run, region, lists, [&](uint32_t slot, double radius, PixelRect rect) {
-    draws.push_back({slot, radius, rect});
+  Assemble(run, region, lists, [&](uint32_t slot, double radius, PixelRect tile) {
+    draws.push_back({slot, radius, tile});
   });
   std::sort(draws.begin(), draws.end(),
             [](const SiteDraw& a, const SiteDraw& b) { return a.slot < b.slot; });
@@ -247,25 +248,26 @@ TileLists AddedCandidates(const Grid& grid, const SlotTable& slots, const Frame&
   std::vector<uint32_t> kept;
   std::vector<double> radii;
   for (uint32_t tile = 0; tile < tiles_x * tiles_y; ++tile) {
-    const PixelRect rect = TileRect(region, tiles_x, tile);
+    const PixelRect tile_rect = TileRect(region, tiles_x, tile);
     kept.clear();
     radii.clear();
     for (const SiteDraw& d : added) {
-      if (d.radius >= 0 && d.clip.Intersects(rect)) {
+      if (d.radius >= 0 && d.clip.Intersects(tile_rect)) {
         kept.push_back(d.slot);
         radii.push_back(d.radius);
       }
     }
+    if (kept.empty()) continue;
     // The frame's values bound the values drawn over it: a site best at one of these
     // centres is below the greatest of them there.
     double upper = 0;
-    for (uint32_t j = rect.y0; j < rect.y1; ++j) {
-      for (uint32_t i = rect.x0; i < rect.x1; ++i) {
+    for (uint32_t j = tile_rect.y0; j < tile_rect.y1; ++j) {
+      for (uint32_t i = tile_rect.x0; i < tile_rect.x1; ++i) {
         upper = std::max(upper, static_cast<double>(frame.distance_at(i, j)));
       }
     }
     upper = error.UpperBound(upper);
-    run[0].Add(grid, slots, tile, rect, kept, radii, upper, [&](uint32_t slot) {
+    run[0].Add(grid, slots, tile, tile_rect, kept, radii, upper, [&](uint32_t slot) {
       for (uint32_t k = 0; k < added.size(); ++k) {
         if (added[k].slot == slot) return k;
       }
