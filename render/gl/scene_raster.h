@@ -77,7 +77,7 @@ class SceneRaster {
   const FullRender path_;
   std::unique_ptr<RenderTarget> target_;
 
-  std::shared_ptr<const SiteSnapshot> drawn_;  // the sites the target holds
+  std::shared_ptr<const SiteSnapshot> drawn_;  // the sites the frame (and target) hold
   std::vector<double> extent_;  // per slot: how far its drawn fan reaches; < 0: not drawn
 
   bool valid_ = false;          // the frame holds the diagram of drawn_, and so does the
