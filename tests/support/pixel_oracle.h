@@ -13,6 +13,7 @@
 #include "render/kernel/path2.h"
 #include "tests/support/oracle.h"
 #include "render/scene/frame.h"
+#include "render/scene/slot_table.h"
 
 namespace gvd {
 
@@ -31,6 +32,18 @@ inline bool MayBeDrawn(Vec2 p, const Site& s, const Frame& f) {
     return false;
   const Side side = oracle::SideOf(s.geometry);
   return side == Side::kBoth || d <= margin || oracle::InsideOf(p, s.geometry) == (side == Side::kInside);
+}
+
+// The sites of `slots` as the oracle reads them, slot by slot: a free slot becomes a site
+// that is never a candidate (max_distance 0), so that a frame's ids (slot + 1) index it.
+inline SiteTable OracleSites(const SlotTable& slots) {
+  SiteTable table;
+  for (uint32_t s = 0; s < slots.size(); ++s) {
+    const Site* site = slots.get(s);
+    table.push_back(site ? *site : Site{"", PointSite{{1e30, 1e30}}, 0, 1, 0});
+    if (!site) table.back().max_distance = 0;
+  }
+  return table;
 }
 
 struct PixelReport {

@@ -391,16 +391,7 @@ TEST_F(SitesGLTest, IncrementalUpdatesOfEveryKindHoldAgainstTheOracle) {
         ++updates;
         EXPECT_EQ(stats.computed, computed && full_computed) << what << " step " << step;
       }
-      SiteTable table;
-      for (uint32_t s = 0; s < (*f)->sites().size(); ++s) {
-        const Site* site = (*f)->sites().get(s);
-        table.push_back(site ? *site : Site{"", PointSite{{1e30, 1e30}}, 0, 1, 0});
-      }
-      // Free slots become sites that are never a candidate (max_distance 0).
-      for (auto& s : table) {
-        if (s.id.empty()) s.max_distance = 0;
-      }
-      CheckEveryPixel(**f, table, what + " step " + std::to_string(step));
+      CheckEveryPixel(**f, OracleSites((*f)->sites()), what + " step " + std::to_string(step));
       if (HasFailure()) return;
     }
     // The others render everything: their windows cover half the grid.

@@ -204,14 +204,7 @@ TEST(ScanTest, UpdatedWindowsAgainstTheOracle) {
                                               values.data(), after);
       }
       snapshot = after;
-      // Free slots become sites that are never a candidate (max_distance 0).
-      SiteTable table;
-      for (uint32_t s = 0; s < slots.size(); ++s) {
-        const Site* site = slots.get(s);
-        table.push_back(site ? *site : Site{"", PointSite{{1e30, 1e30}}, 0, 1, 0});
-        if (!site) table.back().max_distance = 0;
-      }
-      CheckEveryPixel(*frame, table, what + ", " + when);
+      CheckEveryPixel(*frame, OracleSites(slots), what + ", " + when);
     };
     auto geometry = [&] {
       return gen.Kind(kind == Generator::kKinds ? int(gen.U(0, Generator::kKinds)) : kind);
