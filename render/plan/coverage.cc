@@ -762,21 +762,31 @@ Coverage ComputeCoverage(const Grid& grid, const SlotTable& sites, const SiteInd
 std::vector<SiteDraw> SparseCoverage(const Grid& grid, const SlotTable& sites,
                                      const SiteIndex& index, PixelRect region, uint32_t tile_px,
                                      Diagram diagram, bool pieces) {
-  std::unordered_map<uint32_t, SiteDraw> drawn;
+  DrawsBySlot drawn;
   pieces = pieces && diagram == Diagram::kNearest;  // kFarthest draws no site by pieces
   PieceCover piece_cover(grid);
   CoverTiles(grid, sites, index, region, tile_px, diagram,
              [&](uint32_t slot, double r, PixelRect rect, double upper) {
-               auto [it, fresh] = drawn.try_emplace(slot, SiteDraw{slot, r, rect});
-               if (!fresh) {
-                 it->second.radius = std::max(it->second.radius, r);
-                 it->second.clip = it->second.clip.Union(rect);
-               }
-               if (pieces) piece_cover.Cover(sites, slot, rect, upper, &it->second.pieces);
+               SiteDraw& d = drawn.Add(slot, r, rect);
+               if (pieces) piece_cover.Cover(sites, slot, rect, upper, &d.pieces);
              });
+  return drawn.Take();
+}
+
+SiteDraw& DrawsBySlot::Add(uint32_t slot, double radius, PixelRect tile) {
+  auto [it, fresh] = drawn_.try_emplace(slot, SiteDraw{slot, radius, tile});
+  if (!fresh) {
+    it->second.radius = std::max(it->second.radius, radius);
+    it->second.clip = it->second.clip.Union(tile);
+  }
+  return it->second;
+}
+
+std::vector<SiteDraw> DrawsBySlot::Take() {
   std::vector<SiteDraw> out;
-  out.reserve(drawn.size());
-  for (auto& [slot, d] : drawn) out.push_back(std::move(d));
+  out.reserve(drawn_.size());
+  for (auto& [slot, d] : drawn_) out.push_back(std::move(d));
+  drawn_.clear();
   std::sort(out.begin(), out.end(),
             [](const SiteDraw& a, const SiteDraw& b) { return a.slot < b.slot; });
   return out;

@@ -9,6 +9,7 @@
 #include <memory>
 #include <mutex>
 #include <span>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -232,6 +233,19 @@ class PointCover {
   std::vector<uint32_t> start_;
   std::vector<double> x_, y_;
   std::vector<uint32_t> slot_;
+};
+
+// Draws gathered from (slot, radius, tile) pairs, each slot's merged into one: the greatest
+// radius, the union of the tiles.
+class DrawsBySlot {
+ public:
+  // The slot's draw, widened to `radius` and `tile`.
+  SiteDraw& Add(uint32_t slot, double radius, PixelRect tile);
+  // The draws, in slot order.
+  std::vector<SiteDraw> Take();
+
+ private:
+  std::unordered_map<uint32_t, SiteDraw> drawn_;
 };
 
 // The same radii and clips as ComputeCoverage, as draws in slot order: for a small region of

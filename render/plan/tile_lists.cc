@@ -24,7 +24,9 @@ struct Run {
   std::vector<TileLists::Point> points;
   std::vector<uint32_t> sites;
   std::vector<TileLists::Segment> segments;
-  // Each (tile, site) pair once: the slot and the radius it needs there.
+  // Each (tile, site) pair once: the slot and the radius it needs there; left empty unless
+  // `pairs`, for runs whose caller does not read them.
+  bool pairs = true;
   std::vector<std::pair<uint32_t, double>> kept;
   std::vector<uint32_t> kept_ends;  // per leaf
   std::vector<uint32_t> needed;     // scratch
@@ -40,7 +42,7 @@ struct Run {
     const size_t first_point = points.size();
     for (size_t k = 0; k < kept_slots.size(); ++k) {
       const uint32_t slot = kept_slots[k];
-      kept.emplace_back(slot, radii[k]);
+      if (pairs) kept.emplace_back(slot, radii[k]);
       const Vec2 p = slots.point(slot);
       if (!std::isnan(p.x)) {
         points.push_back({static_cast<float>(p.x - grid.window.min_x),
@@ -211,22 +213,11 @@ std::vector<SiteDraw> WindowCandidates(const Grid& grid, const SlotTable& slots,
                       kTile, leaf);
     }
   }
-  std::vector<SiteDraw> draws;
+  DrawsBySlot drawn;
   Assemble(run, region, lists, [&](uint32_t slot, double radius, PixelRect tile) {
-    draws.push_back({slot, radius, tile});
+    drawn.Add(slot, radius, tile);
   });
-  std::sort(draws.begin(), draws.end(),
-            [](const SiteDraw& a, const SiteDraw& b) { return a.slot < b.slot; });
-  size_t n = 0;  // each slot's draws merged into one
-  for (size_t k = 0; k < draws.size(); ++k) {
-    if (n > 0 && draws[n - 1].slot == draws[k].slot) {
-      draws[n - 1].radius = std::max(draws[n - 1].radius, draws[k].radius);
-      draws[n - 1].clip = draws[n - 1].clip.Union(draws[k].clip);
-    } else {
-      draws[n++] = draws[k];
-    }
-  }
-  draws.resize(n);
+  std::vector<SiteDraw> draws = drawn.Take();
   auto draw_of = [&](uint32_t slot) {
     return static_cast<uint32_t>(
         std::lower_bound(draws.begin(), draws.end(), slot,
@@ -245,6 +236,7 @@ TileLists AddedCandidates(const Grid& grid, const SlotTable& slots, const Frame&
   const uint32_t tiles_y = (region.height() + kTile - 1) / kTile;
   const ErrorModel& error = frame.error();
   std::vector<Run> run(1);
+  run[0].pairs = false;
   std::vector<uint32_t> kept;
   std::vector<double> radii;
   for (uint32_t tile = 0; tile < tiles_x * tiles_y; ++tile) {
