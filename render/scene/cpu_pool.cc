@@ -281,6 +281,21 @@ bool CpuPool::Lane::Submit(std::function<void()> job) {
   return true;
 }
 
+bool CpuPool::Lane::RunHereIfIdle(const std::function<void()>& job) {
+  {
+    std::lock_guard<std::mutex> lock(pool_.mu_);
+    if (running_ > 0 || !queue_.empty()) return false;
+    ++running_;
+  }
+  job();
+  std::lock_guard<std::mutex> lock(pool_.mu_);
+  --running_;
+  pool_.idle_.notify_all();
+  // Jobs queued meanwhile waited for this one only if the lane is at its limit.
+  if (!queue_.empty()) pool_.work_.notify_one();
+  return true;
+}
+
 CpuPool::Lane* CpuPool::Next() {
   for (Lane* lane : lanes_) {
     if (!lane->queue_.empty() && lane->running_ < lane->max_running_) return lane;

@@ -123,6 +123,9 @@ class CpuPool {
 
     // Queues the job; false (and the job dropped) when max_queued jobs already wait.
     bool Submit(std::function<void()> job);
+    // Runs the job on the calling thread, as one of the lane's running jobs, when the lane
+    // has none running or waiting; false (the job not run) otherwise.
+    bool RunHereIfIdle(const std::function<void()>& job);
     size_t max_queued() const { return max_queued_; }
 
    private:

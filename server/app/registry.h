@@ -58,7 +58,8 @@ struct Renderers {
 //  - every call may come from any thread; none waits for a render;
 //  - the calls that change state (CreateScene, DeleteScene, UpsertSites, DeleteSites) wait
 //    for the store's durable commit, under no lock of this class (a scene's own writer lock
-//    serializes its writes): run them on commits(), not on a transport's threads;
+//    serializes its writes): run them on commits(), or one small write at a time on the
+//    calling thread while commits() is idle (Service::Write);
 //  - mu_ guards only the scene map and the ids being created, never across a store call.
 //
 // The write path, the same for every change: the memory it adds is reserved (or the change
@@ -149,10 +150,14 @@ class SceneRegistry {
   //  - analyses(): structure and planning calls, at most --analysis-threads at once and
   //    --max-queued-analyses waiting (the CPU pool, below answers);
   //  - commits(): the calls that wait on the store (a pool of threads of its own, as they
-  //    mostly wait), at most --max-queued-writes waiting.
+  //    mostly wait), at most --max-queued-writes waiting; a small write runs on its caller's
+  //    thread instead, as one of this lane's jobs, while the lane is idle (Service::Write).
   CpuPool::Lane& answers() { return answers_; }
   CpuPool::Lane& analyses() { return analyses_; }
   CpuPool::Lane& commits() { return commits_; }
+  // Whether the store is this server's own (SQLite on its disk), not one shared with replicas,
+  // whose commit may wait on a network and a database's failover.
+  bool local_store() const { return !store_->shared(); }
   // Runs `job` on answers() (frames' waiters resume there).
   Executor executor();
 

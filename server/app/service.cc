@@ -65,6 +65,14 @@ void Service::OnLane(CpuPool::Lane& lane, const char* limit, std::function<absl:
   }
 }
 
+void Service::Write(size_t bytes, std::function<absl::Status()> work, Done done) {
+  if (bytes <= kWriteHereBytes && registry_->local_store()) {
+    absl::Status status;
+    if (registry_->commits().RunHereIfIdle([&] { status = work(); })) return done(status);
+  }
+  OnLane(registry_->commits(), "--max-queued-writes", std::move(work), std::move(done));
+}
+
 void Service::CreateScene(CallPtr call, const v1::CreateSceneRequest& request,
                           v1::CreateSceneResponse* response, Done done) {
   Begun begun = Begin(*call, "CreateScene", Access::kWrite);
@@ -180,8 +188,8 @@ void Service::UpsertSites(CallPtr call, const v1::UpsertSitesRequest& request,
   begun.scene->Visit([&](const auto& scene) {
     std::vector<typename std::decay_t<decltype(*scene)>::Site> sites;
     if (auto s = ToSites(request, limits_, &sites); !s.ok()) return done(s);
-    OnLane(
-        registry_->commits(), "--max-queued-writes",
+    Write(
+        request.ByteSizeLong(),
         [this, id = request.scene_id(), sites = std::move(sites), durability,
          response]() mutable -> absl::Status {
           auto version = registry_->UpsertSites(id, std::move(sites), durability);
@@ -202,8 +210,8 @@ void Service::DeleteSites(CallPtr call, const v1::DeleteSitesRequest& request,
   if (auto s = ToSiteIds(request, limits_, &ids); !s.ok()) return done(s);
   Durability durability;
   if (auto s = ToDurability(request.durability(), &durability); !s.ok()) return done(s);
-  OnLane(
-      registry_->commits(), "--max-queued-writes",
+  Write(
+      request.ByteSizeLong(),
       [this, id = request.scene_id(), ids = std::move(ids), durability,
        response]() -> absl::Status {
         auto version = registry_->DeleteSites(id, ids, durability);

@@ -6,9 +6,10 @@
 //
 // Where each call's work runs. A call returns at once; its work runs on the caller's thread
 // only when it needs neither a wait nor much work (a lookup, a page of sites, Pick, a small
-// batch from a published frame); writes run on the registry's commit threads, everything
-// heavier on its CPU pool (server/app/jobs.h says which part where). So a transport's thread
-// never waits on the store, a render, or a large computation.
+// batch from a published frame) or is a small write while no other write is under way (Write
+// below); other writes run on the registry's commit threads, everything heavier on its CPU
+// pool (server/app/jobs.h says which part where). So a transport's thread never waits on a
+// render, a large computation, or another call's commit.
 #pragma once
 
 #include <atomic>
@@ -40,6 +41,10 @@ class Service {
   Service(SceneRegistry* registry, const TokenAuth* auth = nullptr, Metrics* metrics = nullptr);
   Service(const Service&) = delete;
   Service& operator=(const Service&) = delete;
+
+  // The largest UpsertSites or DeleteSites request (its protobuf size) that may run on the
+  // caller's thread (Write, below): a few hundred points, or a polygon of a thousand vertices.
+  static constexpr size_t kWriteHereBytes = 16 << 10;
 
   // Refuses new calls (UNAVAILABLE) from now on, ends the WatchScene streams (UNAVAILABLE),
   // and waits up to `grace` for the calls in flight to finish. Returns how many were still
@@ -115,6 +120,12 @@ class Service {
   // flag that sets the queue's size) when the lane's queue is full.
   static void OnLane(CpuPool::Lane& lane, const char* limit, std::function<absl::Status()> work,
                      Done done);
+  // A write whose request has `bytes`: on the calling thread when it is small (at most
+  // kWriteHereBytes), the store is this server's own (SceneRegistry::local_store) and no other
+  // write is under way (the commits lane is idle), so that it costs its commit and no
+  // handoff; else on the commits lane, as OnLane. A transport's thread so waits on the store
+  // for one small write at a time, its own, never through another's commit.
+  void Write(size_t bytes, std::function<absl::Status()> work, Done done);
 
   // A structure call on a 2D scene's frame of at least `min_version`: `work` runs on the
   // analyses lane (AnalysisJob) once the frame is there.

@@ -123,6 +123,57 @@ TEST(CpuPool, LanesKeepTheirLimits) {
   EXPECT_EQ(most.load(), 2);
 }
 
+TEST(CpuPool, AnIdleLaneRunsAJobOnTheCallingThread) {
+  CpuPool pool(2);
+  Gate gate;
+  std::promise<void> started;
+  std::atomic<int> done{0};
+  CpuPool::Lane lane(pool, 0, /*max_running=*/1, /*max_queued=*/8);
+  // Idle: the job runs here, before the call returns.
+  const std::thread::id here = std::this_thread::get_id();
+  std::thread::id ran_on;
+  EXPECT_TRUE(lane.RunHereIfIdle([&] { ran_on = std::this_thread::get_id(); }));
+  EXPECT_EQ(ran_on, here);
+  // A job running on the lane: refused, not run.
+  EXPECT_TRUE(lane.Submit([&] {
+    started.set_value();
+    gate.opened.wait();
+    ++done;
+  }));
+  started.get_future().wait();
+  bool ran = false;
+  EXPECT_FALSE(lane.RunHereIfIdle([&] { ran = true; }));
+  // A job waiting: refused too.
+  EXPECT_TRUE(lane.Submit([&] { ++done; }));
+  EXPECT_FALSE(lane.RunHereIfIdle([&] { ran = true; }));
+  EXPECT_FALSE(ran);
+  gate.open.set_value();
+  auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (done.load() < 2 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::yield();
+  }
+  EXPECT_EQ(done.load(), 2);
+  // One running here counts against the lane's limit: what is submitted meanwhile waits
+  // for it, then runs.
+  std::promise<void> inside;
+  std::atomic<bool> here_done{false}, after_here{false};
+  std::thread caller([&] {
+    EXPECT_TRUE(lane.RunHereIfIdle([&] {
+      inside.set_value();
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      here_done = true;
+    }));
+  });
+  inside.get_future().wait();
+  EXPECT_TRUE(lane.Submit([&] { after_here = here_done.load(); ++done; }));
+  caller.join();
+  while (done.load() < 3 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::yield();
+  }
+  EXPECT_EQ(done.load(), 3);
+  EXPECT_TRUE(after_here.load());
+}
+
 // The nice value of each thread that ran a piece of a ParallelFor called on this thread. Each
 // piece waits (up to 30 s) until a second thread has run one, so a pool thread always does.
 std::map<pid_t, int> NiceOfPieces() {
