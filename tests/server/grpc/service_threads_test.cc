@@ -11,7 +11,6 @@
 #include <future>
 #include <memory>
 #include <mutex>
-#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -137,7 +136,7 @@ TEST(ServiceThreads, WritesCommitWhereTheirSizeAndTheStoreSay) {
   RecordingStore store;
   Served served(&store);
   const std::string commit = "gvd-commit";
-  // Scene "s": made on a commit thread. Then sites a and b, alone: on gRPC's thread.
+  // Scene "s": made on a commit thread. Then two sites, alone: on gRPC's thread.
   served.Create("s");
   served.Idle();
   EXPECT_EQ(served.Upsert("s", "p", 2), 2u);
