@@ -7,6 +7,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -24,50 +25,55 @@ namespace gvd::oracle {
 using Real = long double;
 
 // Distance from q to the closed segment ab, and the clamped parameter of its nearest point.
+// (No hypot: the squares of differences of doubles neither overflow nor underflow in Real.)
 inline Real ToSegment(Vec2 q, Vec2 a, Vec2 b, Real* t_out = nullptr) {
   const Real dx = Real(b.x) - a.x, dy = Real(b.y) - a.y;
   const Real len2 = dx * dx + dy * dy;
   Real t = 0;
   if (len2 > 0) t = std::clamp(((Real(q.x) - a.x) * dx + (Real(q.y) - a.y) * dy) / len2, Real(0), Real(1));
   if (t_out) *t_out = t;
-  const Real px = a.x + t * dx, py = a.y + t * dy;
-  return std::hypot(Real(q.x) - px, Real(q.y) - py);
+  const Real ex = Real(q.x) - (a.x + t * dx), ey = Real(q.y) - (a.y + t * dy);
+  return std::sqrt(ex * ex + ey * ey);
 }
 
-// The segments of a geometry in feature order: (a, b, edge index). A point is one degenerate
+// Calls f(a, b) for each segment of a geometry in feature order. A point is one degenerate
 // segment; a polygon closes; a Bezier's are its flattening's, a path's its pieces' drawn
 // polylines (what the rasterizer draws; their distances are the curves': CurveDistance).
-inline std::vector<std::pair<Vec2, Vec2>> Segments(const Geometry& g) {
-  std::vector<std::pair<Vec2, Vec2>> out;
-  auto chain = [&out](const std::vector<Vec2>& v, bool closed) {
-    for (size_t i = 0; i + 1 < v.size(); ++i) out.push_back({v[i], v[i + 1]});
-    if (closed && v.size() > 1) out.push_back({v.back(), v.front()});
+template <typename F>
+void EachSegment(const Geometry& g, F&& f) {
+  auto chain = [&f](const std::vector<Vec2>& v, bool closed) {
+    for (size_t i = 0; i + 1 < v.size(); ++i) f(v[i], v[i + 1]);
+    if (closed && v.size() > 1) f(v.back(), v.front());
   };
-  if (auto* p = std::get_if<PointSite>(&g)) out.push_back({p->p, p->p});
-  if (auto* s = std::get_if<SegmentSite>(&g)) out.push_back({s->a, s->b});
+  if (auto* p = std::get_if<PointSite>(&g)) f(p->p, p->p);
+  if (auto* s = std::get_if<SegmentSite>(&g)) f(s->a, s->b);
   if (auto* l = std::get_if<PolylineSite>(&g)) chain(l->points, false);
   if (auto* poly = std::get_if<PolygonSite>(&g)) chain(poly->vertices, true);
   if (auto* b = std::get_if<BezierSite>(&g)) chain(b->flat, false);
   if (auto* path = std::get_if<PathSite>(&g)) {
     for (size_t k = 0; k < path->pieces.size(); ++k) {
       const size_t end = k + 1 < path->pieces.size() ? path->pieces[k + 1].flat_begin : path->flat.size();
-      for (size_t i = path->pieces[k].flat_begin; i + 1 < end; ++i) {
-        out.push_back({path->flat[i], path->flat[i + 1]});
-      }
+      for (size_t i = path->pieces[k].flat_begin; i + 1 < end; ++i) f(path->flat[i], path->flat[i + 1]);
     }
   }
+}
+
+// The segments of a geometry in feature order (EachSegment): (a, b).
+inline std::vector<std::pair<Vec2, Vec2>> Segments(const Geometry& g) {
+  std::vector<std::pair<Vec2, Vec2>> out;
+  EachSegment(g, [&out](Vec2 a, Vec2 b) { out.push_back({a, b}); });
   return out;
 }
 
 // Distance from q to the geometry as the rasterizer draws it: a Bezier's flattening.
 inline double DrawnDistance(Vec2 q, const Geometry& g) {
   Real best = std::numeric_limits<Real>::infinity();
-  for (auto [a, b] : Segments(g)) best = std::min(best, ToSegment(q, a, b));
+  EachSegment(g, [&](Vec2 a, Vec2 b) { best = std::min(best, ToSegment(q, a, b)); });
   return static_cast<double>(best);
 }
 
 // The Bezier curve (3 or 4 control points) at t: its Bernstein polynomials written out.
-inline void CurveAt(const std::vector<Vec2>& c, Real t, Real* x, Real* y) {
+inline void CurveAt(std::span<const Vec2> c, Real t, Real* x, Real* y) {
   const Real s = 1 - t;
   const Real w3[3] = {s * s, 2 * s * t, t * t};
   const Real w4[4] = {s * s * s, 3 * s * s * t, 3 * s * t * t, t * t * t};
@@ -83,25 +89,39 @@ inline void CurveAt(const std::vector<Vec2>& c, Real t, Real* x, Real* y) {
 // ends, the roots of the derivative of the squared distance (found by bisection between the
 // signs it takes at 1,024 even steps) and the least of the squared distance near each
 // sampled local minimum (golden-section search over the two steps around it).
-inline Real CurveDistance(Vec2 q, const std::vector<Vec2>& c, Real* t_out = nullptr) {
-  auto squared = [&](Real t) {
-    Real x, y;
-    CurveAt(c, t, &x, &y);
-    return (x - q.x) * (x - q.x) + (y - q.y) * (y - q.y);
-  };
-  // Half the squared distance's derivative: (B - q) . B'.
-  auto slope = [&](Real t) {
-    Real x, y, dx = 0, dy = 0;
-    CurveAt(c, t, &x, &y);
-    const Real s = 1 - t;
-    const Real w2[2] = {s, t};
-    const Real w3[3] = {s * s, 2 * s * t, t * t};
-    const Real* w = c.size() == 3 ? w2 : w3;
-    for (size_t i = 0; i + 1 < c.size(); ++i) {
-      dx += w[i] * (Real(c[i + 1].x) - c[i].x);
-      dy += w[i] * (Real(c[i + 1].y) - c[i].y);
+inline Real CurveDistance(Vec2 q, std::span<const Vec2> c, Real* t_out = nullptr) {
+  // B - q in the power basis, a[0] + a[1] t + ... (the Bernstein form expanded: for a
+  // cubic, P0 - q, 3 (P1 - P0), 3 (P2 - 2 P1 + P0), P3 - 3 P2 + 3 P1 - P0).
+  Real ax[4] = {0, 0, 0, 0}, ay[4] = {0, 0, 0, 0};
+  const size_t n = c.size() - 1;
+  for (size_t i = 0; i <= n; ++i) {
+    // The coefficient of t^j in binomial(n, i) t^i (1 - t)^(n - i): binomial(n, j)
+    // binomial(j, i) (-1)^(j - i), for j >= i.
+    static constexpr int kBinomial[4][4] = {{1, 0, 0, 0}, {1, 1, 0, 0}, {1, 2, 1, 0}, {1, 3, 3, 1}};
+    for (size_t j = i; j <= n; ++j) {
+      const Real k = kBinomial[n][j] * kBinomial[j][i] * ((j - i) % 2 ? -1 : 1);
+      ax[j] += k * c[i].x;
+      ay[j] += k * c[i].y;
     }
-    return (x - q.x) * dx + (y - q.y) * dy;
+  }
+  ax[0] -= q.x;
+  ay[0] -= q.y;
+  // The squared distance from q at t, and half its derivative: (B - q) . B' (Horner's rule).
+  auto measure = [&](Real t, Real* slope) {
+    Real x = 0, y = 0, dx = 0, dy = 0;
+    for (size_t j = n; j > 0; --j) {
+      x = x * t + ax[j], y = y * t + ay[j];
+      dx = dx * t + j * ax[j], dy = dy * t + j * ay[j];
+    }
+    x = x * t + ax[0], y = y * t + ay[0];
+    if (slope) *slope = x * dx + y * dy;
+    return x * x + y * y;
+  };
+  auto squared = [&](Real t) { return measure(t, nullptr); };
+  auto slope = [&](Real t) {
+    Real v;
+    measure(t, &v);
+    return v;
   };
   constexpr int kSteps = 1024;
   Real best_t = 0, best = squared(0);
@@ -113,16 +133,14 @@ inline Real CurveDistance(Vec2 q, const std::vector<Vec2>& c, Real* t_out = null
     }
   };
   consider(1);
-  std::vector<Real> g(kSteps + 1), f(kSteps + 1);
-  for (int k = 0; k <= kSteps; ++k) {
-    g[k] = squared(Real(k) / kSteps);
-    f[k] = slope(Real(k) / kSteps);
-  }
+  std::array<Real, kSteps + 1> g, f;
+  for (int k = 0; k <= kSteps; ++k) g[k] = measure(Real(k) / kSteps, &f[k]);
   for (int k = 0; k < kSteps; ++k) {
     if (f[k] < 0 && f[k + 1] >= 0) {
       Real lo = Real(k) / kSteps, hi = Real(k + 1) / kSteps;
       for (int i = 0; i < 100; ++i) {
         const Real mid = (lo + hi) / 2;
+        if (mid == lo || mid == hi) break;  // as close as Real can tell
         (slope(mid) < 0 ? lo : hi) = mid;
       }
       consider(lo);
@@ -133,6 +151,7 @@ inline Real CurveDistance(Vec2 q, const std::vector<Vec2>& c, Real* t_out = null
       Real lo = Real(k - 1) / kSteps, hi = Real(k + 1) / kSteps;
       for (int i = 0; i < 120; ++i) {
         const Real a = hi - ratio * (hi - lo), b = lo + ratio * (hi - lo);
+        if (!(a < b)) break;
         if (squared(a) < squared(b)) {
           hi = b;
         } else {
@@ -147,22 +166,24 @@ inline Real CurveDistance(Vec2 q, const std::vector<Vec2>& c, Real* t_out = null
   return std::sqrt(best);
 }
 
-// The distance from q to the box of the points.
-inline Real BoxDistance(Vec2 q, const std::vector<Vec2>& points) {
-  Real lo_x = points[0].x, hi_x = lo_x, lo_y = points[0].y, hi_y = lo_y;
-  for (Vec2 p : points) {
-    lo_x = std::min<Real>(lo_x, p.x), hi_x = std::max<Real>(hi_x, p.x);
-    lo_y = std::min<Real>(lo_y, p.y), hi_y = std::max<Real>(hi_y, p.y);
+// The box of some points, and its distance from q.
+struct Box {
+  Real lo_x = std::numeric_limits<Real>::infinity(), hi_x = -lo_x, lo_y = lo_x, hi_y = -lo_x;
+  void Add(std::span<const Vec2> points) {
+    for (Vec2 p : points) {
+      lo_x = std::min<Real>(lo_x, p.x), hi_x = std::max<Real>(hi_x, p.x);
+      lo_y = std::min<Real>(lo_y, p.y), hi_y = std::max<Real>(hi_y, p.y);
+    }
   }
-  const Real dx = std::max<Real>({lo_x - q.x, Real(q.x) - hi_x, 0});
-  const Real dy = std::max<Real>({lo_y - q.y, Real(q.y) - hi_y, 0});
-  return std::hypot(dx, dy);
-}
+  Real Distance(Vec2 q) const {
+    const Real dx = std::max<Real>({lo_x - q.x, Real(q.x) - hi_x, 0});
+    const Real dy = std::max<Real>({lo_y - q.y, Real(q.y) - hi_y, 0});
+    return std::sqrt(dx * dx + dy * dy);
+  }
+};
 
 // A path's piece as given: its control points.
-inline std::vector<Vec2> PieceControl(const PathPiece& p) {
-  return {p.control.begin(), p.control.begin() + p.degree + 1};
-}
+inline std::span<const Vec2> PieceControl(const PathPiece& p) { return {p.control.data(), p.degree + 1u}; }
 inline Real PieceDistance(Vec2 q, const PathPiece& p) {
   return p.degree == 1 ? ToSegment(q, p.control[0], p.control[1]) : CurveDistance(q, PieceControl(p));
 }
@@ -176,7 +197,9 @@ inline double Distance(Vec2 q, const Geometry& g) {
     // distance found cannot be nearer. Taken nearest box first, that spares most curves.
     std::vector<std::pair<Real, size_t>> order;
     for (size_t k = 0; k < path->pieces.size(); ++k) {
-      order.push_back({BoxDistance(q, PieceControl(path->pieces[k])), k});
+      Box box;
+      box.Add(PieceControl(path->pieces[k]));
+      order.push_back({box.Distance(q), k});
     }
     std::sort(order.begin(), order.end());
     Real best = std::numeric_limits<Real>::infinity();
@@ -254,37 +277,40 @@ struct Best {
 inline Best BestSite(Vec2 q, std::span<const Site> sites, Diagram diagram = Diagram::kNearest,
                      bool drawn = false) {
   Best best;
-  // A curve lies within its control points' box: one whose box is farther than the best value
-  // found cannot beat it. Curves taken last, nearest box first, that spares measuring most.
-  std::vector<std::pair<Real, size_t>> order;
-  for (size_t i = 0; i < sites.size(); ++i) {
-    const auto* b = std::get_if<BezierSite>(&sites[i].geometry);
-    const auto* path = std::get_if<PathSite>(&sites[i].geometry);
-    if (!(b || path) || drawn) {
-      order.push_back({-1, i});
-      continue;
-    }
-    std::vector<Vec2> points;
-    if (b) points = b->control;
-    for (const PathPiece& p : path ? path->pieces : std::vector<PathPiece>{}) {
-      for (Vec2 c : PieceControl(p)) points.push_back(c);
-    }
-    // And one whose box is beyond its max_distance is no candidate at all.
-    const Real box = BoxDistance(q, points);
-    if (box > sites[i].max_distance) continue;
-    order.push_back({diagram == Diagram::kNearest ? sites[i].multiplicative * box + sites[i].additive : -1, i});
-  }
-  std::stable_sort(order.begin(), order.end(),
-                   [](const auto& x, const auto& y) { return x.first < y.first; });
-  for (const auto& [bound, i] : order) {
-    if (bound >= 0 && best.found && bound > best.value) break;
+  auto consider = [&](size_t i) {
     const double v = Value(q, sites[i], drawn);
-    if (!std::isfinite(v)) continue;
-    // Ties: the lowest index.
+    if (!std::isfinite(v)) return;
+    // Ties: the lowest index, whatever the order sites are taken in.
     if (!best.found || (diagram == Diagram::kNearest ? v < best.value : v > best.value) ||
         (v == best.value && i < best.index)) {
       best = {i, v, true};
     }
+  };
+  // A curve lies within its control points' box: one whose box is farther than the best value
+  // found cannot beat it. Curves taken last, nearest box first, that spares measuring most.
+  std::vector<std::pair<Real, size_t>> curves;
+  for (size_t i = 0; i < sites.size(); ++i) {
+    const auto* b = std::get_if<BezierSite>(&sites[i].geometry);
+    const auto* path = std::get_if<PathSite>(&sites[i].geometry);
+    if (!(b || path) || drawn) {
+      consider(i);
+      continue;
+    }
+    Box box;
+    if (b) box.Add(b->control);
+    if (path) {
+      for (const PathPiece& p : path->pieces) box.Add(PieceControl(p));
+    }
+    // And one whose box is beyond its max_distance is no candidate at all.
+    const Real distance = box.Distance(q);
+    if (distance > sites[i].max_distance) continue;
+    curves.push_back({diagram == Diagram::kNearest ? sites[i].multiplicative * distance + sites[i].additive : -1, i});
+  }
+  std::stable_sort(curves.begin(), curves.end(),
+                   [](const auto& x, const auto& y) { return x.first < y.first; });
+  for (const auto& [bound, i] : curves) {
+    if (bound >= 0 && best.found && bound > best.value) break;
+    consider(i);
   }
   return best;
 }
