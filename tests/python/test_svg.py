@@ -106,7 +106,7 @@ def sampled(element, per_segment=512):
         if isinstance(seg, (se.Line, se.Close)):
             polylines.append(np.array([[seg.start.x, seg.start.y], [seg.end.x, seg.end.y]]))
             continue
-        pts = np.array([[p[0], p[1]] for p in (seg.point(float(x)) for x in t)])
+        pts = seg.npoint(t)
         if isinstance(seg, se.Arc):
             # |P''| = sweep^2 |U cos t + V sin t| <= sweep^2 (|U|^2 + |V|^2)^(1/2).
             radius = math.hypot(math.dist(seg.prx, seg.center), math.dist(seg.pry, seg.center))
@@ -157,14 +157,22 @@ def test_real_files_answer_within_their_bound(client, name):
     client.upsert_sites(sid, sites)
     rng = np.random.default_rng(9)
     q = rng.uniform(window[:2], window[2:], (2000, 2))
-    upper = np.full(len(q), np.inf)  # to sample points, which are on the shapes
-    lower = np.full(len(q), np.inf)  # to the polylines, less what they miss
-    for polylines, stray in shapes:
-        for p in polylines:
-            d = polyline_distance(q, p)
-            lower = np.minimum(lower, d - stray)
-            vertex = np.sqrt(((q[:, None, :] - p[None]) ** 2).sum(axis=2)).min(axis=1)
-            upper = np.minimum(upper, vertex)
+    # upper: to the sample points, which are on the shapes; lower: to the polylines, less what
+    # they miss. A polyline's box is no farther than any of its points: where that, less its
+    # stray, is past a distance to some shape's endpoint, the polyline can lower neither, and
+    # its box distance less the stray stands in for its lower bound.
+    pieces = [(p, stray) for polylines, stray in shapes for p in polylines]
+    ends = np.array([p[k] for p, _ in pieces for k in (0, -1)])
+    upper = np.sqrt(((q[:, None, :] - ends[None]) ** 2).sum(axis=2)).min(axis=1)
+    lower = np.full(len(q), np.inf)
+    for p, stray in pieces:
+        box = np.hypot(*np.maximum(np.maximum(p.min(axis=0) - q, q - p.max(axis=0)), 0).T)
+        near = box - stray < upper
+        lower[~near] = np.minimum(lower[~near], box[~near] - stray)
+        qn = q[near]
+        lower[near] = np.minimum(lower[near], polyline_distance(qn, p) - stray)
+        vertex = np.sqrt(((qn[:, None, :] - p[None]) ** 2).sum(axis=2)).min(axis=1)
+        upper[near] = np.minimum(upper[near], vertex)
     for exact in (False, True):
         r = client.find_nearest(sid, q, exact=exact)
         slack = 1e-9 * (hi - lo).max()
