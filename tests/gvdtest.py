@@ -16,6 +16,8 @@ import time
 import urllib.error
 import urllib.request
 
+import numpy as np
+
 
 def start_server(binary, data, port_file, log, *flags, timeout=60):
     """Starts gvd-server on loopback ports of its choosing, storing in `data` (a directory,
@@ -140,6 +142,7 @@ def to_segment(q, a, b):
 
 
 def bezier_point(control, t):
+    """The curve at t by de Casteljau's construction; t may be a NumPy array of parameters."""
     p = list(control)
     for k in range(len(p) - 1, 0, -1):
         p = [(p[i][0] + t * (p[i + 1][0] - p[i][0]), p[i][1] + t * (p[i + 1][1] - p[i][1])) for i in range(k)]
@@ -148,9 +151,11 @@ def bezier_point(control, t):
 
 def to_bezier(q, control):
     """Distance to the curve itself: the best of 2,049 samples, refined by golden sections."""
-    d = lambda t: math.hypot(q[0] - bezier_point(control, t)[0], q[1] - bezier_point(control, t)[1])
+    def d(t):
+        x, y = bezier_point(control, t)
+        return np.hypot(q[0] - x, q[1] - y)
     n = 2048
-    best = min(range(n + 1), key=lambda i: d(i / n))
+    best = int(np.argmin(d(np.arange(n + 1) / n)))  # the first of equals, as min() would
     lo, hi = max(0.0, (best - 1) / n), min(1.0, (best + 1) / n)
     g = (math.sqrt(5) - 1) / 2
     for _ in range(60):
@@ -159,7 +164,7 @@ def to_bezier(q, control):
             hi = b
         else:
             lo = a
-    return min(d(0.0), d(1.0), d((lo + hi) / 2), d(best / n))
+    return float(min(d(0.0), d(1.0), d((lo + hi) / 2), d(best / n)))
 
 
 def points_of(site, key):
