@@ -3,7 +3,8 @@
 #  - ASan + UBSan: the test suite, but for the few tests noted below. LeakSanitizer checks the unit tests; it is off where
 #    Mesa is loaded (GL tests, the server), as Mesa keeps driver allocations until exit.
 #  - TSan: the server's concurrency tests (scene writers and readers, render thread, frame publication, watch streams, concurrent
-#    queries and updates, crash and load tests), with gRPC/protobuf/abseil suppressed: Debian
+#    queries and updates, crash and load tests), not the single-threaded CLI's (CliTest), whose calls the server tests here
+#    make of the server too; with gRPC/protobuf/abseil suppressed: Debian
 #    builds them without TSan, so it cannot see their synchronization (tsan.supp).
 # Usage: bash tests/sanitizers/run.sh   (after bash tests/run-tests.sh installed the packages)
 set -euo pipefail
@@ -38,23 +39,12 @@ export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 cmake -S . -B build/tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGVD_WERROR=OFF \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="$opt" -DCMAKE_CXX_FLAGS="-fsanitize=thread" -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=thread" >/dev/null
 cmake --build build/tsan --target gvd_core_tests gvd_integration_tests gvd_server_unit_tests \
-  gvd_app_tests gvd_app_gl_tests gvd-server gvd
+  gvd_app_tests gvd_app_gl_tests gvd-server
 export TSAN_OPTIONS="halt_on_error=1 suppressions=$root/tests/sanitizers/tsan.supp"
 (cd build/tsan && ctest --output-on-failure -j "$jobs" --timeout 900 \
-  -R '^(SceneCore|SceneRegistry|Replicas|ReplicaFaults|Engines/LogStore|ServiceThreads|Store|CpuPool|PendingEventTest|MemoryBudgetUnit|FairRenders|ServerTest|SpaceServerTest|LoadTest|CrashTest|CliTest|MetricsTest|AnalysisServerTest|AnalysisLimitsTest|WatchTest|WatchDrain|WatchReplicas|HttpTest|HttpSecurity|HttpDrain|MosaicServerTest)\.' \
-  -E '^(CliTest\.(EveryKindAndAnImage|A3DSceneFromAModelFileToOpenVdb|FilesAreReadWithinTheMemoryLimit)|(Server|SpaceServer)Test\.TenThousand.*)$')
-# A3DSceneFromAModelFileToOpenVdb is left out of TSan only: the single-threaded CLI's OpenVDB
-# export runs Debian's uninstrumented OpenVDB, whose initialize() takes a mutex TSan sees
-# unlocked only (a false report); the server side of 3D scenes runs under TSan in
-# SpaceServerTest.
+  -R '^(SceneCore|SceneRegistry|Replicas|ReplicaFaults|Engines/LogStore|ServiceThreads|Store|CpuPool|PendingEventTest|MemoryBudgetUnit|FairRenders|ServerTest|SpaceServerTest|LoadTest|CrashTest|MetricsTest|AnalysisServerTest|AnalysisLimitsTest|WatchTest|WatchDrain|WatchReplicas|HttpTest|HttpSecurity|HttpDrain|MosaicServerTest)\.' \
+  -E '^(Server|SpaceServer)Test\.TenThousand.*$')
 # The ten-thousand-site accuracy tests (ServerTest.TenThousand*, SpaceServerTest.TenThousand*:
 # one client, each answer against the oracle, a fifth of this run's time) are left out of
 # TSan only: the threads they use serve every other server test here.
-# EveryKindAndAnImage is left out of TSan only: the single-threaded CLI's GeoJSON parsing
-# (protobuf Struct maps, inlined from Debian's uninstrumented protobuf) crashes under TSan
-# instrumentation; it passes in the plain, ASan and UBSan runs.
-# FilesAreReadWithinTheMemoryLimit is left out of TSan only, for the same GeoJSON parsing and
-# because TSan maps shadow memory for an allocation before its allocation hook can refuse it:
-# the CLI's model child cannot keep to --memory-limit under TSan (client/cli/model.h). It runs
-# under ASan, whose hook refuses the allocation first.
 echo "sanitizer builds pass"
