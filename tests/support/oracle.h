@@ -7,7 +7,6 @@
 #pragma once
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -106,15 +105,13 @@ inline Real CurveDistance(Vec2 q, std::span<const Vec2> c, Real* t_out = nullptr
   }
   ax[0] -= q.x;
   ay[0] -= q.y;
-  // The squared distance from q at t, and half its derivative: (B - q) . B' (Horner's rule).
-  auto measure = [&](Real t, Real* slope) {
-    Real x = 0, y = 0, dx = 0, dy = 0;
-    for (size_t j = n; j > 0; --j) {
-      x = x * t + ax[j], y = y * t + ay[j];
-      dx = dx * t + j * ax[j], dy = dy * t + j * ay[j];
-    }
-    x = x * t + ax[0], y = y * t + ay[0];
-    if (slope) *slope = x * dx + y * dy;
+  // The squared distance from q at t, and half its derivative: (B - q) . B' (Horner's rule;
+  // a quadratic's a[3] is 0, which adds exact zeros).
+  auto measure = [x0 = ax[0], x1 = ax[1], x2 = ax[2], x3 = ax[3], y0 = ay[0], y1 = ay[1],
+                  y2 = ay[2], y3 = ay[3], dx2 = 2 * ax[2], dx3 = 3 * ax[3], dy2 = 2 * ay[2],
+                  dy3 = 3 * ay[3]](Real t, Real* slope) {
+    const Real x = ((x3 * t + x2) * t + x1) * t + x0, y = ((y3 * t + y2) * t + y1) * t + y0;
+    if (slope) *slope = x * ((dx3 * t + dx2) * t + x1) + y * ((dy3 * t + dy2) * t + y1);
     return x * x + y * y;
   };
   auto squared = [&](Real t) { return measure(t, nullptr); };
@@ -133,10 +130,12 @@ inline Real CurveDistance(Vec2 q, std::span<const Vec2> c, Real* t_out = nullptr
     }
   };
   consider(1);
-  std::array<Real, kSteps + 1> g, f;
-  for (int k = 0; k <= kSteps; ++k) g[k] = measure(Real(k) / kSteps, &f[k]);
+  // The squared distance g and the slope f at steps k - 1, k and k + 1.
+  Real g_before = 0, f_here, f_next;
+  Real g_here = measure(0, &f_here);
   for (int k = 0; k < kSteps; ++k) {
-    if (f[k] < 0 && f[k + 1] >= 0) {
+    const Real g_next = measure(Real(k + 1) / kSteps, &f_next);
+    if (f_here < 0 && f_next >= 0) {
       Real lo = Real(k) / kSteps, hi = Real(k + 1) / kSteps;
       for (int i = 0; i < 100; ++i) {
         const Real mid = (lo + hi) / 2;
@@ -146,7 +145,7 @@ inline Real CurveDistance(Vec2 q, std::span<const Vec2> c, Real* t_out = nullptr
       consider(lo);
       consider(hi);
     }
-    if (k > 0 && g[k] <= g[k - 1] && g[k] <= g[k + 1]) {
+    if (k > 0 && g_here <= g_before && g_here <= g_next) {
       const Real ratio = (std::sqrt(Real(5)) - 1) / 2;
       Real lo = Real(k - 1) / kSteps, hi = Real(k + 1) / kSteps;
       for (int i = 0; i < 120; ++i) {
@@ -161,6 +160,7 @@ inline Real CurveDistance(Vec2 q, std::span<const Vec2> c, Real* t_out = nullptr
       consider(lo);
       consider(hi);
     }
+    g_before = g_here, g_here = g_next, f_here = f_next;
   }
   if (t_out) *t_out = best_t;
   return std::sqrt(best);
