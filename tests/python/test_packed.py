@@ -109,12 +109,21 @@ def chunks(rng, sizes, closest):
     return out
 
 
+OPTIONAL = ("error_bound", "exact", "feature_index", "feature_kind")
+
+
 @pytest.mark.parametrize("sizes", [[1], [3, 0, 4], [1000, 1, 70000], [70000]])
 @pytest.mark.parametrize("closest", [False, True])
-def test_a_calls_messages_are_joined_in_offset_order(sizes, closest):
+@pytest.mark.parametrize("omitted", [(), OPTIONAL])
+def test_a_calls_messages_are_joined_in_offset_order(sizes, closest, omitted):
     from gvd import _client  # pylint: disable=import-outside-toplevel
     rng = np.random.default_rng(len(sizes))
     messages = chunks(rng, sizes, closest)
+    # A server may leave out the optional columns (every other message here): each answer's
+    # value is then proto3's default, zero.
+    for r in messages[::2]:
+        for field in omitted:
+            r.packed.ClearField(field)
     # The messages in any order: each is placed by its offset.
     parts = [_client._Packed(PackedAnswers.FromString(r.SerializeToString()), 0)
              for r in reversed(messages)]
@@ -127,7 +136,8 @@ def test_a_calls_messages_are_joined_in_offset_order(sizes, closest):
     for field, column in (("distance", got.distances), ("error_bound", got.error_bounds),
                           ("exact", got.exact), ("feature_index", got.feature_indices),
                           ("feature_kind", got.feature_kinds)):
-        want = [v for r in messages for v in getattr(r.packed, field)]
+        want = [v for r in messages
+                for v in (getattr(r.packed, field) or [0] * len(r.packed.distance))]
         assert column.tolist() == want, field
         assert column.flags.writeable, field  # the caller's arrays, not views of the bytes
     if closest:

@@ -432,9 +432,10 @@ class _Packed:
     start: int
 
 
-# The optional columns of an answer, each with its type and its value where a message omits it.
-_COLUMNS = ((_packed.ERROR_BOUND, np.float64, 0.0), (_packed.EXACT, bool, False),
-            (_packed.FEATURE_INDEX, np.uint32, 0), (_packed.FEATURE_KIND, np.int32, 0))
+# The optional columns of an answer, each with its type; where a message omits one, its
+# value is zero (0.0, False).
+_COLUMNS = ((_packed.ERROR_BOUND, np.float64), (_packed.EXACT, bool),
+            (_packed.FEATURE_INDEX, np.uint32), (_packed.FEATURE_KIND, np.int32))
 
 
 def _join(parts: List[_Packed], m: int, dims: int, closest: bool) -> NearestResult:
@@ -444,7 +445,7 @@ def _join(parts: List[_Packed], m: int, dims: int, closest: bool) -> NearestResu
     index: Dict[str, int] = {}
     sites: List[np.ndarray] = []
     distances: List[np.ndarray] = []
-    columns: Dict[int, List[np.ndarray]] = {number: [] for number, _, _ in _COLUMNS}
+    columns: Dict[int, List[np.ndarray]] = {number: [] for number, _ in _COLUMNS}
     near: List[np.ndarray] = []
     grad: List[np.ndarray] = []
     version = 0
@@ -458,12 +459,12 @@ def _join(parts: List[_Packed], m: int, dims: int, closest: bool) -> NearestResu
             raise GvdError(_grpc_code("INTERNAL"),
                            f"answers {lo} to {lo + n} after {covered} of {m} points")
         covered += n
-        for number, dtype, default in _COLUMNS:
+        for number, dtype in _COLUMNS:
             values = a.arrays.get(number)
             if values is not None and len(values) != n:
                 raise GvdError(_grpc_code("INTERNAL"),
                                f"field {number} holds {len(values)} of {n} answers")
-            columns[number].append(np.full(n, default, dtype=dtype) if values is None
+            columns[number].append(np.zeros(n, dtype=dtype) if values is None
                                    else values.astype(dtype, copy=False))
         if closest:
             for number, out in ((_packed.CLOSEST, near), (_packed.GRADIENT, grad)):
