@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <future>
 #include <map>
@@ -259,12 +260,16 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
     // zooms and other scenes' renders do not wait.
     if (!hold_path_.empty()) {
       rasterizer->set_planning_hook([this, held = hold_path_ + "." + scene->id()] {
+        if (access(held.c_str(), F_OK) != 0) return;
+        const std::string waiting = held + ".waiting";
+        if (FILE* f = std::fopen(waiting.c_str(), "w")) std::fclose(f);
         while (access(held.c_str(), F_OK) == 0) {
           std::unique_lock<std::mutex> lock(mu_);
           if (cv_.wait_for(lock, std::chrono::milliseconds(5), [this] { return stopping_; })) {
             break;
           }
         }
+        std::remove(waiting.c_str());
       });
     }
     if (slot.second) frame = slot.second->Apply(*rasterizer, sites, &render_stats);

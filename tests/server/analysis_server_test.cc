@@ -1,12 +1,20 @@
 // Boundaries, neighbours, Delaunay, zoom windows, clearance, planning and picking through the
 // real gvd-server, against the exact oracle; bad input refused by name.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
+#include <cstdio>
+#include <fstream>
 #include <map>
+#include <mutex>
 #include <random>
 #include <set>
+#include <string>
 #include <thread>
+#include <vector>
 
 #include "gvd/client.h"
 #include "render/kernel/exact2.h"
@@ -532,33 +540,63 @@ TEST_F(AnalysisServerTest, BadInputIsRefusedByName) {
 }
 
 // With one analysis thread and room for one waiting call, a third call at once is refused
-// with RESOURCE_EXHAUSTED naming the flag; the others complete.
+// with RESOURCE_EXHAUSTED naming the flag; the others complete. The calls are zoom windows,
+// which the one render thread draws, and it is held in a render of another scene until the
+// test lets it go: the call on the analysis thread waits there whatever the machine's speed.
 TEST(AnalysisLimitsTest, QueuedAnalysesAreBounded) {
-  testing::ServerProcess server(GVD_SERVER_PATH,
-                                {"--analysis-threads", "1", "--max-queued-analyses", "1"});
+  testing::ServerProcess server(GVD_SERVER_PATH, {"--analysis-threads", "1",
+                                                  "--max-queued-analyses", "1",
+                                                  "--render-threads", "1"});
   ASSERT_TRUE(server.error().empty()) << server.error();
-  ClientOptions patient;
-  patient.timeout = std::chrono::minutes(5);  // a sanitizer build is slow
-  auto client = Client::Connect(server.address(), patient);
+  auto client = Client::Connect(server.address());
   v1::Scene scene;
-  ASSERT_TRUE(client->CreateScene(testing::UnitScene("busy", 1024, 1024), &scene).ok());
-  const v1::UpsertSitesRequest u = testing::RandomPoints("busy", 3000, 3);
+  ASSERT_TRUE(client->CreateScene(testing::UnitScene("busy", 64, 64), &scene).ok());
   uint64_t v;
-  ASSERT_TRUE(client->UpsertSites(u, &v).ok());
-  // Each a fraction of a second of refinement or more, while the calls arrive within
-  // milliseconds.
+  ASSERT_TRUE(client->UpsertSites(testing::RandomPoints("busy", 100, 3), &v).ok());
+  ASSERT_TRUE(testing::WaitForRender(*client, "busy", v));
+  // The render thread goes into the held render of "held" and stays there.
+  const std::string held = server.hold_renders_path() + ".held";
+  std::ofstream(held).put('x');
+  ASSERT_TRUE(client->CreateScene(testing::UnitScene("held", 64, 64), &scene).ok());
+  ASSERT_TRUE(client->UpsertSites(testing::RandomPoints("held", 10, 4), &v).ok());
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(2);
+  while (access((held + ".waiting").c_str(), F_OK) != 0) {
+    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the render of \"held\" never began";
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
   std::vector<grpc::Status> results(3);
   std::vector<std::thread> calls;
+  std::mutex mu;
+  std::condition_variable cv;
+  int answered = 0;      // guarded by mu
+  bool let_go = false;   // guarded by mu
+  int done_held = 0;     // calls that succeeded while held; guarded by mu
   for (int k = 0; k < 3; ++k) {
     calls.emplace_back([&, k] {
-      v1::GetDelaunayRequest r;
+      v1::RenderWindowRequest r;
       r.set_scene_id("busy");
-      r.set_min_version(v);
-      v1::GetDelaunayResponse out;
-      results[k] = client->GetDelaunay(r, &out);
+      r.set_width_px(16);
+      r.set_height_px(16);
+      v1::RenderWindowResponse out;
+      grpc::Status s = client->RenderWindow(r, &out);
+      std::lock_guard<std::mutex> lock(mu);
+      results[k] = s;
+      if (s.ok() && !let_go) ++done_held;
+      ++answered;
+      cv.notify_all();
     });
   }
+  {
+    // No call can succeed while the render thread is held, and the queue is full once a call
+    // waits in it: the first answer is a refusal.
+    std::unique_lock<std::mutex> lock(mu);
+    EXPECT_TRUE(cv.wait_for(lock, std::chrono::minutes(1), [&] { return answered > 0; }))
+        << "no call was refused while the analysis thread and its queue were full";
+    let_go = true;
+  }
+  std::remove(held.c_str());
   for (auto& t : calls) t.join();
+  EXPECT_EQ(done_held, 0) << "a zoom window was drawn while the render thread was held";
   int refused = 0;
   for (const auto& s : results) {
     if (s.ok()) continue;
@@ -566,6 +604,8 @@ TEST(AnalysisLimitsTest, QueuedAnalysesAreBounded) {
     EXPECT_EQ(s.error_code(), StatusCode::RESOURCE_EXHAUSTED) << s.error_message();
     EXPECT_NE(s.error_message().find("--max-queued-analyses"), std::string::npos) << s.error_message();
   }
+  // One call or none is on the analysis thread when the last arrives (the pool may not have
+  // taken the first yet), and one waits: one refusal or two.
   EXPECT_GE(refused, 1);
   EXPECT_LE(refused, 2);
 }
