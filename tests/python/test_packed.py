@@ -112,6 +112,32 @@ def chunks(rng, sizes, closest):
 OPTIONAL = ("error_bound", "exact", "feature_index", "feature_kind")
 
 
+def check_answers(got, messages, m, closest):
+    """A call's result against its messages' fields as protobuf reads them, an omitted
+    optional column read as proto3's default, zero."""
+    names = [(r.packed.site_ids[i - 1] if i else None) for r in messages for i in r.packed.site]
+    assert got.site_ids.tolist() == names
+    assert [got.ids[i] if i >= 0 else None for i in got.site_indices] == names
+    assert len(set(got.ids)) == len(got.ids)
+    for field, column, dtype in (("distance", got.distances, np.float64),
+                                 ("error_bound", got.error_bounds, np.float64),
+                                 ("exact", got.exact, bool),
+                                 ("feature_index", got.feature_indices, np.uint32),
+                                 ("feature_kind", got.feature_kinds, np.int32)):
+        want = [v for r in messages
+                for v in (getattr(r.packed, field) or [0] * len(r.packed.distance))]
+        assert column.tolist() == want, field
+        assert column.dtype == dtype and column.shape == (m,), field
+        assert column.flags.writeable, field  # the caller's arrays, not views of the bytes
+    if closest:
+        for field, column in (("closest", got.closest), ("gradient", got.gradient)):
+            want = [v for r in messages for v in getattr(r.packed, field)]
+            assert column.shape == (m, 2) and column.ravel().tolist() == want, field
+    else:
+        assert got.closest is None and got.gradient is None
+    assert got.version == max((r.version for r in messages), default=0)
+
+
 @pytest.mark.parametrize("sizes", [[1], [3, 0, 4], [1000, 1, 70000], [70000]])
 @pytest.mark.parametrize("closest", [False, True])
 @pytest.mark.parametrize("omitted", [(), OPTIONAL])
@@ -119,31 +145,33 @@ def test_a_calls_messages_are_joined_in_offset_order(sizes, closest, omitted):
     from gvd import _client  # pylint: disable=import-outside-toplevel
     rng = np.random.default_rng(len(sizes))
     messages = chunks(rng, sizes, closest)
-    # A server may leave out the optional columns (every other message here): each answer's
-    # value is then proto3's default, zero.
+    # A server may leave out the optional columns (every other message here).
     for r in messages[::2]:
         for field in omitted:
             r.packed.ClearField(field)
     # The messages in any order: each is placed by its offset.
     parts = [_client._Packed(PackedAnswers.FromString(r.SerializeToString()), 0)
              for r in reversed(messages)]
-    m = sum(sizes)
-    got = _client._join(parts, m, 2, closest)
-    names = [(r.packed.site_ids[i - 1] if i else None) for r in messages for i in r.packed.site]
-    assert got.site_ids.tolist() == names
-    assert [got.ids[i] if i >= 0 else None for i in got.site_indices] == names
-    assert len(set(got.ids)) == len(got.ids)
-    for field, column in (("distance", got.distances), ("error_bound", got.error_bounds),
-                          ("exact", got.exact), ("feature_index", got.feature_indices),
-                          ("feature_kind", got.feature_kinds)):
-        want = [v for r in messages
-                for v in (getattr(r.packed, field) or [0] * len(r.packed.distance))]
-        assert column.tolist() == want, field
-        assert column.flags.writeable, field  # the caller's arrays, not views of the bytes
-    if closest:
-        want = [v for r in messages for v in r.packed.closest]
-        assert got.closest.shape == (m, 2) and got.closest.ravel().tolist() == want
-    assert got.version == max(r.version for r in messages)
+    check_answers(_client._join(parts, sum(sizes), 2, closest), messages, sum(sizes), closest)
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 40, 1000])
+@pytest.mark.parametrize("closest", [False, True])
+@pytest.mark.parametrize("omitted", [(), OPTIONAL])
+@pytest.mark.parametrize("distinct", [False, True])
+def test_a_unary_answer_is_read_whole(n, closest, omitted, distinct):
+    # One message answering every point, small (read straight from protobuf's parse where its
+    # site ids are distinct) or not (4 KiB and more: the packed reader's), with site ids
+    # named twice or not, optional columns omitted or not.
+    from gvd import _client  # pylint: disable=import-outside-toplevel
+    rng = np.random.default_rng(n)
+    (r,) = chunks(rng, [n], closest)
+    if distinct:
+        del r.packed.site_ids[:]
+        r.packed.site_ids.extend(f"s{k}" for k in range(5))
+    for field in omitted:
+        r.packed.ClearField(field)
+    check_answers(_client._answer(r.SerializeToString(), n, 2, closest), [r], n, closest)
 
 
 @pytest.mark.parametrize("offsets,m", [([0, 2], 7), ([0, 4], 7), ([1, 3], 7), ([0, 3], 6)])
@@ -173,3 +201,24 @@ def test_a_missing_column_or_a_site_past_the_ids_is_refused():
         with pytest.raises(gvd.GvdError) as e:
             _client._join([part], 5, 2, True)
         assert e.value.code.name == "INTERNAL", damage
+        with pytest.raises(gvd.GvdError) as e:
+            _client._answer(r.SerializeToString(), 5, 2, True)
+        assert e.value.code.name == "INTERNAL", damage
+
+
+def test_a_unary_answer_that_is_not_the_calls_is_refused():
+    from gvd import _client  # pylint: disable=import-outside-toplevel
+    rng = np.random.default_rng(4)
+    (r,) = chunks(rng, [3], False)
+    del r.packed.site_ids[:]
+    r.packed.site_ids.extend(f"s{k}" for k in range(5))
+    for data, m in ((r.SerializeToString(), 4),  # three answers for four points
+                    (b"\x1a\x02\x12", 1),  # cut short: not a message
+                    (b"", 1)):  # no answers
+        with pytest.raises(gvd.GvdError) as e:
+            _client._answer(data, m, 2, False)
+        assert e.value.code.name == "INTERNAL", (data, m)
+    r.offset = 1  # the three answers of points 1 to 3 of three
+    with pytest.raises(gvd.GvdError) as e:
+        _client._answer(r.SerializeToString(), 3, 2, False)
+    assert e.value.code.name == "INTERNAL"
