@@ -58,6 +58,32 @@ def test_points_in_nearest_out(client):
     assert (raster.distances - raster.error_bounds <= dist + 1e-12).all()
 
 
+@pytest.mark.parametrize("dims", [2, 3])
+def test_calls_of_a_few_points_with_closest_points(client, dims):
+    # What a UI sends: one to three points a call, exact, with each answer's closest point
+    # and gradient; in a plane and in a volume. A point site's closest point is the site.
+    sid = f"few-{dims}-{client.kind}"
+    if dims == 2:
+        client.create_scene(sid, window=(0, 0, 1, 1), size=(128, 128))
+    else:
+        client.create_scene(sid, window=(0, 0, 0, 1, 1, 1), size=(32, 32, 32))
+    rng = np.random.default_rng(dims)
+    sites = rng.random((300, dims))
+    ids = [f"f{i}" for i in range(len(sites))]
+    v = client.upsert_points(sid, ids, sites)
+    for k in range(60):
+        q = rng.random((1 + k % 3, dims))
+        r = client.find_nearest(sid, q, min_version=v, exact=True, closest=True)
+        d = np.sqrt(((q[:, None, :] - sites[None, :, :]) ** 2).sum(axis=2)).min(axis=1)
+        assert r.version >= v and r.exact.all() and np.array_equal(r.distances, d)
+        named = sites[[ids.index(s) for s in r.site_ids]]
+        assert r.closest.shape == (len(q), dims) and np.array_equal(r.closest, named)
+        assert np.allclose(r.gradient, (q - named) / d[:, None], rtol=0, atol=1e-12)
+        assert [r.ids[i] for i in r.site_indices] == r.site_ids.tolist()
+        assert (r.error_bounds == 0).all() and (r.feature_indices == 0).all()
+    client.delete_scene(sid)
+
+
 def test_a_million_points_with_progress(client):
     sid = f"million-{client.kind}"
     rng, xy, _, v = random_scene(client, sid, 60, 512, 23, "m")
