@@ -78,8 +78,8 @@ class RenderLoop final : public Renderer {
   // can hold a version unrendered for as long as they need, whatever the machine's speed.
   // While a file exists at that path + "." + a scene's id, a full render of that scene
   // waits in its plan, off GL, as if its planning went on: a long render, at any machine's
-  // speed. Meanwhile a file at that path + "." + the id + ".waiting" says it waits, and
-  // holds up its render thread's zoom windows.
+  // speed. While it waits, a file exists at that path + "." + the id + ".waiting", and the
+  // zoom windows queued for its render thread wait with it.
   static constexpr const char* kHoldRendersVariable = "GVD_TEST_HOLD_RENDERS";
 
  private:
