@@ -430,10 +430,12 @@ class _Packed:
     start: int
 
 
-# The optional columns of an answer, each with its type; where a message omits one, its
-# value is zero (0.0, False).
-_COLUMNS = ((_packed.ERROR_BOUND, np.float64), (_packed.EXACT, bool),
-            (_packed.FEATURE_INDEX, np.uint32), (_packed.FEATURE_KIND, np.int32))
+# The optional columns of an answer: PackedNearest's field number and name, NearestResult's
+# name, the type. Where a message omits one, its value is zero (0.0, False).
+_COLUMNS = ((_packed.ERROR_BOUND, "error_bound", "error_bounds", np.float64),
+            (_packed.EXACT, "exact", "exact", bool),
+            (_packed.FEATURE_INDEX, "feature_index", "feature_indices", np.uint32),
+            (_packed.FEATURE_KIND, "feature_kind", "feature_kinds", np.int32))
 
 
 class _Bytes:
@@ -480,9 +482,8 @@ def _answer(data: bytes, m: int, dims: int, closest: bool) -> NearestResult:
         return NearestResult(
             version=r.version, site_ids=np.array(ids + [None], dtype=object)[site],
             site_indices=site, ids=ids, distances=column(p.distance, np.float64),
-            error_bounds=column(p.error_bound, np.float64), exact=column(p.exact, bool),
-            feature_indices=column(p.feature_index, np.uint32),
-            feature_kinds=column(p.feature_kind, np.int32), closest=near, gradient=grad)
+            closest=near, gradient=grad,
+            **{name: column(getattr(p, field), dtype) for _, field, name, dtype in _COLUMNS})
     except _Irregular:
         return _join([_Packed(_packed._from_message(r), 0)], m, dims, closest)  # pylint: disable=protected-access
 
@@ -494,7 +495,7 @@ def _join(parts: List[_Packed], m: int, dims: int, closest: bool) -> NearestResu
     index: Dict[str, int] = {}
     sites: List[np.ndarray] = []
     distances: List[np.ndarray] = []
-    columns: Dict[int, List[np.ndarray]] = {number: [] for number, _ in _COLUMNS}
+    columns: Dict[int, List[np.ndarray]] = {number: [] for number, _, _, _ in _COLUMNS}
     near: List[np.ndarray] = []
     grad: List[np.ndarray] = []
     version = 0
@@ -508,7 +509,7 @@ def _join(parts: List[_Packed], m: int, dims: int, closest: bool) -> NearestResu
             raise GvdError(_grpc_code("INTERNAL"),
                            f"answers {lo} to {lo + n} after {covered} of {m} points")
         covered += n
-        for number, dtype in _COLUMNS:
+        for number, _, _, dtype in _COLUMNS:
             values = a.arrays.get(number)
             if values is not None and len(values) != n:
                 raise GvdError(_grpc_code("INTERNAL"),
@@ -545,12 +546,9 @@ def _join(parts: List[_Packed], m: int, dims: int, closest: bool) -> NearestResu
     return NearestResult(
         version=version, site_ids=np.array(ids + [None], dtype=object)[site],
         site_indices=site, ids=ids, distances=joined(distances, np.float64),
-        error_bounds=joined(columns[_packed.ERROR_BOUND], np.float64),
-        exact=joined(columns[_packed.EXACT], bool),
-        feature_indices=joined(columns[_packed.FEATURE_INDEX], np.uint32),
-        feature_kinds=joined(columns[_packed.FEATURE_KIND], np.int32),
         closest=joined(near, np.float64, (dims,)) if closest else None,
-        gradient=joined(grad, np.float64, (dims,)) if closest else None)
+        gradient=joined(grad, np.float64, (dims,)) if closest else None,
+        **{name: joined(columns[number], dtype) for number, _, name, dtype in _COLUMNS})
 
 
 def site_from_dict(d: Mapping[str, Any]) -> pb.Site:
