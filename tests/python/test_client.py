@@ -58,6 +58,24 @@ def test_points_in_nearest_out(client):
     assert (raster.distances - raster.error_bounds <= dist + 1e-12).all()
 
 
+def test_points_are_stored_as_given_whatever_their_ids(client):
+    # upsert_points writes its request from the arrays; a call with an id too long for that
+    # goes as protobuf's messages. Either way the server holds each id at its point.
+    sid = f"ids-{client.kind}"
+    client.create_scene(sid, window=(-1, -1, 1, 1), size=(64, 64))
+    rng = np.random.default_rng(5)
+    ids = [f"pt-{i}-é漢" for i in range(300)] + ["L" * 200 + str(i) for i in range(3)]
+    xy = rng.random((len(ids), 2)) * 2 - 1
+    xy[0, 0] = xy[301, 1] = 0.0  # omitted by protobuf's writer, written by the arrays'
+    v = client.upsert_points(sid, ids[:300], xy[:300])
+    assert client.upsert_points(sid, ids[300:], xy[300:]) > v
+    listed = {s["id"]: s["point"] for s in client.list_sites(sid)}
+    assert sorted(listed) == sorted(ids)
+    got = np.array([[listed[i].get("x", 0.0), listed[i].get("y", 0.0)] for i in ids])
+    assert np.array_equal(got, xy)
+    client.delete_scene(sid)
+
+
 @pytest.mark.parametrize("dims", [2, 3])
 def test_calls_of_a_few_points_with_closest_points(client, dims):
     # What a UI sends: one to three points a call, exact, with each answer's closest point

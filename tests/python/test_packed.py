@@ -1,13 +1,14 @@
 """The Python client's reader of packed FindNearestStream answers (gvd._packed), against
 protobuf's own parser of the same bytes: random and edge values (indices of every varint
 length, no site, infinities, negative zero), fields split over several records, and the
-unpacked encoding another server may send. No server needed."""
+unpacked encoding another server may send. And its writer of point sites
+(gvd._client._point_sites), against protobuf's parse of what it writes. No server needed."""
 import numpy as np
 import pytest
 
 import gvd
 
-from gvd import _packed
+from gvd import _client, _packed
 from gvd._packed import PackedAnswers
 from gvd.v1 import voronoi_pb2 as pb
 
@@ -222,3 +223,44 @@ def test_a_unary_answer_that_is_not_the_calls_is_refused():
     with pytest.raises(gvd.GvdError) as e:
         _client._answer(r.SerializeToString(), 3, 2, False)
     assert e.value.code.name == "INTERNAL"
+
+
+EDGE_COORDINATES = [0.0, -0.0, 5e-324, -2.2250738585072014e-308, 1.7976931348623157e308,
+                    -1.0, 0.1, 1e-300]
+
+
+@pytest.mark.parametrize("dims", [2, 3])
+def test_point_sites_are_the_points_given_as_protobuf_reads_them(dims):
+    rng = np.random.default_rng(dims)
+    n = 3000
+    letters = list("az09-_.éü漢🙂")
+    ids = ["".join(rng.choice(letters, size=int(rng.integers(0, 40)))) for _ in range(n)]
+    # Ids up to the longest that still fit one-byte lengths: a Site of 127 bytes.
+    longest = 127 - 2 - (2 + 9 * dims)
+    ids[:3] = ["", "x" * longest, "é" * (longest // 2)]
+    xy = rng.standard_normal((n, dims)) * 10.0 ** rng.integers(-300, 300, (n, dims))
+    xy[: len(EDGE_COORDINATES), 0] = EDGE_COORDINATES
+    xy[: len(EDGE_COORDINATES), dims - 1] = EDGE_COORDINATES[::-1]
+    request = pb.UpsertSitesRequest(scene_id="scène", durability=pb.DURABILITY_RELAXED)
+    data = _client._point_sites(request, ids, xy)
+    r = pb.UpsertSitesRequest.FromString(data)
+    assert r.scene_id == "scène" and r.durability == pb.DURABILITY_RELAXED
+    assert [s.id for s in r.sites] == ids
+    assert all(s.WhichOneof("geometry") == "point" for s in r.sites)
+    got = np.array([[s.point.x, s.point.y, s.point.z][:dims] for s in r.sites])
+    assert got.tobytes() == xy.tobytes()  # bitwise: signs of zero, subnormals
+    # The same message as protobuf makes it from the same values.
+    want = pb.UpsertSitesRequest(scene_id="scène", durability=pb.DURABILITY_RELAXED)
+    for sid, p in zip(ids, xy.tolist()):
+        want.sites.add(id=sid).point.CopyFrom(pb.Point(**dict(zip("xyz", p))))
+    assert r == want
+
+
+@pytest.mark.parametrize("dims", [2, 3])
+def test_point_sites_leave_long_ids_to_protobuf(dims):
+    longest = 127 - 2 - (2 + 9 * dims)
+    request = pb.UpsertSitesRequest(scene_id="s")
+    xy = np.zeros((2, dims))
+    assert _client._point_sites(request, ["a", "x" * (longest + 1)], xy) is None
+    assert _client._point_sites(request, ["a", "é" * (longest // 2 + 1)], xy) is None
+    assert _client._point_sites(request, ["a", "x" * longest], xy) is not None

@@ -139,19 +139,22 @@ class Client:
         xy = _points(xy, "xy")
         if len(ids) != len(xy):
             raise ValueError(f"{len(ids)} ids for {len(xy)} points")
+        level = _durability(durability)
         version = 0
         for start in range(0, len(xy), MAX_SITES_PER_CALL):
             chunk = xy[start:start + MAX_SITES_PER_CALL]
-            request = pb.UpsertSitesRequest(scene_id=scene_id,
-                                            durability=_durability(durability))
-            three = chunk.shape[1] == 3
-            for sid, p in zip(ids[start:start + len(chunk)], chunk.tolist()):
-                site = request.sites.add(id=str(sid))
-                site.point.x, site.point.y = p[0], p[1]
-                if three:
-                    site.point.z = p[2]
+            chunk_ids = [str(sid) for sid in ids[start:start + len(chunk)]]
+            request = pb.UpsertSitesRequest(scene_id=scene_id, durability=level)
+            body = _point_sites(request, chunk_ids, chunk)
+            if body is None:  # an id too long for the arrays' encoding: protobuf's
+                three = chunk.shape[1] == 3
+                for sid, p in zip(chunk_ids, chunk.tolist()):
+                    site = request.sites.add(id=sid)
+                    site.point.x, site.point.y = p[0], p[1]
+                    if three:
+                        site.point.z = p[2]
             version = self._transport.unary("UpsertSites", request, pb.UpsertSitesResponse,
-                                            self.timeout).version
+                                            self.timeout, body=body).version
             if progress:
                 progress(start + len(chunk), len(xy))
         return version
@@ -417,6 +420,52 @@ def _packed_doubles(field: Optional[int], a: np.ndarray) -> bytes:
         raise GvdError(_grpc_code("UNIMPLEMENTED"), "this server's API has no 3D query points")
     data = a.astype("<f8", copy=False).tobytes()
     return _varint(field << 3 | 2) + _varint(len(data)) + data
+
+
+# One point site's bytes after its id, for _point_sites: Site.point (field 2) holding x, y
+# and z (fields 1-3) as doubles; packed, without alignment, in wire order.
+_POINT_TAIL = {dims: np.dtype([("tag", "u1"), ("length", "u1")]
+                              + [(f"{name}_{k}", t) for k in range(dims)
+                                 for name, t in (("tag", "u1"), ("value", "<f8"))])
+               for dims in (2, 3)}
+
+
+def _point_sites(request: pb.UpsertSitesRequest, ids: List[str],
+                 xy: np.ndarray) -> Optional[bytes]:
+    """The bytes of `request` (its scene and durability) with point sites ids[i] at xy[i]
+    as its sites, written with a few NumPy steps: made and serialized as protobuf's Python
+    messages (Debian's protobuf 3.21, its C++ implementation), 100,000 points took 0.25-0.37
+    s, longer than the server's whole commit of them, against 0.03-0.06 s this way. Each site is
+    Site{id, point{x, y[, z]}}, every coordinate written (a zero too, which protobuf would
+    omit: the same message to any reader). None where a site does not fit one-byte lengths
+    (an id of about a hundred bytes or more): the caller then builds the message with
+    protobuf."""
+    n, dims = xy.shape
+    encoded = [sid.encode() for sid in ids]
+    id_bytes = np.fromiter(map(len, encoded), dtype=np.int64, count=n)
+    tail = _POINT_TAIL[dims]
+    # A Site: 0x0a (id) length id, then the tail (0x12 length 0x09 x 0x11 y [0x19 z]).
+    site_bytes = 2 + id_bytes + tail.itemsize
+    if n == 0 or site_bytes.max() > 127:
+        return None
+    record = 2 + site_bytes  # 0x12 (UpsertSitesRequest.sites) and the Site's length first
+    starts = np.cumsum(record) - record
+    out = np.empty(int(record.sum()), dtype=np.uint8)
+    out[starts] = 0x12
+    out[starts + 1] = site_bytes
+    out[starts + 2] = 0x0a
+    out[starts + 3] = id_bytes
+    id_starts = np.cumsum(id_bytes) - id_bytes
+    out[np.repeat(starts + 4 - id_starts, id_bytes) + np.arange(int(id_bytes.sum()))] = \
+        np.frombuffer(b"".join(encoded), dtype=np.uint8)
+    points = np.empty(n, dtype=tail)
+    points["tag"], points["length"] = 0x12, tail.itemsize - 2
+    for k in range(dims):
+        points[f"tag_{k}"] = (k + 1) << 3 | 1
+        points[f"value_{k}"] = xy[:, k]
+    out[(starts + 4 + id_bytes)[:, None] + np.arange(tail.itemsize)] = \
+        points.view(np.uint8).reshape(n, tail.itemsize)
+    return request.SerializeToString() + out.tobytes()
 
 
 def _grpc_code(name: str):
