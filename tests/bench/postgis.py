@@ -22,9 +22,9 @@ measures:
   - a one-site move until a read sees it, p50 and p99 over N moves of a random site to a
     random place (often into empty space, where it takes a large cell): gvd an UpsertSites
     (SYNC) and a FindNearest at its version at the moved site, the moves alternating
-    between the client's two transports (gRPC and HTTP, N/2 each), each followed by
-    PostGIS's of the same site to the same place, an UPDATE (autocommit) and a KNN SELECT at
-    that point;
+    between the client's two transports (gRPC and HTTP) and the same two calls made through
+    grpcio alone (N/3 each), each followed by PostGIS's of the same site to the same place,
+    an UPDATE (autocommit) and a KNN SELECT at that point;
   - a batch of N random query points in one call, the median of three runs on each side:
     gvd FindNearest (the client's packed stream), PostGIS a LATERAL KNN join over arrays
     passed as parameters;
@@ -35,7 +35,9 @@ FindNearest over HTTP/JSON at random points), with p50 and p99 from their per-re
 (wrk: its latency distribution).
 Clients: psycopg2 and the project's Python client (over gRPC; over HTTP as well for the
 moves), one connection each, on loopback (PostgreSQL on its Unix socket, as a local
-deployment would use it).
+deployment would use it). For the moves also grpcio alone (GrpcioAlone): the API's
+messages through grpcio's own stubs, with none of the client's code, the floor that any
+Python gRPC client of gvd stands on.
 """
 import argparse
 import io
@@ -130,6 +132,40 @@ def to_wkt(site):
     return "LINESTRING(" + ",".join(f"{x!r} {y!r}" for x, y in line) + ")"
 
 
+class GrpcioAlone:
+    """A move's two calls through grpcio's generic stubs with the API's messages (the query
+    point as a Point, the answer as the FindNearestResponse protobuf parses): what a move
+    costs over gRPC before any of the client's own code."""
+
+    def __init__(self, target):
+        import grpc  # pylint: disable=import-outside-toplevel
+        self.channel = grpc.insecure_channel(target)
+        service = "/gvd.v1.VoronoiService/"
+        self.upsert = self.channel.unary_unary(
+            service + "UpsertSites", request_serializer=pb.UpsertSitesRequest.SerializeToString,
+            response_deserializer=pb.UpsertSitesResponse.FromString)
+        self.find = self.channel.unary_unary(
+            service + "FindNearest", request_serializer=pb.FindNearestRequest.SerializeToString,
+            response_deserializer=pb.FindNearestResponse.FromString)
+
+    def upsert_sites(self, name, sites):
+        return self.upsert(pb.UpsertSitesRequest(scene_id=name, sites=sites), timeout=600).version
+
+    def find_nearest(self, name, points, *, min_version):
+        (x, y), = points
+        return self.find(pb.FindNearestRequest(scene_id=name, min_version=min_version,
+                                               points=[pb.Point(x=x, y=y)]), timeout=600)
+
+
+def first_answer(answer):
+    """The first answer's site id, distance and error bound, from the client's NearestResult
+    or from a FindNearestResponse."""
+    if isinstance(answer, pb.FindNearestResponse):
+        r = answer.results[0]
+        return r.site_id, r.distance, r.error_bound
+    return answer.site_ids[0], answer.distances[0], answer.error_bounds[0]
+
+
 def gvd_load(client, name, sites):
     """A scene of points goes in as arrays (upsert_points), any other as the API's messages
     (upsert_sites), each made before the clock starts, as PostGIS's COPY text is."""
@@ -188,9 +224,10 @@ def moves(clients, conn, name, sites, count, rng):
             pg_ms.append(1000 * (time.perf_counter() - t0))
             # Both saw the move: the site is at distance 0 from the point read (gvd's answer
             # may be another site within its bound).
-            if answer.distances[0] > answer.error_bounds[0] or row[0] != i:
-                raise SystemExit(f"move of {i} unseen: gvd {answer.site_ids[0]} at "
-                                 f"{answer.distances[0]}, PostGIS {row[0]}")
+            site_id, distance, bound = first_answer(answer)
+            if distance > bound or row[0] != i:
+                raise SystemExit(f"move of {i} unseen: gvd ({kind}) {site_id} at {distance}, "
+                                 f"PostGIS {row[0]}")
     out = {}
     for kind, ms in gvd_ms.items():
         out[f"gvd_{kind}_p50_ms"] = statistics.median(ms)
@@ -283,7 +320,7 @@ def capacity(pg, work, grpc_port, http_port, seconds):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("server")
-    ap.add_argument("--moves", type=int, default=400)
+    ap.add_argument("--moves", type=int, default=600)
     ap.add_argument("--seconds", type=int, default=10)
     ap.add_argument("--batch", type=int, default=100_000)
     ap.add_argument("--json")
@@ -305,6 +342,7 @@ def main():
             grpc_port = int(f.read().split()[0])
         client = gvd.Client(f"127.0.0.1:{grpc_port}", timeout=600)
         http_client = gvd.Client(f"http://127.0.0.1:{http_port}", timeout=600)
+        bare = GrpcioAlone(f"127.0.0.1:{grpc_port}")
         figures = {}
         for name, make in (("points", scene_points), ("segments", scene_segments),
                            ("curves", scene_curves)):
@@ -313,8 +351,8 @@ def main():
             row = {"sites": len(sites),
                    "load_gvd_ms": 1000 * gvd_load(client, name, sites),
                    "load_postgis_ms": 1000 * pg_load(conn, name, sites)}
-            row["move"] = moves({"grpc": client, "http": http_client}, conn, name, sites,
-                                args.moves, rng)
+            row["move"] = moves({"grpc": client, "http": http_client, "grpcio": bare}, conn,
+                                name, sites, args.moves, rng)
             row["batch"] = batch(client, conn, name, rng.random((args.batch, 2)))
             figures[name] = row
             print(name, json.dumps(row), flush=True)
@@ -335,7 +373,8 @@ def main():
 
 def print_table(f, batch_size):
     print(f"\n| scene | load until queryable, gvd / PostGIS | one-site move until a read sees it, "
-          f"p50 (p99), gvd over gRPC / gvd over HTTP / PostGIS | {batch_size:,}-query batch, "
+          f"p50 (p99), gvd over gRPC / gvd over HTTP / grpcio alone / PostGIS | "
+          f"{batch_size:,}-query batch, "
           f"gvd / PostGIS |")
     print("|---|---|---|---|")
     for name in ("points", "segments", "curves"):
@@ -345,6 +384,7 @@ def print_table(f, batch_size):
               f"({r['load_postgis_ms'] / r['load_gvd_ms']:.2f}x) | "
               f"{m['gvd_grpc_p50_ms']:.2f} ({m['gvd_grpc_p99_ms']:.2f}) / "
               f"{m['gvd_http_p50_ms']:.2f} ({m['gvd_http_p99_ms']:.2f}) / "
+              f"{m['gvd_grpcio_p50_ms']:.2f} ({m['gvd_grpcio_p99_ms']:.2f}) / "
               f"{m['postgis_p50_ms']:.2f} ({m['postgis_p99_ms']:.2f}) ms | "
               f"{b['gvd_ms']:.0f} / {b['postgis_ms']:.0f} ms "
               f"({b['postgis_ms'] / b['gvd_ms']:.0f}x faster) |")
