@@ -133,6 +133,9 @@ class SqliteStore final : public SceneStore {
   // pack or the cursor is that pack's already. A persistent store reads the pack on the
   // folder's connection, outside mu_; one in memory, under mu_.
   absl::Status PrepareFold();
+  // PrepareFold on a thread at kFoldNice, unless a cursor is ready (the folder's, before each
+  // chunk).
+  absl::Status PrepareFoldBelowCalls();
   struct PackHead {
     uint64_t id = 0;
     std::string scene;
@@ -142,7 +145,9 @@ class SqliteStore final : public SceneStore {
   absl::StatusOr<std::optional<PackHead>> OldestPack();
   // Tells the folder a pack was written (or found at the start).
   void WantFold();
-  // Folds packs once they have rested fold_after.
+  // Folds packs once they have rested fold_after; at the priority of the thread that made it
+  // (the first call that wrote a pack, or the start that found one), since its chunks hold
+  // mu_.
   void Folder();
   // Tells the checkpointer the WAL holds kCheckpointPages or more (the WAL hook's, after a
   // commit). CONTRACT: mu_ held.

@@ -2,6 +2,7 @@
 // load, commit, delete, reopen and conversion of the earlier schema. The oracle is a plain
 // model kept here (a std::map of encoded-by-hand fields), compared bit for bit.
 #include <sqlite3.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -10,12 +11,14 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <chrono>
 #include <limits>
 #include <map>
 #include <set>
+#include <sstream>
 #include <memory>
 #include <mutex>
 #include <random>
@@ -320,6 +323,69 @@ TEST(Store, PackedChangeSetsReadTheSameBeforeAndAfterTheirFold) {
     SCOPED_TRACE("folded by the folder as they come");
     CheckCommitsAcrossReopens(23, &busy, true);
   }
+}
+
+// The nice value of each of this process's threads named `name` (/proc/self/task).
+std::vector<int> NiceOfThreads(const std::string& name) {
+  std::vector<int> nice;
+  for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
+    std::ifstream comm(task.path() / "comm");
+    std::string thread_name;
+    std::getline(comm, thread_name);
+    if (thread_name != name) continue;
+    std::ifstream stat(task.path() / "stat");
+    std::string line;
+    std::getline(stat, line);
+    // After the name's closing parenthesis: state (field 3) ... nice (field 19).
+    std::istringstream fields(line.substr(line.rfind(')') + 2));
+    std::string field;
+    for (int k = 3; k <= 19 && fields >> field; ++k) {
+      if (k == 19) nice.push_back(std::stoi(field));
+    }
+  }
+  return nice;
+}
+
+// The folder's chunks hold the lock that every commit waits for, so they run at the
+// priority of the thread that wrote the pack, not below it as the pack's ordering does: a
+// chunk at nice 10 beside busy threads at 0 held commits for most of a second.
+TEST(Store, TheFoldersChunksRunAtItsWritersPriority) {
+  TempDir dir;
+  auto opened = SqliteStore::Open(dir.path() + "/data");
+  ASSERT_TRUE(opened.ok()) << opened.status();
+  SqliteStore& store = **opened;
+  SqliteStore::Packing packing;
+  packing.min_sites = 4;
+  packing.fold_after = std::chrono::milliseconds(0);
+  packing.fold_idle = std::chrono::milliseconds(0);
+  packing.fold_chunk = 3;
+  store.set_packing(packing);
+  const int writer_nice = getpriority(PRIO_PROCESS, 0);  // this thread's (Linux)
+  ASSERT_TRUE(store.CreateScene(Settings("s"), 1).ok());
+  std::mt19937_64 rng(41);
+  std::vector<std::shared_ptr<const Site>> put;
+  for (int k = 0; k < 40; ++k) {
+    put.push_back(std::make_shared<const Site>(RandomSite(rng, k, "id" + std::to_string(k))));
+  }
+  ASSERT_TRUE(store.Commit(ChangeSet{"s", 2, put, {}}).ok());
+  // Folded once the pack's row is gone (read through a connection of the test's own).
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open_v2((dir.path() + "/data/gvd.sqlite3").c_str(), &db,
+                            SQLITE_OPEN_READONLY, nullptr),
+            SQLITE_OK);
+  int packs = -1;
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::minutes(1);
+  while (packs != 0 && std::chrono::steady_clock::now() < give_up) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    sqlite3_stmt* count = nullptr;
+    ASSERT_EQ(sqlite3_prepare_v2(db, "SELECT count(*) FROM site_pack", -1, &count, nullptr),
+              SQLITE_OK);
+    if (sqlite3_step(count) == SQLITE_ROW) packs = sqlite3_column_int(count, 0);
+    sqlite3_finalize(count);
+  }
+  sqlite3_close(db);
+  ASSERT_EQ(packs, 0) << "the pack was not folded in a minute";
+  EXPECT_EQ(NiceOfThreads("gvd-store-fold"), std::vector<int>{writer_nice});
 }
 
 // Executes SQL on a database file directly, as an earlier release would have.
