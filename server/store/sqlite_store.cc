@@ -332,7 +332,9 @@ void SqliteStore::WantFold() {
 absl::Status SqliteStore::PrepareFoldBelowCalls() {
   {
     std::lock_guard<std::mutex> lock(mu_);
-    if (fold_cursor_) return absl::OkStatus();  // FoldSome checks it is the oldest pack's
+    auto to_prepare = PackToPrepare();
+    if (!to_prepare.ok()) return to_prepare.status();
+    if (!*to_prepare) return absl::OkStatus();
   }
   // Below calls, as renders are: ordering a pack's entries takes tens of milliseconds of a
   // core, which a call's thread woken meanwhile would otherwise wait a time slice for. On a
@@ -469,15 +471,22 @@ absl::StatusOr<std::optional<SqliteStore::PackHead>> SqliteStore::OldestPack() {
                   static_cast<uint64_t>(sqlite3_column_int64(p.get(), 2))};
 }
 
+absl::StatusOr<std::optional<SqliteStore::PackHead>> SqliteStore::PackToPrepare() {
+  auto oldest = OldestPack();
+  if (!oldest.ok()) return oldest.status();
+  if (*oldest && fold_cursor_ && fold_cursor_->id == (*oldest)->id) return std::nullopt;
+  return oldest;
+}
+
 absl::Status SqliteStore::PrepareFold() {
   std::optional<PackHead> head;
   std::optional<std::string> pack;
   {
     std::lock_guard<std::mutex> lock(mu_);
-    auto oldest = OldestPack();
-    if (!oldest.ok()) return oldest.status();
-    head = *oldest;
-    if (!head || (fold_cursor_ && fold_cursor_->id == head->id)) return absl::OkStatus();
+    auto to_prepare = PackToPrepare();
+    if (!to_prepare.ok()) return to_prepare.status();
+    head = *to_prepare;
+    if (!head) return absl::OkStatus();
     if (wal_path_.empty()) {  // in memory: no other connection sees the database
       auto read = ReadPack(db_, head->id);
       if (!read.ok()) return read.status();

@@ -133,8 +133,8 @@ class SqliteStore final : public SceneStore {
   // pack or the cursor is that pack's already. A persistent store reads the pack on the
   // folder's connection, outside mu_; one in memory, under mu_.
   absl::Status PrepareFold();
-  // PrepareFold on a thread at kFoldNice, unless a cursor is ready (the folder's, before each
-  // chunk).
+  // PrepareFold on a thread at kFoldNice, unless the oldest pack's cursor is ready (the
+  // folder's, before each chunk).
   absl::Status PrepareFoldBelowCalls();
   struct PackHead {
     uint64_t id = 0;
@@ -143,6 +143,8 @@ class SqliteStore final : public SceneStore {
   };
   // The oldest pack's, or none. CONTRACT: mu_ held.
   absl::StatusOr<std::optional<PackHead>> OldestPack();
+  // The oldest pack, unless there is none or fold_cursor_ is its already. CONTRACT: mu_ held.
+  absl::StatusOr<std::optional<PackHead>> PackToPrepare();
   // Tells the folder a pack was written (or found at the start).
   void WantFold();
   // Folds packs once they have rested fold_after; at the priority of the thread that made it

@@ -385,7 +385,11 @@ TEST(Store, TheFoldersChunksRunAtItsWritersPriority) {
   }
   sqlite3_close(db);
   ASSERT_EQ(packs, 0) << "the pack was not folded in a minute";
-  EXPECT_EQ(NiceOfThreads("gvd-store-fold"), std::vector<int>{writer_nice});
+  // The folder, and any thread it made that has not named itself yet (the flusher, the
+  // checkpointer), which has its nice value.
+  const std::vector<int> folders = NiceOfThreads("gvd-store-fold");
+  ASSERT_FALSE(folders.empty());
+  for (int nice : folders) EXPECT_EQ(nice, writer_nice);
 }
 
 // Executes SQL on a database file directly, as an earlier release would have.
