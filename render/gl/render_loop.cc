@@ -123,6 +123,10 @@ std::shared_ptr<Scene> RenderLoop::Take(int lane) {
   }
   owner_[scene] = lane;
   busy_[lane] = true;
+  // The other lanes may take this lane's scenes now, which they turned down while it was
+  // free: without a word they would sleep until the next update or render's end, and this
+  // render may go on for seconds.
+  if (!dirty_.empty()) cv_.notify_all();
   return taken;
 }
 

@@ -90,7 +90,8 @@ class RenderLoop final : public Renderer {
   bool Enqueue(Task task);
   void Run(int lane, DevicePreference preference);
   // The first queued scene `lane` may render now, removed from the queue (null if none):
-  // not being rendered, and its own, nobody's, or a busy lane's. Under mu_.
+  // not being rendered, and its own, nobody's, or a busy lane's; wakes the other lanes if
+  // more are queued, as this lane is busy now. Under mu_.
   std::shared_ptr<Scene> Take(int lane);
 
   const int lanes_;
