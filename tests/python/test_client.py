@@ -76,6 +76,30 @@ def test_points_are_stored_as_given_whatever_their_ids(client):
     client.delete_scene(sid)
 
 
+def test_segments_are_stored_as_given_whatever_their_ids(client):
+    # upsert_segments writes its request from the arrays, as upsert_points does, and an id
+    # too long for that goes as protobuf's messages; either way each id holds its segment,
+    # and a read at the version finds each segment where it lies.
+    sid = f"segs-{client.kind}"
+    client.create_scene(sid, window=(-1, -1, 1, 1), size=(64, 64))
+    rng = np.random.default_rng(6)
+    ids = [f"sg-{i}-é漢" for i in range(200)] + ["L" * 100 + str(i) for i in range(3)]
+    ab = rng.random((len(ids), 2, 2)) * 2 - 1
+    ab[0, 0, 0] = ab[201, 1, 1] = 0.0  # omitted by protobuf's writer, written by the arrays'
+    v = client.upsert_segments(sid, ids[:200], ab[:200])
+    v = client.upsert_segments(sid, ids[200:], ab[200:])
+    listed = {s["id"]: s["segment"] for s in client.list_sites(sid)}
+    assert sorted(listed) == sorted(ids)
+    got = np.array([[[listed[i][end].get(c, 0.0) for c in "xy"] for end in "ab"] for i in ids])
+    assert np.array_equal(got, ab)
+    # The midpoint of each segment is on it: distance 0, within the answer's bound.
+    r = client.find_nearest(sid, ab.mean(axis=1), min_version=v, exact=True)
+    assert (r.distances <= 1e-12).all()
+    with pytest.raises(ValueError, match=r"\(n, 2, 2\)"):
+        client.upsert_segments(sid, ids[:1], ab[:1, 0])
+    client.delete_scene(sid)
+
+
 @pytest.mark.parametrize("dims", [2, 3])
 def test_calls_of_a_few_points_with_closest_points(client, dims):
     # What a UI sends: one to three points a call, exact, with each answer's closest point

@@ -1,8 +1,8 @@
 """The Python client's reader of packed FindNearestStream answers (gvd._packed), against
 protobuf's own parser of the same bytes: random and edge values (indices of every varint
 length, no site, infinities, negative zero), fields split over several records, and the
-unpacked encoding another server may send. And its writer of point sites
-(gvd._client._point_sites), against protobuf's parse of what it writes. No server needed."""
+unpacked encoding another server may send. And its writer of point and segment sites
+(gvd._client._array_sites), against protobuf's parse of what it writes. No server needed."""
 import numpy as np
 import pytest
 
@@ -229,38 +229,58 @@ EDGE_COORDINATES = [0.0, -0.0, 5e-324, -2.2250738585072014e-308, 1.7976931348623
                     -1.0, 0.1, 1e-300]
 
 
+# The points of a site of each kind, and the longest id its encoding takes: a Site of 127
+# bytes, its id's tag and length, then the geometry's tag and length, and each point's x, y
+# [, z] (9 bytes each), wrapped in a tag and a length where the geometry has two points.
+POINTS = {"point": 1, "segment": 2}
+
+
+def longest_id(kind, dims):
+    points = POINTS[kind]
+    return 127 - 2 - 2 - points * 9 * dims - (2 * points if points > 1 else 0)
+
+
+@pytest.mark.parametrize("kind", ["point", "segment"])
 @pytest.mark.parametrize("dims", [2, 3])
-def test_point_sites_are_the_points_given_as_protobuf_reads_them(dims):
+def test_array_sites_are_the_sites_given_as_protobuf_reads_them(kind, dims):
     rng = np.random.default_rng(dims)
     n = 3000
-    letters = list("az09-_.éü漢🙂")
-    ids = ["".join(rng.choice(letters, size=int(rng.integers(0, 40)))) for _ in range(n)]
-    # Ids up to the longest that still fit one-byte lengths: a Site of 127 bytes.
-    longest = 127 - 2 - (2 + 9 * dims)
+    letters = list("az09-_.éü漢🙂")  # up to 4 bytes each
+    longest = longest_id(kind, dims)
+    ids = ["".join(rng.choice(letters, size=int(rng.integers(0, longest // 4 + 1))))
+           for _ in range(n)]
     ids[:3] = ["", "x" * longest, "é" * (longest // 2)]
-    xy = rng.standard_normal((n, dims)) * 10.0 ** rng.integers(-300, 300, (n, dims))
-    xy[: len(EDGE_COORDINATES), 0] = EDGE_COORDINATES
-    xy[: len(EDGE_COORDINATES), dims - 1] = EDGE_COORDINATES[::-1]
+    points = POINTS[kind]
+    shape = (n, points, dims)
+    ends = rng.standard_normal(shape) * 10.0 ** rng.integers(-300, 300, shape)
+    ends[: len(EDGE_COORDINATES), 0, 0] = EDGE_COORDINATES
+    ends[: len(EDGE_COORDINATES), points - 1, dims - 1] = EDGE_COORDINATES[::-1]
     request = pb.UpsertSitesRequest(scene_id="scène", durability=pb.DURABILITY_RELAXED)
-    data = _client._point_sites(request, ids, xy)
+    data = _client._array_sites(request, ids, kind, ends)
     r = pb.UpsertSitesRequest.FromString(data)
     assert r.scene_id == "scène" and r.durability == pb.DURABILITY_RELAXED
     assert [s.id for s in r.sites] == ids
-    assert all(s.WhichOneof("geometry") == "point" for s in r.sites)
-    got = np.array([[s.point.x, s.point.y, s.point.z][:dims] for s in r.sites])
-    assert got.tobytes() == xy.tobytes()  # bitwise: signs of zero, subnormals
+    assert all(s.WhichOneof("geometry") == kind for s in r.sites)
+    ends_read = [[s.point] if kind == "point" else [s.segment.a, s.segment.b] for s in r.sites]
+    got = np.array([[[p.x, p.y, p.z][:dims] for p in site] for site in ends_read])
+    assert got.tobytes() == ends.tobytes()  # bitwise: signs of zero, subnormals
     # The same message as protobuf makes it from the same values.
     want = pb.UpsertSitesRequest(scene_id="scène", durability=pb.DURABILITY_RELAXED)
-    for sid, p in zip(ids, xy.tolist()):
-        want.sites.add(id=sid).point.CopyFrom(pb.Point(**dict(zip("xyz", p))))
+    for sid, site in zip(ids, ends.tolist()):
+        made = [pb.Point(**dict(zip("xyz", p))) for p in site]
+        if kind == "point":
+            want.sites.add(id=sid).point.CopyFrom(made[0])
+        else:
+            want.sites.add(id=sid).segment.CopyFrom(pb.Segment(a=made[0], b=made[1]))
     assert r == want
 
 
+@pytest.mark.parametrize("kind", ["point", "segment"])
 @pytest.mark.parametrize("dims", [2, 3])
-def test_point_sites_leave_long_ids_to_protobuf(dims):
-    longest = 127 - 2 - (2 + 9 * dims)
+def test_array_sites_leave_long_ids_to_protobuf(kind, dims):
+    longest = longest_id(kind, dims)
     request = pb.UpsertSitesRequest(scene_id="s")
-    xy = np.zeros((2, dims))
-    assert _client._point_sites(request, ["a", "x" * (longest + 1)], xy) is None
-    assert _client._point_sites(request, ["a", "é" * (longest // 2 + 1)], xy) is None
-    assert _client._point_sites(request, ["a", "x" * longest], xy) is not None
+    ends = np.zeros((2, POINTS[kind], dims))
+    assert _client._array_sites(request, ["a", "x" * (longest + 1)], kind, ends) is None
+    assert _client._array_sites(request, ["a", "é" * (longest // 2 + 1)], kind, ends) is None
+    assert _client._array_sites(request, ["a", "x" * longest], kind, ends) is not None
