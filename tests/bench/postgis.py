@@ -15,10 +15,10 @@ store on the same disk, then, on three scenes in the unit square (gvd at 1024x10
     rest scattered, so that cells range from a few pixels to a few percent of the window
     (PostGIS gets each Bezier flattened to 64 pieces),
 measures:
-  - load until queryable: gvd CreateScene, UpsertSites of every site (the points from
-    arrays, upsert_points; other sites as the API's messages, upsert_sites), and a
-    FindNearest at the new version; PostGIS CREATE TABLE, COPY, a GiST index, ANALYZE and a
-    KNN query;
+  - load until queryable: gvd CreateScene, UpsertSites of every site (points and segments
+    from arrays, upsert_points and upsert_segments; other sites as the API's messages,
+    upsert_sites), and a FindNearest at the new version; PostGIS CREATE TABLE, COPY, a GiST
+    index, ANALYZE and a KNN query;
   - a one-site move until a read sees it, p50 and p99 over N moves of a random site to a
     random place (often into empty space, where it takes a large cell): gvd an UpsertSites
     (SYNC) and a FindNearest at its version at the moved site, the moves alternating
@@ -167,18 +167,20 @@ def first_answer(answer):
 
 
 def gvd_load(client, name, sites):
-    """A scene of points goes in as arrays (upsert_points), any other as the API's messages
-    (upsert_sites), each made before the clock starts, as PostGIS's COPY text is."""
+    """A scene of points or of segments goes in as arrays (upsert_points, upsert_segments),
+    any other as the API's messages (upsert_sites), each made before the clock starts, as
+    PostGIS's COPY text is."""
     ids = [str(i) for i in range(len(sites))]
-    points = all(kind == "point" for kind, _ in sites)
-    if points:
-        xy = np.array([g for _, g in sites])
+    kinds = {kind for kind, _ in sites}
+    upsert = ({"point": client.upsert_points, "segment": client.upsert_segments}.get(kinds.pop())
+              if len(kinds) == 1 else None)
+    if upsert:
+        arrays = np.array([g for _, g in sites])
     else:
         messages = [to_pb(i, s) for i, s in zip(ids, sites)]
     t0 = time.perf_counter()
     client.create_scene(name, window=(0, 0, 1, 1), size=(SIDE, SIDE))
-    version = (client.upsert_points(name, ids, xy) if points
-               else client.upsert_sites(name, messages))
+    version = upsert(name, ids, arrays) if upsert else client.upsert_sites(name, messages)
     client.find_nearest(name, [[0.5, 0.5]], min_version=version)
     return time.perf_counter() - t0
 
