@@ -468,7 +468,7 @@ def _array_sites(request: pb.UpsertSitesRequest, ids: List[str], kind: str,
     0.10-0.11 s against 9-12 ms. Each site is Site{id, point{x, y[, z]}} or Site{id,
     segment{a{...}, b{...}}}, every coordinate written (a zero too, which protobuf would omit:
     the same message to any reader). None where a site does not fit one-byte lengths (an id
-    of more than 96 bytes for a point, 83 for a segment, 65 for a 3D one): the caller then
+    of more than 105 bytes for a point, 83 for a segment; 96 and 65 in 3D): the caller then
     builds the message with protobuf."""
     n, count, dims = ends.shape
     field, _ = _SITE_FIELDS[kind]
