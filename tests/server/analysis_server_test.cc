@@ -1,7 +1,6 @@
 // Boundaries, neighbours, Delaunay, zoom windows, clearance, planning and picking through the
 // real gvd-server, against the exact oracle; bad input refused by name.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
@@ -559,11 +558,7 @@ TEST(AnalysisLimitsTest, QueuedAnalysesAreBounded) {
   std::ofstream(held).put('x');
   ASSERT_TRUE(client->CreateScene(testing::UnitScene("held", 64, 64), &scene).ok());
   ASSERT_TRUE(client->UpsertSites(testing::RandomPoints("held", 10, 4), &v).ok());
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(2);
-  while (access((held + ".waiting").c_str(), F_OK) != 0) {
-    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the render of \"held\" never began";
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  }
+  ASSERT_TRUE(testing::WaitForHeldRender(server, "held")) << "the render of \"held\" never began";
   std::vector<grpc::Status> results(3);
   std::vector<std::thread> calls;
   std::mutex mu;

@@ -5,7 +5,6 @@
 #include <gtest/gtest.h>
 
 #include <stdlib.h>
-#include <unistd.h>
 
 #include <atomic>
 #include <chrono>
@@ -65,17 +64,6 @@ TEST(FairRenders, ALongRenderHoldsUpOnlyItsOwnScene) {
   EXPECT_NE(text.find("gvd_scene_render_seconds_total{scene=\"big\"}"), std::string::npos) << text;
 }
 
-// Waits up to two minutes for the held render of `scene` (the test hook's) to begin.
-bool WaitForHeld(const testing::ServerProcess& server, const std::string& scene) {
-  const std::string waiting = server.hold_renders_path() + "." + scene + ".waiting";
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(2);
-  while (access(waiting.c_str(), F_OK) != 0) {
-    if (std::chrono::steady_clock::now() > deadline) return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  }
-  return true;
-}
-
 // A render thread keeps the GPU state of the scenes it rendered, and the other thread takes
 // one over only while that thread is busy. Here one thread holds the state of both "big" and
 // "small" (the other was held in the render of "blocker" while they were made), and both are
@@ -91,7 +79,7 @@ TEST(FairRenders, TheOtherThreadTakesOverTheScenesOfOneInALongRender) {
   const std::string blocker = server.hold_renders_path() + ".blocker";
   std::ofstream(blocker).put('x');
   const uint64_t blocked = Upsert(*client, "blocker", 0.1);
-  ASSERT_TRUE(WaitForHeld(server, "blocker")) << "the render of blocker never began";
+  ASSERT_TRUE(testing::WaitForHeldRender(server, "blocker")) << "the render of blocker never began";
   for (const char* id : {"big", "small"}) {
     ASSERT_TRUE(client->CreateScene(testing::UnitScene(id, 64, 64), &scene).ok());
     ASSERT_TRUE(testing::WaitForRender(*client, id, Upsert(*client, id, 0.1)));
@@ -107,7 +95,7 @@ TEST(FairRenders, TheOtherThreadTakesOverTheScenesOfOneInALongRender) {
     Upsert(*client, "big", 0.2);
     small = Upsert(*client, "small", 0.3);
   }
-  ASSERT_TRUE(WaitForHeld(server, "big")) << "the render of big never began";
+  ASSERT_TRUE(testing::WaitForHeldRender(server, "big")) << "the render of big never began";
   EXPECT_TRUE(testing::WaitForRender(*client, "small", small))
       << "small waits for the render of big on the thread that rendered it before";
   std::remove(held.c_str());

@@ -154,6 +154,19 @@ class HoldRenders {
   std::string path_;
 };
 
+// Waits up to two minutes for the held render of `scene` to begin: the render that waits while
+// a file exists at the hook's path + "." + the scene's id (see RenderLoop's test hook);
+// whether it began.
+inline bool WaitForHeldRender(const ServerProcess& server, const std::string& scene) {
+  const std::string waiting = server.hold_renders_path() + "." + scene + ".waiting";
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(2);
+  while (access(waiting.c_str(), F_OK) != 0) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return true;
+}
+
 // The version of the scene's newest frame.
 inline uint64_t RenderedVersion(Client& client, const std::string& scene) {
   v1::Scene s;
