@@ -28,6 +28,9 @@ measures:
   - a batch of N random query points in one call, the median of three runs on each side:
     gvd FindNearest (the client's packed stream), PostGIS a LATERAL KNN join over arrays
     passed as parameters;
+then a call that does nothing, N times on each side, alternating: grpcio's call of gRPC's
+standard health Check (served by gRPC's own service) and psycopg2's SELECT 1, p50 and p99,
+the floor of each side's stock client and transport under a move's two calls;
 and on the points scene the single-point query capacity at 8 connections for S seconds:
 pgbench (-M prepared -c 8 -j 2, a KNN script at random points) against h2load (-c 8 -m 1
 -t 2, a FindNearest over gRPC at one point: h2load sends one body) and wrk (-c 8 -t 2, a
@@ -147,6 +150,7 @@ class GrpcioAlone:
         self.find = self.channel.unary_unary(
             service + "FindNearest", request_serializer=pb.FindNearestRequest.SerializeToString,
             response_deserializer=pb.FindNearestResponse.FromString)
+        self.check = self.channel.unary_unary("/grpc.health.v1.Health/Check")
 
     def upsert_sites(self, name, sites):
         return self.upsert(pb.UpsertSitesRequest(scene_id=name, sites=sites), timeout=600).version
@@ -155,6 +159,11 @@ class GrpcioAlone:
         (x, y), = points
         return self.find(pb.FindNearestRequest(scene_id=name, min_version=min_version,
                                                points=[pb.Point(x=x, y=y)]), timeout=600)
+
+    def nothing(self):
+        """gRPC's standard health Check (an empty request: the whole server), a call served
+        by gRPC's own service, with none of gvd's code."""
+        return self.check(b"", timeout=600)
 
 
 def first_answer(answer):
@@ -237,6 +246,24 @@ def moves(clients, conn, name, sites, count, rng):
     out["postgis_p50_ms"] = statistics.median(pg_ms)
     out["postgis_p99_ms"] = percentile(pg_ms, 0.99)
     return out
+
+
+def floor(bare, conn, count):
+    """A call that does nothing, `count` times on each side, alternating: grpcio's call of
+    gRPC's health Check and psycopg2's SELECT 1, p50 and p99 (ms). What each side's stock
+    client and its transport cost before any work: a move makes two calls on each side."""
+    gvd_ms, pg_ms = [], []
+    with conn.cursor() as cur:
+        for _ in range(count):
+            t0 = time.perf_counter()
+            bare.nothing()
+            gvd_ms.append(1000 * (time.perf_counter() - t0))
+            t0 = time.perf_counter()
+            cur.execute("SELECT 1")
+            cur.fetchone()
+            pg_ms.append(1000 * (time.perf_counter() - t0))
+    return {"grpcio_p50_ms": statistics.median(gvd_ms), "grpcio_p99_ms": percentile(gvd_ms, 0.99),
+            "psycopg2_p50_ms": statistics.median(pg_ms), "psycopg2_p99_ms": percentile(pg_ms, 0.99)}
 
 
 def batch(client, conn, name, q, runs=3):
@@ -358,6 +385,8 @@ def main():
             row["batch"] = batch(client, conn, name, rng.random((args.batch, 2)))
             figures[name] = row
             print(name, json.dumps(row), flush=True)
+        figures["floor"] = floor(bare, conn, args.moves)
+        print("floor", json.dumps(figures["floor"]), flush=True)
         figures["capacity"] = capacity(pg, work, grpc_port, http_port, args.seconds)
         print("capacity", json.dumps(figures["capacity"]), flush=True)
         print_table(figures, args.batch)
@@ -390,6 +419,10 @@ def print_table(f, batch_size):
               f"{m['postgis_p50_ms']:.2f} ({m['postgis_p99_ms']:.2f}) ms | "
               f"{b['gvd_ms']:.0f} / {b['postgis_ms']:.0f} ms "
               f"({b['postgis_ms'] / b['gvd_ms']:.0f}x faster) |")
+    fl = f["floor"]
+    print(f"\nA call that does nothing, p50 (p99): grpcio (gRPC's health Check) "
+          f"{fl['grpcio_p50_ms']:.3f} ({fl['grpcio_p99_ms']:.3f}) ms, psycopg2 (SELECT 1) "
+          f"{fl['psycopg2_p50_ms']:.3f} ({fl['psycopg2_p99_ms']:.3f}) ms")
     c = f["capacity"]
     print("\n| single-point FindNearest, 8 connections | queries/s | p50 | p99 | vs PostGIS |")
     print("|---|---:|---:|---:|---:|")
