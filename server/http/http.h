@@ -11,7 +11,7 @@
 // admission, limits, tokens, metrics and drain as over gRPC. It adds only what HTTP needs: TLS
 // on its own port, CORS for the origins allowed, and the limit on request bodies and answers
 // (--max-message-bytes). Boost.Beast, asynchronous: a connection waiting on a long stream
-// holds no thread.
+// holds no thread, and no connection waits for another's large conversion (HttpOptions).
 #pragma once
 
 #include <chrono>
@@ -40,7 +40,10 @@ struct HttpOptions {
   // must chain to (required when set). No TLS when cert is empty.
   std::string tls_cert, tls_key, tls_client_ca;
   size_t max_body_bytes = 64 << 20;
-  int threads = 2;
+  // I/O threads; 0: half the machine's cores, at least one. They convert only small
+  // messages: a large request body is decoded on a converter thread of the server's, and an
+  // answer is encoded on the thread the core answered from.
+  int threads = 0;
   // Static files served by GET: path ("/", "/app.js") to (content type, body).
   std::map<std::string, std::pair<std::string, std::string>> files;
 };
@@ -76,6 +79,12 @@ class HttpServer {
   // address cannot be bound or the TLS files do not load.
   static absl::StatusOr<std::unique_ptr<HttpServer>> Start(HttpOptions options, Service* core);
   ~HttpServer();
+
+  // A test hook: when this environment variable names a path at Start, a large conversion
+  // (a request body or an answer over 64 KiB) waits while a file exists at that path, and a
+  // file at that path + ".waiting" exists while it waits; so tests can hold one for as long
+  // as they need and see that the other connections are served meanwhile.
+  static constexpr const char* kHoldConversionsVariable = "GVD_TEST_HOLD_CONVERSIONS";
 
   int port() const;
   // Stops accepting connections (those open finish the request under way; the core's drain

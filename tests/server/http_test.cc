@@ -12,7 +12,12 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/ssl.hpp>
+#include <unistd.h>
+
+#include <cmath>
 #include <fstream>
+#include <functional>
+#include <future>
 #include <map>
 #include <random>
 #include <sstream>
@@ -672,6 +677,80 @@ TEST(HttpStreams, LargeChunksArriveWholeAndInOrder) {
       EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(m, chunks[k]));
     }
   }
+}
+
+// A large request body and a large answer are converted off the HTTP threads: with the
+// server's one HTTP thread, while a call is held in either conversion (the test hook), a small
+// call on another connection is answered, and the held call's answer is whole once it goes on.
+TEST(HttpConversions, ALargeCallHoldsUpNoOtherConnection) {
+  testing::ServerProcess server(GVD_SERVER_PATH,
+                                {"--http-listen", "127.0.0.1:0", "--http-threads", "1"});
+  ASSERT_TRUE(server.error().empty()) << server.error();
+  const int port = server.http_port();
+  ASSERT_EQ(Post(port, "CreateScene",
+                 R"({"sceneId": "s", "window": {"maxX": 1, "maxY": 1}, "widthPx": 64, "heightPx": 64})")
+                .status,
+            200);
+  ASSERT_EQ(Post(port, "UpsertSites",
+                 R"({"sceneId": "s", "sites": [{"id": "a", "point": {"x": 0.25, "y": 0.25}},)"
+                 R"( {"id": "b", "point": {"x": 0.75, "y": 0.75}}]})")
+                .status,
+            200);
+  const std::string hold = server.hold_conversions_path();
+  // Runs `call` while the conversions are held, and a small call once one waits; then lets
+  // it go and returns its reply.
+  auto held = [&](const std::function<Reply()>& call) {
+    std::ofstream(hold).put('x');
+    Reply reply;
+    std::thread big([&] { reply = call(); });
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(2);
+    while (access((hold + ".waiting").c_str(), F_OK) != 0 &&
+           std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    EXPECT_EQ(access((hold + ".waiting").c_str(), F_OK), 0) << "no conversion was held";
+    auto small = std::async(std::launch::async, [port] { return Post(port, "ListScenes", "{}"); });
+    EXPECT_EQ(small.wait_for(std::chrono::minutes(1)), std::future_status::ready)
+        << "a small call waited for another connection's conversion";
+    std::remove(hold.c_str());
+    EXPECT_EQ(small.get().status, 200);
+    big.join();
+    return reply;
+  };
+  // A request of 6,000 points, some 140 KB of JSON: its body is held.
+  std::string points;
+  for (int k = 0; k < 6000; ++k) points += std::string(k ? "," : "") + R"({"x": 0.1, "y": 0.2})";
+  const Reply found = held([&] {
+    return Post(port, "FindNearest", R"({"sceneId": "s", "points": [)" + points + "]}");
+  });
+  ASSERT_EQ(found.status, 200) << found.body;
+  const auto answers = Parse<v1::FindNearestResponse>(found.body);
+  ASSERT_EQ(answers.results_size(), 6000);
+  const double exact = std::hypot(0.25 - 0.1, 0.25 - 0.2);
+  for (const auto& r : answers.results()) {
+    ASSERT_EQ(r.site_id(), "a");
+    ASSERT_LE(std::abs(r.distance() - exact), r.error_bound() + 1e-12);
+  }
+  // A small request whose answer, 160 x 160 pixels, is some 130 KB: the answer is held.
+  const Reply window = held([&] {
+    return Post(port, "RenderWindow",
+                R"({"sceneId": "s", "window": {"maxX": 1, "maxY": 1}, "widthPx": 160, "heightPx": 160})");
+  });
+  ASSERT_EQ(window.status, 200) << window.body;
+  const auto raster = Parse<v1::RenderWindowResponse>(window.body);
+  ASSERT_EQ(raster.ids_size(), 160 * 160);
+  // Pixel centres at (0.25, 0.25) and (0.75, 0.75), away from the cells' border x + y = 1.
+  auto site_at = [&raster](int i, int j) {
+    const uint32_t id = raster.ids(j * 160 + i);
+    return id == 0 ? std::string("none") : raster.site_ids(static_cast<int>(id) - 1);
+  };
+  EXPECT_EQ(site_at(40, 40), "a");
+  EXPECT_EQ(site_at(120, 120), "b");
+  // The flag's bound, refused by name.
+  testing::ServerProcess many(GVD_SERVER_PATH,
+                              {"--http-listen", "127.0.0.1:0", "--http-threads", "65"});
+  EXPECT_NE(many.error().find("--http-threads needs 0 to 64, not 65"), std::string::npos)
+      << many.error();
 }
 
 // Tokens and TLS apply to HTTP as to gRPC: no token, UNAUTHENTICATED (401); a read token on

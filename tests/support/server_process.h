@@ -49,6 +49,7 @@ class ServerProcess {
     pid_ = fork();
     if (pid_ == 0) {
       setenv("GVD_TEST_HOLD_RENDERS", hold_renders_path().c_str(), 1);
+      setenv("GVD_TEST_HOLD_CONVERSIONS", hold_conversions_path().c_str(), 1);
       FILE* log = std::fopen(log_.c_str(), "w");
       dup2(fileno(log), STDERR_FILENO);
       std::vector<char*> argv;
@@ -78,6 +79,9 @@ class ServerProcess {
   // While a file exists here, the server renders no scene (its test hook
   // GVD_TEST_HOLD_RENDERS): see HoldRenders.
   std::string hold_renders_path() const { return dir_ + "/hold-renders"; }
+  // While a file exists here, a large conversion of the HTTP transport waits (its test hook
+  // GVD_TEST_HOLD_CONVERSIONS), a file at this path + ".waiting" existing meanwhile.
+  std::string hold_conversions_path() const { return dir_ + "/hold-conversions"; }
 
   // Stops the server with SIGTERM and fails the running test unless it exits 0: a crash at
   // shutdown, or a sanitizer report (they change the exit status), is a failure.
