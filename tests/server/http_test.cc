@@ -12,8 +12,6 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/ssl.hpp>
-#include <unistd.h>
-
 #include <cmath>
 #include <fstream>
 #include <functional>
@@ -703,12 +701,7 @@ TEST(HttpConversions, ALargeCallHoldsUpNoOtherConnection) {
     std::ofstream(hold).put('x');
     Reply reply;
     std::thread big([&] { reply = call(); });
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(2);
-    while (access((hold + ".waiting").c_str(), F_OK) != 0 &&
-           std::chrono::steady_clock::now() < deadline) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    }
-    EXPECT_EQ(access((hold + ".waiting").c_str(), F_OK), 0) << "no conversion was held";
+    EXPECT_TRUE(testing::WaitForFile(hold + ".waiting")) << "no conversion was held";
     auto small = std::async(std::launch::async, [port] { return Post(port, "ListScenes", "{}"); });
     EXPECT_EQ(small.wait_for(std::chrono::minutes(1)), std::future_status::ready)
         << "a small call waited for another connection's conversion";

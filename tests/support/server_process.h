@@ -158,17 +158,22 @@ class HoldRenders {
   std::string path_;
 };
 
-// Waits up to two minutes for the held render of `scene` to begin: the render that waits while
-// a file exists at the hook's path + "." + the scene's id (see RenderLoop's test hook);
-// whether it began.
-inline bool WaitForHeldRender(const ServerProcess& server, const std::string& scene) {
-  const std::string waiting = server.hold_renders_path() + "." + scene + ".waiting";
+// Waits up to two minutes for a file to exist at `path`; whether it came. A test hook's
+// ".waiting" file says that what it holds has begun.
+inline bool WaitForFile(const std::string& path) {
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(2);
-  while (access(waiting.c_str(), F_OK) != 0) {
+  while (access(path.c_str(), F_OK) != 0) {
     if (std::chrono::steady_clock::now() > deadline) return false;
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
   return true;
+}
+
+// Waits up to two minutes for the held render of `scene` to begin: the render that waits while
+// a file exists at the hook's path + "." + the scene's id (see RenderLoop's test hook);
+// whether it began.
+inline bool WaitForHeldRender(const ServerProcess& server, const std::string& scene) {
+  return WaitForFile(server.hold_renders_path() + "." + scene + ".waiting");
 }
 
 // The version of the scene's newest frame.
