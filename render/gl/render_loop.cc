@@ -9,6 +9,7 @@
 #include <future>
 #include <map>
 #include <set>
+#include <utility>
 
 #include "absl/cleanup/cleanup.h"
 #include "absl/strings/str_cat.h"
@@ -26,6 +27,11 @@ absl::Status RenderLoop::Start(DevicePreference preference) {
   // process's pool would inherit its nice value, and it answers queries too.
   CpuPool::Process();
   CpuPool::Renders();
+  // A caller that begins to wait ends the lanes' rests.
+  waker_ = RenderWait::WakeOnCaller([this] {
+    std::lock_guard<std::mutex> lock(mu_);
+    cv_.notify_all();
+  });
   for (int lane = 0; lane < lanes_; ++lane) {
     threads_.emplace_back([this, lane, preference] { Run(lane, preference); });
   }
@@ -48,6 +54,7 @@ void RenderLoop::Stop() {
   for (std::thread& t : threads_) {
     if (t.joinable()) t.join();
   }
+  if (waker_ != 0) RenderWait::StopWaking(std::exchange(waker_, 0));
 }
 
 void RenderLoop::MarkDirty(std::shared_ptr<Scene> scene) {
@@ -294,8 +301,23 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
       observer_->Rendered(scene->id(), sites->version(), sites->size(), render_stats, seconds);
     }
     scene->AddRenderSeconds(seconds);
+    // Whether anybody awaited this frame or watches the scene, told before publishing
+    // releases the waiters and tells the listeners.
+    const bool background = RenderWait::callers() == 0 && !scene->watched();
     scene->Publish(*frame);
     finish(scene.get());
+    // A render nobody waited for or watches: the lane rests (see MarkDirty).
+    if (background_rest_ > 0 && background) {
+      const auto until = std::chrono::steady_clock::now() +
+                         std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                             std::chrono::duration<double>(seconds * background_rest_));
+      std::unique_lock<std::mutex> lock(mu_);
+      cv_.wait_until(lock, until, [this] {
+        return stopping_ || RenderWait::callers() > 0 || dirty_.Any([](const Scene* s) {
+                 return s->watched();
+               });
+      });
+    }
   }
 
   // Whatever is still queued will not be rendered: release its waiters.

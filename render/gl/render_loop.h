@@ -4,6 +4,7 @@
 // scene coalesce into one render; a scene is rendered by one thread at a time.
 #pragma once
 
+#include <algorithm>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -37,11 +38,19 @@ namespace gvd {
 // On Mesa's software device the lanes take turns at GL (GlTurn, render/gl/context.h): one
 // makes GL calls while the others compute on the CPU (the native scan) or wait; a lane
 // waiting on the test hook holds no turn.
+// How many times a render's own time a render thread rests after a render nobody waited for
+// or watches (RenderLoop::MarkDirty): such renders take at most a fifth of its time.
+inline constexpr double kBackgroundRest = 4;
+
 class RenderLoop final : public Renderer {
  public:
   // `observer` (may be null) hears of every render; it must outlive the loop.
-  explicit RenderLoop(int lanes = 2, RenderObserver* observer = nullptr)
-      : lanes_(lanes < 1 ? 1 : lanes), observer_(observer), busy_(lanes_, false),
+  // `background_rest`: how many times a render's own time its lane rests after a render
+  // nobody waited for or watches (MarkDirty; kBackgroundRest; zero: none).
+  explicit RenderLoop(int lanes = 2, RenderObserver* observer = nullptr,
+                      double background_rest = kBackgroundRest)
+      : lanes_(lanes < 1 ? 1 : lanes), observer_(observer),
+        background_rest_(std::max(background_rest, 0.0)), busy_(lanes_, false),
         taken_from_(lanes_) {}
   ~RenderLoop() override;  // stops the threads
   RenderLoop(const RenderLoop&) = delete;
@@ -57,6 +66,14 @@ class RenderLoop final : public Renderer {
   const DeviceInfo& device() const { return device_; }
 
   // Queues a render of the scene at its latest version. Thread-safe; never blocks on a render.
+  // After a render that no caller waited for (RenderWait::callers()) of a scene nobody
+  // watches (Scene::watched), its lane rests background_rest times the render's time: renders
+  // nobody waits for take at most 1 / (1 + background_rest) of each lane's time, and what
+  // changes meanwhile is rendered at once after. SCHED_IDLE alone does not bound their share:
+  // the scheduler shares the cores between groups of processes (sessions, cgroups) before it
+  // looks at a thread's policy, so the background yields to this process's calls but competes
+  // as an equal with another group's work, such as a database's backends on the same
+  // machine. A rest ends as soon as a caller waits or a watched scene is queued.
   void MarkDirty(std::shared_ptr<Scene> scene) override;
 
   // Renders zoom windows of `base` (render/gl/zoom.h) on a render thread, between scene
@@ -98,6 +115,8 @@ class RenderLoop final : public Renderer {
   std::vector<std::thread> threads_;
   DeviceInfo device_;
   RenderObserver* const observer_;
+  const double background_rest_;
+  uint64_t waker_ = 0;  // RenderWait::WakeOnCaller's token, from Start to Stop
   std::string hold_path_;  // see kHoldRendersVariable; empty: no hold
 
   mutable std::mutex mu_;

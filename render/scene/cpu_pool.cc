@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <limits>
+#include <map>
 #include <optional>
 #include <set>
 
@@ -20,8 +21,23 @@ struct RenderThreads {
   std::mutex mu;
   std::vector<pid_t> tids;
   int waits = 0;
+  int callers = 0;  // of waits, those of callers (not RenderDue's raise)
   bool background = false;
 };
+
+// WakeOnCaller's callbacks. Called under call_mu (never under RenderThreads::mu), which
+// StopWaking takes too, so that none runs once it returns.
+struct CallerWakers {
+  std::mutex call_mu;
+  std::mutex mu;  // guards the two below
+  std::map<uint64_t, std::function<void()>> wakers;
+  uint64_t next = 1;
+};
+
+CallerWakers& Wakers() {
+  static auto* wakers = new CallerWakers;
+  return *wakers;
+}
 
 RenderThreads& Renderers() {
   static auto* threads = new RenderThreads;
@@ -71,7 +87,7 @@ void WatchLateRenders(DueRenders& due) {
     const bool late = !due.since.empty() && now >= *due.since.begin() + kBackgroundLag;
     if (late != raised.has_value()) {
       if (late) {
-        raised.emplace();
+        raised.emplace(RenderWait::Late{});
       } else {
         raised.reset();
       }
@@ -146,7 +162,27 @@ bool RenderWait::Background() {
   return background;
 }
 
-RenderWait::RenderWait() {
+RenderWait::RenderWait() : RenderWait(Late{}) {
+  caller_ = true;
+  bool first;
+  {
+    RenderThreads& r = Renderers();
+    std::lock_guard<std::mutex> lock(r.mu);
+    first = ++r.callers == 1;
+  }
+  if (first) {
+    CallerWakers& w = Wakers();
+    std::lock_guard<std::mutex> calling(w.call_mu);
+    std::vector<std::function<void()>> wakers;
+    {
+      std::lock_guard<std::mutex> lock(w.mu);
+      for (const auto& [token, wake] : w.wakers) wakers.push_back(wake);
+    }
+    for (const auto& wake : wakers) wake();
+  }
+}
+
+RenderWait::RenderWait(Late) : caller_(false) {
   Background();  // decided before the first count
   RenderThreads& r = Renderers();
   std::lock_guard<std::mutex> lock(r.mu);
@@ -160,21 +196,41 @@ RenderWait::~RenderWait() {
   if (!held_) return;
   RenderThreads& r = Renderers();
   std::lock_guard<std::mutex> lock(r.mu);
+  if (caller_) --r.callers;
   if (--r.waits == 0 && Background()) {
     r.background = true;
     for (pid_t tid : r.tids) Schedule(tid, true);
   }
 }
 
-RenderWait::RenderWait(RenderWait&& other) noexcept : held_(other.held_) { other.held_ = false; }
+RenderWait::RenderWait(RenderWait&& other) noexcept
+    : held_(other.held_), caller_(other.caller_) {
+  other.held_ = false;
+}
 
 RenderWait& RenderWait::operator=(RenderWait&& other) noexcept {
   if (this != &other) {
     RenderWait gone(std::move(*this));
     held_ = other.held_;
+    caller_ = other.caller_;
     other.held_ = false;
   }
   return *this;
+}
+
+uint64_t RenderWait::WakeOnCaller(std::function<void()> wake) {
+  CallerWakers& w = Wakers();
+  std::lock_guard<std::mutex> lock(w.mu);
+  const uint64_t token = w.next++;
+  w.wakers.emplace(token, std::move(wake));
+  return token;
+}
+
+void RenderWait::StopWaking(uint64_t token) {
+  CallerWakers& w = Wakers();
+  std::lock_guard<std::mutex> calling(w.call_mu);
+  std::lock_guard<std::mutex> lock(w.mu);
+  w.wakers.erase(token);
 }
 
 RenderDue::RenderDue() {
@@ -207,6 +263,12 @@ int RenderWait::held() {
   RenderThreads& r = Renderers();
   std::lock_guard<std::mutex> lock(r.mu);
   return r.waits;
+}
+
+int RenderWait::callers() {
+  RenderThreads& r = Renderers();
+  std::lock_guard<std::mutex> lock(r.mu);
+  return r.callers;
 }
 
 CpuPool::CpuPool(size_t threads, std::string name, bool render) {

@@ -10,6 +10,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstddef>
+#include <cstdint>
 #include <deque>
 #include <functional>
 #include <memory>
@@ -32,10 +33,12 @@ inline constexpr int kRenderNice = 10;
 // them). While a caller waits (a RenderWait is held: a frame's waiter, a zoom), every one of
 // them runs at kRenderNice, so that the render it waits for keeps its share of the cores
 // under load. A render nobody waits for is raised too once it has been due for
-// kBackgroundLag (RenderDue): the background yields to every task on the machine, and
-// another busy process must not hold a frame back without bound. A process that may not
-// leave SCHED_IDLE again (it has neither CAP_SYS_NICE nor an RLIMIT_NICE of at least
-// 20 - kRenderNice) keeps them at kRenderNice throughout.
+// kBackgroundLag (RenderDue): the background yields to every other task of the process's
+// scheduling group (its session's, or its cgroup's: the scheduler shares the cores between
+// groups first, as equals whatever their threads' policies), and another busy process must
+// not hold a frame back without bound. A process that may not leave SCHED_IDLE again (it has
+// neither CAP_SYS_NICE nor an RLIMIT_NICE of at least 20 - kRenderNice) keeps them at
+// kRenderNice throughout.
 class RenderWait {
  public:
   RenderWait();   // one more caller waits: the first raises the render threads
@@ -50,9 +53,23 @@ class RenderWait {
   static bool Background();
   // The RenderWaits held now.
   static int held();
+  // Those of callers: held() but RenderDue's raise of a late render.
+  static int callers();
+  // Calls `wake` whenever a caller begins to wait while none did (callers() 0 to 1), on
+  // that caller's thread, under no lock of this class's: a renderer that holds back
+  // renders nobody waits for (RenderLoop) hears that one is now awaited. Until the token
+  // returned is passed to StopWaking, which returns once no call of `wake` is under way.
+  static uint64_t WakeOnCaller(std::function<void()> wake);
+  static void StopWaking(uint64_t token);
+
+  // RenderDue's raise of a late render, which is no caller's: it raises the render threads
+  // but is not counted in callers().
+  struct Late {};
+  explicit RenderWait(Late);
 
  private:
   bool held_ = true;
+  bool caller_ = true;
 };
 
 // How long a render may be due in the background before the render threads run at

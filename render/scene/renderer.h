@@ -109,6 +109,14 @@ class DirtyQueue {
   // Whether the scene was taken and its render is not done.
   bool rendering(const S* scene) const { return rendering_.count(scene) > 0; }
   bool empty() const { return queue_.empty(); }
+  // Whether a queued scene satisfies `pred`.
+  template <class Pred>
+  bool Any(Pred pred) const {
+    for (const auto& scene : queue_) {
+      if (pred(static_cast<const S*>(scene.get()))) return true;
+    }
+    return false;
+  }
   // Empties the queue, returning what it held (to fail their waiters outside the lock).
   std::deque<std::shared_ptr<S>> TakeAll() {
     due_.clear();

@@ -153,6 +153,7 @@ uint64_t BasicScene<K>::Watch(FrameListener listener) {
   std::lock_guard<std::mutex> lock(listeners_mu_);
   const uint64_t token = next_listener_++;
   listeners_.emplace(token, std::make_shared<const FrameListener>(std::move(listener)));
+  watched_ = true;
   return token;
 }
 
@@ -161,6 +162,7 @@ void BasicScene<K>::Unwatch(uint64_t token) {
   std::lock_guard<std::mutex> calling(listeners_call_mu_);
   std::lock_guard<std::mutex> lock(listeners_mu_);
   listeners_.erase(token);
+  watched_ = !listeners_.empty();
 }
 
 template <class K>
@@ -171,7 +173,10 @@ void BasicScene<K>::Notify(const std::shared_ptr<const Frame>& frame, bool last)
     std::lock_guard<std::mutex> lock(listeners_mu_);
     listeners.reserve(listeners_.size());
     for (const auto& [token, l] : listeners_) listeners.push_back(l);
-    if (last) listeners_.clear();
+    if (last) {
+      listeners_.clear();
+      watched_ = false;
+    }
   }
   for (const auto& l : listeners) (*l)(frame);
 }

@@ -262,6 +262,8 @@ class BasicScene {
   // After it returns, the listener is not called again (unless a call was already under
   // way on another thread, which it then waits for). CONTRACT: not from the listener.
   void Unwatch(uint64_t token);
+  // Whether a listener watches the scene now (its renderer then renders each change at once).
+  bool watched() const { return watched_.load(std::memory_order_relaxed); }
 
   // Deletes the scene: under the writer lock, runs `persist` (the store's delete) and, if it
   // succeeds, marks the scene deleted, after which every write is refused (NOT_FOUND), and
@@ -314,6 +316,7 @@ class BasicScene {
   std::mutex listeners_mu_;
   uint64_t next_listener_ = 1;
   std::map<uint64_t, std::shared_ptr<const FrameListener>> listeners_;
+  std::atomic<bool> watched_{false};  // !listeners_.empty(), set under listeners_mu_
   // Calls every listener with `frame` (null: the scene is gone, and the listeners with it).
   void Notify(const std::shared_ptr<const Frame>& frame, bool last);
 

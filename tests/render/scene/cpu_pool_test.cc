@@ -315,6 +315,9 @@ TEST(CpuPool, ARenderDueTooLongIsRaised) {
     const auto up = WhenScheduled(thread, raised);
     ASSERT_TRUE(up.has_value()) << "round " << round << ": not raised in a minute";
     EXPECT_GE(*up - due, kBackgroundLag) << "round " << round;
+    // Raised for lateness, which is no caller's wait (RenderLoop's rests go on).
+    EXPECT_EQ(RenderWait::held(), 1);
+    EXPECT_EQ(RenderWait::callers(), 0);
     first.reset();  // the second is late too: still raised
     EXPECT_EQ(SchedulingOf(thread), raised);
     second.reset();  // none due: lowered again

@@ -6,12 +6,17 @@
 #include <pthread.h>
 
 #include <cstdlib>
+#include <chrono>
+#include <condition_variable>
 #include <functional>
+#include <future>
 #include <memory>
 #include <mutex>
 #include <random>
 #include <set>
 #include <string>
+#include <thread>
+#include <utility>
 #include <vector>
 
 #include "render/gl/render_loop.h"
@@ -105,6 +110,86 @@ TEST(SceneRegistry, CreateWriteReadAtAVersionDelete) {
   EXPECT_EQ(registry.DeleteScene("s").code(), absl::StatusCode::kNotFound);
   EXPECT_EQ(registry.UpsertSites("s", {Point("a", 0, 0)}).status().code(),
             absl::StatusCode::kNotFound);
+  renderer->Stop();
+}
+
+// After a render nobody waited for, the render thread rests (here 10^12 times the render's
+// time, so that no machine's speed decides it): a change meanwhile stays undrawn, until a
+// caller begins to wait for a frame, which has it at once, or a watched scene changes.
+TEST(SceneRegistry, RendersNobodyWaitsForOrWatchesRest) {
+  auto renderer = std::make_unique<RenderLoop>(1, nullptr, 1e12);
+  if (!renderer->Start(DevicePreference::kAuto).ok()) {
+    renderer = StartRenderer();  // reports the missing context as the others do
+    ASSERT_EQ(renderer, nullptr);
+    GTEST_SKIP() << "no EGL context";
+  }
+  auto store = SqliteStore::Open(":memory:");
+  ASSERT_TRUE(store.ok());
+  SceneRegistry registry(store->get(), {renderer.get()}, ServerLimits{});
+  ASSERT_TRUE(registry.Load().ok());
+  auto scene = As(registry.CreateScene(Settings("s")));
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_TRUE(registry.UpsertSites("s", {Point("a", 0.2, 0.3), Point("b", 0.7, 0.6),
+                                         Point("c", 0.4, 0.9)}).ok());  // version 2
+  // Past kInlineExactPoints, so that a read at a version not drawn waits for its frame.
+  std::vector<Vec2> points(NearestJob::kInlineExactPoints + 1, Vec2{0.65, 0.45});
+  // A read at `version` (a caller waits), within a minute: far sooner than a rest, far later
+  // than any render of three sites.
+  auto read = [&](uint64_t version) {
+    auto done = std::make_shared<std::promise<absl::Status>>();
+    auto job = NearestJob::Make(&registry, *scene, {points, false, false, true, version}, nullptr);
+    job->Start([done](const absl::Status& s) { done->set_value(s); });
+    auto answered = done->get_future();
+    if (answered.wait_for(std::chrono::seconds(60)) != std::future_status::ready) {
+      return std::make_pair(absl::DeadlineExceededError("no frame within 60 s"), job);
+    }
+    return std::make_pair(answered.get(), job);
+  };
+  // Whether the scene's frame reaches `version` within a minute, nobody waiting.
+  auto drawn = [&](uint64_t version) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    while ((*scene)->frame()->version() < version) {
+      if (std::chrono::steady_clock::now() > deadline) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    return true;
+  };
+  auto [first, first_job] = read(2);
+  ASSERT_TRUE(first.ok()) << first;
+  EXPECT_EQ(*first_job->rows()[0].site_id, "b");
+
+  // A change after an awaited render is drawn though nobody waits (no rest yet); the next
+  // one waits out the rest that follows that render.
+  ASSERT_TRUE(registry.UpsertSites("s", {Point("b", 0.7, 0.65)}).ok());  // version 3
+  ASSERT_TRUE(drawn(3));
+  ASSERT_TRUE(registry.UpsertSites("s", {Point("b", 0.1, 0.1)}).ok());  // version 4
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  EXPECT_EQ((*scene)->frame()->version(), 3u);
+
+  // A caller waits for version 4: the rest ends, and the frame shows the move.
+  auto [second, second_job] = read(4);
+  ASSERT_TRUE(second.ok()) << second;
+  EXPECT_GE(second_job->version(), 4u);
+  EXPECT_EQ(*second_job->rows()[0].site_id, "a");  // 0.47 from (0.65, 0.45); c 0.52, b 0.65
+
+  // Rest again (a render nobody waited for), then a watched scene's change ends the rest.
+  ASSERT_TRUE(registry.UpsertSites("s", {Point("b", 0.15, 0.1)}).ok());  // version 5
+  ASSERT_TRUE(drawn(5));
+  std::mutex mu;
+  std::condition_variable seen;
+  uint64_t watched = 0;  // the newest frame the listener heard of
+  const uint64_t token = (*scene)->Watch([&](const std::shared_ptr<const Frame>& f) {
+    std::lock_guard<std::mutex> lock(mu);
+    if (f) watched = f->version();
+    seen.notify_all();
+  });
+  ASSERT_TRUE(registry.UpsertSites("s", {Point("b", 0.2, 0.1)}).ok());  // version 6
+  {
+    std::unique_lock<std::mutex> lock(mu);
+    EXPECT_TRUE(seen.wait_for(lock, std::chrono::seconds(60), [&] { return watched >= 6; }))
+        << "no frame of version 6 within 60 s; the newest heard of: " << watched;
+  }
+  (*scene)->Unwatch(token);
   renderer->Stop();
 }
 

@@ -1159,6 +1159,10 @@ export type FindNearestRequest = Message<"gvd.v1.FindNearestRequest"> & {
    * lie within a raster answer's error_bound of each other, depending on which path served
    * it; both answers keep the NearestSite contract. A replica that has not read the version
    * from the store yet first waits (within the deadline) until it has, then does the same.
+   * Without it (0), the answer is the newest frame's: while a scene keeps changing and no
+   * call waits for its frames and no WatchScene watches it, each of its renders is followed
+   * by a pause of four times the render's length, so that frame may lag its newest write by
+   * about five renders' time.
    *
    * @generated from field: uint64 min_version = 3;
    */
