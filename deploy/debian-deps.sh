@@ -9,7 +9,8 @@ gvd_packages() {
         libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler libabsl-dev \
         libboost-dev libssl-dev libglm-dev libsqlite3-dev prometheus-cpp-dev libopenimageio-dev \
         libegl-dev libopengl-dev libegl1 libopengl0 libegl-mesa0 libgl1-mesa-dri libassimp-dev \
-        libopenvdb-dev libboost-iostreams-dev libpq-dev zlib1g-dev rapidjson-dev
+        libopenvdb-dev libboost-iostreams-dev libpq-dev zlib1g-dev rapidjson-dev \
+        libgoogle-perftools-dev
       ;;
     test)
       echo libgtest-dev libgmock-dev libbenchmark-dev libnanoflann-dev libqhull-dev openssl curl \
