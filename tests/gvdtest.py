@@ -19,10 +19,17 @@ import urllib.request
 import numpy as np
 
 
+def read_ports(port_file):
+    """The gRPC and HTTP ports that gvd-server wrote to its --port-file."""
+    with open(port_file, encoding="ascii") as f:
+        grpc, http = f.read().split()[:2]
+    return int(grpc), int(http)
+
+
 def start_server(binary, data, port_file, log, *flags, timeout=60):
     """Starts gvd-server on loopback ports of its choosing, storing in `data` (a directory,
     or a --store URL such as postgresql://...); returns the process and its HTTP port once
-    it serves."""
+    it serves (read_ports gives the gRPC port too)."""
     if os.path.exists(port_file):
         os.remove(port_file)
     store = ["--store", data] if "://" in data else ["--data", data]
@@ -36,8 +43,7 @@ def start_server(binary, data, port_file, log, *flags, timeout=60):
             process.kill()
             raise RuntimeError(f"gvd-server did not start (exit {process.poll()}); log: {log.name}")
         time.sleep(0.05)
-    with open(port_file) as f:
-        return process, int(f.read().split()[1])
+    return process, read_ports(port_file)[1]
 
 
 class Postgres:

@@ -34,7 +34,7 @@ import numpy as np
 import gvd
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-from gvdtest import start_server  # noqa: E402  pylint: disable=wrong-import-position
+from gvdtest import read_ports, start_server  # noqa: E402  pylint: disable=wrong-import-position
 
 TICK_MS = 1000.0 / os.sysconf("SC_CLK_TCK")
 
@@ -80,8 +80,7 @@ def main():
         with open(os.path.join(work, "gvd.log"), "w", encoding="ascii") as log:
             server, http_port = start_server(args.server, os.path.join(work, "gvd"), ports,
                                              log, "--log-level", "warn")
-        with open(ports, encoding="ascii") as f:
-            grpc_port = int(f.read().split()[0])
+        grpc_port = read_ports(ports)[0]
         clients = {"grpc": gvd.Client(f"127.0.0.1:{grpc_port}", timeout=60),
                    "http": gvd.Client(f"http://127.0.0.1:{http_port}", timeout=60)}
         rng = np.random.default_rng(7)

@@ -33,7 +33,7 @@ import gvd
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 import postgis  # noqa: E402  pylint: disable=wrong-import-position
-from gvdtest import percentile, start_server  # noqa: E402  pylint: disable=wrong-import-position
+from gvdtest import percentile, read_ports, start_server  # noqa: E402  pylint: disable=wrong-import-position
 
 
 def main():
@@ -57,8 +57,7 @@ def main():
         with open(os.path.join(work, "gvd.log"), "w", encoding="ascii") as log:
             server, http_port = start_server(args.server, os.path.join(work, "gvd"), ports,
                                              log, "--log-level", "warn")
-        with open(ports, encoding="ascii") as f:
-            grpc_port = int(f.read().split()[0])
+        grpc_port = read_ports(ports)[0]
         client = gvd.Client(f"http://127.0.0.1:{http_port}" if args.transport == "http"
                             else f"127.0.0.1:{grpc_port}", timeout=600)
         for name, make in (("points", postgis.scene_points), ("segments", postgis.scene_segments),

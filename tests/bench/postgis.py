@@ -62,7 +62,7 @@ import gvd
 from gvd.v1 import voronoi_pb2 as pb
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
-from gvdtest import Postgres, percentile, start_server  # noqa: E402  pylint: disable=wrong-import-position
+from gvdtest import Postgres, percentile, read_ports, start_server  # noqa: E402  pylint: disable=wrong-import-position
 
 SIDE = 1024
 BEZIER_PIECES = 64
@@ -367,8 +367,7 @@ def main():
         with open(os.path.join(work, "gvd.log"), "w", encoding="ascii") as log:
             server, http_port = start_server(args.server, os.path.join(work, "gvd"), ports, log,
                                              "--log-level", "warn")
-        with open(ports, encoding="ascii") as f:
-            grpc_port = int(f.read().split()[0])
+        grpc_port = read_ports(ports)[0]
         client = gvd.Client(f"127.0.0.1:{grpc_port}", timeout=600)
         http_client = gvd.Client(f"http://127.0.0.1:{http_port}", timeout=600)
         bare = GrpcioAlone(f"127.0.0.1:{grpc_port}")

@@ -27,7 +27,7 @@ import gvd
 from gvd.v1 import voronoi_pb2 as pb
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
-from gvdtest import start_server  # noqa: E402  pylint: disable=wrong-import-position
+from gvdtest import read_ports, start_server  # noqa: E402  pylint: disable=wrong-import-position
 
 
 def best(fn, repeat):
@@ -51,8 +51,7 @@ def main():
     with open(os.path.join(work, "log"), "w") as log:
         proc, http_port = start_server(args.server, os.path.join(work, "data"),
                                        os.path.join(work, "ports"), log, "--log-level", "warn")
-    with open(os.path.join(work, "ports")) as f:
-        grpc_port = int(f.read().split()[0])
+    grpc_port = read_ports(os.path.join(work, "ports"))[0]
     try:
         rng = np.random.default_rng(1)
         xy = rng.random((args.sites, 2))
