@@ -20,6 +20,7 @@
 #include <random>
 #include <sstream>
 #include <thread>
+#include <utility>
 
 #include <zlib.h>
 
@@ -44,25 +45,35 @@ struct Reply {
   std::string body;
 };
 
+// What a reply's body holds so far, each time more of it is read.
+using BodySoFar = std::function<void(const std::string&)>;
+
 // One HTTP/1.1 request on a connection of its own (HTTPS when `ca` is set).
 Reply Send(int port, http::verb verb, const std::string& target, const std::string& body,
            const std::map<std::string, std::string>& headers = {},
-           const std::string& ca = "") {
+           const std::string& ca = "", const BodySoFar& progress = {}) {
   net::io_context ioc;
   http::request<http::string_body> req{verb, target, 11};
   req.set(http::field::host, "127.0.0.1");
   for (const auto& [k, v] : headers) req.set(k, v);
   req.body() = body;
   req.prepare_payload();
-  http::response<http::string_body> res;
+  // Not eager: each read returns once a part (a chunk's body too) is parsed.
+  http::response_parser<http::string_body> parser;
   beast::flat_buffer buffer;
+  auto exchange = [&](auto& stream) {
+    http::write(stream, req);
+    while (!parser.is_done()) {
+      http::read_some(stream, buffer, parser);
+      if (progress) progress(parser.get().body());
+    }
+  };
   tcp::resolver resolver(ioc);
   auto endpoints = resolver.resolve("127.0.0.1", std::to_string(port));
   if (ca.empty()) {
     beast::tcp_stream stream(ioc);
     stream.connect(endpoints);
-    http::write(stream, req);
-    http::read(stream, buffer, res);
+    exchange(stream);
   } else {
     ssl::context ctx(ssl::context::tls_client);
     ctx.add_certificate_authority(net::buffer(ca));
@@ -70,9 +81,9 @@ Reply Send(int port, http::verb verb, const std::string& target, const std::stri
     beast::ssl_stream<beast::tcp_stream> stream(ioc, ctx);
     beast::get_lowest_layer(stream).connect(endpoints);
     stream.handshake(ssl::stream_base::client);
-    http::write(stream, req);
-    http::read(stream, buffer, res);
+    exchange(stream);
   }
+  const http::response<http::string_body>& res = parser.get();
   Reply r;
   r.status = static_cast<int>(res.result_int());
   for (const auto& f : res) {
@@ -144,14 +155,18 @@ struct StreamReply {
   std::vector<std::string> messages;
   std::string end;  // the end-of-stream JSON
 };
+// The length of the envelope at `at` (its 5-byte prefix whole there).
+uint32_t EnvelopeLength(const std::string& body, size_t at) {
+  return (uint32_t(uint8_t(body[at + 1])) << 24) | (uint32_t(uint8_t(body[at + 2])) << 16) |
+         (uint32_t(uint8_t(body[at + 3])) << 8) | uint32_t(uint8_t(body[at + 4]));
+}
 StreamReply ReadStream(const std::string& body, int status) {
   StreamReply r;
   r.status = status;
   size_t at = 0;
   while (at + 5 <= body.size()) {
     const uint8_t flags = static_cast<uint8_t>(body[at]);
-    const uint32_t n = (uint32_t(uint8_t(body[at + 1])) << 24) | (uint32_t(uint8_t(body[at + 2])) << 16) |
-                       (uint32_t(uint8_t(body[at + 3])) << 8) | uint32_t(uint8_t(body[at + 4]));
+    const uint32_t n = EnvelopeLength(body, at);
     std::string payload = body.substr(at + 5, n);
     at += 5 + n;
     EXPECT_TRUE(r.end.empty()) << "an envelope after the end of the stream";
@@ -170,10 +185,30 @@ std::string Envelope(const std::string& json) {
   for (int i = 0; i < 4; ++i) out[1 + i] = static_cast<char>((n >> (24 - 8 * i)) & 0xff);
   return out + json;
 }
+// The number of whole envelopes at the start of a stream's body.
+size_t WholeEnvelopes(const std::string& body) {
+  size_t n = 0;
+  for (size_t at = 0; at + 5 <= body.size(); ++n) {
+    at += 5 + size_t{EnvelopeLength(body, at)};
+    if (at > body.size()) break;
+  }
+  return n;
+}
+
+// A server stream's call; `first` (when set) is called once its first envelope has come
+// whole, while the stream goes on.
 StreamReply Stream(int port, const std::string& method, const std::string& json,
-                   std::map<std::string, std::string> headers = {}) {
+                   std::map<std::string, std::string> headers = {},
+                   std::function<void()> first = {}) {
   headers.emplace("Content-Type", "application/connect+json");
-  Reply r = Send(port, http::verb::post, "/gvd.v1.VoronoiService/" + method, Envelope(json), headers);
+  BodySoFar progress;
+  if (first) {
+    progress = [&first](const std::string& body) {
+      if (first && WholeEnvelopes(body) > 0) std::exchange(first, nullptr)();
+    };
+  }
+  Reply r = Send(port, http::verb::post, "/gvd.v1.VoronoiService/" + method, Envelope(json), headers,
+                 "", progress);
   EXPECT_EQ(r.headers["content-type"], "application/connect+json");
   return ReadStream(r.body, r.status);
 }
@@ -552,21 +587,22 @@ TEST_F(HttpTest, ServerStreamsOverHttp) {
   }
   EXPECT_EQ(s.end, "{}");
 
-  // A watch, on its own thread until the deletion ends it.
+  // A watch from v, on its own thread until the deletion ends it. Its first event is a
+  // version after v: of a frame it heard published, or the latest frame when it began
+  // after the writes' renders.
   StreamReply watched;
+  std::promise<void> first_event;
   std::thread watcher([&] {
     v1::WatchSceneRequest w;
     w.set_scene_id("streamed");
     w.set_after_version(v);
-    watched = Stream(port(), "WatchScene", Json(w));
+    watched = Stream(port(), "WatchScene", Json(w), {}, [&] { first_event.set_value(); });
   });
   uint64_t last = v;
-  // Writes until the watch has certainly seen one: each write is a new version, and the
-  // watch waits for versions after v.
   for (int i = 0; i < 3; ++i) {
     last = Upsert("streamed", {{"c" + std::to_string(i), PointSite{{0.5, 0.1 * i}}}});
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
+  EXPECT_EQ(first_event.get_future().wait_for(std::chrono::seconds(60)), std::future_status::ready);
   ASSERT_TRUE(client_->DeleteScene("streamed").ok());
   watcher.join();
   EXPECT_EQ(watched.status, 200);
@@ -833,9 +869,13 @@ TEST(HttpDrain, ShutdownEndsHttpStreams) {
                 .status,
             200);
   StreamReply watched;
-  std::thread watcher([&] { watched = Stream(server.http_port(), "WatchScene", R"({"sceneId": "s"})"); });
+  std::promise<void> first_event;
+  std::thread watcher([&] {
+    watched = Stream(server.http_port(), "WatchScene", R"({"sceneId": "s"})", {},
+                     [&] { first_event.set_value(); });
+  });
   // The first event comes at once (the scene's frame); then the drain.
-  for (int i = 0; i < 100; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_EQ(first_event.get_future().wait_for(std::chrono::seconds(60)), std::future_status::ready);
   server.Terminate();
   watcher.join();
   EXPECT_EQ(watched.status, 200);
