@@ -26,6 +26,7 @@
 
 #include "gvd/client.h"
 #include "server/http/http.h"
+#include "tests/support/metrics_scrape.h"
 #include "tests/support/server_process.h"
 #include "tests/support/test_scenes.h"
 
@@ -891,9 +892,11 @@ TEST(HttpDrain, ShutdownEndsHttpStreams) {
 // HTTP server stopped serving, and the server still stops cleanly (the core's answer to a
 // connection already gone is dropped with it: ASan's build checks nothing outlives it).
 TEST(HttpDrain, ACallThatOutlivesTheServerEndsCleanly) {
-  testing::ServerProcess server(GVD_SERVER_PATH,
-                                {"--http-listen", "127.0.0.1:0", "--shutdown-grace-ms", "200"});
+  testing::ServerProcess server(GVD_SERVER_PATH, {"--http-listen", "127.0.0.1:0", "--shutdown-grace-ms",
+                                                 "200", "--metrics-listen", "127.0.0.1:0"});
   ASSERT_TRUE(server.error().empty()) << server.error();
+  const int metrics = testing::MetricsPort(server.log());
+  ASSERT_NE(metrics, 0) << server.log();
   ASSERT_EQ(Post(server.http_port(), "CreateScene",
                  R"({"sceneId": "s", "window": {"maxX": 1, "maxY": 1}, "widthPx": 8, "heightPx": 8})")
                 .status,
@@ -911,7 +914,9 @@ TEST(HttpDrain, ACallThatOutlivesTheServerEndsCleanly) {
       // The connection closed with the server: what a client sees of a call cut short.
     }
   });
-  for (int i = 0; i < 30; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  const std::string in_flight = "gvd_rpc_in_flight{method=\"FindNearest\"} 1";
+  const std::string text = testing::WaitForMetric(metrics, in_flight, 120);
+  EXPECT_NE(text.find(in_flight), std::string::npos) << text;
   server.Terminate();
   waiting.join();
   const int status = server.Wait();
