@@ -7,7 +7,7 @@ import pytest
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 import gvd  # noqa: E402
-from gvdtest import Server  # noqa: E402
+from gvdtest import Server, read_ports  # noqa: E402
 
 SERVER = os.environ.get("GVD_SERVER", "build/test/server/gvd-server")
 
@@ -15,8 +15,7 @@ SERVER = os.environ.get("GVD_SERVER", "build/test/server/gvd-server")
 @pytest.fixture(scope="module")
 def server():
     s = Server(SERVER)
-    with open(os.path.join(s.dir, "ports")) as f:
-        grpc_port = int(f.read().split()[0])
+    grpc_port, _ = read_ports(os.path.join(s.dir, "ports"))
     s.targets = {"grpc": f"127.0.0.1:{grpc_port}", "http": s.url}
     yield s
     s.stop()
