@@ -126,6 +126,37 @@ def test_calls_of_a_few_points_with_closest_points(client, dims):
     client.delete_scene(sid)
 
 
+def test_a_batch_in_one_call_in_a_stream_and_in_several_calls(client, monkeypatch):
+    # 140,000 points: one call's message without progress, FindNearestStream's three chunks
+    # with it, three calls when a call takes 50,000. The points go left to right, so that
+    # each chunk and call names sites of its own and some of the one before, which the
+    # result names once each.
+    sid = f"ways-{client.kind}"
+    rng, xy, ids, v = random_scene(client, sid, 500, 256, 31, "w")
+    q = rng.random((140_000, 2))
+    q = q[np.argsort(q[:, 0])]
+    best = np.concatenate([brute_nearest(xy, q[lo:lo + 20_000])[1]
+                           for lo in range(0, len(q), 20_000)])
+    steps = []
+    results = [client.find_nearest(sid, q, min_version=v),
+               client.find_nearest(sid, q, min_version=v,
+                                   progress=lambda done, n: steps.append(done))]
+    monkeypatch.setattr(gvd._client, "MAX_POINTS_PER_CALL", 50_000)
+    results.append(client.find_nearest(sid, q, min_version=v))
+    assert steps == [65_536, 131_072, 140_000]
+    for r in results:
+        assert len(r) == len(q) and r.version >= v
+        assert len(set(r.ids)) == len(r.ids) and (r.site_indices >= 0).all()
+        assert r.site_ids.tolist() == [r.ids[i] for i in r.site_indices]
+        d, bound = r.distances, r.error_bounds
+        assert (d - bound <= best + 1e-12).all() and (best <= d + 1e-12).all()
+        # The site named is the one whose distance was reported.
+        named = xy[[int(s[1:]) for s in r.site_ids]]
+        assert np.allclose(np.hypot(*(named - q).T), d, rtol=0, atol=1e-12)
+        assert r.site_ids.tolist() == results[0].site_ids.tolist()
+    client.delete_scene(sid)
+
+
 def test_a_million_points_with_progress(client):
     sid = f"million-{client.kind}"
     rng, xy, _, v = random_scene(client, sid, 60, 512, 23, "m")

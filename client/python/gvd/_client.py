@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import chain, count, filterfalse
 from typing import Any, Callable, Dict, Iterable, Iterator, List, Mapping, Optional, Sequence, Union
 
 import numpy as np
@@ -575,7 +576,8 @@ def _join(parts: List[_Packed], m: int, dims: int, closest: bool) -> NearestResu
     """The answers of one call's messages, checked to cover its m points once, in order, as
     one result (an empty message anywhere). Each column is its messages' arrays joined (a lone message's are used as they
     are: an interactive call's answer costs a few microseconds here)."""
-    index: Dict[str, int] = {}
+    ids: List[str] = []  # the call's distinct sites, in the order of their indices
+    index: Dict[str, int] = {}  # ids' indices, made once a second message needs them
     sites: List[np.ndarray] = []
     distances: List[np.ndarray] = []
     columns: Dict[int, List[np.ndarray]] = {number: [] for number, _, _, _ in _COLUMNS}
@@ -605,16 +607,28 @@ def _join(parts: List[_Packed], m: int, dims: int, closest: bool) -> NearestResu
                 if len(values) != n * dims:
                     raise GvdError(_grpc_code("INTERNAL"), "closest points missing from the answers")
                 out.append(values.reshape(n, dims))
-        # The message's sites, 1 + an index into its own site_ids (0: none), to the call's
-        # (-1: none, the last entry).
-        local = np.array([index.setdefault(s, len(index)) for s in a.site_ids] + [-1],
-                         dtype=np.int64)
         idx = a.get(_packed.SITE, "u8")
         if len(idx) != n:
             raise GvdError(_grpc_code("INTERNAL"), f"{len(idx)} sites for {n} distances")
-        if n and int(idx.max()) >= len(local):
+        named = a.site_ids
+        if n and int(idx.max()) > len(named):
             raise GvdError(_grpc_code("INTERNAL"), "a site index past the message's site_ids")
-        sites.append(local[idx.astype(np.int64) - 1])
+        # The message's sites, 1 + an index into its own site_ids (0: none), to the call's
+        # (-1: none). The first message's ids, distinct as the API has them, are the call's
+        # as they are; later ones are numbered on in C loops over a dict (a Python step per
+        # id took most of the joining of a 100,000-point batch).
+        if not ids and len(set(named)) == len(named):
+            ids = list(named)
+            sites.append(idx.astype(np.int64) - 1)
+        else:
+            if len(index) < len(ids):
+                index = dict(zip(ids, count()))
+            fresh = dict.fromkeys(filterfalse(index.__contains__, named))
+            index.update(zip(fresh, count(len(ids))))
+            ids.extend(fresh)
+            local = np.fromiter(chain(map(index.__getitem__, named), (-1,)), dtype=np.int64,
+                                count=len(named) + 1)
+            sites.append(local[idx.astype(np.int64) - 1])
         distances.append(a.get(_packed.DISTANCE, "<f8"))
     if covered != m:
         raise GvdError(_grpc_code("INTERNAL"), f"{covered} answers for {m} points")
@@ -624,7 +638,6 @@ def _join(parts: List[_Packed], m: int, dims: int, closest: bool) -> NearestResu
             return arrays[0] if arrays[0].flags.writeable else arrays[0].copy()
         return np.concatenate(arrays) if arrays else np.zeros((0,) + shape, dtype=dtype)
 
-    ids = list(index)  # in the order of their indices
     site = joined(sites, np.int64)
     return NearestResult(
         version=version, site_ids=np.array(ids + [None], dtype=object)[site],
