@@ -141,9 +141,11 @@ def test_https_calls_and_streams_check_the_servers_certificate(tls_server):
         v = c.upsert_points("tls", ["a", "b"], [[0.25, 0.5], [0.75, 0.5]])
         r = c.find_nearest("tls", [[0.2, 0.5], [0.9, 0.4]], min_version=v)
         assert r.site_ids.tolist() == ["a", "b"]
-        # A batch past one chunk comes as a stream, on a TLS connection of its own.
+        # A batch past one chunk, followed, comes as a stream, on a TLS connection of its own.
         q = np.random.default_rng(3).random((gvd._client.CHUNK_POINTS + 5, 2))
-        r = c.find_nearest("tls", q, min_version=v)
+        steps = []
+        r = c.find_nearest("tls", q, min_version=v, progress=lambda done, n: steps.append(done))
+        assert steps == [gvd._client.CHUNK_POINTS, len(q)]
         assert r.site_ids.tolist() == np.where(q[:, 0] < 0.5, "a", "b").tolist()
     # Without the CA the certificate is not trusted: the call fails, naming why.
     with gvd.Client(url, timeout=60) as c:

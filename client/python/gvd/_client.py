@@ -20,7 +20,7 @@ Progress = Callable[[int, int], None]
 # sent in several calls.
 MAX_POINTS_PER_CALL = 1_000_000
 MAX_SITES_PER_CALL = 100_000
-# Answers per FindNearestStream chunk, each a progress step.
+# Answers per FindNearestStream chunk, each a progress step (find_nearest's `progress`).
 CHUNK_POINTS = 65_536
 
 
@@ -235,9 +235,11 @@ class Client:
         q = _points(points, "points")
         m = len(q)
         parts: List[_Packed] = []
-        # A batch of one chunk's size or less is one unary call (a stream costs more to set
-        # up than a small batch takes to answer); larger ones stream in chunks.
-        stream = m > CHUNK_POINTS
+        # Each call's answers come in one message, unless the caller follows a batch larger
+        # than a chunk: then they stream in chunks, each a progress step. A stream costs more
+        # (a message's reading and the joining of the messages' site ids): a 100,000-point
+        # batch took 1.2-1.6 times as long streamed, a million-point one 1.7 times.
+        stream = progress is not None and m > CHUNK_POINTS
         for start in range(0, m, MAX_POINTS_PER_CALL):
             part = q[start:start + MAX_POINTS_PER_CALL]
             request = (pb.FindNearestStreamRequest(chunk_size=CHUNK_POINTS) if stream
@@ -254,12 +256,15 @@ class Client:
             # The points go packed, written straight from the array: field xy (5) or xyz.
             field = 5 if part.shape[1] == 2 else _XYZ_FIELD
             body = request.SerializeToString() + _packed_doubles(field, part)
-            if not stream:  # m <= CHUNK_POINTS: this is the only call
+            if not stream:
                 data = self._transport.unary("FindNearest", request, _Bytes, self.timeout,
                                              body=body)
-                if progress:
-                    progress(m, m)
-                return _answer(data, m, q.shape[1], closest)
+                if m == len(part):  # the only call
+                    if progress:
+                        progress(m, m)
+                    return _answer(data, m, q.shape[1], closest)
+                parts.append(_Packed(_parse("FindNearest", PackedAnswers, data), start))
+                continue
             for chunk in self._transport.stream("FindNearestStream", request,
                                                 PackedAnswers, self.timeout, body=body):
                 parts.append(_Packed(chunk, start))
