@@ -33,7 +33,8 @@ _SMALL = 4096
 
 @dataclass
 class PackedAnswers:
-    """One FindNearestStream message's answers as arrays (absent fields empty)."""
+    """One FindNearestStream message's answers as arrays (absent fields empty; a column of
+    varints uint8 or uint64, see _varints)."""
     version: int = 0
     offset: int = 0
     site_ids: List[str] = field(default_factory=list)
@@ -122,22 +123,29 @@ def _read_response(data: bytes) -> PackedAnswers:
 
 
 def _varints(b: np.ndarray) -> np.ndarray:
-    """The uint64 values of a run of varints."""
+    """The values of a run of varints: uint8 when each is one byte (small indices, bools,
+    enums), else uint64. Decoded a byte position at a time over the values that reach it,
+    so that the steps' arrays are the values' size, not eight bytes for each byte read."""
     if len(b) == 0:
         return np.zeros(0, dtype=np.uint64)
     last = b < 0x80
     if not last[-1]:
         raise _Unexpected()
-    if last.all():  # one byte each (small indices, bools, enums)
-        return b.astype(np.uint64)
+    if last.all():
+        return b
     ends = np.flatnonzero(last)
-    starts = np.concatenate(([0], ends[:-1] + 1))
-    if (ends - starts).max() > 9:
+    starts = np.empty_like(ends)
+    starts[0] = 0
+    starts[1:] = ends[:-1] + 1
+    lengths = ends - starts + 1
+    width = int(lengths.max())
+    if width > 10:
         raise _Unexpected()
-    group = np.repeat(np.arange(len(starts)), ends - starts + 1)
-    shift = (np.arange(len(b)) - starts[group]).astype(np.uint64) * np.uint64(7)
-    values = (b & 0x7F).astype(np.uint64) << shift
-    return np.add.reduceat(values, starts)
+    values = (b[starts] & 0x7F).astype(np.uint64)
+    for k in range(1, width):
+        reach = np.flatnonzero(lengths > k)
+        values[reach] |= (b[starts[reach] + k] & 0x7F).astype(np.uint64) << np.uint64(7 * k)
+    return values
 
 
 def _from_message(r: pb.FindNearestStreamResponse) -> PackedAnswers:
