@@ -41,6 +41,7 @@
 #include "server/grpc/service.h"
 #include "server/http/http.h"
 #include "server/http/web_app.h"
+#include "server/huge_pages.h"
 #include "server/log.h"
 #include "server/metrics.h"
 #include "server/render_telemetry.h"
@@ -331,6 +332,9 @@ int main(int argc, char** argv) {
   // in a process-wide graph of lock orders, under one spin lock, to catch deadlock cycles: a
   // debugging aid that costs a one-point FindNearest over gRPC some 16% of its instructions.
   absl::SetMutexDeadlockDetectionMode(absl::OnDeadlockCycle::kIgnore);
+#ifdef GVD_TCMALLOC
+  gvd::UseHugePages();
+#endif
   Flags flags = ParseFlags(argc, argv);
   gvd::LogLevel level;
   if (!gvd::ParseLogLevel(flags.log_level, &level)) {
