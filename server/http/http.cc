@@ -35,6 +35,7 @@
 #include "absl/strings/str_split.h"
 #include "absl/strings/strip.h"
 #include "gvd/v1/voronoi.pb.h"
+#include "server/app/methods.h"
 #include "server/http/json.h"
 #include "server/log.h"
 
@@ -56,7 +57,7 @@ using StrandTimer = net::steady_timer::rebind_executor<Strand>::other;
 using google::protobuf::Message;
 using google::protobuf::MethodDescriptor;
 
-const char* const kService = "gvd.v1.VoronoiService";
+const char* const kService = kServiceName;
 
 // The largest request body (as sent) or answer (its protobuf size) converted on an I/O
 // thread: a one-point query's is some 100 bytes, a 100,000-point batch's megabytes, which
@@ -110,89 +111,6 @@ class SessionBase : public std::enable_shared_from_this<SessionBase> {
   // Closes the connection when it is idle now or after its current request (the drain).
   virtual void CloseWhenIdle() = 0;
 };
-
-// How a call of the service reaches the core: a unary call with its response message, or a
-// server stream with the messages its writer sends. What the HTTP transport knows of each
-// method beyond its descriptor.
-class StreamOut {
- public:
-  virtual ~StreamOut() = default;
-  // A message written by the core, as the answer's encoding has it (JSON or binary), and the
-  // core's callback for when it is sent.
-  virtual void Message(std::string payload, std::function<void(bool)> written) = 0;
-  virtual void End(const absl::Status& status) = 0;
-};
-struct Method {
-  using Unary = std::function<void(Service*, CallPtr, const Message&, Message*, Done)>;
-  using Streaming = std::function<void(Service*, CallPtr, const Message&,
-                                       std::shared_ptr<StreamOut>, bool json)>;
-  Unary unary;          // set for a unary method
-  Streaming streaming;  // set for a server-streaming one
-};
-
-template <class Request, class Response>
-Method UnaryMethod(void (Service::*method)(CallPtr, const Request&, Response*, Done)) {
-  return {[method](Service* core, CallPtr call, const Message& request, Message* response,
-                   Done done) {
-            (core->*method)(std::move(call), static_cast<const Request&>(request),
-                            static_cast<Response*>(response), std::move(done));
-          },
-          nullptr};
-}
-
-// A server stream's writer of M, over the session's StreamOut. The core's writer lives until
-// the core finishes it.
-template <class M>
-class StreamOf final : public StreamWriter<M> {
- public:
-  StreamOf(std::shared_ptr<StreamOut> out, bool json) : out_(std::move(out)), json_(json) {}
-  void Write(const M* message, std::function<void(bool)> written) override {
-    out_->Message(json_ ? ToJson(*message) : message->SerializeAsString(), std::move(written));
-  }
-  void Finish(const absl::Status& status) override {
-    out_->End(status);
-    delete this;
-  }
-
- private:
-  std::shared_ptr<StreamOut> out_;
-  const bool json_;
-};
-
-template <class Request, class M>
-Method StreamingMethod(void (Service::*method)(CallPtr, const Request&, StreamWriter<M>*)) {
-  return {nullptr, [method](Service* core, CallPtr call, const Message& request,
-                            std::shared_ptr<StreamOut> out, bool json) {
-            (core->*method)(std::move(call), static_cast<const Request&>(request),
-                            new StreamOf<M>(std::move(out), json));
-          }};
-}
-
-// Every method of gvd.v1.VoronoiService, by name.
-const std::map<std::string, Method>& Methods() {
-  static const auto* methods = new std::map<std::string, Method>{
-      {"CreateScene", UnaryMethod(&Service::CreateScene)},
-      {"GetScene", UnaryMethod(&Service::GetScene)},
-      {"ListScenes", UnaryMethod(&Service::ListScenes)},
-      {"DeleteScene", UnaryMethod(&Service::DeleteScene)},
-      {"WatchScene", StreamingMethod(&Service::WatchScene)},
-      {"UpsertSites", UnaryMethod(&Service::UpsertSites)},
-      {"DeleteSites", UnaryMethod(&Service::DeleteSites)},
-      {"ListSites", UnaryMethod(&Service::ListSites)},
-      {"FindNearest", UnaryMethod(&Service::FindNearest)},
-      {"FindNearestStream", StreamingMethod(&Service::FindNearestStream)},
-      {"RenderImage", UnaryMethod(&Service::RenderImage)},
-      {"GetBoundaries", UnaryMethod(&Service::GetBoundaries)},
-      {"GetNeighbors", UnaryMethod(&Service::GetNeighbors)},
-      {"GetDelaunay", UnaryMethod(&Service::GetDelaunay)},
-      {"RenderWindow", UnaryMethod(&Service::RenderWindow)},
-      {"GetClearanceField", UnaryMethod(&Service::GetClearanceField)},
-      {"PlanPath", UnaryMethod(&Service::PlanPath)},
-      {"Pick", UnaryMethod(&Service::Pick)},
-      {"RenderMosaic", UnaryMethod(&Service::RenderMosaic)},
-  };
-  return *methods;
-}
 
 }  // namespace
 
@@ -345,9 +263,7 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
   }
   // The generated class of the input type (the pool is the generated one), which the
   // application core takes.
-  std::unique_ptr<Message> message(google::protobuf::MessageFactory::generated_factory()
-                                       ->GetPrototype(method->input_type())
-                                       ->New());
+  std::unique_ptr<Message> message = NewMessage(method->input_type());
   if (call.json) {
     // A newer client's fields are ignored (see FromJson), as Connect's servers do, so that it
     // can talk to an older server.
@@ -410,17 +326,8 @@ class HttpServer::Impl {
   void Convert(F&& f) {
     net::post(converter_, std::forward<F>(f));
   }
-  // The test hook (HttpServer::kHoldConversionsVariable): a large conversion waits while the
-  // file it names exists, the file's path + ".waiting" existing meanwhile.
-  void HoldConversion() const {
-    if (hold_conversions_.empty() || access(hold_conversions_.c_str(), F_OK) != 0) return;
-    const std::string waiting = hold_conversions_ + ".waiting";
-    if (FILE* f = std::fopen(waiting.c_str(), "w")) std::fclose(f);
-    while (!stopping_ && access(hold_conversions_.c_str(), F_OK) == 0) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    }
-    std::remove(waiting.c_str());
-  }
+  // The test hook (server/app/methods.h): a large conversion waits while it holds.
+  void HoldConversion() const { HoldConversions(stopping_); }
 
  private:
   void Accept();
@@ -436,7 +343,6 @@ class HttpServer::Impl {
   // After the io_context, so destroyed before it: a conversion it still holds owns a session,
   // whose socket is the io_context's.
   net::thread_pool converter_{1};
-  std::string hold_conversions_;
   std::optional<ssl::context> tls_;
   tcp::acceptor acceptor_;  // on a strand of its own: its handler and Shutdown's close
   std::vector<std::thread> threads_;
@@ -661,8 +567,8 @@ class Session final : public SessionBase {
                    call.http_status ? std::optional(static_cast<http::status>(call.http_status))
                                     : std::nullopt);
     }
-    auto method = Methods().find(name);
-    if (method == Methods().end()) {  // a method of the proto this server does not serve
+    const Method* method = FindMethod(name);
+    if (method == nullptr) {  // a method of the proto this server does not serve
       return Error(absl::StatusCode::kUnimplemented,
                    absl::StrCat(kService, " has no method \"", name, "\""),
                    http::status::not_found);
@@ -674,8 +580,8 @@ class Session final : public SessionBase {
     ++calls_;
     deadline_passed_ = false;
     if (call.timeout) StartDeadline(*call.timeout);
-    if (method->second.streaming) return Stream(method->second, std::move(call.request));
-    Unary(method->second, *call.method, std::move(call.request));
+    if (method->streaming) return Stream(*method, std::move(call.request));
+    Unary(*method, *call.method, std::move(call.request));
   }
 
   // Connect-Timeout-Ms: when it passes, the call is cancelled and answered DEADLINE_EXCEEDED.
@@ -705,9 +611,7 @@ class Session final : public SessionBase {
     };
     auto exchange = std::make_shared<Exchange>();
     exchange->request = std::move(request);
-    exchange->response.reset(google::protobuf::MessageFactory::generated_factory()
-                                 ->GetPrototype(descriptor.output_type())
-                                 ->New());
+    exchange->response = NewMessage(descriptor.output_type());
     unary_pending_ = true;
     // The answer is encoded (and compressed) where the core answered: the caller's thread for
     // what it answers at once, its pool's for the rest, as a stream's messages are. A large
@@ -759,8 +663,11 @@ class Session final : public SessionBase {
   // write at a time, in order: the header, each message, the end.
   class Out final : public StreamOut {
    public:
-    explicit Out(std::shared_ptr<Session> session) : session_(std::move(session)) {}
-    void Message(std::string payload, std::function<void(bool)> written) override {
+    Out(std::shared_ptr<Session> session, bool json)
+        : session_(std::move(session)), json_(json) {}
+    void Message(const google::protobuf::Message& message,
+                 std::function<void(bool)> written) override {
+      std::string payload = json_ ? ToJson(message) : message.SerializeAsString();
       auto session = session_;
       net::post(session->stream_.get_executor(),
                 [session, payload = std::move(payload), written = std::move(written)]() mutable {
@@ -778,6 +685,7 @@ class Session final : public SessionBase {
 
    private:
     std::shared_ptr<Session> session_;
+    const bool json_;
   };
   struct Outgoing {
     std::string payload;
@@ -802,7 +710,7 @@ class Session final : public SessionBase {
     });
     // The request lives as long as the core's stream may read it: until its end.
     std::shared_ptr<Message> held(std::move(request));
-    method.streaming(server_->core(), call_, *held, std::make_shared<Out>(Self()), json_);
+    method.streaming(server_->core(), call_, *held, std::make_shared<Out>(Self(), json_));
     held_request_ = std::move(held);
   }
 
@@ -1053,7 +961,6 @@ absl::Status HttpServer::Impl::Start() {
   }
   port_ = acceptor_.local_endpoint().port();
   Accept();
-  if (const char* hold = std::getenv(HttpServer::kHoldConversionsVariable)) hold_conversions_ = hold;
   work_.emplace(net::make_work_guard(ioc_));
   const int threads = options_.threads > 0
                           ? options_.threads

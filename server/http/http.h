@@ -80,12 +80,6 @@ class HttpServer {
   static absl::StatusOr<std::unique_ptr<HttpServer>> Start(HttpOptions options, Service* core);
   ~HttpServer();
 
-  // A test hook: when this environment variable names a path at Start, a large conversion
-  // (a request body or an answer over 64 KiB) waits while a file exists at that path, and a
-  // file at that path + ".waiting" exists while it waits; so tests can hold one for as long
-  // as they need and see that the other connections are served meanwhile.
-  static constexpr const char* kHoldConversionsVariable = "GVD_TEST_HOLD_CONVERSIONS";
-
   int port() const;
   // Stops accepting connections (those open finish the request under way; the core's drain
   // ends the streams); closes everything left after `grace`.

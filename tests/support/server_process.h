@@ -79,7 +79,7 @@ class ServerProcess {
   // While a file exists here, the server renders no scene (its test hook
   // GVD_TEST_HOLD_RENDERS): see HoldRenders.
   std::string hold_renders_path() const { return dir_ + "/hold-renders"; }
-  // While a file exists here, a large conversion of the HTTP transport waits (its test hook
+  // While a file exists here, a large conversion of either transport waits (their test hook
   // GVD_TEST_HOLD_CONVERSIONS), a file at this path + ".waiting" existing meanwhile.
   std::string hold_conversions_path() const { return dir_ + "/hold-conversions"; }
 
