@@ -1,9 +1,7 @@
 // gvd-server: serves generalized Voronoi diagrams over gRPC and HTTP from a headless GL
 // context. main builds the store, the renderers (the GL render threads for the plane, the
 // volume renderer for space) and the application core over them, then both transports.
-#include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
-#include <grpcpp/health_check_service_interface.h>
 
 #include <arpa/inet.h>
 #include <sys/stat.h>
@@ -38,7 +36,7 @@
 #include "server/app/registry.h"
 #include "server/app/service.h"
 #include "client/flags/flags.h"
-#include "server/grpc/service.h"
+#include "server/grpc/server.h"
 #include "server/http/http.h"
 #include "server/http/web_app.h"
 #include "server/huge_pages.h"
@@ -421,9 +419,8 @@ int main(int argc, char** argv) {
   auto registry =
       std::make_unique<gvd::SceneRegistry>(store->get(), gvd::Renderers{&renderer, &volumes},
                                             flags.limits, &metrics);
-  // The application core's calls, and the gRPC transport over them (HTTP's comes below).
+  // The application core's calls; the transports over them come below.
   gvd::Service core(registry.get(), auth ? &*auth : nullptr, &metrics);
-  gvd::GrpcService service(&core);
   metrics.SetMemoryLimit(flags.limits.max_memory);
   gvd::Log(gvd::LogLevel::kInfo, "memory_budget",
            {{"max_memory", absl::StrCat(flags.limits.max_memory)},
@@ -448,21 +445,20 @@ int main(int argc, char** argv) {
     registry.reset();
     store->reset();
   };
-  grpc::EnableDefaultHealthCheckService(true);
-  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
-  grpc::ServerBuilder builder;
-  int port = 0;
-  builder.AddListeningPort(flags.listen, credentials, &port);
-  builder.SetMaxReceiveMessageSize(flags.limits.max_message_bytes);
-  builder.SetMaxSendMessageSize(flags.limits.max_message_bytes);
-  builder.RegisterService(&service);
-  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
-  if (!server || port == 0) {
+  // gRPC: the core's calls, health and reflection. Not serving until every stored scene is
+  // rebuilt; calls meanwhile get UNAVAILABLE.
+  gvd::GrpcOptions grpc_options;
+  grpc_options.listen = flags.listen;
+  grpc_options.credentials = credentials;
+  grpc_options.max_message_bytes = flags.limits.max_message_bytes;
+  auto grpc_started = gvd::GrpcServer::Start(std::move(grpc_options), &core);
+  if (!grpc_started.ok()) {
     gvd::Log(gvd::LogLevel::kError, "listen_failed", {{"address", flags.listen}});
+    stop();
     return 1;
   }
-  // Not serving until every stored scene is rebuilt; calls meanwhile get UNAVAILABLE.
-  server->GetHealthCheckService()->SetServingStatus(false);
+  std::unique_ptr<gvd::GrpcServer> server = std::move(*grpc_started);
+  const int port = server->port();
   gvd::Log(gvd::LogLevel::kInfo, "listening",
            {{"address", flags.listen}, {"port", absl::StrCat(port)}, {"version", GVD_VERSION}});
   // HTTP: the same core's calls, over the Connect protocol.
@@ -484,7 +480,7 @@ int main(int argc, char** argv) {
     auto started = gvd::HttpServer::Start(std::move(options), &core);
     if (!started.ok()) {
       gvd::Log(gvd::LogLevel::kError, "http_failed", {{"error", started.status().ToString()}});
-      server->Shutdown();
+      server->Shutdown(std::chrono::system_clock::now());
       stop();
       return 1;
     }
@@ -502,15 +498,15 @@ int main(int argc, char** argv) {
   }
   if (auto s = registry->Load(); !s.ok()) {
     gvd::Log(gvd::LogLevel::kError, "store_load_failed", {{"error", s.ToString()}});
-    server->Shutdown();
+    server->Shutdown(std::chrono::system_clock::now());
     stop();
     return 1;
   }
-  server->GetHealthCheckService()->SetServingStatus(true);
+  server->SetServing(true);
   // "liveness": the process serves, whatever its store does (for a liveness probe that must
   // not restart a replica that waits for its database); "" (the server as a whole) is
   // readiness.
-  server->GetHealthCheckService()->SetServingStatus("liveness", true);
+  server->SetServing("liveness", true);
   gvd::Log(gvd::LogLevel::kInfo, "store", {{"store", (*store)->Describe()},
                                            {"shared", (*store)->shared() ? "true" : "false"}});
   // A replica follows the store; its health says NOT_SERVING while it cannot read the store
@@ -523,7 +519,7 @@ int main(int argc, char** argv) {
       bool serving = true;
       while (!stopping) {
         const bool now = registry->caught_up();
-        if (now != serving) server->GetHealthCheckService()->SetServingStatus("", now);
+        if (now != serving) server->SetServing("", now);
         serving = now;
         std::this_thread::sleep_for(std::chrono::milliseconds(100));
       }
@@ -546,7 +542,7 @@ int main(int argc, char** argv) {
   // period to finish; whatever is left then is cancelled.
   stopping = true;
   if (health.joinable()) health.join();
-  server->GetHealthCheckService()->SetServingStatus(false);
+  server->SetServing(false);
   int left = core.Drain(std::chrono::milliseconds(flags.grace_ms));
   // HTTP connections finish the response under way, idle ones close.
   if (http) http->Shutdown(std::chrono::milliseconds(std::min<uint32_t>(flags.grace_ms, 1000)));

@@ -21,7 +21,7 @@
 #include "render/gl/render_loop.h"
 #include "render/kernel/path2.h"
 #include "server/app/registry.h"
-#include "server/grpc/service.h"
+#include "server/grpc/server.h"
 #include "server/store/sqlite_store.h"
 #include "tests/support/stored_sites.h"
 
@@ -444,8 +444,7 @@ struct InProcessServer {
   std::unique_ptr<SqliteStore> store;
   std::unique_ptr<SceneRegistry> registry;
   std::unique_ptr<Service> core;
-  std::unique_ptr<GrpcService> service;
-  std::unique_ptr<grpc::Server> server;
+  std::unique_ptr<GrpcServer> server;
   std::string address;
   uint64_t version = 0;  // the scene's, once it holds the points (and has rendered them)
 
@@ -465,15 +464,12 @@ struct InProcessServer {
     registry = std::make_unique<SceneRegistry>(store.get(), Renderers{&renderer}, ServerLimits{});
     (void)registry->Load();
     core = std::make_unique<Service>(registry.get());
-    service = std::make_unique<GrpcService>(core.get());
-    grpc::ServerBuilder builder;
-    int port = 0;
-    builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
-    builder.SetMaxReceiveMessageSize(256 << 20);
-    builder.SetMaxSendMessageSize(256 << 20);
-    builder.RegisterService(service.get());
-    server = builder.BuildAndStart();
-    address = "127.0.0.1:" + std::to_string(port);
+    GrpcOptions options;
+    options.max_message_bytes = 256 << 20;
+    auto started = GrpcServer::Start(std::move(options), core.get());
+    if (!started.ok()) return false;
+    server = std::move(*started);
+    address = "127.0.0.1:" + std::to_string(server->port());
     auto client = Client::Connect(address);
     v1::CreateSceneRequest c;
     c.set_scene_id(scene_id);

@@ -2,7 +2,7 @@
 // loopback: where the store calls of writes run. Creating and deleting scenes, large writes,
 // writes while another is under way and writes to a store shared with replicas run on the
 // core's commit threads ("gvd-commit"); a small write alone on a store of its own runs on
-// the thread gRPC ran its handler on (Service::Write).
+// the gRPC transport's one polling thread, "gvd-grpc" (Service::Write).
 #include <gtest/gtest.h>
 #include <grpcpp/grpcpp.h>
 #include <pthread.h>
@@ -15,8 +15,9 @@
 #include <thread>
 #include <vector>
 
+#include "gvd/v1/voronoi.grpc.pb.h"
 #include "server/app/registry.h"
-#include "server/grpc/service.h"
+#include "server/grpc/server.h"
 #include "server/store/sqlite_store.h"
 
 namespace gvd {
@@ -74,19 +75,13 @@ class RecordingStore final : public SceneStore {
 
 // A server of the core over `store` on loopback, and a stub to it.
 struct Served {
-  explicit Served(SceneStore* store) : registry(store, {}, ServerLimits{}), core(&registry),
-                                       service(&core) {
+  explicit Served(SceneStore* store) : registry(store, {}, ServerLimits{}), core(&registry) {
     EXPECT_TRUE(registry.Load().ok());
-    grpc::ServerBuilder builder;
-    int port = 0;
-    builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
-    builder.RegisterService(&service);
-    server = builder.BuildAndStart();
-    EXPECT_NE(port, 0);
+    server = std::move(*GrpcServer::Start(GrpcOptions{}, &core));
     stub = v1::VoronoiService::NewStub(grpc::CreateChannel(
-        "127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials()));
+        "127.0.0.1:" + std::to_string(server->port()), grpc::InsecureChannelCredentials()));
   }
-  ~Served() { server->Shutdown(); }
+  ~Served() { server->Shutdown(std::chrono::system_clock::now()); }
 
   void Create(const std::string& id) {
     v1::CreateSceneRequest create;
@@ -124,8 +119,7 @@ struct Served {
 
   SceneRegistry registry;
   Service core;
-  GrpcService service;
-  std::unique_ptr<grpc::Server> server;
+  std::unique_ptr<GrpcServer> server;
   std::unique_ptr<v1::VoronoiService::Stub> stub;
 };
 
@@ -143,7 +137,7 @@ TEST(ServiceThreads, WritesCommitWhereTheirSizeAndTheStoreSay) {
   auto threads = store.Take();
   ASSERT_EQ(threads.size(), 2u);
   EXPECT_EQ(threads[0], commit);
-  EXPECT_NE(threads[1], commit);
+  EXPECT_EQ(threads[1], "gvd-grpc");
   // A request larger than a small write's: on a commit thread.
   EXPECT_EQ(served.Upsert("s", "q", kLarge), 3u);
   EXPECT_EQ(store.Take(), std::vector<std::string>{commit});
@@ -158,7 +152,7 @@ TEST(ServiceThreads, WritesCommitWhereTheirSizeAndTheStoreSay) {
   EXPECT_EQ(removed.version(), 4u);
   threads = store.Take();
   ASSERT_EQ(threads.size(), 1u);
-  EXPECT_NE(threads[0], commit);
+  EXPECT_EQ(threads[0], "gvd-grpc");
 
   // A small write while a large one waits on the store: on a commit thread, beside it.
   served.Create("t");
