@@ -42,7 +42,7 @@ cmake --build build/tsan --target gvd_core_tests gvd_integration_tests gvd_serve
   gvd_app_tests gvd_app_gl_tests gvd-server
 export TSAN_OPTIONS="halt_on_error=1 suppressions=$root/tests/sanitizers/tsan.supp"
 (cd build/tsan && ctest --output-on-failure -j "$jobs" --timeout 900 \
-  -R '^(SceneCore|SceneRegistry|Replicas|ReplicaFaults|Engines/LogStore|ServiceThreads|Store|CpuPool|PendingEventTest|MemoryBudgetUnit|FairRenders|ServerTest|SpaceServerTest|LoadTest|CrashTest|MetricsTest|AnalysisServerTest|AnalysisLimitsTest|WatchTest|WatchDrain|WatchReplicas|HttpTest|HttpSecurity|HttpDrain|HttpConversions|MosaicServerTest)\.' \
+  -R '^(SceneCore|SceneRegistry|Replicas|ReplicaFaults|Engines/LogStore|ServiceThreads|Store|CpuPool|PendingEventTest|MemoryBudgetUnit|FairRenders|ServerTest|SpaceServerTest|LoadTest|CrashTest|MetricsTest|AnalysisServerTest|AnalysisLimitsTest|WatchTest|WatchDrain|WatchReplicas|HttpTest|HttpSecurity|HttpDrain|HttpConversions|MosaicServerTest|GrpcPort)\.' \
   -E '^(Server|SpaceServer)Test\.TenThousand.*$')
 # The ten-thousand-site accuracy tests (ServerTest.TenThousand*, SpaceServerTest.TenThousand*:
 # one client, each answer against the oracle, a fifth of this run's time) are left out of
