@@ -77,39 +77,28 @@ reflection::ServerReflectionResponse Reflect(const reflection::ServerReflectionR
       for (int i = 0; i < f->dependency_count(); ++i) next.push_back(f->dependency(i));
     }
   };
+  // `file`'s answer, or NOT_FOUND naming `what` was asked for.
+  auto found = [&](const FileDescriptor* file, const std::string& what) {
+    if (file == nullptr) return error(grpc::StatusCode::NOT_FOUND, absl::StrCat("no ", what));
+    files(file);
+  };
   switch (request.message_request_case()) {
-    case reflection::ServerReflectionRequest::kFileByFilename: {
-      const FileDescriptor* file = pool->FindFileByName(request.file_by_filename());
-      if (file == nullptr) {
-        error(grpc::StatusCode::NOT_FOUND,
-              absl::StrCat("no file named \"", request.file_by_filename(), "\""));
-      } else {
-        files(file);
-      }
+    case reflection::ServerReflectionRequest::kFileByFilename:
+      found(pool->FindFileByName(request.file_by_filename()),
+            absl::StrCat("file named \"", request.file_by_filename(), "\""));
       break;
-    }
-    case reflection::ServerReflectionRequest::kFileContainingSymbol: {
-      const FileDescriptor* file = pool->FindFileContainingSymbol(request.file_containing_symbol());
-      if (file == nullptr) {
-        error(grpc::StatusCode::NOT_FOUND,
-              absl::StrCat("no symbol \"", request.file_containing_symbol(), "\""));
-      } else {
-        files(file);
-      }
+    case reflection::ServerReflectionRequest::kFileContainingSymbol:
+      found(pool->FindFileContainingSymbol(request.file_containing_symbol()),
+            absl::StrCat("symbol \"", request.file_containing_symbol(), "\""));
       break;
-    }
     case reflection::ServerReflectionRequest::kFileContainingExtension: {
       const auto& asked = request.file_containing_extension();
       const auto* type = pool->FindMessageTypeByName(asked.containing_type());
       const auto* extension =
           type == nullptr ? nullptr : pool->FindExtensionByNumber(type, asked.extension_number());
-      if (extension == nullptr) {
-        error(grpc::StatusCode::NOT_FOUND,
-              absl::StrCat("no extension ", asked.extension_number(), " of \"",
-                           asked.containing_type(), "\""));
-      } else {
-        files(extension->file());
-      }
+      found(extension == nullptr ? nullptr : extension->file(),
+            absl::StrCat("extension ", asked.extension_number(), " of \"",
+                         asked.containing_type(), "\""));
       break;
     }
     case reflection::ServerReflectionRequest::kAllExtensionNumbersOfType: {

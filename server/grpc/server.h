@@ -9,7 +9,7 @@
 // reads and writes the calls' bytes on it, and a call's answer from the core is sent from
 // whichever thread the core answered on. One thread alone, so that no event goes from one
 // poller to another (gRPC's callback API hands each event between two threads that poll one
-// epoll set, twelve more context switches in a one-site move). What would hold it up goes
+// epoll set: 14 context switches a one-site move against 5 here). What would hold it up goes
 // elsewhere: a request larger than kConvertHereBytes is parsed on a converter thread, and the
 // core runs on it only what it answers at once (lookups, small writes: Service's threads).
 #pragma once

@@ -16,8 +16,8 @@ block the server's threads are read from /proc/PID/task: each thread's CPU (user
 in clock ticks) and its context switches (voluntary and not), summed by thread name; the
 client's CPU is its process's. Prints, for each transport, the moves' p50 and, per move, the
 client's CPU and each server thread name's CPU and switches (names with none left out).
-Thread names are the kernel's, 15 characters at most (gRPC's `nexting_thread`s serve the
-callback API; the HTTP transport's I/O threads are `gvd-server`).
+Thread names are the kernel's, 15 characters at most (the gRPC port's one polling thread is
+`gvd-grpc`; the HTTP transport's I/O threads are `gvd-server`).
 """
 import argparse
 import collections

@@ -29,7 +29,7 @@ measures:
     after a first run on each that is reported apart: gvd FindNearest (one packed call),
     PostGIS a LATERAL KNN join over arrays passed as parameters;
 then a call that does nothing, N times on each side, alternating: grpcio's call of gRPC's
-standard health Check (served by gRPC's own service) and psycopg2's SELECT 1, p50 and p99,
+standard health Check (answered on the gRPC port's thread, none of the core) and psycopg2's SELECT 1, p50 and p99,
 the floor of each side's stock client and transport under a move's two calls;
 and on the points scene the single-point query capacity at 8 connections for S seconds:
 pgbench (-M prepared -c 8 -j 2, a KNN script at random points) against h2load (-c 8 -m 1
@@ -161,8 +161,8 @@ class GrpcioAlone:
                                                points=[pb.Point(x=x, y=y)]), timeout=600)
 
     def nothing(self):
-        """gRPC's standard health Check (an empty request: the whole server), a call served
-        by gRPC's own service, with none of gvd's code."""
+        """gRPC's standard health Check (an empty request: the whole server), answered on the
+        gRPC port's thread from a table, with none of the core's code."""
         return self.check(b"", timeout=600)
 
 
