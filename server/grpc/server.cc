@@ -481,8 +481,10 @@ absl::StatusOr<std::unique_ptr<GrpcServer>> GrpcServer::Start(GrpcOptions option
         absl::StrCat("gRPC cannot listen on \"", server->options_.listen, "\""));
   }
   server->serving_[""] = false;
-  server->poller_ = std::thread([s = server.get()] { s->Poll(); });
+  // The first calls are awaited before the polling thread starts, so that it sees them made
+  // (the thread's start orders them before it; every later one it makes itself).
   for (int i = 0; i < kAwaited; ++i) server->Request();
+  server->poller_ = std::thread([s = server.get()] { s->Poll(); });
   return server;
 }
 
