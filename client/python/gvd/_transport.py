@@ -45,8 +45,13 @@ class GrpcTransport:
     def __init__(self, target: str, *, token: Optional[str], root_certificates: Optional[bytes],
                  private_key: Optional[bytes], certificate_chain: Optional[bytes],
                  tls: bool, max_message_bytes: int):
+        # No channelz: nothing in this process reads it, and its bookkeeping costs grpcio
+        # five clock readings a call, each a system call in grpcio's build (it reads the
+        # clocks by syscall(), not the vDSO): a one-call round trip took 7-8 µs less CPU
+        # without it, 58-61 against 65-68 µs.
         options = [("grpc.max_receive_message_length", max_message_bytes),
-                   ("grpc.max_send_message_length", max_message_bytes)]
+                   ("grpc.max_send_message_length", max_message_bytes),
+                   ("grpc.enable_channelz", 0)]
         if tls or root_certificates or certificate_chain:
             credentials = grpc.ssl_channel_credentials(root_certificates, private_key,
                                                        certificate_chain)
