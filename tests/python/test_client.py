@@ -59,16 +59,19 @@ def test_points_in_nearest_out(client):
 
 
 def test_points_are_stored_as_given_whatever_their_ids(client):
-    # upsert_points writes its request from the arrays; a call with an id too long for that
-    # goes as protobuf's messages. Either way the server holds each id at its point.
+    # upsert_points writes a call of more than FEW_SITES points from the arrays; a call of
+    # fewer, or with an id too long for that, goes as protobuf's messages. Either way the
+    # server holds each id at its point.
     sid = f"ids-{client.kind}"
     client.create_scene(sid, window=(-1, -1, 1, 1), size=(64, 64))
     rng = np.random.default_rng(5)
     ids = [f"pt-{i}-é漢" for i in range(300)] + ["L" * 200 + str(i) for i in range(3)]
     xy = rng.random((len(ids), 2)) * 2 - 1
-    xy[0, 0] = xy[301, 1] = 0.0  # omitted by protobuf's writer, written by the arrays'
-    v = client.upsert_points(sid, ids[:300], xy[:300])
-    assert client.upsert_points(sid, ids[300:], xy[300:]) > v
+    # Omitted by protobuf's writer, written by the arrays': in each kind of call.
+    xy[0, 0] = xy[291, 1] = xy[299, 0] = xy[301, 1] = 0.0
+    v = client.upsert_points(sid, ids[:291], xy[:291])
+    for few in (slice(291, 292), slice(292, 292 + gvd._client.FEW_SITES), slice(300, 303)):
+        assert client.upsert_points(sid, ids[few], xy[few]) > v
     listed = {s["id"]: s["point"] for s in client.list_sites(sid)}
     assert sorted(listed) == sorted(ids)
     got = np.array([[listed[i].get("x", 0.0), listed[i].get("y", 0.0)] for i in ids])
@@ -85,8 +88,10 @@ def test_segments_are_stored_as_given_whatever_their_ids(client):
     rng = np.random.default_rng(6)
     ids = [f"sg-{i}-é漢" for i in range(200)] + ["L" * 100 + str(i) for i in range(3)]
     ab = rng.random((len(ids), 2, 2)) * 2 - 1
-    ab[0, 0, 0] = ab[201, 1, 1] = 0.0  # omitted by protobuf's writer, written by the arrays'
-    v = client.upsert_segments(sid, ids[:200], ab[:200])
+    # Omitted by protobuf's writer, written by the arrays': in each kind of call.
+    ab[0, 0, 0] = ab[198, 0, 1] = ab[201, 1, 1] = 0.0
+    v = client.upsert_segments(sid, ids[:197], ab[:197])
+    v = client.upsert_segments(sid, ids[197:200], ab[197:200])  # a few: protobuf's messages
     v = client.upsert_segments(sid, ids[200:], ab[200:])
     listed = {s["id"]: s["segment"] for s in client.list_sites(sid)}
     assert sorted(listed) == sorted(ids)
@@ -123,6 +128,12 @@ def test_calls_of_a_few_points_with_closest_points(client, dims):
         assert np.allclose(r.gradient, (q - named) / d[:, None], rtol=0, atol=1e-12)
         assert [r.ids[i] for i in r.site_indices] == r.site_ids.tolist()
         assert (r.error_bounds == 0).all() and (r.feature_indices == 0).all()
+    # A drag: one site moved at a time, each read at its version where it now lies.
+    for _ in range(5):
+        i, to = int(rng.integers(len(sites))), rng.random((1, dims))
+        v = client.upsert_points(sid, [ids[i]], to)
+        r = client.find_nearest(sid, to, min_version=v, exact=True)
+        assert r.site_ids.tolist() == [ids[i]] and r.distances.tolist() == [0.0]
     client.delete_scene(sid)
 
 
