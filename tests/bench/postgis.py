@@ -30,7 +30,8 @@ measures:
     PostGIS a LATERAL KNN join over arrays passed as parameters;
 then a call that does nothing, N times on each side, alternating: grpcio's call of gRPC's
 standard health Check (answered on the gRPC port's thread, none of the core) and psycopg2's SELECT 1, p50 and p99,
-the floor of each side's stock client and transport under a move's two calls;
+the floor of each side's stock client and transport under a move's two calls; back to back,
+then each call after 1 ms idle, as a move's calls come after the wait on the other side's;
 and on the points scene the single-point query capacity at 8 connections for S seconds:
 pgbench (-M prepared -c 8 -j 2, a KNN script at random points) against h2load (-c 8 -m 1
 -t 2, a FindNearest over gRPC at one point: h2load sends one body) and wrk (-c 8 -t 2, a
@@ -248,22 +249,33 @@ def moves(clients, conn, name, sites, count, rng):
     return out
 
 
-def floor(bare, conn, count):
+def floor(bare, conn, count, idle_ms=1.0):
     """A call that does nothing, `count` times on each side, alternating: grpcio's call of
     gRPC's health Check and psycopg2's SELECT 1, p50 and p99 (ms). What each side's stock
-    client and its transport cost before any work: a move makes two calls on each side."""
-    gvd_ms, pg_ms = [], []
+    client and its transport cost before any work: a move makes two calls on each side.
+    Then the same with `idle_ms` of sleep after each call ("paced"): a move's calls come after
+    the client has waited about that long on the other side's move, and a call made after
+    a wait costs more than one made back to back (its code and data no longer in the
+    caches), the more so the more code it runs."""
+    out = {}
     with conn.cursor() as cur:
-        for _ in range(count):
-            t0 = time.perf_counter()
-            bare.nothing()
-            gvd_ms.append(1000 * (time.perf_counter() - t0))
-            t0 = time.perf_counter()
-            cur.execute("SELECT 1")
-            cur.fetchone()
-            pg_ms.append(1000 * (time.perf_counter() - t0))
-    return {"grpcio_p50_ms": statistics.median(gvd_ms), "grpcio_p99_ms": percentile(gvd_ms, 0.99),
-            "psycopg2_p50_ms": statistics.median(pg_ms), "psycopg2_p99_ms": percentile(pg_ms, 0.99)}
+        for prefix, idle in (("", 0.0), ("paced_", idle_ms / 1000)):
+            gvd_ms, pg_ms = [], []
+            for _ in range(count):
+                t0 = time.perf_counter()
+                bare.nothing()
+                gvd_ms.append(1000 * (time.perf_counter() - t0))
+                time.sleep(idle)
+                t0 = time.perf_counter()
+                cur.execute("SELECT 1")
+                cur.fetchone()
+                pg_ms.append(1000 * (time.perf_counter() - t0))
+                time.sleep(idle)
+            out.update({f"grpcio_{prefix}p50_ms": statistics.median(gvd_ms),
+                        f"grpcio_{prefix}p99_ms": percentile(gvd_ms, 0.99),
+                        f"psycopg2_{prefix}p50_ms": statistics.median(pg_ms),
+                        f"psycopg2_{prefix}p99_ms": percentile(pg_ms, 0.99)})
+    return out
 
 
 def batch(client, conn, name, q, runs=3):
@@ -427,7 +439,9 @@ def print_table(f, batch_size):
     fl = f["floor"]
     print(f"\nA call that does nothing, p50 (p99): grpcio (gRPC's health Check) "
           f"{fl['grpcio_p50_ms']:.3f} ({fl['grpcio_p99_ms']:.3f}) ms, psycopg2 (SELECT 1) "
-          f"{fl['psycopg2_p50_ms']:.3f} ({fl['psycopg2_p99_ms']:.3f}) ms")
+          f"{fl['psycopg2_p50_ms']:.3f} ({fl['psycopg2_p99_ms']:.3f}) ms; each after 1 ms "
+          f"idle: grpcio {fl['grpcio_paced_p50_ms']:.3f} ({fl['grpcio_paced_p99_ms']:.3f}) ms, "
+          f"psycopg2 {fl['psycopg2_paced_p50_ms']:.3f} ({fl['psycopg2_paced_p99_ms']:.3f}) ms")
     c = f["capacity"]
     print("\n| single-point FindNearest, 8 connections | queries/s | p50 | p99 | vs PostGIS |")
     print("|---|---:|---:|---:|---:|")
