@@ -35,6 +35,19 @@ const char* const kReflectionService = "grpc.reflection.v1alpha.ServerReflection
 // Calls awaited at once: gRPC queues a call that comes while none is.
 constexpr int kAwaited = 4;
 
+// The paths of the calls served ("/package.Service/Method"), made once: a call's method is
+// one of these.
+struct Paths {
+  std::string core = absl::StrCat("/", kServiceName, "/");  // a prefix: the method follows
+  std::string health_check = absl::StrCat("/", kHealthService, "/Check");
+  std::string health_watch = absl::StrCat("/", kHealthService, "/Watch");
+  std::string reflection = absl::StrCat("/", kReflectionService, "/ServerReflectionInfo");
+};
+const Paths& CallPaths() {
+  static const Paths paths;
+  return paths;
+}
+
 grpc::Status ToGrpc(const absl::Status& s) {
   if (s.ok()) return grpc::Status::OK;
   return grpc::Status(static_cast<grpc::StatusCode>(s.code()), std::string(s.message()));
@@ -214,16 +227,16 @@ class GrpcServer::Exchange {
       if (it != md.end()) authorization.assign(it->second.data(), it->second.size());
     }
     call_ = std::make_shared<Call>(std::move(authorization));
-    const std::string& name = ctx_.method();  // "/package.Service/Method"
-    const std::string prefix = absl::StrCat("/", kServiceName, "/");
-    if (absl::StartsWith(name, prefix)) {
-      method_ = FindMethod(std::string_view(name).substr(prefix.size()));
+    const std::string& name = ctx_.method();
+    const Paths& paths = CallPaths();
+    if (absl::StartsWith(name, paths.core)) {
+      method_ = FindMethod(std::string_view(name).substr(paths.core.size()));
       if (method_ != nullptr) kind_ = method_->unary ? Kind::kUnary : Kind::kStream;
-    } else if (name == absl::StrCat("/", kHealthService, "/Check")) {
+    } else if (name == paths.health_check) {
       kind_ = Kind::kHealthCheck;
-    } else if (name == absl::StrCat("/", kHealthService, "/Watch")) {
+    } else if (name == paths.health_watch) {
       kind_ = Kind::kHealthWatch;
-    } else if (name == absl::StrCat("/", kReflectionService, "/ServerReflectionInfo")) {
+    } else if (name == paths.reflection) {
       kind_ = Kind::kReflection;
     }
     if (kind_ == Kind::kUnknown) {
@@ -258,7 +271,7 @@ class GrpcServer::Exchange {
         HealthRequest request;
         if (!Parse(&in_, &request)) return NotParsed("grpc.health.v1.HealthCheckRequest");
         const int status = server_->HealthStatus(request.service());
-        if (status < 0) {
+        if (status == HealthResponse::SERVICE_UNKNOWN) {
           return Finish(grpc::Status(grpc::StatusCode::NOT_FOUND,
                                      absl::StrCat("unknown service \"", request.service(), "\"")));
         }
@@ -534,9 +547,18 @@ void GrpcServer::Shutdown(std::chrono::system_clock::time_point deadline) {
 
 int GrpcServer::HealthStatus(const std::string& service) {
   std::lock_guard<std::mutex> lock(mu_);
+  return HealthStatusLocked(service);
+}
+
+int GrpcServer::HealthStatusLocked(const std::string& service) const {
   auto it = serving_.find(service);
-  if (it == serving_.end()) return -1;
+  if (it == serving_.end()) return HealthResponse::SERVICE_UNKNOWN;
   return it->second ? HealthResponse::SERVING : HealthResponse::NOT_SERVING;
+}
+
+void GrpcServer::NotifyWatchesLocked() {
+  // A watch told its status unchanged sends nothing (Exchange::SendHealth).
+  for (Exchange* e : watches_) e->Notify(HealthStatusLocked(e->watched()));
 }
 
 void GrpcServer::Watch(Exchange* exchange, bool watching) {
@@ -546,28 +568,19 @@ void GrpcServer::Watch(Exchange* exchange, bool watching) {
     return;
   }
   watches_.insert(exchange);
-  auto it = serving_.find(exchange->watched());
-  exchange->Notify(it == serving_.end() ? HealthResponse::SERVICE_UNKNOWN
-                   : it->second         ? HealthResponse::SERVING
-                                        : HealthResponse::NOT_SERVING);
+  exchange->Notify(HealthStatusLocked(exchange->watched()));
 }
 
 void GrpcServer::SetServing(const std::string& service, bool serving) {
   std::lock_guard<std::mutex> lock(mu_);
   serving_[service] = serving;
-  const int status = serving ? HealthResponse::SERVING : HealthResponse::NOT_SERVING;
-  for (Exchange* e : watches_) {
-    if (e->watched() == service) e->Notify(status);
-  }
+  NotifyWatchesLocked();
 }
 
 void GrpcServer::SetServing(bool serving) {
   std::lock_guard<std::mutex> lock(mu_);
-  const int status = serving ? HealthResponse::SERVING : HealthResponse::NOT_SERVING;
   for (auto& [service, now] : serving_) now = serving;
-  for (Exchange* e : watches_) {
-    if (serving_.count(e->watched())) e->Notify(status);
-  }
+  NotifyWatchesLocked();
 }
 
 }  // namespace gvd

@@ -77,8 +77,11 @@ class GrpcServer {
   void Request();  // one more call awaited
   void Ended();    // a call's Exchange is gone
   // grpc.health.v1's state; each Watch stream is an Exchange of its own.
-  int HealthStatus(const std::string& service);  // HealthCheckResponse::ServingStatus
+  // HealthCheckResponse::ServingStatus; SERVICE_UNKNOWN for a service not known.
+  int HealthStatus(const std::string& service);
+  int HealthStatusLocked(const std::string& service) const;
   void Watch(Exchange* exchange, bool watching);
+  void NotifyWatchesLocked();  // each watch of its service's status now
 
   const GrpcOptions options_;
   Service* const core_;

@@ -1,7 +1,7 @@
 #include "server/http/http.h"
 
 #include <google/protobuf/descriptor.h>
-#include <google/protobuf/dynamic_message.h>
+#include <google/protobuf/message.h>
 
 #include <algorithm>
 #include <atomic>
