@@ -30,7 +30,7 @@ absl::Status RenderLoop::Start(DevicePreference preference) {
   // A caller that begins to wait ends the lanes' rests.
   waker_ = RenderWait::WakeOnCaller([this] {
     std::lock_guard<std::mutex> lock(mu_);
-    cv_.notify_all();
+    WakeAll();
   });
   for (int lane = 0; lane < lanes_; ++lane) {
     threads_.emplace_back([this, lane, preference] { Run(lane, preference); });
@@ -49,8 +49,8 @@ void RenderLoop::Stop() {
   {
     std::lock_guard<std::mutex> lock(mu_);
     stopping_ = true;
+    WakeAll();
   }
-  cv_.notify_all();
   for (std::thread& t : threads_) {
     if (t.joinable()) t.join();
   }
@@ -61,7 +61,20 @@ void RenderLoop::MarkDirty(std::shared_ptr<Scene> scene) {
   {
     std::lock_guard<std::mutex> lock(mu_);
     if (!stopping_) {
-      if (dirty_.Push(std::move(scene))) cv_.notify_all();
+      const Scene* queued = scene.get();
+      if (!dirty_.Push(std::move(scene))) return;  // queued already: a lane will take it
+      // A watched scene ends the lanes' rests.
+      if (queued->watched()) return WakeAll();
+      // Being rendered: its lane takes it again after this render.
+      if (dirty_.rendering(queued)) return;
+      // Its own lane, unless that lane is busy; then, as for a scene of nobody's, the first
+      // lane that sleeps. A lane that rests or is on its way back takes it when it looks.
+      if (auto owner = owner_.find(queued); owner != owner_.end() && !busy_[owner->second]) {
+        return Wake(owner->second);
+      }
+      for (int lane = 0; lane < lanes_; ++lane) {
+        if (waiting_[lane]) return Wake(lane);
+      }
       return;
     }
   }
@@ -73,8 +86,8 @@ bool RenderLoop::Enqueue(Task task) {
     std::lock_guard<std::mutex> lock(mu_);
     if (stopping_ || started_ < lanes_ || !start_status_.ok()) return false;
     tasks_.push_back(std::move(task));
+    WakeAll();
   }
-  cv_.notify_all();
   return true;
 }
 
@@ -133,8 +146,25 @@ std::shared_ptr<Scene> RenderLoop::Take(int lane) {
   // The other lanes may take this lane's scenes now, which they turned down while it was
   // free: without a word they would sleep until the next update or render's end, and this
   // render may go on for seconds.
-  if (!dirty_.empty()) cv_.notify_all();
+  if (!dirty_.empty()) {
+    for (int other = 0; other < lanes_; ++other) Wake(other);
+  }
   return taken;
+}
+
+void RenderLoop::Wake(int lane) {
+  if (!waiting_[lane]) return;
+  // Not waiting from now on, so that the next scene marked before this lane wakes goes to
+  // another lane.
+  waiting_[lane] = false;
+  wake_[lane].notify_one();
+}
+
+void RenderLoop::WakeAll() {
+  for (int lane = 0; lane < lanes_; ++lane) {
+    waiting_[lane] = false;
+    wake_[lane].notify_one();
+  }
 }
 
 void RenderLoop::Run(int lane, DevicePreference preference) {
@@ -181,12 +211,12 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
   ZoomRenderer zoom;
   // Ends this lane's turn on a scene: another lane may take it (or one this lane left) now.
   auto finish = [&](const Scene* scene) {
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      dirty_.Rendered(scene);
-      busy_[lane] = false;
+    std::lock_guard<std::mutex> lock(mu_);
+    dirty_.Rendered(scene);
+    busy_[lane] = false;
+    if (!dirty_.empty()) {
+      for (int other = 0; other < lanes_; ++other) Wake(other);
     }
-    cv_.notify_all();
   };
   while (true) {
     std::shared_ptr<Scene> scene;
@@ -195,11 +225,12 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
     std::vector<const Scene*> dropped;
     {
       std::unique_lock<std::mutex> lock(mu_);
-      cv_.wait(lock, [&] {
-        if (stopping_ || !tasks_.empty() || !taken_from_[lane].empty()) return true;
-        scene = Take(lane);
-        return scene != nullptr;
-      });
+      while (!stopping_ && tasks_.empty() && taken_from_[lane].empty() &&
+             !(scene = Take(lane))) {
+        waiting_[lane] = true;  // until a Wake clears it
+        wake_[lane].wait(lock);
+        waiting_[lane] = false;
+      }
       if (stopping_) {
         if (scene) {
           dirty_.PushFront(std::move(scene));  // its waiters fail with the rest below
@@ -229,8 +260,8 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
       std::unique_lock<std::mutex> lock(mu_);
       busy_[lane] = false;
       dirty_.PushFront(std::move(scene));
-      cv_.wait_for(lock, std::chrono::milliseconds(5),
-                   [this] { return stopping_ || !tasks_.empty(); });
+      wake_[lane].wait_for(lock, std::chrono::milliseconds(5),
+                           [this] { return stopping_ || !tasks_.empty(); });
       continue;
     }
     // Drop the state of scenes that are gone or that another lane took over.
@@ -270,13 +301,14 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
     // waits in its plan, where it has given up its turn at GL. Set for this render alone:
     // zooms and other scenes' renders do not wait.
     if (!hold_path_.empty()) {
-      rasterizer->set_planning_hook([this, held = hold_path_ + "." + scene->id()] {
+      rasterizer->set_planning_hook([this, lane, held = hold_path_ + "." + scene->id()] {
         if (access(held.c_str(), F_OK) != 0) return;
         const std::string waiting = held + ".waiting";
         if (FILE* f = std::fopen(waiting.c_str(), "w")) std::fclose(f);
         while (access(held.c_str(), F_OK) == 0) {
           std::unique_lock<std::mutex> lock(mu_);
-          if (cv_.wait_for(lock, std::chrono::milliseconds(5), [this] { return stopping_; })) {
+          if (wake_[lane].wait_for(lock, std::chrono::milliseconds(5),
+                                   [this] { return stopping_; })) {
             break;
           }
         }
@@ -312,7 +344,7 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
                          std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                              std::chrono::duration<double>(seconds * background_rest_));
       std::unique_lock<std::mutex> lock(mu_);
-      cv_.wait_until(lock, until, [this] {
+      wake_[lane].wait_until(lock, until, [this] {
         return stopping_ || RenderWait::callers() > 0 || dirty_.Any([](const Scene* s) {
                  return s->watched();
                });

@@ -50,7 +50,8 @@ class RenderLoop final : public Renderer {
   explicit RenderLoop(int lanes = 2, RenderObserver* observer = nullptr,
                       double background_rest = kBackgroundRest)
       : lanes_(lanes < 1 ? 1 : lanes), observer_(observer),
-        background_rest_(std::max(background_rest, 0.0)), busy_(lanes_, false),
+        background_rest_(std::max(background_rest, 0.0)),
+        wake_(new std::condition_variable[lanes_]), waiting_(lanes_, false), busy_(lanes_, false),
         taken_from_(lanes_) {}
   ~RenderLoop() override;  // stops the threads
   RenderLoop(const RenderLoop&) = delete;
@@ -107,9 +108,16 @@ class RenderLoop final : public Renderer {
   bool Enqueue(Task task);
   void Run(int lane, DevicePreference preference);
   // The first queued scene `lane` may render now, removed from the queue (null if none):
-  // not being rendered, and its own, nobody's, or a busy lane's; wakes the other lanes if
+  // not being rendered, and its own, nobody's, or a busy lane's; wakes the idle lanes if
   // more are queued, as this lane is busy now. Under mu_.
   std::shared_ptr<Scene> Take(int lane);
+  // Wakes `lane` if it sleeps for want of work (waiting_), under mu_: each lane sleeps on a
+  // condition of its own, so that a scene marked dirty wakes the one lane that will take it
+  // rather than every lane (a woken lane that finds nothing to take costs the waker and the
+  // machine a wake-up on another core, on the path of the call that marked the scene).
+  void Wake(int lane);
+  // Wakes every lane, whether it sleeps, rests or waits in a test hook. Under mu_.
+  void WakeAll();
 
   const int lanes_;
   std::vector<std::thread> threads_;
@@ -120,7 +128,10 @@ class RenderLoop final : public Renderer {
   std::string hold_path_;  // see kHoldRendersVariable; empty: no hold
 
   mutable std::mutex mu_;
-  std::condition_variable cv_;
+  std::condition_variable cv_;  // the lanes' start, for Start
+  // Per lane: its own condition (Wake), and whether it sleeps for want of work.
+  std::unique_ptr<std::condition_variable[]> wake_;
+  std::vector<bool> waiting_;
   int started_ = 0;  // lanes that have tried to make their context
   bool stopping_ = false;
   absl::Status start_status_;  // the first lane's failure, if any

@@ -5,11 +5,15 @@
 #include <gtest/gtest.h>
 #include <pthread.h>
 
-#include <cstdlib>
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <functional>
 #include <future>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <random>
@@ -190,6 +194,77 @@ TEST(SceneRegistry, RendersNobodyWaitsForOrWatchesRest) {
         << "no frame of version 6 within 60 s; the newest heard of: " << watched;
   }
   (*scene)->Unwatch(token);
+  renderer->Stop();
+}
+
+// Voluntary context switches of each of this process's threads named `name`, by thread id.
+std::map<std::string, long> SwitchesOf(const std::string& name) {
+  std::map<std::string, long> out;
+  for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
+    std::ifstream comm(task.path() / "comm");
+    std::string got;
+    if (!std::getline(comm, got) || got != name) continue;
+    std::ifstream status(task.path() / "status");
+    for (std::string line; std::getline(status, line);) {
+      if (line.rfind("voluntary_ctxt_switches:", 0) == 0) {
+        out[task.path().filename()] = std::stol(line.substr(line.find(':') + 1));
+      }
+    }
+  }
+  return out;
+}
+
+// A scene marked dirty wakes the one render thread that takes it: its own, while that
+// thread sleeps. The other sleeps on through a hundred moves, each drawn before the next
+// (each thread's voluntary context switches, as the kernel counts them).
+TEST(SceneRegistry, AMoveWakesOnlyTheRenderThreadThatDrawsIt) {
+  auto renderer = std::make_unique<RenderLoop>(2, nullptr, /*background_rest=*/0);
+  if (!renderer->Start(DevicePreference::kAuto).ok()) {
+    renderer = StartRenderer();  // reports the missing context as the others do
+    ASSERT_EQ(renderer, nullptr);
+    GTEST_SKIP() << "no EGL context";
+  }
+  auto store = SqliteStore::Open(":memory:");
+  ASSERT_TRUE(store.ok());
+  SceneRegistry registry(store->get(), {renderer.get()}, ServerLimits{});
+  ASSERT_TRUE(registry.Load().ok());
+  auto scene = As(registry.CreateScene(Settings("s")));
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  // Drawn by polling the frame: a caller waiting on a render (RenderWait) would wake every
+  // render thread, as it ends their rests.
+  auto drawn = [&](uint64_t version) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    while ((*scene)->frame()->version() < version) {
+      if (std::chrono::steady_clock::now() > deadline) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    return true;
+  };
+  auto version = registry.UpsertSites("s", {Point("a", 0.2, 0.3), Point("b", 0.7, 0.6)});
+  ASSERT_TRUE(version.ok()) << version.status();
+  ASSERT_TRUE(drawn(*version));
+  const auto before = SwitchesOf("gvd-render");
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0, 1);
+  for (int move = 0; move < 100; ++move) {
+    version = registry.UpsertSites("s", {Point("b", u(rng), u(rng))});
+    ASSERT_TRUE(version.ok()) << version.status();
+    ASSERT_TRUE(drawn(*version)) << "move " << move << " not drawn within 60 s";
+  }
+  const auto after = SwitchesOf("gvd-render");
+  std::vector<long> woken;
+  for (const auto& [tid, switches] : after) {
+    if (before.count(tid)) woken.push_back(switches - before.at(tid));
+  }
+  std::sort(woken.begin(), woken.end(), std::greater<>());
+  ASSERT_GE(woken.size(), 2u);  // the two lanes, and threads of the GL driver's named after them
+  // The lane that drew the moves slept and woke for each; every other thread of the name
+  // (the other lane, and the driver's, which sleep through renders) hardly ever woke, where
+  // waking every lane for each move wakes the other lane twice a move.
+  EXPECT_GT(woken.front(), 0);
+  long others = 0;
+  for (size_t i = 1; i < woken.size(); ++i) others += woken[i];
+  EXPECT_LT(others, 25) << "the other render threads woke " << others << " times in 100 moves";
   renderer->Stop();
 }
 
