@@ -33,10 +33,11 @@
 namespace gvd {
 namespace {
 
-// The render threads on the EGL device, as the server runs them (llvmpipe without a GPU):
-// null, after skipping, when no context can be made, unless GVD_REQUIRE_GL is set.
-std::unique_ptr<RenderLoop> StartRenderer() {
-  auto renderer = std::make_unique<RenderLoop>(1);
+// The render threads on the EGL device, as the server runs them (llvmpipe without a GPU),
+// `lanes` of them resting `background_rest` times a render nobody waits for: null, after
+// skipping, when no context can be made, unless GVD_REQUIRE_GL is set.
+std::unique_ptr<RenderLoop> StartRenderer(int lanes = 1, double background_rest = kBackgroundRest) {
+  auto renderer = std::make_unique<RenderLoop>(lanes, nullptr, background_rest);
   absl::Status s = renderer->Start(DevicePreference::kAuto);
   if (s.ok()) return renderer;
   const char* required = std::getenv("GVD_REQUIRE_GL");
@@ -46,6 +47,18 @@ std::unique_ptr<RenderLoop> StartRenderer() {
     GTEST_LOG_(INFO) << "no EGL context: " << s;
   }
   return nullptr;
+}
+
+// Whether the scene's frame reaches `version` within a minute, found by polling the frame:
+// nobody waits on a render (RenderWait), which would end the render threads' rests.
+template <class S>
+bool Drawn(const S& scene, uint64_t version) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (scene.frame()->version() < version) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return true;
 }
 
 TEST(SceneRegistry, CreateWriteReadAtAVersionDelete) {
@@ -121,12 +134,8 @@ TEST(SceneRegistry, CreateWriteReadAtAVersionDelete) {
 // time, so that no machine's speed decides it): a change meanwhile stays undrawn, until a
 // caller begins to wait for a frame, which has it at once, or a watched scene changes.
 TEST(SceneRegistry, RendersNobodyWaitsForOrWatchesRest) {
-  auto renderer = std::make_unique<RenderLoop>(1, nullptr, 1e12);
-  if (!renderer->Start(DevicePreference::kAuto).ok()) {
-    renderer = StartRenderer();  // reports the missing context as the others do
-    ASSERT_EQ(renderer, nullptr);
-    GTEST_SKIP() << "no EGL context";
-  }
+  auto renderer = StartRenderer(1, 1e12);
+  if (!renderer) GTEST_SKIP() << "no EGL context";
   auto store = SqliteStore::Open(":memory:");
   ASSERT_TRUE(store.ok());
   SceneRegistry registry(store->get(), {renderer.get()}, ServerLimits{});
@@ -149,15 +158,7 @@ TEST(SceneRegistry, RendersNobodyWaitsForOrWatchesRest) {
     }
     return std::make_pair(answered.get(), job);
   };
-  // Whether the scene's frame reaches `version` within a minute, nobody waiting.
-  auto drawn = [&](uint64_t version) {
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-    while ((*scene)->frame()->version() < version) {
-      if (std::chrono::steady_clock::now() > deadline) return false;
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    }
-    return true;
-  };
+  auto drawn = [&](uint64_t version) { return Drawn(**scene, version); };
   auto [first, first_job] = read(2);
   ASSERT_TRUE(first.ok()) << first;
   EXPECT_EQ(*first_job->rows()[0].site_id, "b");
@@ -218,28 +219,16 @@ std::map<std::string, long> SwitchesOf(const std::string& name) {
 // thread sleeps. The other sleeps on through a hundred moves, each drawn before the next
 // (each thread's voluntary context switches, as the kernel counts them).
 TEST(SceneRegistry, AMoveWakesOnlyTheRenderThreadThatDrawsIt) {
-  auto renderer = std::make_unique<RenderLoop>(2, nullptr, /*background_rest=*/0);
-  if (!renderer->Start(DevicePreference::kAuto).ok()) {
-    renderer = StartRenderer();  // reports the missing context as the others do
-    ASSERT_EQ(renderer, nullptr);
-    GTEST_SKIP() << "no EGL context";
-  }
+  auto renderer = StartRenderer(2, /*background_rest=*/0);
+  if (!renderer) GTEST_SKIP() << "no EGL context";
   auto store = SqliteStore::Open(":memory:");
   ASSERT_TRUE(store.ok());
   SceneRegistry registry(store->get(), {renderer.get()}, ServerLimits{});
   ASSERT_TRUE(registry.Load().ok());
   auto scene = As(registry.CreateScene(Settings("s")));
   ASSERT_TRUE(scene.ok()) << scene.status();
-  // Drawn by polling the frame: a caller waiting on a render (RenderWait) would wake every
-  // render thread, as it ends their rests.
-  auto drawn = [&](uint64_t version) {
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-    while ((*scene)->frame()->version() < version) {
-      if (std::chrono::steady_clock::now() > deadline) return false;
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    }
-    return true;
-  };
+  // Drawn polls the frame: a caller waiting on a render would wake every render thread.
+  auto drawn = [&](uint64_t version) { return Drawn(**scene, version); };
   auto version = registry.UpsertSites("s", {Point("a", 0.2, 0.3), Point("b", 0.7, 0.6)});
   ASSERT_TRUE(version.ok()) << version.status();
   ASSERT_TRUE(drawn(*version));
