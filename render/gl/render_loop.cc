@@ -146,9 +146,7 @@ std::shared_ptr<Scene> RenderLoop::Take(int lane) {
   // The other lanes may take this lane's scenes now, which they turned down while it was
   // free: without a word they would sleep until the next update or render's end, and this
   // render may go on for seconds.
-  if (!dirty_.empty()) {
-    for (int other = 0; other < lanes_; ++other) Wake(other);
-  }
+  if (!dirty_.empty()) WakeSleeping();
   return taken;
 }
 
@@ -158,6 +156,10 @@ void RenderLoop::Wake(int lane) {
   // another lane.
   waiting_[lane] = false;
   wake_[lane].notify_one();
+}
+
+void RenderLoop::WakeSleeping() {
+  for (int lane = 0; lane < lanes_; ++lane) Wake(lane);
 }
 
 void RenderLoop::WakeAll() {
@@ -214,9 +216,7 @@ void RenderLoop::Run(int lane, DevicePreference preference) {
     std::lock_guard<std::mutex> lock(mu_);
     dirty_.Rendered(scene);
     busy_[lane] = false;
-    if (!dirty_.empty()) {
-      for (int other = 0; other < lanes_; ++other) Wake(other);
-    }
+    if (!dirty_.empty()) WakeSleeping();
   };
   while (true) {
     std::shared_ptr<Scene> scene;

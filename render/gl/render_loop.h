@@ -116,6 +116,8 @@ class RenderLoop final : public Renderer {
   // rather than every lane (a woken lane that finds nothing to take costs the waker and the
   // machine a wake-up on another core, on the path of the call that marked the scene).
   void Wake(int lane);
+  // Wakes every lane that sleeps for want of work. Under mu_.
+  void WakeSleeping();
   // Wakes every lane, whether it sleeps, rests or waits in a test hook. Under mu_.
   void WakeAll();
 
