@@ -1,8 +1,5 @@
 #include "render/image/image.h"
 
-#include <OpenImageIO/filesystem.h>
-#include <OpenImageIO/imageio.h>
-
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -10,6 +7,7 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
+#include "render/image/codec.h"
 #include "render/kernel/exact2.h"
 #include "render/kernel/exact3.h"
 
@@ -121,9 +119,10 @@ struct PixelSource {
   std::function<uint32_t(uint32_t x, uint32_t y, uint32_t id)> feature;
 };
 
-// An image being made: its pixels (one of the three buffers) and their spec.
+// An image being made: its pixels (one of the three buffers, rows top first) and how they are
+// written.
 struct Raster {
-  OIIO::ImageSpec spec;
+  RasterView spec;
   std::vector<uint8_t> rgb;
   std::vector<uint16_t> grey;
   std::vector<float> depth;
@@ -145,11 +144,10 @@ absl::Status Fill(const PixelSource& src, const ImageOptions& o, Raster* r, Enco
     }
     if (png) {
       r->grey.resize(size_t{w} * h);
-      r->spec = OIIO::ImageSpec(int(w), int(h), 1, OIIO::TypeDesc::UINT16);
+      r->spec = {.width = w, .height = h, .channels = 1, .type = "uint16"};
     } else {
       r->depth.resize(size_t{w} * h);
-      r->spec = OIIO::ImageSpec(int(w), int(h), 1, OIIO::TypeDesc::FLOAT);
-      r->spec.channelnames = {"Z"};
+      r->spec = {.width = w, .height = h, .channels = 1, .type = "float", .channel_names = {"Z"}};
     }
     for (uint32_t y = 0; y < h; ++y) {
       for (uint32_t x = 0; x < w; ++x) {
@@ -166,12 +164,12 @@ absl::Status Fill(const PixelSource& src, const ImageOptions& o, Raster* r, Enco
         }
       }
     }
-    r->spec.attribute("gvd:max_distance", static_cast<float>(max_value));
+    r->spec.float_attributes = {{"gvd:max_distance", static_cast<float>(max_value)}};
     return absl::OkStatus();
   }
   if (!png) return absl::InvalidArgumentError("format EXR holds the DISTANCE layer only");
   r->rgb.assign(size_t{w} * h * 3, 0);
-  r->spec = OIIO::ImageSpec(int(w), int(h), 3, OIIO::TypeDesc::UINT8);
+  r->spec = {.width = w, .height = h, .channels = 3, .type = "uint8"};
   std::unordered_map<uint32_t, uint32_t> index;  // kSiteIndex: slot + 1 -> number written
   for (uint32_t y = 0; y < h; ++y) {
     for (uint32_t x = 0; x < w; ++x) {
@@ -202,19 +200,14 @@ absl::Status Fill(const PixelSource& src, const ImageOptions& o, Raster* r, Enco
 // The image, encoded.
 absl::Status Write(const ImageOptions& o, Raster* r, EncodedImage* out) {
   const bool png = o.format == ImageFormat::kPng;
-  OIIO::Filesystem::IOVecOutput proxy(out->bytes);
-  const std::string name = png ? "image.png" : "image.exr";
-  auto writer = OIIO::ImageOutput::create(name, &proxy);
-  if (!writer) {
-    return absl::InternalError(absl::StrCat("OpenImageIO has no writer for ", name, ": ",
-                                            OIIO::geterror()));
-  }
-  if (!png) r->spec.attribute("compression", "zip");
-  const void* data = !r->rgb.empty()    ? static_cast<const void*>(r->rgb.data())
-                     : !r->grey.empty() ? static_cast<const void*>(r->grey.data())
-                                        : static_cast<const void*>(r->depth.data());
-  if (!writer->open(name, r->spec) || !writer->write_image(r->spec.format, data) || !writer->close()) {
-    return absl::InternalError(absl::StrCat("encoding the image: ", writer->geterror()));
+  if (!png) r->spec.text_attributes = {{"compression", "zip"}};
+  r->spec.top = !r->rgb.empty()    ? static_cast<const void*>(r->rgb.data())
+                : !r->grey.empty() ? static_cast<const void*>(r->grey.data())
+                                   : static_cast<const void*>(r->depth.data());
+  r->spec.row_bytes = std::ptrdiff_t(r->spec.width) * r->spec.channels *
+                      (!r->rgb.empty() ? 1 : !r->grey.empty() ? 2 : 4);
+  if (auto s = EncodeRaster(png ? "image.png" : "image.exr", r->spec, &out->bytes); !s.ok()) {
+    return s;
   }
   out->mime_type = png ? "image/png" : "image/x-exr";
   return absl::OkStatus();
@@ -252,7 +245,7 @@ absl::StatusOr<EncodedImage> EncodeImage(const Frame& f, const ImageOptions& o) 
       for (size_t k = 0; k < r.grey.size(); ++k) {
         r.rgb[3 * k] = r.rgb[3 * k + 1] = r.rgb[3 * k + 2] = r.grey[k] >> 8;
       }
-      r.spec = OIIO::ImageSpec(int(w), int(h), 3, OIIO::TypeDesc::UINT8);
+      r.spec = {.width = w, .height = h, .channels = 3, .type = "uint8"};
       r.grey.clear();
     }
     if (o.draw_sites) DrawSites(f, rect, &r.rgb);

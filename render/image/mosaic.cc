@@ -1,8 +1,5 @@
 #include "render/image/mosaic.h"
 
-#include <OpenImageIO/filesystem.h>
-#include <OpenImageIO/imageio.h>
-
 #include <algorithm>
 #include <cmath>
 #include <optional>
@@ -11,6 +8,7 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
+#include "render/image/codec.h"
 
 namespace gvd {
 
@@ -47,34 +45,30 @@ absl::StatusOr<Image> ReadImage(std::string_view bytes, const std::string& field
         field, " is not a PNG, JPEG, WebP, GIF, BMP or PNM file (", bytes.size(),
         " bytes, starting \"", absl::CHexEscape(absl::string_view(bytes.data(), std::min<size_t>(8, bytes.size()))), "\")"));
   }
-  OIIO::Filesystem::IOMemReader proxy(bytes.data(), bytes.size());
   const std::string name = absl::StrCat("image.", sniffed->extension);
-  // Created without opening, so that no other format's decoder is tried on the bytes.
-  auto in = OIIO::ImageInput::create(name, /*do_open=*/false, nullptr, &proxy);
-  OIIO::ImageSpec spec;
-  if (!in || !in->set_ioproxy(&proxy) || !in->open(name, spec)) {
-    return absl::InvalidArgumentError(absl::StrCat(field, " is a damaged ", sniffed->format,
-                                                   " file: ",
-                                                   in ? in->geterror() : OIIO::geterror()));
-  }
   Image image;
-  image.width = static_cast<uint32_t>(std::max(0, spec.width));
-  image.height = static_cast<uint32_t>(std::max(0, spec.height));
-  image.channels = static_cast<uint32_t>(std::max(0, spec.nchannels));
-  image.pixel_type = spec.format.c_str();
   image.file_format = sniffed->format;
-  if (image.width == 0 || image.height == 0 || image.channels == 0 || image.channels > 4) {
-    return absl::InvalidArgumentError(absl::StrCat(field, " is ", image.width, "x", image.height,
-                                                   " pixels of ", image.channels,
-                                                   " channels; a mosaic needs a pixel and 1 to 4 channels"));
-  }
-  if (auto s = admit(image); !s.ok()) return s;
-  image.pixels.resize(size_t{image.width} * image.height * image.channels);
-  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data())) {
-    return absl::InvalidArgumentError(absl::StrCat(field, " is a damaged ", sniffed->format,
-                                                   " file: ", in->geterror()));
-  }
-  return image;
+  bool admitted = true;  // no error of the header's checks or of `admit`
+  const absl::Status s = DecodeRaster(bytes, name, [&](const RasterHeader& h) -> absl::Status {
+    image.width = h.width;
+    image.height = h.height;
+    image.channels = h.channels;
+    image.pixel_type = h.type;
+    admitted = false;
+    if (image.width == 0 || image.height == 0 || image.channels == 0 || image.channels > 4) {
+      return absl::InvalidArgumentError(absl::StrCat(field, " is ", image.width, "x", image.height,
+                                                     " pixels of ", image.channels,
+                                                     " channels; a mosaic needs a pixel and 1 to 4 channels"));
+    }
+    if (auto s = admit(image); !s.ok()) return s;
+    admitted = true;
+    return absl::OkStatus();
+  }, &image.pixels);
+  if (s.ok()) return image;
+  // The module's INVALID_ARGUMENT is the reader's message on bytes it cannot decode.
+  if (!admitted || s.code() != absl::StatusCode::kInvalidArgument) return s;
+  return absl::InvalidArgumentError(
+      absl::StrCat(field, " is a damaged ", sniffed->format, " file: ", s.message()));
 }
 
 absl::StatusOr<std::string> WriteImage(const Image& image, const std::string& file_format) {
@@ -89,25 +83,16 @@ absl::StatusOr<std::string> WriteImage(const Image& image, const std::string& fi
   // JPEG and PNM hold 1 or 3 channels: alpha (the second of two, the fourth of four) is left.
   uint32_t channels = image.channels;
   if ((file_format == "jpeg" || file_format == "pnm") && channels % 2 == 0) --channels;
-  OIIO::TypeDesc type(image.pixel_type.empty() ? "uint8" : image.pixel_type.c_str());
-  if (type == OIIO::TypeDesc::UNKNOWN || file_format == "jpeg") type = OIIO::TypeDesc::UINT8;
-  OIIO::ImageSpec spec(int(image.width), int(image.height), int(channels), type);
-  spec.attribute("Compression", "jpeg:90");  // JPEG's quality; other formats ignore it
+  const auto pixel_bytes = std::ptrdiff_t(image.channels * sizeof(float));
+  const RasterView raster{
+      .width = image.width, .height = image.height, .channels = channels, .type = "float",
+      .top = image.pixels.data(), .pixel_bytes = pixel_bytes,
+      .row_bytes = pixel_bytes * image.width,
+      .file_type = file_format == "jpeg" || image.pixel_type.empty() ? "uint8" : image.pixel_type,
+      // JPEG's quality; other formats ignore it.
+      .text_attributes = {{"Compression", "jpeg:90"}}};
   std::vector<unsigned char> bytes;
-  OIIO::Filesystem::IOVecOutput proxy(bytes);
-  const std::string name = absl::StrCat("image.", extension);
-  auto out = OIIO::ImageOutput::create(name, &proxy);
-  if (!out) {
-    return absl::InternalError(absl::StrCat("OpenImageIO has no writer for ", name, ": ",
-                                            OIIO::geterror()));
-  }
-  const auto pixel_stride = static_cast<OIIO::stride_t>(image.channels * sizeof(float));
-  if (!out->open(name, spec) ||
-      !out->write_image(OIIO::TypeDesc::FLOAT, image.pixels.data(), pixel_stride) ||
-      !out->close()) {
-    return absl::InternalError(absl::StrCat("encoding the ", file_format, " image: ",
-                                            out->geterror()));
-  }
+  if (auto s = EncodeRaster(absl::StrCat("image.", extension), raster, &bytes); !s.ok()) return s;
   return std::string(bytes.begin(), bytes.end());
 }
 

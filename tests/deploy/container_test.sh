@@ -36,6 +36,14 @@ budget=$(echo "$logs" | sed -n 's/.*event=memory_budget max_memory=\([0-9]*\).*f
 [[ $budget == $((limit / 4 * 3)) ]] || { echo "FAIL: budget '$budget', expected 3/4 of $limit from the cgroup"; exit 1; }
 
 call() { curl -s -H 'Content-Type: application/json' -d "$2" "$http/$1"; }
+# An image: the server loads OpenImageIO's module, which the image holds beside it, at its first.
+call CreateScene '{"sceneId": "picture", "widthPx": 64, "heightPx": 48,
+  "window": {"minX": 0, "minY": 0, "maxX": 1, "maxY": 1}}' >/dev/null
+call UpsertSites '{"sceneId": "picture", "sites": [{"id": "a", "point": {"x": 0.5, "y": 0.5}}]}' >/dev/null
+picture=$(call RenderImage '{"sceneId": "picture", "minVersion": "2"}')
+echo "$picture" | grep -q '"mimeType":"image/png"' \
+  || { echo "FAIL: RenderImage in the container: ${picture:0:300}"; exit 1; }
+call DeleteScene '{"sceneId": "picture"}' >/dev/null
 # 4096x4096 scenes (24 bytes a pixel: 384 MiB each) until one does not fit.
 refused=""
 for k in $(seq 1 16); do
