@@ -19,7 +19,8 @@ gvd_packages() {
         python3-venv python3-setuptools python3-wheel python3-pytest python3-grpcio \
         python3-protobuf python3-numpy python3-httptools \
         libfreetype-dev fonts-dejavu-core fonts-cantarell assimp-testmodels \
-        python3-svgelements python3-defusedxml libwacom-common gdal-data
+        python3-svgelements python3-defusedxml libwacom-common gdal-data \
+        libpng-dev libjpeg-dev libopenexr-dev
       ;;
     node)  # the TypeScript client's tests (client/ts), where no Node.js is installed
       echo nodejs npm

@@ -2,11 +2,6 @@
 // every pixel has the colour its tile's site gives it, the site nearest to the pixel's centre
 // found by brute force over the sites the answer lists; bad and oversized images refused by
 // name before any pixel is decoded; the image counted against --max-memory.
-// Protobuf's headers (gvd/client.h) come before OpenImageIO's, whose byte-swap macros they
-// would trip on.
-#include "gvd/client.h"
-
-#include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -16,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "gvd/client.h"
+#include "tests/support/image_files.h"
 #include "tests/support/metrics_scrape.h"
 #include "tests/support/server_process.h"
 
@@ -204,14 +201,13 @@ TEST_F(MosaicServerTest, AdaptiveTilesCrowdTheDetail) {
   ExpectTiles(in, r, false);
 }
 
-// A photograph (JPEG): its pixels as OpenImageIO decodes them here.
+// A photograph (JPEG): its pixels as libjpeg decodes them here.
 TEST_F(MosaicServerTest, APhotograph) {
   const std::string path = std::string(GVD_GALLERY_DIR) + "/coffee.jpg";
-  auto file = OIIO::ImageInput::open(path);
-  ASSERT_TRUE(file) << OIIO::geterror();
-  Pixels in{file->spec().width, file->spec().height, file->spec().nchannels, {}};
-  in.v.resize(size_t(in.w) * in.h * in.c);
-  ASSERT_TRUE(file->read_image(0, 0, 0, in.c, OIIO::TypeDesc::UINT8, in.v.data()));
+  testing::Pixels8 decoded;
+  std::string error;
+  ASSERT_TRUE(testing::ReadJpeg(path, &decoded, &error)) << error;
+  Pixels in{decoded.width, decoded.height, decoded.channels, decoded.v};
   const auto r = Mosaic(ReadFile(path), 1500, 1, false);
   ASSERT_EQ(r.sites_size(), 1500);
   ExpectTiles(in, r, false);

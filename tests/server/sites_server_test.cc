@@ -9,11 +9,9 @@
 #include "gvd/client.h"
 #include "render/kernel/exact2.h"
 #include "render/kernel/path2.h"
+#include "tests/support/image_files.h"
 #include "tests/support/server_process.h"
 #include "tests/support/test_scenes.h"
-// After protobuf's headers: OpenImageIO's would hide its byte-swap functions.
-#include <OpenImageIO/filesystem.h>
-#include <OpenImageIO/imageio.h>
 
 namespace gvd {
 namespace {
@@ -376,13 +374,13 @@ TEST_F(SitesServerTest, SiteIndexImagesNameEachPixelsNearestSite) {
   EXPECT_DOUBLE_EQ(image.window().min_y(), 154 * px);
   EXPECT_DOUBLE_EQ(image.window().max_y(), 364 * px);
 
-  OIIO::Filesystem::IOMemReader memory(image.image().data(), image.image().size());
-  auto in = OIIO::ImageInput::open("index.png", nullptr, &memory);
-  ASSERT_TRUE(in) << OIIO::geterror();
-  ASSERT_EQ(in->spec().nchannels, 3);
-  ASSERT_EQ(in->spec().width, int(image.width_px()));
-  std::vector<uint8_t> rgb(size_t{image.width_px()} * image.height_px() * 3);
-  ASSERT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, rgb.data()));
+  testing::Pixels8 decoded;
+  std::string error;
+  ASSERT_TRUE(testing::ReadPngRgb(image.image(), &decoded, &error)) << error;
+  ASSERT_EQ(decoded.file_channels, 3);
+  ASSERT_EQ(decoded.width, int(image.width_px()));
+  ASSERT_EQ(decoded.height, int(image.height_px()));
+  const std::vector<uint8_t>& rgb = decoded.v;
   std::set<std::string> named;
   int failures = 0;
   for (uint32_t row = 0; row < image.height_px(); ++row) {
@@ -429,11 +427,11 @@ TEST_F(SitesServerTest, SiteIndexImagesNameEachPixelsNearestSite) {
   ASSERT_EQ(zoomed.height_px(), 8u * 48);
   EXPECT_DOUBLE_EQ(zoomed.window().min_x(), 103 * px);
   EXPECT_DOUBLE_EQ(zoomed.window().max_y(), 202 * px);
-  OIIO::Filesystem::IOMemReader zoomed_memory(zoomed.image().data(), zoomed.image().size());
-  auto zin = OIIO::ImageInput::open("zoomed.png", nullptr, &zoomed_memory);
-  ASSERT_TRUE(zin) << OIIO::geterror();
-  std::vector<uint8_t> zrgb(size_t{zoomed.width_px()} * zoomed.height_px() * 3);
-  ASSERT_TRUE(zin->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, zrgb.data()));
+  testing::Pixels8 zoomed_decoded;
+  ASSERT_TRUE(testing::ReadPngRgb(zoomed.image(), &zoomed_decoded, &error)) << error;
+  ASSERT_EQ(zoomed_decoded.width, int(zoomed.width_px()));
+  ASSERT_EQ(zoomed_decoded.height, int(zoomed.height_px()));
+  const std::vector<uint8_t>& zrgb = zoomed_decoded.v;
   const double zpx = px / 8;
   int finer = 0;  // pixels whose site is not the one at the centre of their scene pixel
   for (uint32_t row = 0; row < zoomed.height_px(); ++row) {

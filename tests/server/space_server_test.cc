@@ -15,13 +15,10 @@
 #include <vector>
 
 #include "gvd/client.h"
+#include "tests/support/image_files.h"
 #include "tests/support/meshes3.h"
 #include "tests/support/oracle3.h"
 #include "tests/support/server_process.h"
-
-// After protobuf, whose byte swaps OpenImageIO's headers would hide.
-#include <OpenImageIO/filesystem.h>
-#include <OpenImageIO/imageio.h>
 
 namespace gvd {
 namespace {
@@ -414,17 +411,22 @@ TEST_F(SpaceServerTest, SliceImagesShowTheNearestSitesAndTheirDistances) {
     st = client_->RenderImage(r, &distances);
     ASSERT_TRUE(st.ok()) << st.error_message();
     const uint32_t w = ids.width_px(), h = ids.height_px();
-    std::vector<uint8_t> rgb(size_t{w} * h * 3);
-    std::vector<float> depth(size_t{w} * h);
-    for (auto [image, name, type, channels, out] :
-         {std::tuple{&ids, "ids.png", OIIO::TypeDesc::UINT8, 3, static_cast<void*>(rgb.data())},
-          {&distances, "distances.exr", OIIO::TypeDesc::FLOAT, 1, static_cast<void*>(depth.data())}}) {
-      OIIO::Filesystem::IOMemReader memory(image->image().data(), image->image().size());
-      auto in = OIIO::ImageInput::open(name, nullptr, &memory);
-      ASSERT_TRUE(in) << OIIO::geterror();
-      ASSERT_EQ(in->spec().nchannels, channels);
-      ASSERT_TRUE(in->read_image(0, 0, 0, channels, type, out));
-    }
+    testing::Pixels8 decoded;
+    std::string error;
+    ASSERT_TRUE(testing::ReadPngRgb(ids.image(), &decoded, &error)) << error;
+    ASSERT_EQ(decoded.file_channels, 3);
+    ASSERT_EQ(decoded.width, int(w));
+    ASSERT_EQ(decoded.height, int(h));
+    const std::vector<uint8_t>& rgb = decoded.v;
+    std::vector<float> depth;
+    int depth_w = 0, depth_h = 0;
+    std::vector<std::string> depth_channels;
+    ASSERT_TRUE(testing::ReadExrChannel(distances.image(), "Z", &depth_w, &depth_h, &depth,
+                                        &depth_channels, &error))
+        << error;
+    ASSERT_EQ(depth_channels, std::vector<std::string>{"Z"});
+    ASSERT_EQ(depth_w, int(w));
+    ASSERT_EQ(depth_h, int(h));
     int failures = 0;
     for (uint32_t row = 0; row < h && failures < 10; ++row) {
       for (uint32_t col = 0; col < w && failures < 10; ++col) {
