@@ -7,13 +7,8 @@ set -euo pipefail
 build=$(realpath "$1")
 server=$(realpath "$2")
 here=$(cd "$(dirname "$0")" && pwd)
-work=$(mktemp -d)
-pid=""
-cleanup() {
-  [[ -n $pid ]] && kill "$pid" 2>/dev/null && wait "$pid" 2>/dev/null
-  rm -rf "$work"
-}
-trap cleanup EXIT
+# shellcheck source=tests/support/server.sh
+source "$here/../support/server.sh"
 cmake --install "$build" --component client --prefix "$work/prefix" >/dev/null
 if grep -rliE 'opengl|egl|postgres|libpq|sqlite' "$work/prefix/lib/cmake/gvd"; then
   echo "FAIL: the installed package names GL or a store (above)"
@@ -21,10 +16,7 @@ if grep -rliE 'opengl|egl|postgres|libpq|sqlite' "$work/prefix/lib/cmake/gvd"; t
 fi
 cmake -S "$here/package" -B "$work/user" -G Ninja -DCMAKE_PREFIX_PATH="$work/prefix" >/dev/null
 cmake --build "$work/user" >/dev/null
-"$server" --listen 127.0.0.1:0 --port-file "$work/port" --data "$work/data" 2>"$work/log" &
-pid=$!
-for _ in $(seq 600); do [[ -s $work/port ]] && break; sleep 0.05; done
-port=$(head -1 "$work/port")
+gvd_server_start "$server"
 got=$("$work/user/nearest" "127.0.0.1:$port" 12 11)
 # The oracle: a at (10, 10) is nearest to (12, 11), at sqrt(5).
 want="a $(python3 -c 'import math; print("%.17g" % math.hypot(2, 1))')"

@@ -6,7 +6,8 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 shellcheck -x deploy/run-server.sh deploy/debian-deps.sh tests/run-tests.sh tests/bench/run.sh tests/bench/gpu.sh \
   tests/deploy/lint_deploy.sh tests/sanitizers/run.sh tests/smoke-server.sh tests/gallery/make.sh tests/server/small_disk.sh tests/soak.sh \
-  tests/deploy/container_test.sh tests/deploy/compose_replicas_test.sh tests/deploy/image.sh .ci/run
+  tests/deploy/container_test.sh tests/deploy/compose_replicas_test.sh tests/deploy/image.sh .ci/run \
+  tests/server/install_test.sh tests/client/package_test.sh tests/support/server.sh
 yamllint -s -c deploy/.yamllint deploy/compose.yaml deploy/k8s/*.yaml
 python3 - deploy/k8s/*.yaml <<'PY'
 import sys

@@ -6,22 +6,13 @@
 # Usage: bash tests/server/install_test.sh BUILD_DIR
 set -euo pipefail
 build=$(realpath "$1")
-work=$(mktemp -d)
-pid=""
-cleanup() {
-  [[ -n $pid ]] && kill "$pid" 2>/dev/null && wait "$pid" 2>/dev/null
-  rm -rf "$work"
-}
-trap cleanup EXIT
+# shellcheck source=tests/support/server.sh
+source "$(dirname "$0")/../support/server.sh"
 cmake --install "$build" --prefix "$work/prefix" >/dev/null
-"$work/prefix/bin/gvd-server" --listen 127.0.0.1:0 --port-file "$work/port" --data "$work/data" \
-  2>"$work/log" &
-pid=$!
-for _ in $(seq 600); do [[ -s $work/port ]] && break; sleep 0.05; done
-[[ -s $work/port ]] || { echo "FAIL: the installed server wrote no port:"; cat "$work/log"; exit 1; }
-gvd() { "$work/prefix/bin/gvd" --server "127.0.0.1:$(head -1 "$work/port")" "$@"; }
+gvd_server_start "$work/prefix/bin/gvd-server"
+gvd() { "$work/prefix/bin/gvd" --server "127.0.0.1:$port" "$@"; }
 # mapped NAME: the paths of the files whose name holds NAME in the server's memory.
-mapped() { awk -v n="$1" 'index($6, n) {print $6}' "/proc/$pid/maps" | sort -u; }
+mapped() { awk -v n="$1" 'index($6, n) {print $6}' "/proc/$gvd_server_pid/maps" | sort -u; }
 
 if [[ -n $(mapped libOpenImageIO) || -n $(mapped libgvd_image_codec) ]]; then
   echo "FAIL: the server loaded OpenImageIO before any image:"
