@@ -1,38 +1,23 @@
 #include "render/image/codec.h"
 
 #include <dlfcn.h>
-#include <unistd.h>
-
-#include <climits>
 
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
+#include "gvd_modules.h"
 
 namespace gvd {
 namespace {
 
-// The module, loaded once: beside the running program as installed (GVD_IMAGE_CODEC_INSTALLED,
-// relative to its folder), else where the build made it (GVD_IMAGE_CODEC_BUILT).
+// The module, loaded once.
 absl::StatusOr<const ImageCodec*> Load() {
-  std::vector<std::string> paths;
-  char exe[PATH_MAX];
-  if (const ssize_t n = readlink("/proc/self/exe", exe, sizeof(exe) - 1); n > 0) {
-    const std::string self(exe, size_t(n));
-    paths.push_back(absl::StrCat(self.substr(0, self.rfind('/') + 1), GVD_IMAGE_CODEC_INSTALLED));
-  }
-  paths.push_back(GVD_IMAGE_CODEC_BUILT);
-  std::string errors;
-  for (const std::string& path : paths) {
-    if (void* module = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL)) {
-      using Entry = const ImageCodec* (*)();
-      if (auto entry = reinterpret_cast<Entry>(dlsym(module, "gvd_image_codec"))) return entry();
-      absl::StrAppend(&errors, "; ", path, " has no gvd_image_codec");
-      continue;
-    }
-    absl::StrAppend(&errors, "; ", dlerror());
-  }
-  return absl::InternalError(
-      absl::StrCat("images need gvd's image module, which did not load", errors));
+  std::string error;
+  void* module = OpenModule("libgvd_image_codec.so", &error);
+  auto entry = module ? reinterpret_cast<const ImageCodec* (*)()>(dlsym(module, "gvd_image_codec"))
+                      : nullptr;
+  if (module && !entry) error = dlerror();
+  if (!entry) return absl::InternalError(absl::StrCat("images need gvd's image module: ", error));
+  return entry();
 }
 
 absl::StatusOr<const ImageCodec*> Codec() {
