@@ -2,6 +2,8 @@
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
+#include <algorithm>
+
 #include "absl/strings/str_cat.h"
 #include "render/image/codec.h"
 
@@ -22,7 +24,8 @@ absl::Status Encode(const std::string& name, const RasterView& r, std::vector<un
   if (!r.channel_names.empty()) spec.channelnames = r.channel_names;
   for (const auto& [key, value] : r.text_attributes) spec.attribute(key, value);
   for (const auto& [key, value] : r.float_attributes) spec.attribute(key, value);
-  const auto pixel = static_cast<OIIO::stride_t>(r.pixel_bytes ? size_t(r.pixel_bytes) : r.channels * type.size());
+  const auto pixel = static_cast<OIIO::stride_t>(r.pixel_bytes ? size_t(r.pixel_bytes)
+                                                                : r.channels * type.size());
   if (!writer->open(name, spec) ||
       !writer->write_image(type, r.top, pixel, static_cast<OIIO::stride_t>(r.row_bytes)) ||
       !writer->close()) {
