@@ -16,8 +16,8 @@
 
 namespace gvd {
 
-// Pixels to encode: `channels` values of `type` a pixel, pixels `pixel_bytes` apart (0:
-// packed), rows `row_bytes` apart from the top row at `top` down (negative: rows kept bottom
+// Pixels to encode: `channels` values of `type` a pixel, pixels `pixel_bytes` apart, rows
+// `row_bytes` apart from the top row at `top` down (0: packed; negative: rows kept bottom
 // up). Types are OpenImageIO's names: "uint8", "uint16", "float".
 struct RasterView {
   uint32_t width = 0, height = 0, channels = 0;

@@ -27,7 +27,8 @@ absl::Status Encode(const std::string& name, const RasterView& r, std::vector<un
   const auto pixel = static_cast<OIIO::stride_t>(r.pixel_bytes ? size_t(r.pixel_bytes)
                                                                 : r.channels * type.size());
   if (!writer->open(name, spec) ||
-      !writer->write_image(type, r.top, pixel, static_cast<OIIO::stride_t>(r.row_bytes)) ||
+      !writer->write_image(type, r.top, pixel,
+                           r.row_bytes ? static_cast<OIIO::stride_t>(r.row_bytes) : pixel * r.width) ||
       !writer->close()) {
     return absl::InternalError(absl::StrCat("encoding ", name, ": ", writer->geterror()));
   }

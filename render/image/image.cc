@@ -204,8 +204,6 @@ absl::Status Write(const ImageOptions& o, Raster* r, EncodedImage* out) {
   r->spec.top = !r->rgb.empty()    ? static_cast<const void*>(r->rgb.data())
                 : !r->grey.empty() ? static_cast<const void*>(r->grey.data())
                                    : static_cast<const void*>(r->depth.data());
-  r->spec.row_bytes = std::ptrdiff_t(r->spec.width) * r->spec.channels *
-                      (!r->rgb.empty() ? 1 : !r->grey.empty() ? 2 : 4);
   if (auto s = EncodeRaster(png ? "image.png" : "image.exr", r->spec, &out->bytes); !s.ok()) {
     return s;
   }

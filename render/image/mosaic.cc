@@ -87,7 +87,6 @@ absl::StatusOr<std::string> WriteImage(const Image& image, const std::string& fi
   const RasterView raster{
       .width = image.width, .height = image.height, .channels = channels, .type = "float",
       .top = image.pixels.data(), .pixel_bytes = pixel_bytes,
-      .row_bytes = pixel_bytes * image.width,
       .file_type = file_format == "jpeg" || image.pixel_type.empty() ? "uint8" : image.pixel_type,
       // JPEG's quality; other formats ignore it.
       .text_attributes = {{"Compression", "jpeg:90"}}};

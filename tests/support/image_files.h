@@ -14,6 +14,7 @@
 #include <OpenEXR/ImfIO.h>
 #include <OpenEXR/ImfInputFile.h>
 
+#include <cstddef>
 #include <cstdint>
 #include <cstring>
 #include <stdexcept>
@@ -115,7 +116,7 @@ inline bool ReadExrChannel(std::string_view bytes, const char* name, int* width,
     Imf::FrameBuffer frame;
     frame.insert(name, Imf::Slice(Imf::FLOAT,
                                   reinterpret_cast<char*>(out->data() - window.min.x -
-                                                          size_t(window.min.y) * *width),
+                                                          std::ptrdiff_t(window.min.y) * *width),
                                   sizeof(float), sizeof(float) * size_t(*width)));
     file.setFrameBuffer(frame);
     file.readPixels(window.min.y, window.max.y);
