@@ -26,12 +26,13 @@ struct UpdateWindow {
 // old pieces reached; their pixels may now belong to other sites) is cleared and redrawn,
 // and each placed site is drawn over the tiles where it can now be best, with the radius it
 // needs there. Overlapping windows are merged (a merged window is cleared if either was), so
-// no two returned overlap. O(placed * frame tiles + windows^2).
+// no two returned overlap. O(frame tiles + placed * the tiles near each + windows^2).
 //
 // Why those tiles are enough. Outside the dirty windows no pixel's best value grew, so a
 // pixel p the placed site wins has m d(p, site) + a <= D(p) + slack (D the stored value):
 // only tiles whose nearest point to the site passes that against their largest stored
-// value, and within its presence, qualify.
+// value, and within its presence, qualify; none beyond the distance at which the frame's
+// largest stored value fails, so only the tiles within it are tested.
 std::vector<UpdateWindow> UpdateWindows(const Grid& grid, const Frame& frame,
                                         const SlotTable& slots, std::span<const uint32_t> placed,
                                         std::span<const PixelRect> dirty);

@@ -26,10 +26,11 @@ Frame::Frame(Grid grid, double eps, ErrorModel error, const uint32_t* ids, const
   error_ = error;
   changed_ = grid.all();
   tiles_.resize(size_t{tiles_x()} * tiles_y());
+  tile_max_.resize(tiles_.size());
   for (uint32_t ty = 0; ty < tiles_y(); ++ty) {
     for (uint32_t tx = 0; tx < tiles_x(); ++tx) {
       auto t = std::make_shared<Tile>();
-      Fill(*t, tx, ty, grid.all(), ids, distances, grid.width);
+      tile_max_[ty * tiles_x() + tx] = Fill(*t, tx, ty, grid.all(), ids, distances, grid.width);
       tiles_[ty * tiles_x() + tx] = std::move(t);
     }
   }
@@ -41,22 +42,31 @@ Frame::Frame(const Frame& base, ErrorModel error, PixelRect rect, const uint32_t
   error_ = error;
   changed_ = base.version() == version() ? base.changed_.Union(rect) : rect;
   tiles_ = base.tiles_;
+  tile_max_ = base.tile_max_;
   if (rect.empty()) return;
-  if (tiles_.empty()) tiles_.resize(size_t{tiles_x()} * tiles_y());
+  if (tiles_.empty()) {
+    tiles_.resize(size_t{tiles_x()} * tiles_y());
+    tile_max_.resize(tiles_.size());
+  }
   for (uint32_t ty = rect.y0 / kTile; ty <= (rect.y1 - 1) / kTile; ++ty) {
     for (uint32_t tx = rect.x0 / kTile; tx <= (rect.x1 - 1) / kTile; ++tx) {
       auto& slot = tiles_[ty * tiles_x() + tx];
       auto t = slot ? std::make_shared<Tile>(*slot) : std::make_shared<Tile>();
       // Shift the buffer so that Fill can index it by grid coordinates.
-      Fill(*t, tx, ty, rect, ids - (size_t{rect.y0} * rect.width() + rect.x0),
-           distances - (size_t{rect.y0} * rect.width() + rect.x0), rect.width());
+      tile_max_[ty * tiles_x() + tx] =
+          Fill(*t, tx, ty, rect, ids - (size_t{rect.y0} * rect.width() + rect.x0),
+               distances - (size_t{rect.y0} * rect.width() + rect.x0), rect.width());
       slot = std::move(t);
     }
   }
 }
 
-void Frame::Fill(Tile& t, uint32_t tx, uint32_t ty, PixelRect rect, const uint32_t* ids,
-                 const float* distances, uint32_t stride) const {
+float Frame::max_value() const {
+  return tile_max_.empty() ? 0 : *std::max_element(tile_max_.begin(), tile_max_.end());
+}
+
+float Frame::Fill(Tile& t, uint32_t tx, uint32_t ty, PixelRect rect, const uint32_t* ids,
+                  const float* distances, uint32_t stride) const {
   uint32_t x0 = std::max(tx * kTile, rect.x0), x1 = std::min((tx + 1) * kTile, rect.x1);
   uint32_t y0 = std::max(ty * kTile, rect.y0), y1 = std::min((ty + 1) * kTile, rect.y1);
   for (uint32_t j = y0; j < y1; ++j) {
@@ -71,7 +81,7 @@ void Frame::Fill(Tile& t, uint32_t tx, uint32_t ty, PixelRect rect, const uint32
   for (uint32_t j = 0; j < h; ++j) {
     for (uint32_t i = 0; i < w; ++i) m = std::max(m, t.distances[j * kTile + i]);
   }
-  t.max_distance = m;
+  return m;
 }
 
 std::shared_ptr<const Frame> Frame::Empty(Grid grid, double eps,

@@ -50,7 +50,6 @@ class Frame {
   struct Tile {
     uint32_t ids[kTile * kTile];
     float distances[kTile * kTile];
-    float max_distance;  // over the tile's pixels inside the grid
   };
 
   // A frame of `sites` from whole-grid buffers, row-major from row 0 (min_y). ids are 0 (no
@@ -93,7 +92,10 @@ class Frame {
   }
   uint32_t tiles_x() const { return (grid_.width + kTile - 1) / kTile; }
   uint32_t tiles_y() const { return (grid_.height + kTile - 1) / kTile; }
-  const Tile& tile_at(uint32_t tx, uint32_t ty) const { return *tiles_[ty * tiles_x() + tx]; }
+  // The greatest value stored in tile (tx, ty), over its pixels inside the grid; and over
+  // every tile. Kept apart from the tiles, so that reading them all touches 4 bytes a tile.
+  float tile_max(uint32_t tx, uint32_t ty) const { return tile_max_[ty * tiles_x() + tx]; }
+  float max_value() const;
   // Whether two frames share the storage of a tile (for tests of copy-on-write).
   bool SharesTile(const Frame& other, uint32_t tx, uint32_t ty) const {
     return tiles_[ty * tiles_x() + tx] == other.tiles_[ty * tiles_x() + tx];
@@ -132,9 +134,9 @@ class Frame {
     return *tiles_[(j / kTile) * tiles_x() + i / kTile];
   }
   // Copies the part of a row-major buffer (origin ox, oy; row length stride) that falls in
-  // tile (tx, ty) and `rect` into `t`, then recomputes its max distance.
-  void Fill(Tile& t, uint32_t tx, uint32_t ty, PixelRect rect, const uint32_t* ids,
-            const float* distances, uint32_t stride) const;
+  // tile (tx, ty) and `rect` into `t`, and returns the greatest value of `t` in the grid.
+  float Fill(Tile& t, uint32_t tx, uint32_t ty, PixelRect rect, const uint32_t* ids,
+             const float* distances, uint32_t stride) const;
 
   Grid grid_;
   double eps_;
@@ -142,6 +144,7 @@ class Frame {
   ErrorModel error_;
   PixelRect changed_;
   std::vector<std::shared_ptr<const Tile>> tiles_;
+  std::vector<float> tile_max_;  // each tile's greatest value, as tiles_
 };
 
 }  // namespace gvd
