@@ -94,7 +94,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::RenderAll(Rasterizer& 
       max_value = std::max(max_value, shape.max_value);
       max_segments = std::max(max_segments, shape.segments);
       tally_.Drawn(grid_, *site, shape);
-      area += shape.area;
+      if (!compute) area += DrawnArea(grid_, *site, d, shape);
     }
     if (compute) IndexByDraw(draws, slots.size(), &lists);
   }
@@ -241,7 +241,7 @@ absl::StatusOr<std::shared_ptr<const Frame>> SceneRaster::Apply(
       SiteShape shape = ShapeOf(grid_, params_, site, d);
       max_value = std::max(max_value, shape.max_value);
       max_segments = std::max(max_segments, shape.segments);
-      fill += shape.area;
+      if (!computed_updates_) fill += DrawnArea(grid_, site, d, shape);
       extents.push_back(ClippedExtent(grid_, site.geometry, shape.extent, d.clip));
       shapes.emplace_back(d.slot, shape);
       ++drawn;

@@ -80,7 +80,6 @@ double ClippedExtent(const Grid& grid, const Geometry& g, double extent, PixelRe
 SiteShape ShapeOf(const Grid& grid, const DrawParams& params, const Site& site,
                   const SiteDraw& draw) {
   const double radius = draw.radius;
-  const Window clip = grid.Area(draw.clip);
   // A sixteenth of a pixel beyond the proven radius keeps centres on the edge inside,
   // whatever the rasterizer's snapping (1/256 pixel), and 2^-18 of the largest float
   // coordinate involved keeps them inside whatever the rounding of positions and distances
@@ -97,15 +96,12 @@ SiteShape ShapeOf(const Grid& grid, const DrawParams& params, const Site& site,
   shape.pad = grid.pixel_size() / 16 + scale * 0x1p-18;
   const double r = radius + shape.pad;
   const double m = site.multiplicative, a = site.additive;
-  // Areas: each piece's, or its box's within the clip where that is less.
   if (ExactPoint(params, site)) {
     shape.per_fragment = true;
     shape.extent = r * std::numbers::sqrt2 * (1 + 0x1p-20);
-    shape.area = AreaWithin(clip, {box.min_x - r, box.min_y - r}, {box.max_x + r, box.max_y + r});
   } else if (PerFragment(params, site)) {
     shape.per_fragment = true;
     shape.extent = r;
-    shape.area = AreaWithin(clip, {box.min_x - r, box.min_y - r}, {box.max_x + r, box.max_y + r});
   } else {
     const uint32_t needed = ConeSegments(r + params.eps, params.eps);
     shape.segments = SegmentBucket(needed);
@@ -113,29 +109,40 @@ SiteShape ShapeOf(const Grid& grid, const DrawParams& params, const Site& site,
     shape.extent = r * shape.overestimate * (1 + 0x1p-20);
     shape.excess = needed > kMaxConeSegments ? m * (shape.overestimate - 1) * shape.extent
                                              : m * params.eps;
-    ForEachPieceDrawn(shape, draw, site.geometry, [&](double e, PixelRect piece_clip, Vec2 p,
-                                                      double from, double to) {
-      const FanDraw fan = FanOf(shape.segments, from, to);
-      const Window c = grid.Area(piece_clip);
-      if (fan.whole()) {  // a point's cone: its box's part within the clip, at most its own
-        shape.area += std::min(std::numbers::pi * e * e,
-                               AreaWithin(c, {p.x - e, p.y - e}, {p.x + e, p.y + e}));
-        return;
-      }
-      std::vector<Vec2> wedge = {p};
-      for (uint32_t k = 0; k <= fan.range.count; ++k) {
-        const double t = 2 * std::numbers::pi * (fan.range.first + k) / fan.segments;
-        wedge.push_back(p + e * Vec2{std::cos(t), std::sin(t)});
-      }
-      shape.area += AreaWithin(c, std::move(wedge));
-    }, [&](double e, PixelRect piece_clip, Vec2 p, Vec2 q, double from, double to) {
-      const Vec2 n = Vec2{p.y - q.y, q.x - p.x} * (e / Distance(p, q));  // to the left
-      const Vec2 a = p + from * (q - p), b = p + to * (q - p);
-      shape.area += AreaWithin(grid.Area(piece_clip), {a, b, b + n, a + n});
-    });
   }
   shape.max_value = (m * shape.extent + a) * (1 + 0x1p-20);
   return shape;
+}
+
+double DrawnArea(const Grid& grid, const Site& site, const SiteDraw& draw, const SiteShape& shape) {
+  if (shape.per_fragment) {  // a quad over the box grown by the padded radius
+    const Window box = BoundingBox(site.geometry);
+    const double r = draw.radius + shape.pad;
+    return AreaWithin(grid.Area(draw.clip), {box.min_x - r, box.min_y - r},
+                      {box.max_x + r, box.max_y + r});
+  }
+  double area = 0;
+  ForEachPieceDrawn(shape, draw, site.geometry, [&](double e, PixelRect piece_clip, Vec2 p,
+                                                    double from, double to) {
+    const FanDraw fan = FanOf(shape.segments, from, to);
+    const Window c = grid.Area(piece_clip);
+    if (fan.whole()) {  // a point's cone: its box's part within the clip, at most its own
+      area += std::min(std::numbers::pi * e * e,
+                       AreaWithin(c, {p.x - e, p.y - e}, {p.x + e, p.y + e}));
+      return;
+    }
+    std::vector<Vec2> wedge = {p};
+    for (uint32_t k = 0; k <= fan.range.count; ++k) {
+      const double t = 2 * std::numbers::pi * (fan.range.first + k) / fan.segments;
+      wedge.push_back(p + e * Vec2{std::cos(t), std::sin(t)});
+    }
+    area += AreaWithin(c, std::move(wedge));
+  }, [&](double e, PixelRect piece_clip, Vec2 p, Vec2 q, double from, double to) {
+    const Vec2 n = Vec2{p.y - q.y, q.x - p.x} * (e / Distance(p, q));  // to the left
+    const Vec2 a = p + from * (q - p), b = p + to * (q - p);
+    area += AreaWithin(grid.Area(piece_clip), {a, b, b + n, a + n});
+  });
+  return area;
 }
 
 }  // namespace gvd

@@ -24,7 +24,6 @@ struct SiteShape {
   double max_value = 0;     // no value written exceeds this (m * extent + a)
   double overestimate = 1;  // k of its fans (1 when none)
   uint32_t segments = 0;    // triangles in each of its fans (0 when none)
-  double area = 0;          // the area its pieces cover within the clip
   bool per_fragment = false;  // drawn as a quad evaluated per fragment
   // A bound on height - value over what is drawn: m * eps for fans with enough triangles;
   // m * (k - 1) * extent for a fan that would need more than kMaxConeSegments (a site far
@@ -43,6 +42,12 @@ struct DrawParams {
 // How a site that must cover `draw.radius` within `draw.clip` is drawn.
 SiteShape ShapeOf(const Grid& grid, const DrawParams& params, const Site& site,
                   const SiteDraw& draw);
+
+// The area that the pieces of a site drawn as `shape` (ShapeOf's) cover within the clip:
+// each piece's, or its box's within the clip where that is less. For a drawn render's fill
+// ratio: a fan's area costs a sine and a cosine a triangle, which renders computed on the
+// CPU (or zoom windows) have no use for.
+double DrawnArea(const Grid& grid, const Site& site, const SiteDraw& draw, const SiteShape& shape);
 
 // Fans are drawn with one of these triangle counts (or a multiple of 4096 beyond): the next
 // one up from what a site needs, so that sites share a few instanced draws. More triangles
