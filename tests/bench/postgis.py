@@ -208,6 +208,14 @@ def pg_load(conn, name, sites):
     return time.perf_counter() - t0
 
 
+def pg_move(cur, name, i, site, x, y):
+    """PostGIS's move: site i carried to `site` (an UPDATE, committed on its own), then the
+    nearest site to (x, y) read (a KNN SELECT); that site's row."""
+    cur.execute(f"UPDATE {name} SET geom = ST_GeomFromText(%s) WHERE id = %s", (to_wkt(site), i))
+    cur.execute(f"SELECT id FROM {name} ORDER BY geom <-> ST_MakePoint(%s, %s) LIMIT 1", (x, y))
+    return cur.fetchone()
+
+
 def moves(clients, conn, name, sites, count, rng):
     """`count` moves on each side, gvd's alternating between the clients (a dict: transport
     name to client), each followed by PostGIS's of the same site to the same place."""
@@ -228,11 +236,7 @@ def moves(clients, conn, name, sites, count, rng):
             answer = client.find_nearest(name, [[x, y]], min_version=version)
             gvd_ms[kind].append(1000 * (time.perf_counter() - t0))
             t0 = time.perf_counter()
-            cur.execute(f"UPDATE {name} SET geom = ST_GeomFromText(%s) WHERE id = %s",
-                        (to_wkt(site), i))
-            cur.execute(f"SELECT id FROM {name} ORDER BY geom <-> ST_MakePoint(%s, %s) LIMIT 1",
-                        (x, y))
-            row = cur.fetchone()
+            row = pg_move(cur, name, i, site, x, y)
             pg_ms.append(1000 * (time.perf_counter() - t0))
             # Both saw the move: the site is at distance 0 from the point read (gvd's answer
             # may be another site within its bound).
