@@ -23,8 +23,11 @@ measures:
     random place (often into empty space, where it takes a large cell): gvd an UpsertSites
     (SYNC) and a FindNearest at its version at the moved site, the moves alternating
     between the client's two transports (gRPC and HTTP) and the same two calls made through
-    grpcio alone (N/3 each), each followed by PostGIS's of the same site to the same place,
-    an UPDATE (autocommit) and a KNN SELECT at that point;
+    grpcio alone (N/3 each); PostGIS's of the same sites to the same places, an UPDATE
+    (autocommit) and a KNN SELECT at that point; in blocks of 50 moves a side, 1 ms apart,
+    gvd's then PostGIS's, 50 ms of rest after each block, so that neither side's work after
+    its moves falls on the other's (moved one after the other, gvd's renders of its moves
+    ran during PostGIS's: its p50 came out 0.2-0.5 ms slower);
   - a batch of N random query points in one call, the median of three runs on each side
     after a first run on each that is reported apart: gvd FindNearest (one packed call),
     PostGIS a LATERAL KNN join over arrays passed as parameters;
@@ -216,34 +219,45 @@ def pg_move(cur, name, i, site, x, y):
     return cur.fetchone()
 
 
-def moves(clients, conn, name, sites, count, rng):
-    """`count` moves on each side, gvd's alternating between the clients (a dict: transport
-    name to client), each followed by PostGIS's of the same site to the same place."""
+def moves(clients, conn, name, sites, count, rng, block=50, gap_ms=1.0, rest_ms=50.0):
+    """`count` moves on each side, in blocks of `block`: gvd's, alternating between the
+    clients (a dict: transport name to client), then PostGIS's of the same sites to the same
+    places, `gap_ms` apart, with `rest_ms` after each block, so that neither side's work
+    after its moves (gvd's renders of them, on the other core) falls on the other's."""
     gvd_ms = {kind: [] for kind in clients}
     pg_ms = []
     kinds = list(clients)
     with conn.cursor() as cur:
-        for k in range(count):
-            kind = kinds[k % len(kinds)]
-            client = clients[kind]
-            i = int(rng.integers(len(sites)))
-            site = moved(rng, sites[i])
-            sites[i] = site
-            x, y = anchor(site)
-            message = to_pb(str(i), site)
-            t0 = time.perf_counter()
-            version = client.upsert_sites(name, [message])
-            answer = client.find_nearest(name, [[x, y]], min_version=version)
-            gvd_ms[kind].append(1000 * (time.perf_counter() - t0))
-            t0 = time.perf_counter()
-            row = pg_move(cur, name, i, site, x, y)
-            pg_ms.append(1000 * (time.perf_counter() - t0))
-            # Both saw the move: the site is at distance 0 from the point read (gvd's answer
-            # may be another site within its bound).
-            site_id, distance, bound = first_answer(answer)
-            if distance > bound or row[0] != i:
-                raise SystemExit(f"move of {i} unseen: gvd ({kind}) {site_id} at {distance}, "
-                                 f"PostGIS {row[0]}")
+        for start in range(0, count, block):
+            done = []
+            for k in range(start, min(start + block, count)):
+                kind = kinds[k % len(kinds)]
+                i = int(rng.integers(len(sites)))
+                site = moved(rng, sites[i])
+                sites[i] = site
+                x, y = anchor(site)
+                message = to_pb(str(i), site)
+                t0 = time.perf_counter()
+                version = clients[kind].upsert_sites(name, [message])
+                answer = clients[kind].find_nearest(name, [[x, y]], min_version=version)
+                gvd_ms[kind].append(1000 * (time.perf_counter() - t0))
+                # The read saw the move: the site is at distance 0 from the point read (the
+                # answer may be another site within its bound).
+                site_id, distance, bound = first_answer(answer)
+                if distance > bound:
+                    raise SystemExit(f"move of {i} unseen by gvd ({kind}): {site_id} at "
+                                     f"{distance}, bound {bound}")
+                done.append((i, site, x, y))
+                time.sleep(gap_ms / 1000)
+            time.sleep(rest_ms / 1000)
+            for i, site, x, y in done:
+                t0 = time.perf_counter()
+                row = pg_move(cur, name, i, site, x, y)
+                pg_ms.append(1000 * (time.perf_counter() - t0))
+                if row[0] != i:
+                    raise SystemExit(f"move of {i} unseen by PostGIS: {row[0]}")
+                time.sleep(gap_ms / 1000)
+            time.sleep(rest_ms / 1000)
     out = {}
     for kind, ms in gvd_ms.items():
         out[f"gvd_{kind}_p50_ms"] = statistics.median(ms)
