@@ -33,7 +33,8 @@ std::vector<UpdateWindow> UpdateWindows(const Grid& grid, const Frame& frame,
     // site's box: its value there, m d + a, is at most the frame's greatest stored value
     // (plus slack), and it is present. Only the tiles that reach touches are tested: in a
     // crowded scene a handful around the site, not the whole frame. The reach is grown by
-    // a pixel and a relative 2^-20, so that rounding cannot leave out a tile that passes.
+    // a pixel's diagonal and a relative 2^-20, so that rounding cannot leave out a tile
+    // that passes.
     const double reach = std::min((top + err.Slack(top) - site.additive) / site.multiplicative,
                                   site.max_distance + margin);
     if (reach < 0) continue;  // not even a tile at distance 0 passes

@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 #include <vector>
 
 #include "render/kernel/exact2.h"
@@ -50,7 +51,8 @@ Expected EveryTile(const Grid& grid, const Frame& frame, const Site& site) {
       }
       e.any = true;
       e.rect = e.rect.Union(rect);
-      e.radius = std::max(e.radius, std::min(FarthestDistance(box, site) * (1 + 0x1p-40), presence));
+      e.radius = std::max(e.radius,
+                          std::min(FarthestDistance(box, site) * (1 + 0x1p-40), presence));
     }
   }
   return e;
@@ -62,6 +64,8 @@ Expected EveryTile(const Grid& grid, const Frame& frame, const Site& site) {
 // testing every tile gives.
 TEST(UpdateWindows, PlacedSitesGetEveryTileTheyCanWin) {
   const Grid grid{{0, 0, 1.5, 1}, 400, 250};  // 13 x 8 tiles, the last row and column cut
+  const uint32_t tiles_x = (grid.width + Frame::kTile - 1) / Frame::kTile;
+  const uint32_t tiles_y = (grid.height + Frame::kTile - 1) / Frame::kTile;
   Generator gen(11);
   int windows = 0, wide = 0, few = 0;
   for (int trial = 0; trial < 60; ++trial) {
@@ -74,7 +78,7 @@ TEST(UpdateWindows, PlacedSitesGetEveryTileTheyCanWin) {
     }
     auto snapshot = SiteSnapshot::Of(1, sites);
     // Each tile's values below a level of its own: 0.002 to 0.02 mostly, up to 0.5 in a few.
-    std::vector<double> level(size_t{13} * 8);
+    std::vector<double> level(size_t{tiles_x} * tiles_y);
     for (double& l : level) l = gen.U(0, 1) < 0.1 ? gen.U(0.05, 0.5) : gen.U(0.002, 0.02);
     std::vector<uint32_t> ids(grid.pixel_count());
     std::vector<float> values(grid.pixel_count());
@@ -82,7 +86,8 @@ TEST(UpdateWindows, PlacedSitesGetEveryTileTheyCanWin) {
       for (uint32_t i = 0; i < grid.width; ++i) {
         const size_t k = size_t{j} * grid.width + i;
         ids[k] = 1 + static_cast<uint32_t>(gen.U(0, sites.size()));
-        values[k] = static_cast<float>(gen.U(0, level[(j / Frame::kTile) * 13 + i / Frame::kTile]));
+        const double top = level[(j / Frame::kTile) * tiles_x + i / Frame::kTile];
+        values[k] = static_cast<float>(gen.U(0, top));
       }
     }
     // Slack far beyond a real frame's, so that a reach that leaves it out falls short.
@@ -118,7 +123,6 @@ TEST(UpdateWindows, PlacedSitesGetEveryTileTheyCanWin) {
   EXPECT_GE(wide, 50);
   EXPECT_GE(windows, 300);
 }
-
 
 TEST(UpdateCost, UnmeasuredScenesUseTheCapOfPoints) {
   UpdateCost cost;
