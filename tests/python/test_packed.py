@@ -1,8 +1,11 @@
 """The Python client's reader of packed FindNearestStream answers (gvd._packed), against
 protobuf's own parser of the same bytes: random and edge values (indices of every varint
 length, no site, infinities, negative zero), fields split over several records, and the
-unpacked encoding another server may send. And its writer of point and segment sites
-(gvd._client._array_sites), against protobuf's parse of what it writes. No server needed."""
+unpacked encoding another server may send. And its writers of point and segment sites
+(gvd._client._array_sites) and of a query's fields, against protobuf's parse of what they
+write. No server needed."""
+import itertools
+
 import numpy as np
 import pytest
 
@@ -242,9 +245,10 @@ def longest_id(kind, dims):
 
 @pytest.mark.parametrize("kind", ["point", "segment"])
 @pytest.mark.parametrize("dims", [2, 3])
-def test_array_sites_are_the_sites_given_as_protobuf_reads_them(kind, dims):
+@pytest.mark.parametrize("n", [len(EDGE_COORDINATES), _client.FEW_SITES, 3000])
+def test_array_sites_are_the_sites_given_as_protobuf_reads_them(kind, dims, n):
+    # Written a site at a time up to FEW_SITES, with NumPy's steps past it.
     rng = np.random.default_rng(dims)
-    n = 3000
     letters = list("az09-_.éü漢🙂")  # up to 4 bytes each
     longest = longest_id(kind, dims)
     ids = ["".join(rng.choice(letters, size=int(rng.integers(0, longest // 4 + 1))))
@@ -256,7 +260,7 @@ def test_array_sites_are_the_sites_given_as_protobuf_reads_them(kind, dims):
     ends[: len(EDGE_COORDINATES), 0, 0] = EDGE_COORDINATES
     ends[: len(EDGE_COORDINATES), points - 1, dims - 1] = EDGE_COORDINATES[::-1]
     request = pb.UpsertSitesRequest(scene_id="scène", durability=pb.DURABILITY_RELAXED)
-    data = _client._array_sites(request, ids, kind, ends)
+    data = _client._array_sites(request.SerializeToString(), ids, kind, ends)
     r = pb.UpsertSitesRequest.FromString(data)
     assert r.scene_id == "scène" and r.durability == pb.DURABILITY_RELAXED
     assert [s.id for s in r.sites] == ids
@@ -277,10 +281,36 @@ def test_array_sites_are_the_sites_given_as_protobuf_reads_them(kind, dims):
 
 @pytest.mark.parametrize("kind", ["point", "segment"])
 @pytest.mark.parametrize("dims", [2, 3])
-def test_array_sites_leave_long_ids_to_protobuf(kind, dims):
+@pytest.mark.parametrize("n", [2, _client.FEW_SITES + 1])
+def test_array_sites_leave_long_ids_to_protobuf(kind, dims, n):
     longest = longest_id(kind, dims)
-    request = pb.UpsertSitesRequest(scene_id="s")
-    ends = np.zeros((2, POINTS[kind], dims))
-    assert _client._array_sites(request, ["a", "x" * (longest + 1)], kind, ends) is None
-    assert _client._array_sites(request, ["a", "é" * (longest // 2 + 1)], kind, ends) is None
-    assert _client._array_sites(request, ["a", "x" * longest], kind, ends) is not None
+    fields = pb.UpsertSitesRequest(scene_id="s").SerializeToString()
+    ends = np.zeros((n, POINTS[kind], dims))
+    short = ["a"] * (n - 1)
+    assert _client._array_sites(fields, short + ["x" * (longest + 1)], kind, ends) is None
+    assert _client._array_sites(fields, short + ["é" * (longest // 2 + 1)], kind, ends) is None
+    assert _client._array_sites(fields, short + ["x" * longest], kind, ends) is not None
+
+
+@pytest.mark.parametrize("stream", [False, True])
+def test_query_fields_are_the_request_protobuf_reads(stream):
+    kind = pb.FindNearestStreamRequest if stream else pb.FindNearestRequest
+    every_field = set(pb.NearestField.values()) - {pb.NEAREST_FIELD_UNSPECIFIED}
+    for version in (0, 1, 127, 128, 2**32, 2**63, 2**64 - 1):
+        for exact, skip, closest in itertools.product((False, True), repeat=3):
+            fields = _client._query_fields("scène", exact, skip, closest, stream)
+            r = kind.FromString(fields + _client._version_field(version))
+            assert (r.scene_id, r.min_version, r.exact, r.skip_refinement) == \
+                ("scène", version, exact, skip)
+            assert set(r.fields) == (every_field if closest else set())
+            assert len(r.points) == len(r.xy) == 0
+            if stream:
+                assert r.chunk_size == _client.CHUNK_POINTS
+
+
+@pytest.mark.parametrize("version", [-1, 2**64])
+def test_a_version_out_of_range_is_refused(version):
+    with pytest.raises(ValueError, match="min_version"):
+        _client._version_field(version)
+    with pytest.raises(TypeError):
+        _client._version_field(1.0)

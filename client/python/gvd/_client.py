@@ -1,9 +1,13 @@
 """gvd.Client: gvd-server's calls with NumPy arrays in and out."""
 from __future__ import annotations
 
+import functools
+import operator
+import struct
 from dataclasses import dataclass
 from itertools import chain, count, filterfalse
-from typing import Any, Callable, Dict, Iterable, Iterator, List, Mapping, Optional, Sequence, Union
+from typing import (Any, Callable, Dict, Iterable, Iterator, List, Mapping, Optional, Sequence,
+                    Tuple, Union)
 
 import numpy as np
 from google.protobuf import json_format
@@ -22,10 +26,8 @@ MAX_POINTS_PER_CALL = 1_000_000
 MAX_SITES_PER_CALL = 100_000
 # Answers per FindNearestStream chunk, each a progress step (find_nearest's `progress`).
 CHUNK_POINTS = 65_536
-# Calls of at most this many sites are written as protobuf's messages rather than from the
-# arrays (_array_sites), whose NumPy steps cost a fixed 20-25 µs a call: one point went in
-# 4.7 µs against 24.4 µs that way, eight in 18 against 26, sixteen in 32 against 27.
-FEW_SITES = 8
+# Calls of at most this many sites are written a site at a time (_array_sites).
+FEW_SITES = 32
 
 
 @dataclass
@@ -164,10 +166,10 @@ class Client:
         for start in range(0, len(ends), MAX_SITES_PER_CALL):
             chunk = ends[start:start + MAX_SITES_PER_CALL]
             chunk_ids = [str(sid) for sid in ids[start:start + len(chunk)]]
-            request = pb.UpsertSitesRequest(scene_id=scene_id, durability=level)
-            body = (_array_sites(request, chunk_ids, kind, chunk) if len(chunk) > FEW_SITES
-                    else None)
-            if body is None:  # a few sites, or an id too long for the arrays' encoding
+            body = _array_sites(_upsert_fields(scene_id, level), chunk_ids, kind, chunk)
+            request = None
+            if body is None:  # an id too long for the arrays' encoding
+                request = pb.UpsertSitesRequest(scene_id=scene_id, durability=level)
                 for sid, points in zip(chunk_ids, chunk.tolist()):
                     geometry = getattr(request.sites.add(id=sid), kind)
                     for message, p in zip([geometry] if kind == "point" else
@@ -245,24 +247,14 @@ class Client:
         # (a message's reading and the joining of the messages' site ids): a 100,000-point
         # batch took 1.2-1.6 times as long streamed, a million-point one 1.7 times.
         stream = progress is not None and m > CHUNK_POINTS
+        fields = (_query_fields(scene_id, exact, skip_refinement, closest, stream)
+                  + _version_field(min_version))
         for start in range(0, m, MAX_POINTS_PER_CALL):
             part = q[start:start + MAX_POINTS_PER_CALL]
-            request = (pb.FindNearestStreamRequest(chunk_size=CHUNK_POINTS) if stream
-                       else pb.FindNearestRequest())
-            request.scene_id = scene_id
-            request.min_version = min_version
-            request.exact = exact
-            request.skip_refinement = skip_refinement
-            if closest:
-                request.fields.extend([pb.NEAREST_FIELD_SITE, pb.NEAREST_FIELD_DISTANCE,
-                                       pb.NEAREST_FIELD_ERROR_BOUND, pb.NEAREST_FIELD_EXACT,
-                                       pb.NEAREST_FIELD_FEATURE, pb.NEAREST_FIELD_CLOSEST,
-                                       pb.NEAREST_FIELD_GRADIENT])
             # The points go packed, written straight from the array: field xy (5) or xyz.
-            field = 5 if part.shape[1] == 2 else _XYZ_FIELD
-            body = request.SerializeToString() + _packed_doubles(field, part)
+            body = fields + _packed_doubles(5 if part.shape[1] == 2 else _XYZ_FIELD, part)
             if not stream:
-                data = self._transport.unary("FindNearest", request, _Bytes, self.timeout,
+                data = self._transport.unary("FindNearest", None, _Bytes, self.timeout,
                                              body=body)
                 if m == len(part):  # the only call
                     if progress:
@@ -270,7 +262,7 @@ class Client:
                     return _answer(data, m, q.shape[1], closest)
                 parts.append(_Packed(_parse("FindNearest", PackedAnswers, data), start))
                 continue
-            for chunk in self._transport.stream("FindNearestStream", request,
+            for chunk in self._transport.stream("FindNearestStream", None,
                                                 PackedAnswers, self.timeout, body=body):
                 parts.append(_Packed(chunk, start))
                 if progress:
@@ -449,6 +441,45 @@ def _packed_doubles(field: Optional[int], a: np.ndarray) -> bytes:
     return _varint(field << 3 | 2) + _varint(len(data)) + data
 
 
+# A call's fields but its sites, or but its version and points, written by protobuf once for
+# each kind of call and kept; the rest follows as bytes (protobuf reads a field written twice
+# as the last one, and a repeated field's records as one list). With each call's message made
+# and written, and a few sites as protobuf's messages, a one-point move (an upsert and a read
+# at its version) took 197,000 instructions of the client's own; 162,000 this way.
+@functools.lru_cache(maxsize=256)
+def _upsert_fields(scene_id: str, durability: int) -> bytes:
+    return pb.UpsertSitesRequest(scene_id=scene_id, durability=durability).SerializeToString()
+
+
+@functools.lru_cache(maxsize=256)
+def _query_fields(scene_id: str, exact: bool, skip_refinement: bool, closest: bool,
+                  stream: bool) -> bytes:
+    request = (pb.FindNearestStreamRequest(chunk_size=CHUNK_POINTS) if stream
+               else pb.FindNearestRequest())
+    request.scene_id = scene_id
+    request.exact = exact
+    request.skip_refinement = skip_refinement
+    if closest:
+        request.fields.extend([pb.NEAREST_FIELD_SITE, pb.NEAREST_FIELD_DISTANCE,
+                               pb.NEAREST_FIELD_ERROR_BOUND, pb.NEAREST_FIELD_EXACT,
+                               pb.NEAREST_FIELD_FEATURE, pb.NEAREST_FIELD_CLOSEST,
+                               pb.NEAREST_FIELD_GRADIENT])
+    return request.SerializeToString()
+
+
+# FindNearestRequest.min_version's tag (FindNearestStreamRequest's is the same).
+_MIN_VERSION_TAG = _varint(
+    pb.FindNearestRequest.DESCRIPTOR.fields_by_name["min_version"].number << 3)
+
+
+def _version_field(min_version: int) -> bytes:
+    """min_version as its field's bytes (none for 0, as protobuf writes it)."""
+    v = operator.index(min_version)
+    if not 0 <= v < 1 << 64:
+        raise ValueError(f"min_version must be 0 to 2^64 - 1, not {v}")
+    return _MIN_VERSION_TAG + _varint(v) if v else b""
+
+
 # The bytes of a site after its id, for _array_sites, by kind and dimensions: a point
 # (Site.point, field 2) or a segment (Site.segment, field 3, its ends a and b, fields 1 and 2),
 # each point's x, y and z (fields 1-3) as doubles; packed, without alignment, in wire order.
@@ -465,30 +496,67 @@ def _tail(points: int, dims: int) -> np.dtype:
     return np.dtype(fields)
 
 
-_TAILS = {(kind, dims): _tail(points, dims)
+def _tail_bytes(kind: str, dims: int) -> Dict[str, int]:
+    """The tail's constant fields (every one but the values): tags and lengths."""
+    field, points = _SITE_FIELDS[kind]
+    out = {"tag": field << 3 | 2, "length": _tail(points, dims).itemsize - 2}
+    for e in range(points):
+        if points > 1:
+            out[f"tag{e}"], out[f"length{e}"] = (e + 1) << 3 | 2, 9 * dims
+        for k in range(dims):
+            out[f"tag{e}_{k}"] = (k + 1) << 3 | 1
+    return out
+
+
+def _tail_struct(kind: str, dims: int) -> Tuple[struct.Struct, List[bytes]]:
+    """The tail as struct writes it, a site at a time: each value a double after the run of
+    constant bytes before it (a bytes field); and those runs."""
+    constants = _tail_bytes(kind, dims)
+    form, runs, run = "<", [], bytearray()
+    for name in _tail(_SITE_FIELDS[kind][1], dims).names:
+        if name in constants:
+            run.append(constants[name])
+        else:
+            form += f"{len(run)}sd"
+            runs.append(bytes(run))
+            run = bytearray()
+    return struct.Struct(form), runs
+
+
+_TAILS = {(kind, dims): (_tail(points, dims), _tail_bytes(kind, dims), _tail_struct(kind, dims))
           for kind, (_, points) in _SITE_FIELDS.items() for dims in (2, 3)}
 
 
-def _array_sites(request: pb.UpsertSitesRequest, ids: List[str], kind: str,
-                 ends: np.ndarray) -> Optional[bytes]:
-    """The bytes of `request` (its scene and durability) with sites ids[i] of `kind` ("point"
-    or "segment") through the points ends[i] (an (n, 1 or 2, dims) array) as its sites,
-    written with a few NumPy steps: made and serialized as protobuf's Python messages
-    (Debian's protobuf 3.21, its C++ implementation), 100,000 points took 0.24-0.37 s, longer
-    than the server's whole commit of them, against 0.03-0.06 s this way; 20,000 segments
-    0.10-0.11 s against 9-12 ms. Each site is Site{id, point{x, y[, z]}} or Site{id,
-    segment{a{...}, b{...}}}, every coordinate written (a zero too, which protobuf would omit:
-    the same message to any reader). None where a site does not fit one-byte lengths (an id
-    of more than 105 bytes for a point, 83 for a segment; 96 and 65 in 3D): the caller then
-    builds the message with protobuf."""
+def _array_sites(fields: bytes, ids: List[str], kind: str, ends: np.ndarray) -> Optional[bytes]:
+    """The bytes of an UpsertSitesRequest whose other fields' bytes are `fields`, with sites
+    ids[i] of `kind` ("point" or "segment") through the points ends[i] (an (n, 1 or 2, dims)
+    array) as its sites. Made and serialized as protobuf's Python messages (Debian's protobuf
+    3.21, its C++ implementation), 100,000 points took 0.24-0.37 s, longer than the server's
+    whole commit of them, against 0.03-0.06 s written here with a few NumPy steps; 20,000
+    segments 0.10-0.11 s against 9-12 ms. Those steps cost a fixed 25-30 µs a call, so up to
+    FEW_SITES sites are written one at a time through struct (one point in 1.5 µs against
+    29 µs, 16 in 14 against 34, 32 in 30 against 39; 32 segments in 46 against 48). Each
+    site is Site{id, point{x, y[, z]}} or Site{id, segment{a{...}, b{...}}}, every coordinate
+    written (a zero too, which protobuf would omit: the same message to any reader). None
+    where a site does not fit one-byte lengths (an id of more than 105 bytes for a point, 83
+    for a segment; 96 and 65 in 3D): the caller then builds the message with protobuf."""
     n, count, dims = ends.shape
-    field, _ = _SITE_FIELDS[kind]
+    tail, constants, (writer, runs) = _TAILS[(kind, dims)]
     encoded = [sid.encode() for sid in ids]
+    if n <= FEW_SITES:
+        out = [fields]
+        for sid, points in zip(encoded, ends.tolist()):
+            site_bytes = 2 + len(sid) + tail.itemsize
+            if site_bytes > 127:
+                return None
+            # A Site's tag and length, its id's tag, length and bytes, then the tail.
+            out += [bytes((0x12, site_bytes, 0x0a, len(sid))), sid,
+                    writer.pack(*chain.from_iterable(zip(runs, chain.from_iterable(points))))]
+        return b"".join(out)
     id_bytes = np.fromiter(map(len, encoded), dtype=np.int64, count=n)
-    tail = _TAILS[(kind, dims)]
     # A Site: 0x0a (id) length id, then the tail (the geometry's tag, length and points).
     site_bytes = 2 + id_bytes + tail.itemsize
-    if n == 0 or site_bytes.max() > 127:
+    if site_bytes.max() > 127:
         return None
     record = 2 + site_bytes  # 0x12 (UpsertSitesRequest.sites) and the Site's length first
     starts = np.cumsum(record) - record
@@ -501,16 +569,14 @@ def _array_sites(request: pb.UpsertSitesRequest, ids: List[str], kind: str,
     out[np.repeat(starts + 4 - id_starts, id_bytes) + np.arange(int(id_bytes.sum()))] = \
         np.frombuffer(b"".join(encoded), dtype=np.uint8)
     sites = np.empty(n, dtype=tail)
-    sites["tag"], sites["length"] = field << 3 | 2, tail.itemsize - 2
+    for name, value in constants.items():
+        sites[name] = value
     for e in range(count):
-        if count > 1:
-            sites[f"tag{e}"], sites[f"length{e}"] = (e + 1) << 3 | 2, 9 * dims
         for k in range(dims):
-            sites[f"tag{e}_{k}"] = (k + 1) << 3 | 1
             sites[f"value{e}_{k}"] = ends[:, e, k]
     out[(starts + 4 + id_bytes)[:, None] + np.arange(tail.itemsize)] = \
         sites.view(np.uint8).reshape(n, tail.itemsize)
-    return request.SerializeToString() + out.tobytes()
+    return fields + out.tobytes()
 
 
 def _grpc_code(name: str):

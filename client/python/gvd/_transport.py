@@ -63,8 +63,9 @@ class GrpcTransport:
         # Each method's callable, made once: making one costs about as much as a small call.
         self._unary: Dict[Tuple[str, type], grpc.UnaryUnaryMultiCallable] = {}
 
-    def unary(self, method: str, request: Message, response: Type[M],
+    def unary(self, method: str, request: Optional[Message], response: Type[M],
               timeout: Optional[float], body: Optional[bytes] = None) -> M:
+        """`request`'s call, or with `body` given, the call whose bytes it is (request unused)."""
         call = self._unary.get((method, response))
         if call is None:
             call = self.channel.unary_unary(f"/{SERVICE}/{method}", request_serializer=_serialize,
@@ -76,7 +77,7 @@ class GrpcTransport:
         except grpc.RpcError as e:
             raise GvdError(e.code(), e.details() or "") from None
 
-    def stream(self, method: str, request: Message, response: Type[M],
+    def stream(self, method: str, request: Optional[Message], response: Type[M],
                timeout: Optional[float], body: Optional[bytes] = None) -> Iterator[M]:
         call = self.channel.unary_stream(
             f"/{SERVICE}/{method}",
@@ -154,7 +155,7 @@ class HttpTransport:
                 f"Content-Type: {content_type}\r\nContent-Length: {len(body)}\r\n{deadline}\r\n"
                 ).encode("latin-1") + body
 
-    def unary(self, method: str, request: Message, response: Type[M],
+    def unary(self, method: str, request: Optional[Message], response: Type[M],
               timeout: Optional[float], body: Optional[bytes] = None) -> M:
         data = self._request(method, "application/proto",
                              body if body is not None else request.SerializeToString(), timeout)
@@ -164,7 +165,7 @@ class HttpTransport:
             if conn is None:
                 conn = self.local.conn = self._connect(method, timeout)
             try:
-                conn.sock.settimeout(timeout)
+                conn.set_timeout(timeout)
                 conn.send(data)
                 answer = conn.read_response()
             except _Closed as e:
@@ -195,7 +196,7 @@ class HttpTransport:
         if getattr(self.local, "conn", None) is conn:
             self.local.conn = None
 
-    def stream(self, method: str, request: Message, response: Type[M],
+    def stream(self, method: str, request: Optional[Message], response: Type[M],
                timeout: Optional[float], body: Optional[bytes] = None) -> Iterator[M]:
         """A server stream, on a connection of its own (calls made while it is read use the
         thread's): each Connect envelope (a flags byte, a 4-byte length, the message) is parsed
@@ -293,6 +294,13 @@ class _Connection:
     def __init__(self, sock: socket.socket):
         self.sock = sock
         self.buffer = bytearray(_RECV_BYTES)
+        self.timeout = sock.gettimeout()
+
+    def set_timeout(self, timeout: Optional[float]) -> None:
+        """The socket's timeout, set only when it changes: each setting is a system call."""
+        if timeout != self.timeout:
+            self.sock.settimeout(timeout)
+            self.timeout = timeout
 
     def send(self, data: bytes) -> None:
         """Writes a request whole; _Closed where the server had closed the connection."""
