@@ -622,21 +622,25 @@ def _answer(data: bytes, m: int, dims: int, closest: bool) -> NearestResult:
     p = r.packed
     n = len(p.distance)
     ids = list(p.site_ids)
+    sites = p.site[:]
 
+    # Each column from a list of its values: a repeated field's slice is one, made in
+    # protobuf's C++, and NumPy reads a list faster than an iterator (fromiter).
     def column(values, dtype, width: int = 1) -> np.ndarray:
         k = len(values)
         if k == n * width:
-            return np.fromiter(values, dtype=dtype, count=k)
+            return np.array(values[:], dtype=dtype)
         if k == 0 and width == 1:
             return np.zeros(n, dtype=dtype)  # omitted: zero, proto3's default
         raise _Irregular()
 
     try:
-        if r.offset or n != m or len(p.site) != n or len(set(ids)) != len(ids):
+        if r.offset or n != m or len(sites) != n or len(set(ids)) != len(ids):
             raise _Irregular()
-        if n and max(p.site) > len(ids):
+        if n and max(sites) > len(ids):
             raise _Irregular()
-        site = np.fromiter(p.site, dtype=np.int64, count=n) - 1  # 0 (none): -1
+        site = np.array(sites, dtype=np.int64)
+        site -= 1  # 0 (none): -1
         near = column(p.closest, np.float64, dims).reshape(n, dims) if closest else None
         grad = column(p.gradient, np.float64, dims).reshape(n, dims) if closest else None
         return NearestResult(
