@@ -579,14 +579,18 @@ class Session final : public SessionBase {
     call_ = std::make_shared<Call>(token);
     ++calls_;
     deadline_passed_ = false;
-    if (call.timeout) StartDeadline(*call.timeout);
-    if (method->streaming) return Stream(*method, std::move(call.request));
-    Unary(*method, *call.method, std::move(call.request));
+    std::optional<std::chrono::steady_clock::time_point> deadline;
+    if (call.timeout) deadline = std::chrono::steady_clock::now() + *call.timeout;
+    if (method->streaming) {
+      if (deadline) StartDeadline(*deadline);
+      return Stream(*method, std::move(call.request));
+    }
+    Unary(*method, *call.method, std::move(call.request), deadline);
   }
 
   // Connect-Timeout-Ms: when it passes, the call is cancelled and answered DEADLINE_EXCEEDED.
-  void StartDeadline(std::chrono::milliseconds timeout) {
-    deadline_.emplace(stream_.get_executor(), timeout);
+  void StartDeadline(std::chrono::steady_clock::time_point deadline) {
+    deadline_.emplace(stream_.get_executor(), deadline);
     deadline_->async_wait([self = Self(), generation = calls_](beast::error_code ec) {
       if (ec || generation != self->calls_) return;  // cancelled, or a later call's
       self->deadline_passed_ = true;
@@ -605,9 +609,11 @@ class Session final : public SessionBase {
   // A unary call: the core's call, then one response, checked against --max-message-bytes
   // as gRPC checks what it sends.
   void Unary(const Method& method, const MethodDescriptor& descriptor,
-             std::unique_ptr<Message> request) {
+             std::unique_ptr<Message> request,
+             std::optional<std::chrono::steady_clock::time_point> deadline) {
     struct Exchange {
       std::unique_ptr<Message> request, response;
+      std::atomic<bool> answered{false};
     };
     auto exchange = std::make_shared<Exchange>();
     exchange->request = std::move(request);
@@ -615,14 +621,17 @@ class Session final : public SessionBase {
     unary_pending_ = true;
     // The answer is encoded (and compressed) where the core answered: the caller's thread for
     // what it answers at once, its pool's for the rest, as a stream's messages are. A large
-    // one encoded on an I/O thread would hold up every connection that thread serves.
+    // one encoded on an I/O thread would hold up every connection that thread serves. What
+    // the core answers at once is sent at once (dispatch runs it here, on the session's
+    // strand); an answer from another thread is posted to the strand.
     method.unary(server_->core(), call_, *exchange->request, exchange->response.get(),
                  [self = Self(), exchange, generation = calls_, json = json_,
                   gzip = GzipAnswer()](const absl::Status& s) {
+                   exchange->answered.store(true, std::memory_order_relaxed);
                    absl::StatusOr<Encoded> body =
                        s.ok() ? self->Encode(*exchange->response, json, gzip)
                               : absl::StatusOr<Encoded>(s);
-                   net::post(self->stream_.get_executor(),
+                   net::dispatch(self->stream_.get_executor(),
                              [self, body = std::move(body), generation]() mutable {
                                if (!self->unary_pending_ || generation != self->calls_) return;
                                self->unary_pending_ = false;
@@ -635,6 +644,12 @@ class Session final : public SessionBase {
                                           std::move(body->body), body->gzipped);
                              });
                  });
+    // The deadline's timer only for a call the core did not answer at once: one answered
+    // already is sent, and its timer would be set and cancelled for nothing (three system
+    // calls and a handler). A timer set after a late answer is cancelled when it is sent.
+    if (deadline && !exchange->answered.load(std::memory_order_relaxed)) {
+      StartDeadline(*deadline);
+    }
   }
 
   struct Encoded {
