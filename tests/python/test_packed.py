@@ -314,3 +314,30 @@ def test_a_version_out_of_range_is_refused(version):
         _client._version_field(version)
     with pytest.raises(TypeError):
         _client._version_field(1.0)
+
+
+class _Recorder:
+    """A transport that keeps each call's bytes and answers an upsert at version 7."""
+
+    def __init__(self):
+        self.bodies = []
+
+    def unary(self, method, request, response, timeout, body=None):
+        self.bodies.append(body if body is not None else request.SerializeToString())
+        return response(version=7)
+
+
+@pytest.mark.parametrize("durability", ["sync", "relaxed"])
+def test_upsert_sites_writes_the_request_protobuf_reads(durability):
+    sites = [pb.Site(id="p-é", point=pb.Point(x=-0.0, y=5e-324)),
+             {"id": "s", "segment": {"a": {"x": 1, "y": 2}, "b": {"x": 3, "y": 4}}},
+             pb.Site(id="L" * 300, bezier=pb.Bezier(control_points=[pb.Point(x=k, y=-k)
+                                                                    for k in range(200)]))]
+    client = gvd.Client.__new__(gvd.Client)
+    client._transport, client.timeout = _Recorder(), None  # pylint: disable=protected-access
+    assert client.upsert_sites("scène", sites, durability=durability) == 7
+    [body] = client._transport.bodies  # pylint: disable=protected-access
+    want = pb.UpsertSitesRequest(scene_id="scène", durability=pb.DURABILITY_SYNC if durability ==
+                                 "sync" else pb.DURABILITY_RELAXED)
+    want.sites.extend([sites[0], gvd._client.site_from_dict(sites[1]), sites[2]])
+    assert pb.UpsertSitesRequest.FromString(body) == want
