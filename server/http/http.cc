@@ -280,10 +280,11 @@ ConnectCall DecodeConnectCall(const std::string& name, bool post, const std::str
   call.request = std::move(message);
   if (!timeout_ms.empty()) {
     int64_t ms = 0;
-    if (!absl::SimpleAtoi(timeout_ms, &ms) || ms <= 0) {
+    // The Connect protocol's limit: at most 10 digits (some 115 days).
+    if (timeout_ms.size() > 10 || !absl::SimpleAtoi(timeout_ms, &ms) || ms <= 0) {
       return refuse(absl::StatusCode::kInvalidArgument,
-                    absl::StrCat("Connect-Timeout-Ms must be a positive number, not \"",
-                                 timeout_ms, "\""));
+                    absl::StrCat("Connect-Timeout-Ms must be a positive number of at most 10 "
+                                 "digits, not \"", timeout_ms, "\""));
     }
     call.timeout = std::chrono::milliseconds(ms);
   }
@@ -594,12 +595,14 @@ class Session final : public SessionBase {
     deadline_->async_wait([self = Self(), generation = calls_](beast::error_code ec) {
       if (ec || generation != self->calls_) return;  // cancelled, or a later call's
       self->deadline_passed_ = true;
-      if (self->call_) self->call_->Cancel();
+      // A unary call is answered before the core hears of it: the core's cancelled call may
+      // answer at once, and that answer, whatever it says, then finds the call answered.
       if (self->unary_pending_) {
         self->unary_pending_ = false;
         self->Error(absl::StatusCode::kDeadlineExceeded,
                     "the call's deadline (Connect-Timeout-Ms) passed");
       }
+      if (self->call_) self->call_->Cancel();
     });
   }
   void StopDeadline() {
@@ -613,7 +616,7 @@ class Session final : public SessionBase {
              std::optional<std::chrono::steady_clock::time_point> deadline) {
     struct Exchange {
       std::unique_ptr<Message> request, response;
-      std::atomic<bool> answered{false};
+      bool answered = false;  // on the session's strand only
     };
     auto exchange = std::make_shared<Exchange>();
     exchange->request = std::move(request);
@@ -622,34 +625,34 @@ class Session final : public SessionBase {
     // The answer is encoded (and compressed) where the core answered: the caller's thread for
     // what it answers at once, its pool's for the rest, as a stream's messages are. A large
     // one encoded on an I/O thread would hold up every connection that thread serves. What
-    // the core answers at once is sent at once (dispatch runs it here, on the session's
-    // strand); an answer from another thread is posted to the strand.
+    // the core answers at once, on this session's strand, is sent at once; an answer from
+    // any other thread is posted to the strand.
     method.unary(server_->core(), call_, *exchange->request, exchange->response.get(),
                  [self = Self(), exchange, generation = calls_, json = json_,
                   gzip = GzipAnswer()](const absl::Status& s) {
-                   exchange->answered.store(true, std::memory_order_relaxed);
                    absl::StatusOr<Encoded> body =
                        s.ok() ? self->Encode(*exchange->response, json, gzip)
                               : absl::StatusOr<Encoded>(s);
-                   net::dispatch(self->stream_.get_executor(),
-                             [self, body = std::move(body), generation]() mutable {
-                               if (!self->unary_pending_ || generation != self->calls_) return;
-                               self->unary_pending_ = false;
-                               self->StopDeadline();
-                               if (!body.ok()) {
-                                 return self->Error(body.status().code(),
-                                                    std::string(body.status().message()));
-                               }
-                               self->Send(http::status::ok, self->content_type_,
-                                          std::move(body->body), body->gzipped);
-                             });
+                   auto answer = [self, exchange, body = std::move(body), generation]() mutable {
+                     exchange->answered = true;
+                     if (!self->unary_pending_ || generation != self->calls_) return;
+                     self->unary_pending_ = false;
+                     self->StopDeadline();
+                     if (!body.ok()) {
+                       return self->Error(body.status().code(),
+                                          std::string(body.status().message()));
+                     }
+                     self->Send(http::status::ok, self->content_type_, std::move(body->body),
+                                body->gzipped);
+                   };
+                   auto strand = self->stream_.get_executor();
+                   if (strand.running_in_this_thread()) return answer();
+                   net::post(strand, std::move(answer));
                  });
-    // The deadline's timer only for a call the core did not answer at once: one answered
-    // already is sent, and its timer would be set and cancelled for nothing (three system
-    // calls and a handler). A timer set after a late answer is cancelled when it is sent.
-    if (deadline && !exchange->answered.load(std::memory_order_relaxed)) {
-      StartDeadline(*deadline);
-    }
+    // The deadline's timer only for a call not answered yet: one answered at once is sent,
+    // and its timer would be set and cancelled for nothing (three system calls and a
+    // handler). A timer set before a late answer is cancelled when that answer is sent.
+    if (deadline && !exchange->answered) StartDeadline(*deadline);
   }
 
   struct Encoded {

@@ -406,6 +406,9 @@ TEST_F(HttpTest, BadRequestsAreRefusedByNameAndChangeNothing) {
        404, "unimplemented", "gvd.v2.VoronoiService"},
       {"bad timeout", Post(port(), "ListScenes", "{}", {{"Connect-Timeout-Ms", "soon"}}), 400,
        "invalid_argument", "Connect-Timeout-Ms"},
+      // The Connect protocol's header holds at most 10 digits.
+      {"long timeout", Post(port(), "ListScenes", "{}", {{"Connect-Timeout-Ms", "99999999999"}}),
+       400, "invalid_argument", "at most 10 digits"},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.what);
@@ -846,7 +849,11 @@ TEST_F(HttpTest, DeadlinesEndCallsThatWait) {
     const auto start = std::chrono::steady_clock::now();
     Reply late = Post(port(), "FindNearest", Json(find), {{"Connect-Timeout-Ms", "200"}});
     EXPECT_EQ(late.status, 504) << late.body;
-    EXPECT_EQ(ConnectError(late).first, "deadline_exceeded") << late.body;
+    // The deadline's own answer, not the cancelled call's.
+    EXPECT_EQ(ConnectError(late), std::make_pair(std::string("deadline_exceeded"),
+                                                 std::string("the call's deadline "
+                                                             "(Connect-Timeout-Ms) passed")))
+        << late.body;
     EXPECT_GE(std::chrono::steady_clock::now() - start, std::chrono::milliseconds(200));
     StreamReply stream = Stream(port(), "FindNearestStream", Json(find),
                                 {{"Connect-Timeout-Ms", "200"}});
@@ -858,6 +865,18 @@ TEST_F(HttpTest, DeadlinesEndCallsThatWait) {
   Reply answered = Post(port(), "FindNearest", Json(find), {{"Connect-Timeout-Ms", "600000"}});
   EXPECT_EQ(answered.status, 200) << answered.body;
   EXPECT_EQ(JsonString(answered.body, "siteId"), "a") << answered.body;
+  // Calls answered at once under a short deadline, whose timer is never set, then one that
+  // waits past it: each gets its own answer.
+  for (int i = 0; i < 3; ++i) {
+    Reply quick = Post(port(), "FindNearest", Json(find), {{"Connect-Timeout-Ms", "50"}});
+    EXPECT_EQ(quick.status, 200) << quick.body;
+  }
+  testing::HoldRenders hold(*server_);
+  Site b{"b", PointSite{{0.75, 0.25}}};
+  b.additive = 0.01;
+  find.set_min_version(Upsert("late", {b}));
+  Reply waited = Post(port(), "FindNearest", Json(find), {{"Connect-Timeout-Ms", "50"}});
+  EXPECT_EQ(waited.status, 504) << waited.body;
 }
 
 // SIGTERM: an HTTP watch ends with UNAVAILABLE in its end-of-stream, and the server exits 0.
