@@ -200,7 +200,7 @@ class Client:
             body = [fields]
             for message in messages[start:start + MAX_SITES_PER_CALL]:
                 data = message.SerializeToString()
-                body += [b"\x12", _varint(len(data)), data]
+                body += [bytes((_SITES_TAG,)), _varint(len(data)), data]
             version = self._transport.unary("UpsertSites", None, pb.UpsertSitesResponse,
                                             self.timeout, body=b"".join(body)).version
             if progress:
@@ -501,10 +501,10 @@ def _tail(points: int, dims: int) -> np.dtype:
     return np.dtype(fields)
 
 
-def _tail_bytes(kind: str, dims: int) -> Dict[str, int]:
-    """The tail's constant fields (every one but the values): tags and lengths."""
+def _tail_bytes(kind: str, tail: np.dtype, dims: int) -> Dict[str, int]:
+    """The constant fields of `kind`'s tail (every one but the values): tags and lengths."""
     field, points = _SITE_FIELDS[kind]
-    out = {"tag": field << 3 | 2, "length": _tail(points, dims).itemsize - 2}
+    out = {"tag": field << 3 | 2, "length": tail.itemsize - 2}
     for e in range(points):
         if points > 1:
             out[f"tag{e}"], out[f"length{e}"] = (e + 1) << 3 | 2, 9 * dims
@@ -513,12 +513,11 @@ def _tail_bytes(kind: str, dims: int) -> Dict[str, int]:
     return out
 
 
-def _tail_struct(kind: str, dims: int) -> Tuple[struct.Struct, List[bytes]]:
+def _tail_struct(tail: np.dtype, constants: Dict[str, int]) -> Tuple[struct.Struct, List[bytes]]:
     """The tail as struct writes it, a site at a time: each value a double after the run of
     constant bytes before it (a bytes field); and those runs."""
-    constants = _tail_bytes(kind, dims)
     form, runs, run = "<", [], bytearray()
-    for name in _tail(_SITE_FIELDS[kind][1], dims).names:
+    for name in tail.names:
         if name in constants:
             run.append(constants[name])
         else:
@@ -528,8 +527,16 @@ def _tail_struct(kind: str, dims: int) -> Tuple[struct.Struct, List[bytes]]:
     return struct.Struct(form), runs
 
 
-_TAILS = {(kind, dims): (_tail(points, dims), _tail_bytes(kind, dims), _tail_struct(kind, dims))
-          for kind, (_, points) in _SITE_FIELDS.items() for dims in (2, 3)}
+def _tail_forms(kind: str, dims: int) -> tuple:
+    """`kind`'s tail in `dims` dimensions: its dtype, its constant fields, its struct form."""
+    tail = _tail(_SITE_FIELDS[kind][1], dims)
+    constants = _tail_bytes(kind, tail, dims)
+    return tail, constants, _tail_struct(tail, constants)
+
+
+_TAILS = {(kind, dims): _tail_forms(kind, dims) for kind in _SITE_FIELDS for dims in (2, 3)}
+# UpsertSitesRequest.sites' tag (field 2, bytes), before each site.
+_SITES_TAG = 0x12
 
 
 def _array_sites(fields: bytes, ids: List[str], kind: str, ends: np.ndarray) -> Optional[bytes]:
@@ -555,7 +562,7 @@ def _array_sites(fields: bytes, ids: List[str], kind: str, ends: np.ndarray) -> 
             if site_bytes > 127:
                 return None
             # A Site's tag and length, its id's tag, length and bytes, then the tail.
-            out += [bytes((0x12, site_bytes, 0x0a, len(sid))), sid,
+            out += [bytes((_SITES_TAG, site_bytes, 0x0a, len(sid))), sid,
                     writer.pack(*chain.from_iterable(zip(runs, chain.from_iterable(points))))]
         return b"".join(out)
     id_bytes = np.fromiter(map(len, encoded), dtype=np.int64, count=n)
@@ -563,10 +570,10 @@ def _array_sites(fields: bytes, ids: List[str], kind: str, ends: np.ndarray) -> 
     site_bytes = 2 + id_bytes + tail.itemsize
     if site_bytes.max() > 127:
         return None
-    record = 2 + site_bytes  # 0x12 (UpsertSitesRequest.sites) and the Site's length first
+    record = 2 + site_bytes  # _SITES_TAG and the Site's length first
     starts = np.cumsum(record) - record
     out = np.empty(int(record.sum()), dtype=np.uint8)
-    out[starts] = 0x12
+    out[starts] = _SITES_TAG
     out[starts + 1] = site_bytes
     out[starts + 2] = 0x0a
     out[starts + 3] = id_bytes
