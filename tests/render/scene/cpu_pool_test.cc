@@ -303,8 +303,10 @@ TEST(CpuPool, ARenderDueTooLongIsRaised) {
   const pid_t thread = tid.get_future().get();
   EXPECT_EQ(SchedulingOf(thread), background);
   for (int round = 0; round < 2; ++round) {  // the second once the first is over
-    std::optional<RenderDue> first(std::in_place);
+    // Read before the render comes due, so that the lag is measured from no later than the
+    // time the render takes for its own.
     const auto due = std::chrono::steady_clock::now();
+    std::optional<RenderDue> first(std::in_place);
     const Scheduled soon = SchedulingOf(thread);
     // Seen before the lag ran out, it is still in the background.
     if (std::chrono::steady_clock::now() - due < kBackgroundLag / 2) {
