@@ -21,13 +21,17 @@ measures:
     index, ANALYZE and a KNN query;
   - a one-site move until a read sees it, p50 and p99 over N moves of a random site to a
     random place (often into empty space, where it takes a large cell): gvd an UpsertSites
-    (SYNC) and a FindNearest at its version at the moved site, the moves alternating
-    between the client's two transports (gRPC and HTTP) and the same two calls made through
-    grpcio alone (N/3 each); PostGIS's of the same sites to the same places, an UPDATE
-    (autocommit) and a KNN SELECT at that point; in blocks of 50 moves a side, 1 ms apart,
-    gvd's then PostGIS's, 50 ms of rest after each block, so that neither side's work after
-    its moves falls on the other's (moved one after the other, gvd's renders of its moves
-    ran during PostGIS's: its p50 came out 0.2-0.5 ms slower);
+    (SYNC) and a FindNearest at its version at the moved site, through the client's two
+    transports (gRPC and HTTP) and the same two calls made through grpcio alone (N/3 each);
+    PostGIS's of the same sites to the same places, an UPDATE (autocommit) and a KNN SELECT
+    at that point; in blocks of 50 moves a side, 1 ms apart, gvd's then PostGIS's, 50 ms of
+    rest after each block, so that neither side's work after its moves falls on the other's
+    (moved one after the other, gvd's renders of its moves ran during PostGIS's: its p50
+    came out 0.2-0.5 ms slower). Each gvd block is one client's, the three taking turns
+    block by block, as each PostGIS block is psycopg2's: a user's process runs one client,
+    and with the three alternating move by move, each call found the caches holding another
+    client's code (over HTTP, p50 0.2-0.25 ms slower a move: 1.44-1.46x PostGIS's on the
+    points against 1.17-1.18x, two runs each way);
   - a batch of N random query points in one call, the median of three runs on each side
     after a first run on each that is reported apart: gvd FindNearest (one packed call),
     PostGIS a LATERAL KNN join over arrays passed as parameters;
@@ -220,10 +224,10 @@ def pg_move(cur, name, i, site, x, y):
 
 
 def moves(clients, conn, name, sites, count, rng, block=50, gap_ms=1.0, rest_ms=50.0):
-    """`count` moves on each side, in blocks of `block`: gvd's, alternating between the
-    clients (a dict: transport name to client), then PostGIS's of the same sites to the same
-    places, `gap_ms` apart, with `rest_ms` after each block, so that neither side's work
-    after its moves (gvd's renders of them, on the other core) falls on the other's."""
+    """`count` moves on each side, in blocks of `block`: gvd's, each block through one of the
+    clients (a dict: transport name to client) in turn, then PostGIS's of the same sites to
+    the same places, `gap_ms` apart, with `rest_ms` after each block, so that neither side's
+    work after its moves (gvd's renders of them, on the other core) falls on the other's."""
     gvd_ms = {kind: [] for kind in clients}
     pg_ms = []
     kinds = list(clients)
@@ -231,7 +235,7 @@ def moves(clients, conn, name, sites, count, rng, block=50, gap_ms=1.0, rest_ms=
         for start in range(0, count, block):
             done = []
             for k in range(start, min(start + block, count)):
-                kind = kinds[k % len(kinds)]
+                kind = kinds[(start // block) % len(kinds)]
                 i = int(rng.integers(len(sites)))
                 site = moved(rng, sites[i])
                 sites[i] = site
