@@ -178,6 +178,143 @@ def test_a_unary_answer_is_read_whole(n, closest, omitted, distinct):
     check_answers(_client._answer(r.SerializeToString(), n, 2, closest), [r], n, closest)
 
 
+def key(number, wire):
+    return _client._varint(number << 3 | wire)
+
+
+def record(number, payload):
+    return key(number, 2) + _client._varint(len(payload)) + payload
+
+
+def packed_records(p):
+    """(number, payload) of each of PackedNearest p's fields as the server writes them: the
+    site ids one record each, each column of numbers packed in one record."""
+    out = [(1, i.encode()) for i in p.site_ids]
+    for number, field in ((2, "site"), (3, "distance"), (4, "error_bound"), (5, "exact"),
+                          (6, "feature_index"), (7, "feature_kind"), (8, "closest"),
+                          (9, "gradient")):
+        values = getattr(p, field)
+        if len(values):
+            one = pb.PackedNearest()
+            getattr(one, field).extend(values)
+            out.append((number, _payload(one.SerializeToString())))
+    return out
+
+
+def _payload(data):
+    """The payload of a message of one length-delimited record (a one-byte key)."""
+    pos, n, shift = 1, 0, 0
+    while True:
+        b = data[pos]
+        n |= (b & 0x7F) << shift
+        pos += 1
+        if b < 0x80:
+            assert pos + n == len(data)
+            return data[pos:]
+        shift += 7
+
+
+def encodings(r):
+    """FindNearestStreamResponse r's answers in encodings that protobuf reads as r (or, for
+    the last ones, as a message of its own): the server's, the fields in another order, a
+    column split over two records, the packed answers in two messages (merged), numbers
+    unpacked, a field no reader knows, and FindNearestResponse's results beside them."""
+    p = r.packed
+    top = key(2, 0) + _client._varint(r.version) + key(4, 0) + _client._varint(r.offset)
+    recs = packed_records(p)
+    server = b"".join(record(n, d) for n, d in recs)
+    yield "server", record(3, server) + top
+    yield "reversed", (key(4, 0) + _client._varint(r.offset)
+                       + record(3, b"".join(record(n, d) for n, d in reversed(recs)))
+                       + key(2, 0) + _client._varint(r.version))
+    if p.distance:
+        split = b"".join(record(n, d) if n != 3 else record(3, d[:8]) + record(3, d[8:])
+                         for n, d in recs)
+        yield "split", top + record(3, split)
+    half = len(recs) // 2
+    yield "merged", (record(3, b"".join(record(n, d) for n, d in recs[:half])) + top
+                     + record(3, b"".join(record(n, d) for n, d in recs[half:])))
+    unpacked = b"".join(record(n, d) for n, d in recs if n != 2) + b"".join(
+        key(2, 0) + _client._varint(v) for v in p.site)
+    yield "unpacked", top + record(3, unpacked)
+    yield "unknown", top + record(3, server + key(15, 0) + b"\x07")
+    yield "unknown top", top + record(3, server) + key(9, 0) + b"\x01"
+    yield "results", top + record(3, server) + record(1, b"")
+
+
+@pytest.mark.parametrize("n,closest", [(1, False), (1, True), (3, False), (3, True),
+                                       (130, False)])
+def test_a_small_answer_reads_as_protobuf_reads_it_in_any_encoding(n, closest):
+    # The small answer's own reader (read_small) takes the server's encoding and leaves any
+    # other to protobuf: each encoding's result is protobuf's reading of its bytes, or
+    # refused (INTERNAL) where that reading is no answer to the call's n points. Site
+    # indices past 127 (two-byte varints) and the largest feature index.
+    rng = np.random.default_rng(n)
+    (r,) = chunks(rng, [n], closest)
+    del r.packed.site_ids[:]
+    r.packed.site_ids.extend(f"s{k}" for k in range(n))
+    del r.packed.site[:]
+    r.packed.site.extend(rng.permutation(np.arange(1, n + 1)).tolist())
+    del r.packed.feature_index[:]
+    r.packed.feature_index.extend([2**32 - 1] + rng.integers(0, 128, n - 1).tolist())
+    r.offset = 0
+    for name, data in encodings(r):
+        assert len(data) < _packed._SMALL
+        parsed = pb.FindNearestStreamResponse.FromString(data)
+        small = _packed.read_small(data)
+        if name in ("server", "reversed"):  # the server's encoding, in any order
+            assert small == (parsed.version, parsed.offset, list(parsed.packed.site_ids),
+                             {n: d for n, d in packed_records(parsed.packed) if n != 1}), name
+        else:
+            assert small is None, name
+        regular = not (len(parsed.packed.site) != n or
+                       (closest and len(parsed.packed.closest) != 2 * n))
+        if name == "merged":
+            regular = True  # the halves' fields joined: the same answers
+        if regular:
+            check_answers(_client._answer(data, n, 2, closest), [parsed], n, closest)
+        else:
+            with pytest.raises(gvd.GvdError):
+                _client._answer(data, n, 2, closest)
+
+
+# protobuf warns of some damaged bytes it reads, and the general reader of a negative kind.
+@pytest.mark.filterwarnings("ignore::RuntimeWarning", "ignore::DeprecationWarning")
+def test_a_cut_or_damaged_small_answer_is_read_as_protobuf_reads_it():
+    # Every prefix of a small answer, and every byte of it changed, read by _answer against
+    # protobuf's parse of the same bytes, answered through the general reader (_join): the
+    # same answers, or both refused.
+    rng = np.random.default_rng(11)
+    (r,) = chunks(rng, [3], True)
+    del r.packed.site_ids[:]
+    r.packed.site_ids.extend(["a", "b", "c"])
+    del r.packed.site[:]
+    r.packed.site.extend([3, 1, 2])
+    data = r.SerializeToString()
+    cases = [data[:k] for k in range(len(data))]
+    cases += [data[:k] + bytes([b]) + data[k + 1:] for k in range(len(data))
+              for b in (0x00, 0x7F, 0x80, 0xFF, data[k] ^ 0x08)]
+    for case in cases:
+        try:
+            want = _client._join([_client._Packed(_packed._from_message(
+                pb.FindNearestStreamResponse.FromString(case)), 0)], 3, 2, True)
+        except Exception:  # pylint: disable=broad-except
+            want = None
+        if want is None:
+            with pytest.raises(gvd.GvdError):
+                _client._answer(case, 3, 2, True)
+            continue
+        got = _client._answer(case, 3, 2, True)
+        for field in ("version", "ids"):
+            assert getattr(got, field) == getattr(want, field), case
+        for field in ("site_ids", "site_indices", "distances", "error_bounds", "exact",
+                      "feature_indices", "feature_kinds", "closest", "gradient"):
+            a, b = getattr(got, field), getattr(want, field)
+            assert a.dtype == b.dtype and a.shape == b.shape, (field, case)
+            assert a.tobytes() == b.tobytes() if a.dtype != object else a.tolist() == b.tolist(), (
+                field, case)
+
+
 @pytest.mark.parametrize("offsets,m", [([0, 2], 7), ([0, 4], 7), ([1, 3], 7), ([0, 3], 6)])
 def test_answers_that_do_not_cover_the_points_once_are_refused(offsets, m):
     from gvd import _client  # pylint: disable=import-outside-toplevel
