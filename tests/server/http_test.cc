@@ -24,6 +24,7 @@
 
 #include <zlib.h>
 
+#include "absl/strings/str_cat.h"
 #include "gvd/client.h"
 #include "server/http/http.h"
 #include "tests/support/metrics_scrape.h"
@@ -661,6 +662,105 @@ TEST_F(HttpTest, CorsForTheAllowedOriginsOnly) {
   EXPECT_EQ(Post(port(), "ListScenes", "{}", {{"Origin", "https://evil.example.com"}})
                 .headers.count("access-control-allow-origin"),
             0u);
+}
+
+// Responses read off one connection by Beast's parser, which checks their framing: the
+// requests' bytes are written whole first (pipelined), then `heads[k]` says whether the k-th
+// answers a HEAD (a body's length and no body). `closed`: the server ended the connection
+// after the last.
+struct Exchanged {
+  std::vector<http::response<http::string_body>> responses;
+  bool closed = false;
+};
+Exchanged Exchange(int port, const std::string& requests, const std::vector<bool>& heads) {
+  net::io_context ioc;
+  beast::tcp_stream stream(ioc);
+  stream.connect(tcp::endpoint(net::ip::make_address("127.0.0.1"), static_cast<uint16_t>(port)));
+  net::write(stream, net::buffer(requests));
+  beast::flat_buffer buffer;
+  Exchanged out;
+  for (bool head : heads) {
+    http::response_parser<http::string_body> parser;
+    parser.skip(head);
+    stream.expires_after(std::chrono::seconds(30));
+    beast::error_code ec;
+    http::read(stream, buffer, parser, ec);
+    if (ec) {
+      ADD_FAILURE() << "response " << out.responses.size() << ": " << ec.message();
+      return out;
+    }
+    out.responses.push_back(parser.release());
+  }
+  // Bytes past the last response are none of its; a closing server sends none.
+  stream.expires_after(std::chrono::seconds(30));
+  char more;
+  beast::error_code ec;
+  const size_t n = stream.read_some(net::buffer(&more, 1), ec);
+  out.closed = ec == net::error::eof && n == 0 && buffer.size() == 0;
+  return out;
+}
+
+// Each response is framed as HTTP/1.1 (RFC 9112) says for its request: HTTP/1.0 answered in
+// 1.0 and closed unless it asks to be kept alive, HTTP/1.1 kept alive unless it says
+// "close", a HEAD answered with its GET's length and no body, a preflight's 204 with no body;
+// requests written together answered in order.
+TEST_F(HttpTest, ResponsesAreFramedForEachVersionAndMethod) {
+  auto post = [](const std::string& version, const std::string& connection) {
+    return absl::StrCat("POST /gvd.v1.VoronoiService/ListScenes HTTP/", version,
+                        "\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n",
+                        connection.empty() ? "" : absl::StrCat("Connection: ", connection, "\r\n"),
+                        "Content-Length: 2\r\n\r\n{}");
+  };
+  {
+    const Exchanged x = Exchange(port(), post("1.0", ""), {false});
+    ASSERT_EQ(x.responses.size(), 1u);
+    EXPECT_EQ(x.responses[0].version(), 10);
+    EXPECT_EQ(x.responses[0].result_int(), 200);
+    EXPECT_FALSE(x.responses[0].keep_alive());
+    EXPECT_EQ(x.responses[0].body().front(), '{') << x.responses[0].body();
+    EXPECT_TRUE(x.closed);
+  }
+  {
+    const Exchanged x =
+        Exchange(port(), post("1.0", "keep-alive") + post("1.0", ""), {false, false});
+    ASSERT_EQ(x.responses.size(), 2u);
+    EXPECT_EQ(x.responses[0][http::field::connection], "keep-alive");
+    EXPECT_TRUE(x.responses[0].keep_alive());
+    EXPECT_FALSE(x.responses[1].keep_alive());
+    EXPECT_EQ(x.responses[0].body(), x.responses[1].body());
+    EXPECT_TRUE(x.closed);
+  }
+  {
+    const Exchanged x = Exchange(port(), post("1.1", "") + post("1.1", "close"), {false, false});
+    ASSERT_EQ(x.responses.size(), 2u);
+    EXPECT_EQ(x.responses[0].version(), 11);
+    EXPECT_TRUE(x.responses[0].keep_alive());
+    EXPECT_EQ(x.responses[0].count(http::field::connection), 0u);
+    EXPECT_EQ(x.responses[1][http::field::connection], "close");
+    EXPECT_TRUE(x.closed);
+  }
+  {
+    const std::string get = "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+    const std::string head = "HEAD / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+    const std::string preflight =
+        "OPTIONS /gvd.v1.VoronoiService/ListScenes HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+        "Origin: https://app.example.com\r\nAccess-Control-Request-Method: POST\r\n\r\n";
+    const Exchanged x = Exchange(port(), head + preflight + get + post("1.1", "close"),
+                                 {true, false, false, false});
+    ASSERT_EQ(x.responses.size(), 4u);
+    const auto& [h, p, g, last] =
+        std::tie(x.responses[0], x.responses[1], x.responses[2], x.responses[3]);
+    EXPECT_EQ(g.result_int(), 200);
+    ASSERT_FALSE(g.body().empty());
+    EXPECT_EQ(h.result_int(), 200);
+    EXPECT_EQ(h[http::field::content_length], std::to_string(g.body().size()));
+    EXPECT_EQ(h[http::field::content_type], g[http::field::content_type]);
+    EXPECT_EQ(p.result_int(), 204);
+    EXPECT_TRUE(p.body().empty());
+    EXPECT_EQ(p[http::field::access_control_allow_origin], "https://app.example.com");
+    EXPECT_EQ(last.result_int(), 200);
+    EXPECT_TRUE(x.closed);
+  }
 }
 
 // Large FindNearestStream chunks in binary (1 MB each), several times over: each response
