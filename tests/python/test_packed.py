@@ -133,6 +133,7 @@ def check_answers(got, messages, m, closest):
         assert column.tolist() == want, field
         assert column.dtype == dtype and column.shape == (m,), field
         assert column.flags.writeable, field  # the caller's arrays, not views of the bytes
+        assert column.flags.aligned, field
     if closest:
         for field, column in (("closest", got.closest), ("gradient", got.gradient)):
             want = [v for r in messages for v in getattr(r.packed, field)]
@@ -292,6 +293,10 @@ def test_a_cut_or_damaged_small_answer_is_read_as_protobuf_reads_it():
     r.packed.site.extend([3, 1, 2])
     data = r.SerializeToString()
     cases = [data[:k] for k in range(len(data))]
+    # A version of ten bytes whose last carries bits past the 64th (protobuf keeps the low
+    # 64), and one of eleven.
+    for last in (b"\x01", b"\x02", b"\x7f", b"\x81\x00"):
+        cases.append(data + b"\x10" + b"\x85" + b"\x80" * 8 + last)
     cases += [data[:k] + bytes([b]) + data[k + 1:] for k in range(len(data))
               for b in (0x00, 0x7F, 0x80, 0xFF, data[k] ^ 0x08)]
     for case in cases:

@@ -638,7 +638,8 @@ def _answer(data: bytes, m: int, dims: int, closest: bool) -> NearestResult:
     return _join([_Packed(_parse("FindNearest", PackedAnswers, data), 0)], m, dims, closest)
 
 
-# The arrays of a small answer (_answer_arrays): their dtypes, in the order of their buffer.
+# The arrays of a small answer (_answer_arrays): their dtypes. Their buffer holds the 8-byte
+# columns first, so that each array is aligned.
 _SITE_DTYPE, _INDEX_DTYPE, _KIND_DTYPE = np.dtype("<i8"), np.dtype("<u4"), np.dtype("<i4")
 _EXACT_DTYPE, _DOUBLE_DTYPE = np.dtype("?"), np.dtype("<f8")
 
@@ -665,22 +666,23 @@ def _answer_arrays(version: int, offset: int, ids: List[str], fields: Dict[int, 
             or (n and max(site) > len(ids)) or len(bounds) != 8 * n
             or any(len(d) != 8 * n * dims for d in doubles[2:])):
         raise _Irregular()
+    buffer = bytearray(b"".join(doubles))
     try:
-        buffer = bytearray(struct.pack(f"<{n}q{n}I{n}i{n}?", *(s - 1 for s in site), *index,
-                                       *kind, *exact))
+        buffer += struct.pack(f"<{n}q{n}I{n}i{n}?", *(s - 1 for s in site), *index, *kind,
+                              *exact)
     except struct.error:  # an index or a kind out of its type's range (a negative kind)
         raise _Irregular() from None
-    for d in doubles:
-        buffer += d
     arrays, at = [], 0
-    for dtype, count in ((_SITE_DTYPE, n), (_INDEX_DTYPE, n), (_KIND_DTYPE, n),
-                         (_EXACT_DTYPE, n), (_DOUBLE_DTYPE, n), (_DOUBLE_DTYPE, n),
-                         (_DOUBLE_DTYPE, n * dims), (_DOUBLE_DTYPE, n * dims))[:len(doubles) + 4]:
+    for dtype, count in ((_DOUBLE_DTYPE, n), (_DOUBLE_DTYPE, n), (_DOUBLE_DTYPE, n * dims),
+                         (_DOUBLE_DTYPE, n * dims))[:len(doubles)] + (
+                             (_SITE_DTYPE, n), (_INDEX_DTYPE, n), (_KIND_DTYPE, n),
+                             (_EXACT_DTYPE, n)):
         arrays.append(np.frombuffer(buffer, dtype, count, at))
         at += count * dtype.itemsize
-    site_indices, feature_indices, feature_kinds, exact_, distances_, bounds_ = arrays[:6]
-    near, grad = ((arrays[6].reshape(n, dims), arrays[7].reshape(n, dims)) if closest
+    distances_, bounds_ = arrays[:2]
+    near, grad = ((arrays[2].reshape(n, dims), arrays[3].reshape(n, dims)) if closest
                   else (None, None))
+    site_indices, feature_indices, feature_kinds, exact_ = arrays[-4:]
     return NearestResult(version=version,
                          site_ids=np.array(ids + [None], dtype=object)[site_indices],
                          site_indices=site_indices, ids=ids, distances=distances_,

@@ -8,7 +8,8 @@ packed answers declare their site ids alone: its C++ parser makes the ids' strin
 faster than a loop here) and keeps each packed field of numbers as one unknown field's bytes,
 which become the arrays. Fields it does not expect in the form the server sends (packed)
 make it fall back to protobuf's parser of the API's own type. A small message (a few dozen
-answers, as interactive calls get) is read here a byte at a time (read_small), in the one
+answers, as interactive calls get) is protobuf's to read whole here (PackedAnswers); a unary
+call's whole answer (the client's _answer) is read a byte at a time (read_small), in the one
 encoding the server writes, anything else left to protobuf: an interactive call comes after
 an idle wait, with protobuf's code and NumPy's out of the caches, and a one-point answer in
 a stream of moves took 47-50 µs that way against 70 µs through protobuf's parse and a NumPy
@@ -31,7 +32,8 @@ SITE_IDS, SITE, DISTANCE, ERROR_BOUND, EXACT = 1, 2, 3, 4, 5
 FEATURE_INDEX, FEATURE_KIND, CLOSEST, GRADIENT = 6, 7, 8, 9
 _DOUBLES = (DISTANCE, ERROR_BOUND, CLOSEST, GRADIENT)
 _VARINTS = (SITE, EXACT, FEATURE_INDEX, FEATURE_KIND)
-# Messages shorter than this are read by read_small (the module's docstring).
+# Messages shorter than this are read by protobuf's parser (or by read_small, for a unary
+# call's answer: the module's docstring).
 _SMALL = 4096
 
 
@@ -153,8 +155,9 @@ def _varints(b: np.ndarray) -> np.ndarray:
 
 
 def _uvarint(data: bytes, pos: int) -> Tuple[int, int]:
-    """The varint at data[pos] and the position after it; IndexError where it is cut short or
-    longer than ten bytes."""
+    """The varint at data[pos] and the position after it; IndexError where it is cut short,
+    longer than ten bytes or past 64 bits (protobuf keeps the low 64 bits of such a one: its
+    parser is left to read it)."""
     b = data[pos]
     if b < 0x80:
         return b, pos + 1
@@ -162,12 +165,12 @@ def _uvarint(data: bytes, pos: int) -> Tuple[int, int]:
     while True:
         pos += 1
         b = data[pos]
+        if shift == 63 and b > 1:
+            raise IndexError("a varint past 64 bits")
         value |= (b & 0x7F) << shift
         if b < 0x80:
             return value, pos + 1
         shift += 7
-        if shift > 63:
-            raise IndexError("a varint longer than ten bytes")
 
 
 def uvarints(raw: bytes) -> List[int]:
