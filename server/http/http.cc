@@ -112,7 +112,7 @@ std::string Envelope(uint8_t flags, const std::string& payload) {
 // a load of them the serializer had taken 7% of the I/O thread's time (`perf record`).
 class Head {
  public:
-  Head(http::status status, unsigned version) {
+  Head(http::status status, unsigned version) : status_(status) {
     const beast::string_view reason = http::obsolete_reason(status);
     absl::StrAppend(&text_, "HTTP/", version / 10, ".", version % 10, " ",
                     static_cast<unsigned>(status), " ",
@@ -133,8 +133,10 @@ class Head {
     text_ += "\r\n";
     return std::move(text_);
   }
+  http::status status() const { return status_; }
 
  private:
+  http::status status_;
   std::string text_;
 };
 
@@ -436,10 +438,11 @@ class Session final : public SessionBase {
     idle_ = false;
     if (ec) return Close();  // the peer went, timed out, or spoke no HTTP
     // What an answer follows of the request, whichever path answers it (a refusal of its
-    // body included): its HTTP version, keep-alive and origin.
+    // body included): its HTTP version, keep-alive, origin, and whether it is a HEAD.
     {
       const auto& req = header_parser_->get();
       version_ = req.version();
+      head_ = req.method() == http::verb::head;
       keep_alive_ = req.keep_alive() && !server_->stopping();
       origin_ = std::string(req[http::field::origin]);
       // A Connect streaming call is answered 200 even when refused, its error in the
@@ -555,7 +558,7 @@ class Session final : public SessionBase {
     if (req.method() == http::verb::options) return Preflight();
     if (!absl::StartsWith(target, prefix)) {
       if (req.method() == http::verb::get || req.method() == http::verb::head) {
-        return StaticFile(target, req.method() == http::verb::head);
+        return StaticFile(target);
       }
       // As a Connect server answers a service it does not have: 404, unimplemented.
       return Error(absl::StatusCode::kUnimplemented,
@@ -844,7 +847,7 @@ class Session final : public SessionBase {
     Write(std::move(head), std::string());
   }
 
-  void StaticFile(const std::string& path, bool head) {
+  void StaticFile(const std::string& path) {
     const auto& files = server_->options().files;
     auto it = files.find(path.empty() ? "/" : path);
     if (it == files.end()) {
@@ -853,9 +856,7 @@ class Session final : public SessionBase {
     Head fields(http::status::ok, version_);
     fields.Field("Content-Type", it->second.first).Field("Cache-Control", "no-cache");
     Cors(fields, "");
-    // A HEAD's answer has the file's length and no body.
-    Write(std::move(fields), head ? std::string() : it->second.second,
-          it->second.second.size());
+    Write(std::move(fields), it->second.second);
   }
 
   // The CORS fields where the request's origin is allowed, and the Vary field: what the
@@ -908,13 +909,16 @@ class Session final : public SessionBase {
     Write(std::move(head), std::move(body));
   }
 
-  // A whole response: `head`'s fields, the Content-Length (the body's, or `length` where
-  // given: a HEAD's) and the Connection's, then the body; the next request is read after
-  // it unless the connection closes.
-  void Write(Head head, std::string body, std::optional<size_t> length = std::nullopt) {
+  // A whole response: `head`'s fields, the Content-Length and the Connection's, then the
+  // body; the next request is read after it unless the connection closes. A HEAD's answer
+  // (its refusals too) has its body's length and no body; a 204's has neither (RFC 9110).
+  void Write(Head head, std::string body) {
     const bool keep = keep_alive_ && !closing_;
-    head.Field("Content-Length", absl::StrCat(length.value_or(body.size())))
-        .KeepAlive(version_, keep);
+    if (head.status() != http::status::no_content) {
+      head.Field("Content-Length", absl::StrCat(body.size()));
+    }
+    if (head_) body.clear();
+    head.KeepAlive(version_, keep);
     auto out = std::make_shared<std::pair<std::string, std::string>>(std::move(head).End(),
                                                                      std::move(body));
     beast::get_lowest_layer(stream_).expires_after(std::chrono::seconds(120));
@@ -952,6 +956,7 @@ class Session final : public SessionBase {
   std::string drain_message_;
   unsigned version_ = 11;
   bool keep_alive_ = false, idle_ = false, closing_ = false, closed_ = false;
+  bool head_ = false;  // the request is a HEAD
   bool json_ = true, broken_ = false, writing_ = false;
   std::string origin_, content_type_;
   std::string stream_type_;  // the request's Content-Type where it is a Connect stream's

@@ -700,10 +700,10 @@ Exchanged Exchange(int port, const std::string& requests, const std::vector<bool
   return out;
 }
 
-// Each response is framed as HTTP/1.1 (RFC 9112) says for its request: HTTP/1.0 answered in
-// 1.0 and closed unless it asks to be kept alive, HTTP/1.1 kept alive unless it says
-// "close", a HEAD answered with its GET's length and no body, a preflight's 204 with no body;
-// requests written together answered in order.
+// Each response is framed as HTTP/1.1 (RFC 9110, 9112) says for its request: HTTP/1.0
+// answered in 1.0 and closed unless it asks to be kept alive, HTTP/1.1 kept alive unless it
+// says "close", a HEAD answered with its GET's length and no body (its refusals too), a
+// preflight's 204 with neither; requests written together answered in order.
 TEST_F(HttpTest, ResponsesAreFramedForEachVersionAndMethod) {
   auto post = [](const std::string& version, const std::string& connection) {
     return absl::StrCat("POST /gvd.v1.VoronoiService/ListScenes HTTP/", version,
@@ -757,8 +757,23 @@ TEST_F(HttpTest, ResponsesAreFramedForEachVersionAndMethod) {
     EXPECT_EQ(h[http::field::content_type], g[http::field::content_type]);
     EXPECT_EQ(p.result_int(), 204);
     EXPECT_TRUE(p.body().empty());
+    EXPECT_EQ(p.count(http::field::content_length), 0u);
     EXPECT_EQ(p[http::field::access_control_allow_origin], "https://app.example.com");
     EXPECT_EQ(last.result_int(), 200);
+    EXPECT_TRUE(x.closed);
+  }
+  {
+    // Refused HEADs: a path with no file, a method of the service's (which takes POST).
+    const std::string missing = "HEAD /no-such-file HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+    const std::string method =
+        "HEAD /gvd.v1.VoronoiService/ListScenes HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+    const Exchanged x =
+        Exchange(port(), missing + method + post("1.1", "close"), {true, true, false});
+    ASSERT_EQ(x.responses.size(), 3u);
+    EXPECT_EQ(x.responses[0].result_int(), 404);
+    EXPECT_GE(x.responses[1].result_int(), 400);
+    EXPECT_EQ(x.responses[2].result_int(), 200);  // no refusal's body read as its answer
+    EXPECT_EQ(x.responses[2].body().front(), '{') << x.responses[2].body();
     EXPECT_TRUE(x.closed);
   }
 }
