@@ -28,7 +28,9 @@ measures:
     rest after each block, so that neither side's work after its moves falls on the other's
     (moved one after the other, gvd's renders of its moves ran during PostGIS's: its p50
     came out 0.2-0.5 ms slower). Each gvd block is one client's, the three taking turns
-    block by block, as each PostGIS block is psycopg2's: a user's process runs one client,
+    block by block (N a multiple of 150 gives each a third; the first block after each load,
+    which meets the load's render and store work, each client's in one scene), as each
+    PostGIS block is psycopg2's: a user's process runs one client,
     and with the three alternating move by move, each call found the caches holding another
     client's code (over HTTP, p50 0.2-0.25 ms slower a move: 1.44-1.46x PostGIS's on the
     points against 1.17-1.18x, two runs each way);
@@ -223,19 +225,23 @@ def pg_move(cur, name, i, site, x, y):
     return cur.fetchone()
 
 
-def moves(clients, conn, name, sites, count, rng, block=50, gap_ms=1.0, rest_ms=50.0):
+def moves(clients, conn, name, sites, count, rng, first=0, block=50, gap_ms=1.0, rest_ms=50.0):
     """`count` moves on each side, in blocks of `block`: gvd's, each block through one of the
-    clients (a dict: transport name to client) in turn, then PostGIS's of the same sites to
-    the same places, `gap_ms` apart, with `rest_ms` after each block, so that neither side's
-    work after its moves (gvd's renders of them, on the other core) falls on the other's."""
+    clients (a dict: transport name to client) in turn from the `first`, then PostGIS's of the
+    same sites to the same places, `gap_ms` apart, with `rest_ms` after each block, so that
+    neither side's work after its moves (gvd's renders of them, on the other core) falls on
+    the other's."""
     gvd_ms = {kind: [] for kind in clients}
     pg_ms = []
     kinds = list(clients)
+    if count < block * len(kinds):
+        raise SystemExit(f"--moves is at least {block * len(kinds)}: a block of {block} "
+                         f"for each of {len(kinds)} clients")
     with conn.cursor() as cur:
         for start in range(0, count, block):
             done = []
             for k in range(start, min(start + block, count)):
-                kind = kinds[(start // block) % len(kinds)]
+                kind = kinds[(first + start // block) % len(kinds)]
                 i = int(rng.integers(len(sites)))
                 site = moved(rng, sites[i])
                 sites[i] = site
@@ -411,15 +417,15 @@ def main():
         http_client = gvd.Client(f"http://127.0.0.1:{http_port}", timeout=600)
         bare = GrpcioAlone(f"127.0.0.1:{grpc_port}")
         figures = {}
-        for name, make in (("points", scene_points), ("segments", scene_segments),
-                           ("curves", scene_curves)):
+        for k, (name, make) in enumerate((("points", scene_points), ("segments", scene_segments),
+                                          ("curves", scene_curves))):
             rng = np.random.default_rng(7)
             sites = make(rng)
             row = {"sites": len(sites),
                    "load_gvd_ms": 1000 * gvd_load(client, name, sites),
                    "load_postgis_ms": 1000 * pg_load(conn, name, sites)}
             row["move"] = moves({"grpc": client, "http": http_client, "grpcio": bare}, conn,
-                                name, sites, args.moves, rng)
+                                name, sites, args.moves, rng, first=k)
             row["batch"] = batch(client, conn, name, rng.random((args.batch, 2)))
             figures[name] = row
             print(name, json.dumps(row), flush=True)
