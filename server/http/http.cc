@@ -753,7 +753,14 @@ class Session final : public SessionBase {
     Head head(http::status::ok, version_);
     head.Field("Content-Type", content_type_).Field("Connect-Accept-Encoding", "gzip");
     Cors(head, "");
-    head.Field("Transfer-Encoding", "chunked").KeepAlive(version_, keep_alive_);
+    // HTTP/1.0 has no chunks: its stream's body runs to the connection's close.
+    chunked_ = version_ >= 11;
+    if (chunked_) {
+      head.Field("Transfer-Encoding", "chunked").KeepAlive(version_, keep_alive_ && !closing_);
+    } else {
+      keep_alive_ = false;
+      head.KeepAlive(version_, false);
+    }
     auto text = std::make_shared<std::string>(std::move(head).End());
     broken_ = false;
     writing_ = true;
@@ -784,6 +791,18 @@ class Session final : public SessionBase {
     if (call_) call_->Cancel();
   }
 
+  // Writes one of the stream's envelopes: a chunk of the chunked body (HTTP/1.1), or its
+  // bytes as they are in a body that the connection's close ends (HTTP/1.0).
+  template <class Handler>
+  void WriteEnvelope(const std::shared_ptr<std::string>& envelope, Handler&& handler) {
+    if (chunked_) {
+      net::async_write(stream_, http::make_chunk(net::buffer(*envelope)),
+                       std::forward<Handler>(handler));
+    } else {
+      net::async_write(stream_, net::buffer(*envelope), std::forward<Handler>(handler));
+    }
+  }
+
   // Writes the next outgoing message or the end, unless a write is under way.
   void Pump() {
     if (writing_ || outgoing_.empty()) return;
@@ -797,12 +816,11 @@ class Session final : public SessionBase {
     auto chunk = std::make_shared<std::string>(Envelope(0, next.payload));
     writing_ = true;
     beast::get_lowest_layer(stream_).expires_after(std::chrono::seconds(120));
-    net::async_write(stream_, http::make_chunk(net::buffer(*chunk)),
-                     [self = Self(), chunk, written = std::move(next.written)](
-                         beast::error_code ec, size_t) {
-                       self->Written(ec);
-                       written(!ec);
-                     });
+    WriteEnvelope(chunk, [self = Self(), chunk, written = std::move(next.written)](
+                             beast::error_code ec, size_t) {
+      self->Written(ec);
+      written(!ec);
+    });
   }
 
   void StreamEnd(absl::Status s) {
@@ -819,9 +837,8 @@ class Session final : public SessionBase {
     }
     auto chunk = std::make_shared<std::string>(Envelope(0x02, end));
     writing_ = true;
-    net::async_write(stream_, http::make_chunk(net::buffer(*chunk)),
-                     [self = Self(), chunk](beast::error_code ec, size_t) {
-                       if (ec) return self->Close();
+    WriteEnvelope(chunk, [self = Self(), chunk](beast::error_code ec, size_t) {
+                       if (ec || !self->chunked_) return self->Close();
                        net::async_write(self->stream_, http::make_chunk_last(),
                                         [self](beast::error_code ec2, size_t) {
                                           self->writing_ = false;
@@ -957,6 +974,7 @@ class Session final : public SessionBase {
   unsigned version_ = 11;
   bool keep_alive_ = false, idle_ = false, closing_ = false, closed_ = false;
   bool head_ = false;  // the request is a HEAD
+  bool chunked_ = true;  // the stream's body is chunked (HTTP/1.1)
   bool json_ = true, broken_ = false, writing_ = false;
   std::string origin_, content_type_;
   std::string stream_type_;  // the request's Content-Type where it is a Connect stream's

@@ -703,7 +703,8 @@ Exchanged Exchange(int port, const std::string& requests, const std::vector<bool
 // Each response is framed as HTTP/1.1 (RFC 9110, 9112) says for its request: HTTP/1.0
 // answered in 1.0 and closed unless it asks to be kept alive, HTTP/1.1 kept alive unless it
 // says "close", a HEAD answered with its GET's length and no body (its refusals too), a
-// preflight's 204 with neither; requests written together answered in order.
+// preflight's 204 with neither, an HTTP/1.0 stream unchunked to the close; requests written
+// together answered in order.
 TEST_F(HttpTest, ResponsesAreFramedForEachVersionAndMethod) {
   auto post = [](const std::string& version, const std::string& connection) {
     return absl::StrCat("POST /gvd.v1.VoronoiService/ListScenes HTTP/", version,
@@ -774,6 +775,31 @@ TEST_F(HttpTest, ResponsesAreFramedForEachVersionAndMethod) {
     EXPECT_GE(x.responses[1].result_int(), 400);
     EXPECT_EQ(x.responses[2].result_int(), 200);  // no refusal's body read as its answer
     EXPECT_EQ(x.responses[2].body().front(), '{') << x.responses[2].body();
+    EXPECT_TRUE(x.closed);
+  }
+  {
+    // A server stream over HTTP/1.0, which has no chunks: its envelopes as they are, the
+    // body ended by the connection's close.
+    ASSERT_EQ(Post(port(), "CreateScene", Json(testing::UnitScene("framing", 32, 32))).status,
+              200);
+    ASSERT_EQ(Post(port(), "UpsertSites",
+                   R"({"sceneId": "framing", "sites": [{"id": "a", "point": {"x": 0.25, "y": 0.25}}]})")
+                  .status,
+              200);
+    const std::string body = Envelope(R"({"sceneId": "framing", "points": [{"x": 0.5}]})");
+    const Exchanged x = Exchange(
+        port(),
+        absl::StrCat("POST /gvd.v1.VoronoiService/FindNearestStream HTTP/1.0\r\nHost: 127.0.0.1"
+                     "\r\nContent-Type: application/connect+json\r\nContent-Length: ",
+                     body.size(), "\r\n\r\n", body),
+        {false});
+    ASSERT_EQ(x.responses.size(), 1u);
+    EXPECT_EQ(x.responses[0].result_int(), 200);
+    EXPECT_EQ(x.responses[0].count(http::field::transfer_encoding), 0u);
+    const StreamReply stream = ReadStream(x.responses[0].body(), 200);
+    ASSERT_EQ(stream.messages.size(), 1u) << x.responses[0].body();
+    EXPECT_NE(stream.messages[0].find("\"a\""), std::string::npos) << stream.messages[0];
+    EXPECT_EQ(stream.end, "{}");
     EXPECT_TRUE(x.closed);
   }
 }
