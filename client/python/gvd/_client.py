@@ -673,12 +673,12 @@ def _answer_arrays(version: int, offset: int, ids: List[str], fields: Dict[int, 
     except struct.error:  # an index or a kind out of its type's range (a negative kind)
         raise _Irregular() from None
     arrays, at = [], 0
-    for dtype, count in ((_DOUBLE_DTYPE, n), (_DOUBLE_DTYPE, n), (_DOUBLE_DTYPE, n * dims),
-                         (_DOUBLE_DTYPE, n * dims))[:len(doubles)] + (
-                             (_SITE_DTYPE, n), (_INDEX_DTYPE, n), (_KIND_DTYPE, n),
-                             (_EXACT_DTYPE, n)):
-        arrays.append(np.frombuffer(buffer, dtype, count, at))
-        at += count * dtype.itemsize
+    for d in doubles:
+        arrays.append(np.frombuffer(buffer, _DOUBLE_DTYPE, len(d) // 8, at))
+        at += len(d)
+    for dtype in (_SITE_DTYPE, _INDEX_DTYPE, _KIND_DTYPE, _EXACT_DTYPE):
+        arrays.append(np.frombuffer(buffer, dtype, n, at))
+        at += n * dtype.itemsize
     distances_, bounds_ = arrays[:2]
     near, grad = ((arrays[2].reshape(n, dims), arrays[3].reshape(n, dims)) if closest
                   else (None, None))
