@@ -124,6 +124,9 @@ ABSL_FLAG(std::string, http_listen, "",
 ABSL_FLAG(uint32_t, http_threads, 0,
           "<N> threads serving the HTTP port's connections, 0 to 64 (by default 0: half the "
           "machine's cores, at least one); a large request or answer is converted off them");
+ABSL_FLAG(uint32_t, http_io_timeout_ms, 120'000,
+          "<N> how long an HTTP connection may wait idle for a request and then take to send "
+          "it, and how long an answer may take to be sent, before the connection is closed");
 ABSL_FLAG(std::vector<std::string>, http_cors_origins, {},
           "<LIST> origins whose pages may call the HTTP port, comma-separated "
           "(\"https://app.example.com\"; \"*\" for any); by default none");
@@ -167,6 +170,7 @@ struct Flags {
   uint32_t store_pack_sites = 4096;
   uint32_t store_fold_after_ms = 500;
   uint32_t http_threads = 0;
+  uint32_t http_io_timeout_ms = 120'000;
   std::string tokens, tls_cert, tls_key, tls_client_ca, metrics_listen, http_listen;
   std::vector<std::string> cors_origins;
   gvd::ServerLimits limits;
@@ -262,6 +266,7 @@ Flags ParseFlags(int argc, char** argv) {
   f.http_listen = absl::GetFlag(FLAGS_http_listen);
   f.http_threads = absl::GetFlag(FLAGS_http_threads);
   if (f.http_threads > 64) Die(absl::StrCat("--http-threads needs 0 to 64, not ", f.http_threads));
+  f.http_io_timeout_ms = Count<uint32_t>("http-io-timeout-ms", FLAGS_http_io_timeout_ms);
   // An API port others can reach, open to any write, only when asked for in so many words.
   if (f.tokens.empty() && f.tls_client_ca.empty() && !absl::GetFlag(FLAGS_allow_unauthenticated)) {
     for (const auto& [flag, address] : {std::pair{"--listen", f.listen}, {"--http-listen", f.http_listen}}) {
@@ -470,6 +475,7 @@ int main(int argc, char** argv) {
     options.max_body_bytes = flags.limits.max_message_bytes;
     options.files = gvd::WebApp();
     options.threads = static_cast<int>(flags.http_threads);
+    options.io_timeout = std::chrono::milliseconds(flags.http_io_timeout_ms);
     if (!flags.tls_cert.empty()) {
       options.tls_cert = ReadFile("--tls-cert", flags.tls_cert);
       options.tls_key = ReadFile("--tls-key", flags.tls_key);

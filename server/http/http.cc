@@ -400,10 +400,10 @@ class Session final : public SessionBase {
     if constexpr (std::is_same_v<StreamType, TcpStream>) {
       Read();
     } else {
-      beast::get_lowest_layer(stream_).expires_after(std::chrono::seconds(30));
+      Limit(std::min<std::chrono::steady_clock::duration>(std::chrono::seconds(30), IoTimeout()));
       stream_.async_handshake(ssl::stream_base::server,
                               [self = Self()](beast::error_code ec) {
-                                if (ec) return;  // a failed handshake: nothing to answer
+                                if (ec) return self->Close();  // nothing to answer
                                 self->Read();
                               });
     }
@@ -429,7 +429,7 @@ class Session final : public SessionBase {
     header_parser_->header_limit(64 << 10);
     // Beast checks a declared length against the body limit with the header: not yet.
     header_parser_->body_limit(std::numeric_limits<std::uint64_t>::max());
-    beast::get_lowest_layer(stream_).expires_after(std::chrono::seconds(120));
+    Limit(IoTimeout());  // idle, then the header's read and the body's
     http::async_read_header(stream_, buffer_, *header_parser_,
                             [self = Self()](beast::error_code ec, size_t) { self->OnHeader(ec); });
   }
@@ -542,6 +542,7 @@ class Session final : public SessionBase {
   }
 
   void Handle(http::request<http::string_body> req) {
+    NoLimit();  // read: what comes next is answered, or the core's call (which has its own)
     version_ = req.version();
     keep_alive_ = req.keep_alive() && !server_->stopping();
     origin_ = std::string(req[http::field::origin]);
@@ -764,7 +765,7 @@ class Session final : public SessionBase {
     auto text = std::make_shared<std::string>(std::move(head).End());
     broken_ = false;
     writing_ = true;
-    beast::get_lowest_layer(stream_).expires_after(std::chrono::seconds(120));
+    Limit(IoTimeout());
     net::async_write(stream_, net::buffer(*text),
                      [self = Self(), text](beast::error_code ec, size_t) { self->Written(ec); });
     // The request lives as long as the core's stream may read it: until its end.
@@ -776,9 +777,9 @@ class Session final : public SessionBase {
   // A write of the stream's is done: the next goes, if one waits.
   void Written(beast::error_code ec) {
     writing_ = false;
-    // A reader that stops reading fails the write after 120 s; between messages (a watch
-    // waits for frames) there is no deadline.
-    beast::get_lowest_layer(stream_).expires_never();
+    // A reader that stops reading fails the write after --http-io-timeout-ms; between
+    // messages (a watch waits for frames) there is no limit.
+    NoLimit();
     if (ec) Broken();
     Pump();
   }
@@ -815,7 +816,7 @@ class Session final : public SessionBase {
     }
     auto chunk = std::make_shared<std::string>(Envelope(0, next.payload));
     writing_ = true;
-    beast::get_lowest_layer(stream_).expires_after(std::chrono::seconds(120));
+    Limit(IoTimeout());
     WriteEnvelope(chunk, [self = Self(), chunk, written = std::move(next.written)](
                              beast::error_code ec, size_t) {
       self->Written(ec);
@@ -938,12 +939,40 @@ class Session final : public SessionBase {
     head.KeepAlive(version_, keep);
     auto out = std::make_shared<std::pair<std::string, std::string>>(std::move(head).End(),
                                                                      std::move(body));
-    beast::get_lowest_layer(stream_).expires_after(std::chrono::seconds(120));
+    Limit(IoTimeout());
     const std::array<net::const_buffer, 2> buffers{net::buffer(out->first),
                                                    net::buffer(out->second)};
     net::async_write(stream_, buffers, [self = Self(), out, keep](beast::error_code ec, size_t) {
       if (ec || !keep) return self->Close();
       self->Read();
+    });
+  }
+
+  // The limit on the reads and writes under way, from now: past it the connection closes,
+  // and each of them fails. Beast's tcp_stream kept a timer an operation, set and cancelled
+  // in the kernel around each read and each write (four system calls a request). Here one
+  // timer a connection: an operation moves the limit (a clock read), and the timer, set to
+  // the limit of its time, sleeps on to the current one when it wakes before that, so that a
+  // busy connection sets the kernel's timer about once a limit's length. A shorter limit than
+  // the timer's sets it anew.
+  void Limit(std::chrono::steady_clock::duration length) {
+    limit_ = std::chrono::steady_clock::now() + length;
+    if (!limit_set_ || *limit_ < limit_timer_.expiry()) SetLimitTimer();
+  }
+  // None from now: between a stream's messages, and while the core has the call.
+  void NoLimit() { limit_.reset(); }
+  std::chrono::milliseconds IoTimeout() const { return server_->options().io_timeout; }
+  void SetLimitTimer() {
+    limit_set_ = true;
+    limit_timer_.expires_at(*limit_);  // a wait under way ends, its handler doing nothing
+    // Not the session's owner: a session that ends goes with its timer.
+    limit_timer_.async_wait([weak = std::weak_ptr<Session>(Self())](beast::error_code ec) {
+      auto self = weak.lock();
+      if (ec || !self) return;  // set anew, or the session went
+      self->limit_set_ = false;
+      if (!self->limit_ || self->closed_) return;
+      if (std::chrono::steady_clock::now() < *self->limit_) return self->SetLimitTimer();
+      self->Close();
     });
   }
 
@@ -986,6 +1015,10 @@ class Session final : public SessionBase {
   uint64_t calls_ = 0;  // the calls begun: a call's number, so that a stale callback does nothing
   bool deadline_passed_ = false;
   bool unary_pending_ = false;  // a unary call's answer is still to be sent
+  // The limit on the reads and writes under way (none: no limit), and its timer (Limit).
+  std::optional<std::chrono::steady_clock::time_point> limit_;
+  StrandTimer limit_timer_{stream_.get_executor()};
+  bool limit_set_ = false;  // the timer waits
   std::shared_ptr<Message> held_request_;  // a stream's request, until its end
   std::deque<Outgoing> outgoing_;          // a stream's messages and end, waiting to be written
 };

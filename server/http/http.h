@@ -44,6 +44,10 @@ struct HttpOptions {
   // messages: a large request body is decoded on a converter thread of the server's, and an
   // answer is encoded on the thread the core answered from.
   int threads = 0;
+  // How long a connection may wait idle for a request and then take to read it (its header
+  // and body), and how long an answer's write (or each of a stream's) may take, before the
+  // connection is closed; a TLS handshake has at most 30 s of it.
+  std::chrono::milliseconds io_timeout{120'000};
   // Static files served by GET: path ("/", "/app.js") to (content type, body).
   std::map<std::string, std::pair<std::string, std::string>> files;
 };

@@ -17,6 +17,7 @@
 #include <functional>
 #include <future>
 #include <map>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <thread>
@@ -1081,6 +1082,79 @@ TEST(HttpDrain, ACallThatOutlivesTheServerEndsCleanly) {
   waiting.join();
   const int status = server.Wait();
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << server.log();
+}
+
+// --http-io-timeout-ms: a connection that sends nothing, or stops halfway through a request,
+// is closed once the limit has passed, and not before; one whose requests keep coming stays
+// open past it, as does one whose call the core holds longer (the limit is the transport's,
+// not the call's).
+TEST(HttpIoTimeout, IdleAndStalledConnectionsCloseAndBusyOnesStayOpen) {
+  constexpr auto kLimit = std::chrono::milliseconds(1000);
+  testing::ServerProcess server(GVD_SERVER_PATH,
+                                {"--http-listen", "127.0.0.1:0", "--http-io-timeout-ms", "1000"});
+  ASSERT_TRUE(server.error().empty()) << server.error();
+  const int port = server.http_port();
+  net::io_context ioc;
+  const tcp::endpoint at(net::ip::make_address("127.0.0.1"), static_cast<uint16_t>(port));
+  const auto start = std::chrono::steady_clock::now();
+  beast::tcp_stream idle(ioc), stalled(ioc);
+  idle.connect(at);
+  stalled.connect(at);
+  net::write(stalled, net::buffer(std::string("POST /gvd.v1.VoronoiService/ListScenes HTTP/1.1\r\nHost: 1")));
+  for (beast::tcp_stream* s : {&idle, &stalled}) {
+    // Asynchronous: Beast's expiry bounds only those.
+    s->expires_after(std::chrono::seconds(30));
+    char byte;
+    beast::error_code ec;
+    s->async_read_some(net::buffer(&byte, 1), [&ec](beast::error_code e, size_t) { ec = e; });
+    ioc.restart();
+    ioc.run();
+    EXPECT_TRUE(ec == net::error::eof || ec == net::error::connection_reset) << ec.message();
+    EXPECT_GE(std::chrono::steady_clock::now() - start, kLimit);
+  }
+
+  // Requests on one connection for over twice the limit, each well within it.
+  beast::tcp_stream busy(ioc);
+  busy.connect(at);
+  beast::flat_buffer buffer;
+  const auto busy_start = std::chrono::steady_clock::now();
+  for (int i = 0; i < 12; ++i) {
+    http::request<http::string_body> req{http::verb::post, "/gvd.v1.VoronoiService/ListScenes", 11};
+    req.set(http::field::host, "127.0.0.1");
+    req.set(http::field::content_type, "application/json");
+    req.body() = "{}";
+    req.prepare_payload();
+    http::write(busy, req);
+    http::response<http::string_body> res;
+    busy.expires_after(std::chrono::seconds(30));
+    beast::error_code ec;
+    http::read(busy, buffer, res, ec);
+    ASSERT_FALSE(ec) << "request " << i << ": " << ec.message();
+    EXPECT_EQ(res.result_int(), 200) << res.body();
+    std::this_thread::sleep_for(kLimit / 5);
+  }
+  EXPECT_GE(std::chrono::steady_clock::now() - busy_start, 2 * kLimit);
+
+  // A call that waits for a render held past the limit is answered on its connection.
+  ASSERT_EQ(Post(port, "CreateScene",
+                 R"({"sceneId": "s", "window": {"maxX": 1, "maxY": 1}, "widthPx": 8, "heightPx": 8})")
+                .status,
+            200);
+  std::optional<testing::HoldRenders> hold(std::in_place, server);
+  // Weighted: the index does not answer in place of the frame (see min_version).
+  Reply written = Post(port, "UpsertSites",
+                       R"({"sceneId": "s", "sites": [{"id": "a", "point": {"x": 0.5, "y": 0.5}, "additiveWeight": 0.01}]})");
+  ASSERT_EQ(written.status, 200) << written.body;
+  auto waited = std::async(std::launch::async, [&] {
+    return Post(port, "FindNearest", R"({"sceneId": "s", "points": [{"x": 0.1, "y": 0.1}], "minVersion": ")" +
+                                         JsonString(written.body, "version") + R"("})");
+  });
+  std::this_thread::sleep_for(kLimit * 3 / 2);
+  hold.reset();
+  const Reply answer = waited.get();
+  EXPECT_EQ(answer.status, 200) << answer.body;
+  EXPECT_EQ(JsonString(answer.body, "siteId"), "a") << answer.body;
+  EXPECT_EQ(server.Stop(), 0) << server.log();
 }
 
 }  // namespace
