@@ -396,17 +396,9 @@ class Session final : public SessionBase {
       : server_(server), stream_(std::move(stream)) {}
   ~Session() override { server_->Unregister(this); }
 
+  // Begins on the session's strand, where all it does runs (CloseWhenIdle's too).
   void Run() {
-    if constexpr (std::is_same_v<StreamType, TcpStream>) {
-      Read();
-    } else {
-      Limit(std::min<std::chrono::steady_clock::duration>(std::chrono::seconds(30), IoTimeout()));
-      stream_.async_handshake(ssl::stream_base::server,
-                              [self = Self()](beast::error_code ec) {
-                                if (ec) return self->Close();  // nothing to answer
-                                self->Read();
-                              });
-    }
+    net::dispatch(stream_.get_executor(), [self = Self()] { self->Open(); });
   }
 
   void CloseWhenIdle() override {
@@ -419,6 +411,19 @@ class Session final : public SessionBase {
  private:
   std::shared_ptr<Session> Self() {
     return std::static_pointer_cast<Session>(shared_from_this());
+  }
+
+  void Open() {
+    if constexpr (std::is_same_v<StreamType, TcpStream>) {
+      Read();
+    } else {
+      Limit(std::min<std::chrono::steady_clock::duration>(std::chrono::seconds(30), IoTimeout()));
+      stream_.async_handshake(ssl::stream_base::server,
+                              [self = Self()](beast::error_code ec) {
+                                if (ec) return self->Close();  // nothing to answer
+                                self->Read();
+                              });
+    }
   }
 
   // The header first: a body declared past --max-message-bytes is drained, not read.
@@ -838,6 +843,7 @@ class Session final : public SessionBase {
     }
     auto chunk = std::make_shared<std::string>(Envelope(0x02, end));
     writing_ = true;
+    Limit(IoTimeout());  // the end and the last chunk
     WriteEnvelope(chunk, [self = Self(), chunk](beast::error_code ec, size_t) {
                        if (ec || !self->chunked_) return self->Close();
                        net::async_write(self->stream_, http::make_chunk_last(),
@@ -964,7 +970,9 @@ class Session final : public SessionBase {
   std::chrono::milliseconds IoTimeout() const { return server_->options().io_timeout; }
   void SetLimitTimer() {
     limit_set_ = true;
-    limit_timer_.expires_at(*limit_);  // a wait under way ends, its handler doing nothing
+    // A wait under way ends (its handler does nothing); one that has just woken finds the
+    // limit as it is now.
+    limit_timer_.expires_at(*limit_);
     // Not the session's owner: a session that ends goes with its timer.
     limit_timer_.async_wait([weak = std::weak_ptr<Session>(Self())](beast::error_code ec) {
       auto self = weak.lock();
@@ -1026,6 +1034,10 @@ class Session final : public SessionBase {
 }  // namespace
 
 absl::Status HttpServer::Impl::Start() {
+  if (options_.io_timeout <= std::chrono::milliseconds(0)) {
+    return absl::InvalidArgumentError(absl::StrCat("the HTTP I/O timeout must be positive, not ",
+                                                   options_.io_timeout.count(), " ms"));
+  }
   const auto colon = options_.listen.rfind(':');
   if (colon == std::string::npos) {
     return absl::InvalidArgumentError(

@@ -1087,7 +1087,7 @@ TEST(HttpDrain, ACallThatOutlivesTheServerEndsCleanly) {
 // --http-io-timeout-ms: a connection that sends nothing, or stops halfway through a request,
 // is closed once the limit has passed, and not before; one whose requests keep coming stays
 // open past it, as does one whose call the core holds longer (the limit is the transport's,
-// not the call's).
+// not the call's), and a stream that waits longer between its messages.
 TEST(HttpIoTimeout, IdleAndStalledConnectionsCloseAndBusyOnesStayOpen) {
   constexpr auto kLimit = std::chrono::milliseconds(1000);
   testing::ServerProcess server(GVD_SERVER_PATH,
@@ -1096,21 +1096,35 @@ TEST(HttpIoTimeout, IdleAndStalledConnectionsCloseAndBusyOnesStayOpen) {
   const int port = server.http_port();
   net::io_context ioc;
   const tcp::endpoint at(net::ip::make_address("127.0.0.1"), static_cast<uint16_t>(port));
+  // Asynchronous reads throughout: Beast's expiry bounds only those.
+  auto run = [&ioc] {
+    ioc.restart();
+    ioc.run();
+  };
+
   const auto start = std::chrono::steady_clock::now();
   beast::tcp_stream idle(ioc), stalled(ioc);
   idle.connect(at);
   stalled.connect(at);
   net::write(stalled, net::buffer(std::string("POST /gvd.v1.VoronoiService/ListScenes HTTP/1.1\r\nHost: 1")));
-  for (beast::tcp_stream* s : {&idle, &stalled}) {
-    // Asynchronous: Beast's expiry bounds only those.
-    s->expires_after(std::chrono::seconds(30));
-    char byte;
-    beast::error_code ec;
-    s->async_read_some(net::buffer(&byte, 1), [&ec](beast::error_code e, size_t) { ec = e; });
-    ioc.restart();
-    ioc.run();
-    EXPECT_TRUE(ec == net::error::eof || ec == net::error::connection_reset) << ec.message();
-    EXPECT_GE(std::chrono::steady_clock::now() - start, kLimit);
+  struct Ending {
+    beast::error_code ec = net::error::would_block;
+    std::chrono::steady_clock::duration after{};
+  };
+  Ending ends[2];
+  char bytes[2];
+  beast::tcp_stream* streams[2] = {&idle, &stalled};
+  for (int i = 0; i < 2; ++i) {
+    streams[i]->expires_after(std::chrono::seconds(30));
+    streams[i]->async_read_some(net::buffer(&bytes[i], 1),
+                                [&, i](beast::error_code ec, size_t) {
+                                  ends[i] = {ec, std::chrono::steady_clock::now() - start};
+                                });
+  }
+  run();
+  for (const Ending& e : ends) {
+    EXPECT_TRUE(e.ec == net::error::eof || e.ec == net::error::connection_reset) << e.ec.message();
+    EXPECT_GE(e.after, kLimit);
   }
 
   // Requests on one connection for over twice the limit, each well within it.
@@ -1118,7 +1132,7 @@ TEST(HttpIoTimeout, IdleAndStalledConnectionsCloseAndBusyOnesStayOpen) {
   busy.connect(at);
   beast::flat_buffer buffer;
   const auto busy_start = std::chrono::steady_clock::now();
-  for (int i = 0; i < 12; ++i) {
+  for (int i = 0; i < 25; ++i) {
     http::request<http::string_body> req{http::verb::post, "/gvd.v1.VoronoiService/ListScenes", 11};
     req.set(http::field::host, "127.0.0.1");
     req.set(http::field::content_type, "application/json");
@@ -1126,12 +1140,13 @@ TEST(HttpIoTimeout, IdleAndStalledConnectionsCloseAndBusyOnesStayOpen) {
     req.prepare_payload();
     http::write(busy, req);
     http::response<http::string_body> res;
+    beast::error_code ec = net::error::would_block;
     busy.expires_after(std::chrono::seconds(30));
-    beast::error_code ec;
-    http::read(busy, buffer, res, ec);
+    http::async_read(busy, buffer, res, [&ec](beast::error_code e, size_t) { ec = e; });
+    run();
     ASSERT_FALSE(ec) << "request " << i << ": " << ec.message();
     EXPECT_EQ(res.result_int(), 200) << res.body();
-    std::this_thread::sleep_for(kLimit / 5);
+    std::this_thread::sleep_for(kLimit / 10);
   }
   EXPECT_GE(std::chrono::steady_clock::now() - busy_start, 2 * kLimit);
 
@@ -1145,15 +1160,26 @@ TEST(HttpIoTimeout, IdleAndStalledConnectionsCloseAndBusyOnesStayOpen) {
   Reply written = Post(port, "UpsertSites",
                        R"({"sceneId": "s", "sites": [{"id": "a", "point": {"x": 0.5, "y": 0.5}, "additiveWeight": 0.01}]})");
   ASSERT_EQ(written.status, 200) << written.body;
+  const std::string version = JsonString(written.body, "version");
   auto waited = std::async(std::launch::async, [&] {
     return Post(port, "FindNearest", R"({"sceneId": "s", "points": [{"x": 0.1, "y": 0.1}], "minVersion": ")" +
-                                         JsonString(written.body, "version") + R"("})");
+                                         version + R"("})");
   });
   std::this_thread::sleep_for(kLimit * 3 / 2);
   hold.reset();
   const Reply answer = waited.get();
   EXPECT_EQ(answer.status, 200) << answer.body;
   EXPECT_EQ(JsonString(answer.body, "siteId"), "a") << answer.body;
+
+  // A watch with nothing to tell, ended by its deadline at two and a half limits: framed
+  // whole to its end (a connection closed under it fails the read).
+  const auto watch_start = std::chrono::steady_clock::now();
+  StreamReply watch = Stream(port, "WatchScene",
+                             R"({"sceneId": "s", "afterVersion": ")" + version + R"("})",
+                             {{"Connect-Timeout-Ms", "2500"}});
+  EXPECT_GE(std::chrono::steady_clock::now() - watch_start, kLimit * 5 / 2);
+  EXPECT_EQ(watch.status, 200);
+  EXPECT_EQ(JsonString(watch.end, "code"), "deadline_exceeded") << watch.end;
   EXPECT_EQ(server.Stop(), 0) << server.log();
 }
 
