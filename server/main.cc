@@ -124,7 +124,8 @@ ABSL_FLAG(std::string, http_listen, "",
 ABSL_FLAG(uint32_t, http_threads, 0,
           "<N> threads serving the HTTP port's connections, 0 to 64 (by default 0: half the "
           "machine's cores, at least one); a large request or answer is converted off them");
-ABSL_FLAG(uint32_t, http_io_timeout_ms, 120'000,
+ABSL_FLAG(uint32_t, http_io_timeout_ms,
+          static_cast<uint32_t>(gvd::HttpOptions{}.io_timeout.count()),
           "<N> how long an HTTP connection may wait idle for a request and then take to send "
           "it, and how long an answer may take to be sent, before the connection is closed");
 ABSL_FLAG(std::vector<std::string>, http_cors_origins, {},
@@ -170,7 +171,7 @@ struct Flags {
   uint32_t store_pack_sites = 4096;
   uint32_t store_fold_after_ms = 500;
   uint32_t http_threads = 0;
-  uint32_t http_io_timeout_ms = 120'000;
+  uint32_t http_io_timeout_ms = 0;
   std::string tokens, tls_cert, tls_key, tls_client_ca, metrics_listen, http_listen;
   std::vector<std::string> cors_origins;
   gvd::ServerLimits limits;
