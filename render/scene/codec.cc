@@ -40,13 +40,18 @@ enum Tag : uint8_t {
 // And one per alternative of Geometry3.
 enum Tag3 : uint8_t { kPoint3 = 6, kSegment3 = 7, kTriangle3 = 8, kMesh3 = 9 };
 
+// Writes a record's bytes at `out`, which has room for them, or with `out` null only counts
+// them: a record is put twice, counted and then written where its string has made room, so
+// that each field is one copy and the string grows once (appending field by field cost a
+// pack some 800 instructions a point).
 class Writer {
  public:
-  explicit Writer(std::string out = {}) : out_(std::move(out)) {}  // appends to `out`
+  explicit Writer(char* out) : out_(out) {}
+  size_t bytes() const { return bytes_; }
   template <class T>
   void Put(T v) {
     static_assert(std::is_trivially_copyable_v<T>);
-    out_.append(reinterpret_cast<const char*>(&v), sizeof v);
+    Copy(&v, sizeof v);
   }
   void Put(Vec2 p) {
     Put(p.x);
@@ -60,21 +65,36 @@ class Writer {
   template <class T>
   void PutArray(const std::vector<T>& values) {
     Put(static_cast<uint32_t>(values.size()));
-    out_.append(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(T));
+    Copy(values.data(), values.size() * sizeof(T));
   }
   void Put(std::string_view s) {
     Put(static_cast<uint32_t>(s.size()));
-    out_.append(s);
+    Copy(s.data(), s.size());
   }
   void Put(const std::vector<Vec2>& points) {
     Put(static_cast<uint32_t>(points.size()));
     for (Vec2 p : points) Put(p);
   }
-  std::string Take() { return std::move(out_); }
 
  private:
-  std::string out_;
+  void Copy(const void* from, size_t n) {
+    if (out_ != nullptr && n != 0) std::memcpy(out_ + bytes_, from, n);
+    bytes_ += n;
+  }
+  char* const out_;
+  size_t bytes_ = 0;
 };
+
+// `put(writer)`'s bytes appended to `out`.
+template <class F>
+void Append(std::string* out, F&& put) {
+  Writer count(nullptr);
+  put(count);
+  const size_t at = out->size();
+  out->resize(at + count.bytes());
+  Writer w(out->data() + at);
+  put(w);
+}
 
 // Reads what Writer wrote; the first failure sticks and later reads return zeros.
 class Reader {
@@ -199,8 +219,9 @@ bool Finite(Vec3 p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::is
 
 }  // namespace
 
-std::string EncodeSite(const Site3& site) {
-  Writer w;
+namespace {
+
+void PutSite(Writer& w, const Site3& site) {
   PutHeader(w, site);
   std::visit(
       [&w](const auto& g) {
@@ -226,7 +247,70 @@ std::string EncodeSite(const Site3& site) {
         }
       },
       site.geometry);
-  return w.Take();
+}
+
+void PutSite(Writer& w, const Site& site) {
+  PutHeader(w, site);
+  std::visit(
+      [&w](const auto& g) {
+        using T = std::decay_t<decltype(g)>;
+        if constexpr (std::is_same_v<T, PointSite>) {
+          w.Put(kPoint);
+          w.Put(g.p);
+        } else if constexpr (std::is_same_v<T, SegmentSite>) {
+          w.Put(kSegment);
+          w.Put(g.a);
+          w.Put(g.b);
+        } else if constexpr (std::is_same_v<T, PolylineSite>) {
+          w.Put(kPolyline);
+          w.Put(g.points);
+        } else if constexpr (std::is_same_v<T, PolygonSite>) {
+          w.Put(kPolygon);
+          w.Put(static_cast<uint8_t>(g.side));
+          w.Put(g.vertices);
+        } else if constexpr (std::is_same_v<T, BezierSite>) {
+          w.Put(kBezier);
+          w.Put(g.tolerance);
+          w.Put(g.control);
+          w.Put(g.flat);
+        } else {
+          // Its subpaths as MakePath left them and its tolerance, from which MakePath
+          // derives the rest again, and its approximation where it has one.
+          static_assert(std::is_same_v<T, PathSite>);
+          w.Put(g.approximation == 0 ? kPath : kApproximatePath);
+          w.Put(static_cast<uint8_t>(g.fill));
+          w.Put(static_cast<uint8_t>(g.side));
+          w.Put(g.tolerance);
+          if (g.approximation != 0) w.Put(g.approximation);
+          w.Put(static_cast<uint32_t>(g.subpaths.size()));
+          for (const Subpath& s : g.subpaths) {
+            w.Put(static_cast<uint8_t>(s.closed));
+            w.PutArray(s.degrees);
+            w.Put(s.points);
+          }
+        }
+      },
+      site.geometry);
+}
+
+// A pack's entry: the id, then the site's bytes after their length.
+template <class S>
+void PutEntry(const S& site, std::string* pack) {
+  Writer count(nullptr);
+  PutSite(count, site);
+  Append(pack, [&](Writer& w) {
+    w.Put(std::string_view(site.id));
+    w.Put(static_cast<uint32_t>(count.bytes()));
+    PutSite(w, site);
+  });
+}
+
+}  // namespace
+
+std::string EncodeSite(const Site3& site) {
+  std::string out;
+  Append(&out, [&](Writer& w) { PutSite(w, site); });
+  return out;
 }
 
 template <>
@@ -288,49 +372,9 @@ absl::StatusOr<Site3> DecodeSite<Site3>(std::string_view bytes) {
 }
 
 std::string EncodeSite(const Site& site) {
-  Writer w;
-  PutHeader(w, site);
-  std::visit(
-      [&w](const auto& g) {
-        using T = std::decay_t<decltype(g)>;
-        if constexpr (std::is_same_v<T, PointSite>) {
-          w.Put(kPoint);
-          w.Put(g.p);
-        } else if constexpr (std::is_same_v<T, SegmentSite>) {
-          w.Put(kSegment);
-          w.Put(g.a);
-          w.Put(g.b);
-        } else if constexpr (std::is_same_v<T, PolylineSite>) {
-          w.Put(kPolyline);
-          w.Put(g.points);
-        } else if constexpr (std::is_same_v<T, PolygonSite>) {
-          w.Put(kPolygon);
-          w.Put(static_cast<uint8_t>(g.side));
-          w.Put(g.vertices);
-        } else if constexpr (std::is_same_v<T, BezierSite>) {
-          w.Put(kBezier);
-          w.Put(g.tolerance);
-          w.Put(g.control);
-          w.Put(g.flat);
-        } else {
-          // Its subpaths as MakePath left them and its tolerance, from which MakePath
-          // derives the rest again, and its approximation where it has one.
-          static_assert(std::is_same_v<T, PathSite>);
-          w.Put(g.approximation == 0 ? kPath : kApproximatePath);
-          w.Put(static_cast<uint8_t>(g.fill));
-          w.Put(static_cast<uint8_t>(g.side));
-          w.Put(g.tolerance);
-          if (g.approximation != 0) w.Put(g.approximation);
-          w.Put(static_cast<uint32_t>(g.subpaths.size()));
-          for (const Subpath& s : g.subpaths) {
-            w.Put(static_cast<uint8_t>(s.closed));
-            w.PutArray(s.degrees);
-            w.Put(s.points);
-          }
-        }
-      },
-      site.geometry);
-  return w.Take();
+  std::string out;
+  Append(&out, [&](Writer& w) { PutSite(w, site); });
+  return out;
 }
 
 template <>
@@ -408,25 +452,27 @@ absl::StatusOr<Site> DecodeSite<Site>(std::string_view bytes) {
 }
 
 std::string EncodeSettings(const SceneSettings& s) {
-  Writer w;
-  w.Put(s.three_d() ? kSettingsFormat3 : kSettingsFormat);
-  w.Put(std::string_view(s.id));
-  w.Put(s.grid.window.min_x);
-  w.Put(s.grid.window.min_y);
-  w.Put(s.grid.window.max_x);
-  w.Put(s.grid.window.max_y);
-  w.Put(s.grid.width);
-  w.Put(s.grid.height);
-  w.Put(s.eps);
-  w.Put(s.cone_triangles);
-  w.Put(static_cast<uint8_t>(s.mode));
-  w.Put(static_cast<uint8_t>(s.diagram));
-  if (s.three_d()) {
-    w.Put(s.depth);
-    w.Put(s.min_z);
-    w.Put(s.max_z);
-  }
-  return w.Take();
+  std::string out;
+  Append(&out, [&](Writer& w) {
+    w.Put(s.three_d() ? kSettingsFormat3 : kSettingsFormat);
+    w.Put(std::string_view(s.id));
+    w.Put(s.grid.window.min_x);
+    w.Put(s.grid.window.min_y);
+    w.Put(s.grid.window.max_x);
+    w.Put(s.grid.window.max_y);
+    w.Put(s.grid.width);
+    w.Put(s.grid.height);
+    w.Put(s.eps);
+    w.Put(s.cone_triangles);
+    w.Put(static_cast<uint8_t>(s.mode));
+    w.Put(static_cast<uint8_t>(s.diagram));
+    if (s.three_d()) {
+      w.Put(s.depth);
+      w.Put(s.min_z);
+      w.Put(s.max_z);
+    }
+  });
+  return out;
 }
 
 absl::StatusOr<SceneSettings> DecodeSettings(std::string_view bytes) {
@@ -469,19 +515,9 @@ absl::StatusOr<SceneSettings> DecodeSettings(std::string_view bytes) {
   return s;
 }
 
-void AppendToPack(const Site& site, std::string* pack) {
-  Writer w(std::move(*pack));
-  w.Put(std::string_view(site.id));
-  w.Put(std::string_view(EncodeSite(site)));
-  *pack = w.Take();
-}
+void AppendToPack(const Site& site, std::string* pack) { PutEntry(site, pack); }
 
-void AppendToPack(const Site3& site, std::string* pack) {
-  Writer w(std::move(*pack));
-  w.Put(std::string_view(site.id));
-  w.Put(std::string_view(EncodeSite(site)));
-  *pack = w.Take();
-}
+void AppendToPack(const Site3& site, std::string* pack) { PutEntry(site, pack); }
 
 absl::StatusOr<std::vector<PackEntry>> PackEntries(std::string_view pack) {
   Reader r(pack);

@@ -186,6 +186,7 @@ absl::StatusOr<uint64_t> BasicScene<K>::Upsert(std::vector<Site> sites, size_t m
                                        const Persist& persist) {
   return Write(
       [&](Builder& builder) {
+        builder.Reserve(sites.size());
         for (Site& s : sites) builder.Put(std::move(s));
         if (builder.size() > max_sites) {
           return absl::ResourceExhaustedError(

@@ -160,6 +160,7 @@ BasicSiteIndex<K> BasicSiteIndex<K>::Update(const Table& sites,
   std::sort(slots.begin(), slots.end());
   slots.erase(std::unique(slots.begin(), slots.end()), slots.end());
   std::vector<Entry> added;
+  added.reserve(slots.size());
   for (uint32_t s : slots) {
     const std::shared_ptr<const typename K::Site> none;
     const auto& before = s < sites_.size() ? sites_.ptr(s) : none;

@@ -134,6 +134,13 @@ BasicSnapshotBuilder<K>::BasicSnapshotBuilder(std::shared_ptr<const Snapshot> ba
       bytes_(base_->bytes_) {}
 
 template <class K>
+void BasicSnapshotBuilder<K>::Reserve(size_t puts) {
+  changed_.reserve(changed_.size() + puts);
+  put_.reserve(put_.size() + puts);
+  id_changes_.reserve(id_changes_.size() + puts);
+}
+
+template <class K>
 void BasicSnapshotBuilder<K>::Put(Site site) {
   uint32_t slot;
   if (auto found = base_->Find(site.id)) {

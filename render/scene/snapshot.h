@@ -154,6 +154,8 @@ class BasicSnapshotBuilder {
   using Snapshot = BasicSiteSnapshot<K>;
   BasicSnapshotBuilder(std::shared_ptr<const Snapshot> base, std::vector<uint32_t>* free_slots);
 
+  // Makes room for `puts` more Puts, for a caller that knows how many come.
+  void Reserve(size_t puts);
   // Inserts or replaces the site with this id. CONTRACT: each id at most once per builder.
   void Put(Site site);
   // Removes the site; false (and nothing changes) when the id is not a site of the base.
