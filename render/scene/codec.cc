@@ -42,8 +42,7 @@ enum Tag3 : uint8_t { kPoint3 = 6, kSegment3 = 7, kTriangle3 = 8, kMesh3 = 9 };
 
 // Writes a record's bytes at `out`, which has room for them, or with `out` null only counts
 // them: a record is put twice, counted and then written where its string has made room, so
-// that each field is one copy and the string grows once (appending field by field cost a
-// pack some 800 instructions a point).
+// that each field is one copy and the string grows once a record.
 class Writer {
  public:
   explicit Writer(char* out) : out_(out) {}
