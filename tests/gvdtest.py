@@ -3,6 +3,7 @@ PostgreSQL of their own, and an exact oracle over the API's JSON sites, written 
 from the sites' geometry, Bezier curves sampled and refined on the curve itself), never the
 server's own code.
 """
+import collections
 import glob
 import json
 import math
@@ -24,6 +25,28 @@ def read_ports(port_file):
     with open(port_file, encoding="ascii") as f:
         grpc, http = f.read().split()[:2]
     return int(grpc), int(http)
+
+
+def threads(pid):
+    """CPU ticks and context switches of the process's threads, summed by thread name: a
+    Counter of name -> ticks and (name, "switches") -> count. A thread that ends between two
+    readings takes its counts with it."""
+    out = collections.Counter()
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        try:
+            with open(f"/proc/{pid}/task/{tid}/stat", encoding="ascii") as f:
+                stat = f.read()
+            with open(f"/proc/{pid}/task/{tid}/status", encoding="ascii") as f:
+                status = f.read().splitlines()
+        except OSError:  # the thread ended
+            continue
+        name = stat[stat.index("(") + 1:stat.rindex(")")]
+        fields = stat[stat.rindex(")") + 2:].split()
+        out[name] += int(fields[11]) + int(fields[12])  # utime, stime
+        for line in status:
+            if line.startswith(("voluntary_ctxt_switches", "nonvoluntary_ctxt_switches")):
+                out[(name, "switches")] += int(line.split()[1])
+    return out
 
 
 def start_server(binary, data, port_file, log, *flags, timeout=60):

@@ -25,6 +25,7 @@
 #include <set>
 #include <thread>
 
+#include <pthread.h>
 #include <unistd.h>
 #include <zlib.h>
 
@@ -1084,7 +1085,10 @@ absl::Status HttpServer::Impl::Start() {
                           ? options_.threads
                           : std::max(1, static_cast<int>(std::thread::hardware_concurrency() / 2));
   for (int i = 0; i < threads; ++i) {
-    threads_.emplace_back([this] { ioc_.run(); });
+    threads_.emplace_back([this] {
+      pthread_setname_np(pthread_self(), "gvd-http");
+      ioc_.run();
+    });
   }
   return absl::OkStatus();
 }

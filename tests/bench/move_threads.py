@@ -18,7 +18,7 @@ in clock ticks) and its context switches (voluntary and not), summed by thread n
 client's CPU is its process's. Prints, for each side, the moves' p50 and, per move, the
 client's CPU and each server thread name's CPU and switches (names with none left out).
 Thread names are the kernel's, 15 characters at most (the gRPC port's one polling thread is
-`gvd-grpc`; the HTTP transport's I/O threads are `gvd-server`).
+`gvd-grpc`; the HTTP transport's I/O threads `gvd-http`).
 
 With --postgis, a PostgreSQL of its own holds the same points (postgis.py's table, COPY and
 GiST index), and every third block is PostGIS's moves of the same kind (postgis.py's UPDATE
@@ -42,32 +42,10 @@ import gvd
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-from gvdtest import Postgres, read_ports, start_server  # noqa: E402  pylint: disable=wrong-import-position
+from gvdtest import Postgres, read_ports, start_server, threads  # noqa: E402  pylint: disable=wrong-import-position
 import postgis  # noqa: E402  pylint: disable=wrong-import-position
 
 TICK_MS = 1000.0 / os.sysconf("SC_CLK_TCK")
-
-
-def threads(pid):
-    """CPU ticks and context switches of the process's threads, summed by thread name: a
-    Counter of name -> ticks and (name, "switches") -> count. A thread that ends between two
-    readings takes its counts with it."""
-    out = collections.Counter()
-    for tid in os.listdir(f"/proc/{pid}/task"):
-        try:
-            with open(f"/proc/{pid}/task/{tid}/stat", encoding="ascii") as f:
-                stat = f.read()
-            with open(f"/proc/{pid}/task/{tid}/status", encoding="ascii") as f:
-                status = f.read().splitlines()
-        except OSError:  # the thread ended
-            continue
-        name = stat[stat.index("(") + 1:stat.rindex(")")]
-        fields = stat[stat.rindex(")") + 2:].split()
-        out[name] += int(fields[11]) + int(fields[12])  # utime, stime
-        for line in status:
-            if line.startswith(("voluntary_ctxt_switches", "nonvoluntary_ctxt_switches")):
-                out[(name, "switches")] += int(line.split()[1])
-    return out
 
 
 def main():

@@ -2,7 +2,7 @@
 """gvd-server beside PostGIS, the database a team would pick instead for "which object is
 nearest to this point, over the network", each driven by its ecosystem's own tools.
 
-Usage: postgis.py GVD_SERVER [--moves N] [--seconds S] [--batch N] [--json FILE]
+Usage: postgis.py GVD_SERVER [--moves N] [--seconds S] [--rounds R] [--batch N] [--json FILE]
 (run with a Python that has the gvd package: tests/python/run.sh builds such a venv;
 psycopg2 and PostGIS are Debian's python3-psycopg2 and postgresql-15-postgis-3).
 
@@ -41,11 +41,14 @@ then a call that does nothing, N times on each side, alternating: grpcio's call 
 standard health Check (answered on the gRPC port's thread, none of the core) and psycopg2's SELECT 1, p50 and p99,
 the floor of each side's stock client and transport under a move's two calls; back to back,
 then each call after 1 ms idle, as a move's calls come after the wait on the other side's;
-and on the points scene the single-point query capacity at 8 connections for S seconds:
-pgbench (-M prepared -c 8 -j 2, a KNN script at random points) against h2load (-c 8 -m 1
--t 2, a FindNearest over gRPC at one point: h2load sends one body) and wrk (-c 8 -t 2, a
-FindNearest over HTTP/JSON at random points), with p50 and p99 from their per-request logs
-(wrk: its latency distribution).
+and on the points scene the single-point query capacity at 8 connections, in R rounds
+(3) of S seconds (10) a side, the sides taking turns: pgbench (-M prepared -c 8 -j 2, a
+KNN script at random points) against h2load (-c 8 -m 1 -t 2, a FindNearest over gRPC at
+one point: h2load sends one body) and wrk (-c 8 -t 2, a FindNearest over HTTP/JSON at
+random points), with p50 and p99 from their per-request logs (wrk: its latency
+distribution); each side's median round, and gvd's ratio to PostGIS the median of the
+rounds' ratios (one 10-second run a side moved gvd's gRPC ratio from 1.05x to 1.86x between
+runs of the same build).
 Clients: psycopg2 and the project's Python client (over gRPC; over HTTP as well for the
 moves), one connection each, on loopback (PostgreSQL on its Unix socket, as a local
 deployment would use it). For the moves also grpcio alone (GrpcioAlone): the API's
@@ -57,6 +60,7 @@ import io
 import json
 import os
 import re
+import resource
 import shutil
 import signal
 import statistics
@@ -72,7 +76,7 @@ import gvd
 from gvd.v1 import voronoi_pb2 as pb
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
-from gvdtest import Postgres, percentile, read_ports, start_server  # noqa: E402  pylint: disable=wrong-import-position
+from gvdtest import Postgres, percentile, read_ports, start_server, threads  # noqa: E402  pylint: disable=wrong-import-position
 
 SIDE = 1024
 BEZIER_PIECES = 64
@@ -332,43 +336,67 @@ def batch(client, conn, name, q, runs=3):
             "gvd_first_ms": 1000 * gvd_s[0], "postgis_first_ms": 1000 * pg_s[0]}
 
 
-def capacity(pg, work, grpc_port, http_port, seconds):
-    """Single-point queries per second at 8 connections, p50 and p99 (ms), on "points"."""
-    out = {}
+def load(command, server_pid=None):
+    """Runs a load generator's `command` to its end; its stdout, and its CPU beside the
+    server's: "generator_s" (the generator's CPU, user and system, over its wall time), and
+    with `server_pid` "server_thread" (the name of the server's busiest thread in the run) and
+    "server_s" (that thread's CPU over the wall time). Both fractions divided by queries/s
+    give a query's CPU."""
+    before, used = (threads(server_pid) if server_pid else None), resource.getrusage(
+        resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    run = subprocess.run(command, check=True, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    now = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = {"generator_s": (now.ru_utime + now.ru_stime - used.ru_utime - used.ru_stime) / wall}
+    if server_pid:
+        spent = threads(server_pid) - before
+        name = max((k for k in spent if isinstance(k, str)), key=lambda k: spent[k])
+        cpu.update(server_thread=name,
+                   server_s=spent[name] / os.sysconf("SC_CLK_TCK") / wall)
+    return run.stdout, cpu
+
+
+def pg_capacity(pg, work, seconds):
+    """pgbench's single-point KNN queries at 8 connections: queries/s, p50 and p99 (ms)."""
     script = os.path.join(work, "knn.sql")
     with open(script, "w", encoding="ascii") as f:
         f.write("\\set x random(0, 999999)\n\\set y random(0, 999999)\n"
                 "SELECT id FROM points ORDER BY geom <-> "
                 "ST_MakePoint(:x / 1e6, :y / 1e6) LIMIT 1;\n")
-    logs = os.path.join(work, "pgbench")
-    os.makedirs(logs)
-    run = subprocess.run([f"{pg.bindir}/pgbench", "-h", pg.sock, "-p", str(pg.port), "-U", "gvd",
-                          "-n", "-M", "prepared", "-c", "8", "-j", "2", "-T", str(seconds),
-                          "-f", script, "-l", "--log-prefix", os.path.join(logs, "log"), "gvd"],
-                         check=True, capture_output=True, text=True)
-    tps = float(re.search(r"tps = ([\d.]+)", run.stdout).group(1))
+    logs = tempfile.mkdtemp(prefix="pgbench-", dir=work)
+    out, cpu = load([f"{pg.bindir}/pgbench", "-h", pg.sock, "-p", str(pg.port), "-U", "gvd",
+                     "-n", "-M", "prepared", "-c", "8", "-j", "2", "-T", str(seconds),
+                     "-f", script, "-l", "--log-prefix", os.path.join(logs, "log"), "gvd"])
+    tps = float(re.search(r"tps = ([\d.]+)", out).group(1))
     lat = [int(line.split()[2]) / 1000 for name in os.listdir(logs)
            for line in open(os.path.join(logs, name), encoding="ascii")]
-    out["postgis"] = {"per_s": tps, "p50_ms": statistics.median(lat), "p99_ms": percentile(lat, 0.99)}
+    return {"per_s": tps, "p50_ms": statistics.median(lat), "p99_ms": percentile(lat, 0.99),
+            **cpu}
 
+
+def grpc_capacity(work, server_pid, grpc_port, seconds):
+    """h2load's single-point FindNearest calls over gRPC at 8 connections (one body)."""
     body = pb.FindNearestRequest(scene_id="points", points=[pb.Point(x=0.37, y=0.61)])
     data = body.SerializeToString()
     req = os.path.join(work, "req.bin")
     with open(req, "wb") as f:
         f.write(b"\x00" + len(data).to_bytes(4, "big") + data)
     log = os.path.join(work, "h2load.log")
-    run = subprocess.run(["h2load", "-c", "8", "-t", "2", "-m", "1", "-D", str(seconds),
-                          "--warm-up-time", "1", "-d", req, "--log-file", log,
-                          "-H", "content-type: application/grpc", "-H", "te: trailers",
-                          f"http://127.0.0.1:{grpc_port}/gvd.v1.VoronoiService/FindNearest"],
-                         check=True, capture_output=True, text=True)
+    out, cpu = load(["h2load", "-c", "8", "-t", "2", "-m", "1", "-D", str(seconds),
+                     "--warm-up-time", "1", "-d", req, "--log-file", log,
+                     "-H", "content-type: application/grpc", "-H", "te: trailers",
+                     f"http://127.0.0.1:{grpc_port}/gvd.v1.VoronoiService/FindNearest"],
+                    server_pid)
     lat = [int(line.split("\t")[2]) / 1000 for line in open(log, encoding="ascii")]
-    if "0 5xx" not in run.stdout or "0 4xx" not in run.stdout:
-        raise SystemExit("h2load: failed calls\n" + run.stdout)
-    out["gvd_grpc"] = {"per_s": float(re.search(r"finished in [\d.]+\w+, ([\d.]+) req/s",
-                                                 run.stdout).group(1)),
-                       "p50_ms": statistics.median(lat), "p99_ms": percentile(lat, 0.99)}
+    if "0 5xx" not in out or "0 4xx" not in out:
+        raise SystemExit("h2load: failed calls\n" + out)
+    return {"per_s": float(re.search(r"finished in [\d.]+\w+, ([\d.]+) req/s", out).group(1)),
+            "p50_ms": statistics.median(lat), "p99_ms": percentile(lat, 0.99), **cpu}
 
+
+def http_capacity(work, server_pid, http_port, seconds):
+    """wrk's single-point FindNearest calls over HTTP/JSON at 8 connections, random points."""
     lua = os.path.join(work, "find.lua")
     with open(lua, "w", encoding="ascii") as f:
         f.write('wrk.method = "POST"\nwrk.headers["Content-Type"] = "application/json"\n'
@@ -377,17 +405,38 @@ def capacity(pg, work, grpc_port, http_port, seconds):
                 " math.random(), math.random())\n"
                 "  return wrk.format(nil, nil, nil, body)\nend\n")
     url = f"http://127.0.0.1:{http_port}/gvd.v1.VoronoiService/FindNearest"
-    run = subprocess.run(["wrk", "-t", "2", "-c", "8", "-d", f"{seconds}s", "--latency", "-s", lua,
-                          url], check=True, capture_output=True, text=True)
-    if "Non-2xx" in run.stdout:
-        raise SystemExit("wrk: failed calls\n" + run.stdout)
+    out, cpu = load(["wrk", "-t", "2", "-c", "8", "-d", f"{seconds}s", "--latency", "-s", lua, url],
+                    server_pid)
+    if "Non-2xx" in out:
+        raise SystemExit("wrk: failed calls\n" + out)
 
     def ms(text):
         value, unit = re.fullmatch(r"([\d.]+)(us|ms|s)", text).groups()
         return float(value) * {"us": 1e-3, "ms": 1.0, "s": 1e3}[unit]
-    out["gvd_http"] = {"per_s": float(re.search(r"Requests/sec:\s+([\d.]+)", run.stdout).group(1)),
-                       "p50_ms": ms(re.search(r"^\s*50%\s+(\S+)", run.stdout, re.M).group(1)),
-                       "p99_ms": ms(re.search(r"^\s*99%\s+(\S+)", run.stdout, re.M).group(1))}
+    return {"per_s": float(re.search(r"Requests/sec:\s+([\d.]+)", out).group(1)),
+            "p50_ms": ms(re.search(r"^\s*50%\s+(\S+)", out, re.M).group(1)),
+            "p99_ms": ms(re.search(r"^\s*99%\s+(\S+)", out, re.M).group(1)), **cpu}
+
+
+def capacity(pg, work, server_pid, grpc_port, http_port, seconds, rounds):
+    """Single-point queries per second at 8 connections, p50 and p99 (ms), on "points":
+    `rounds` rounds of PostGIS, gvd over gRPC and gvd over HTTP, `seconds` each, so that a
+    slow spell of this shared machine falls on one round rather than on one side. Each side's
+    figures are the medians of its rounds ("runs" lists them), and gvd's "vs_postgis" the
+    median of its rounds' ratios to PostGIS's queries/s in the same round."""
+    runs = {"postgis": [], "gvd_grpc": [], "gvd_http": []}
+    for _ in range(rounds):
+        runs["postgis"].append(pg_capacity(pg, work, seconds))
+        runs["gvd_grpc"].append(grpc_capacity(work, server_pid, grpc_port, seconds))
+        runs["gvd_http"].append(http_capacity(work, server_pid, http_port, seconds))
+    out = {}
+    for side, rs in runs.items():
+        out[side] = {key: statistics.median(r[key] for r in rs)
+                     for key, value in rs[0].items() if not isinstance(value, str)}
+        out[side]["runs"] = rs
+        if side != "postgis":
+            out[side]["vs_postgis"] = statistics.median(
+                r["per_s"] / pg_r["per_s"] for r, pg_r in zip(rs, runs["postgis"]))
     return out
 
 
@@ -396,6 +445,7 @@ def main():
     ap.add_argument("server")
     ap.add_argument("--moves", type=int, default=600)
     ap.add_argument("--seconds", type=int, default=10)
+    ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--batch", type=int, default=100_000)
     ap.add_argument("--json")
     args = ap.parse_args()
@@ -431,7 +481,8 @@ def main():
             print(name, json.dumps(row), flush=True)
         figures["floor"] = floor(bare, conn, args.moves)
         print("floor", json.dumps(figures["floor"]), flush=True)
-        figures["capacity"] = capacity(pg, work, grpc_port, http_port, args.seconds)
+        figures["capacity"] = capacity(pg, work, server.pid, grpc_port, http_port,
+                                         args.seconds, args.rounds)
         print("capacity", json.dumps(figures["capacity"]), flush=True)
         print_table(figures, args.batch)
         if args.json:
@@ -471,13 +522,21 @@ def print_table(f, batch_size):
           f"idle: grpcio {fl['grpcio_paced_p50_ms']:.3f} ({fl['grpcio_paced_p99_ms']:.3f}) ms, "
           f"psycopg2 {fl['psycopg2_paced_p50_ms']:.3f} ({fl['psycopg2_paced_p99_ms']:.3f}) ms")
     c = f["capacity"]
-    print("\n| single-point FindNearest, 8 connections | queries/s | p50 | p99 | vs PostGIS |")
-    print("|---|---:|---:|---:|---:|")
+    print(f"\n| single-point FindNearest, 8 connections, the median of {len(c['postgis']['runs'])} "
+          f"rounds | queries/s (each round's) | p50 | p99 | vs PostGIS, the rounds' median | "
+          f"CPU a query: the server's busiest thread; the load generator |")
+    print("|---|---:|---:|---:|---:|---:|")
     for key, label in (("postgis", "PostGIS (pgbench)"), ("gvd_grpc", "gvd over gRPC (h2load)"),
                        ("gvd_http", "gvd over HTTP/JSON (wrk)")):
         r = c[key]
-        print(f"| {label} | {r['per_s']:,.0f} | {r['p50_ms']:.3f} ms | {r['p99_ms']:.3f} ms | "
-              f"{r['per_s'] / c['postgis']['per_s']:.2f}x |")
+        each = ", ".join(f"{x['per_s']:,.0f}" for x in r["runs"])
+        ratio = f"{r['vs_postgis']:.2f}x" if "vs_postgis" in r else ""
+        server = (f"{1e6 * r['server_s'] / r['per_s']:.1f} µs "
+                  f"({r['runs'][0]['server_thread']}, busy {r['server_s']:.0%}); "
+                  if "server_s" in r else "")
+        print(f"| {label} | {r['per_s']:,.0f} ({each}) | {r['p50_ms']:.3f} ms | "
+              f"{r['p99_ms']:.3f} ms | {ratio} | {server}"
+              f"{1e6 * r['generator_s'] / r['per_s']:.1f} µs |")
 
 
 if __name__ == "__main__":
