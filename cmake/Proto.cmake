@@ -26,6 +26,6 @@ function(gvd_proto_library name root)
   target_include_directories(${name} PUBLIC $<BUILD_INTERFACE:${gen}> $<INSTALL_INTERFACE:include>)
   target_link_libraries(${name} PUBLIC protobuf::libprotobuf)
   add_library(${name}_grpc STATIC ${services})
-  target_link_libraries(${name}_grpc PUBLIC ${name} $<BUILD_INTERFACE:gvd_static_grpc++>
+  target_link_libraries(${name}_grpc PUBLIC ${name} $<BUILD_INTERFACE:gvd_grpc_link_grpc++>
     $<INSTALL_INTERFACE:gRPC::grpc++>)
 endfunction()

@@ -5,7 +5,10 @@
 #  - TSan: the server's concurrency tests (scene writers and readers, render thread, frame publication, watch streams, concurrent
 #    queries and updates, crash and load tests), not the single-threaded CLI's (CliTest), whose calls the server tests here
 #    make of the server too; with gRPC/protobuf/abseil suppressed: Debian
-#    builds them without TSan, so it cannot see their synchronization (tsan.supp).
+#    builds them without TSan, so it cannot see their synchronization (tsan.supp). This build
+#    links gRPC's shared libraries (GVD_GRPC_STATIC=OFF), which those suppressions name
+#    (called_from_lib): linked in, gRPC's socket and memory calls reach TSan as the
+#    executable's own, unsuppressed, and their fds and frees read as races.
 # Usage: bash tests/sanitizers/run.sh   (after bash tests/run-tests.sh installed the packages)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -36,7 +39,7 @@ export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 (cd build/asan && ASAN_OPTIONS=detect_leaks=0 ctest --output-on-failure -j "$jobs" --timeout 900 \
   -E '^(Cone|Build|Frame|Exact|Nearest|Coverage|SiteIndex|Snapshot|SceneCore|Codec|Store\.|CpuPool|BoundaryEdges|TraceBoundaries|NeighborPairs|HiddenSites|GeometryMeetsBox|TrianglesFromEdges|Volume|fuzz_|deploy_lint|docs_|browser_|container_|compose_|python_|ts_client|cpp_client_|soak_)')
 
-cmake -S . -B build/tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGVD_WERROR=OFF \
+cmake -S . -B build/tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGVD_WERROR=OFF -DGVD_GRPC_STATIC=OFF \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="$opt" -DCMAKE_CXX_FLAGS="-fsanitize=thread" -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=thread" >/dev/null
 cmake --build build/tsan --target gvd_core_tests gvd_integration_tests gvd_server_unit_tests \
   gvd_app_tests gvd_app_gl_tests gvd-server
