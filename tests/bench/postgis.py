@@ -47,8 +47,8 @@ KNN script at random points) against h2load (-c 8 -m 1 -t 2, a FindNearest over 
 one point: h2load sends one body) and wrk (-c 8 -t 2, a FindNearest over HTTP/JSON at
 random points), with p50 and p99 from their per-request logs (wrk: its latency
 distribution); each side's median round, and gvd's ratio to PostGIS the median of the
-rounds' ratios (one 10-second run a side moved gvd's gRPC ratio from 1.05x to 1.86x between
-runs of the same build).
+rounds' ratios (on this shared machine one 10-second run a side gives ratios that differ
+by up to 1.8 times from run to run).
 Clients: psycopg2 and the project's Python client (over gRPC; over HTTP as well for the
 moves), one connection each, on loopback (PostgreSQL on its Unix socket, as a local
 deployment would use it). For the moves also grpcio alone (GrpcioAlone): the API's
@@ -339,9 +339,10 @@ def batch(client, conn, name, q, runs=3):
 def load(command, server_pid=None):
     """Runs a load generator's `command` to its end; its stdout, and its CPU beside the
     server's: "generator_s" (the generator's CPU, user and system, over its wall time), and
-    with `server_pid` "server_thread" (the name of the server's busiest thread in the run) and
-    "server_s" (that thread's CPU over the wall time). Both fractions divided by queries/s
-    give a query's CPU."""
+    with `server_pid` "server_thread" (the thread name that took the most of the server's CPU
+    in the run: `gvd-grpc` is the gRPC port's one thread, `gvd-http` the HTTP transport's I/O
+    threads, one on two cores) and "server_s" (the CPU of the threads of that name over the
+    wall time)."""
     before, used = (threads(server_pid) if server_pid else None), resource.getrusage(
         resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
@@ -429,6 +430,10 @@ def capacity(pg, work, server_pid, grpc_port, http_port, seconds, rounds):
         runs["postgis"].append(pg_capacity(pg, work, seconds))
         runs["gvd_grpc"].append(grpc_capacity(work, server_pid, grpc_port, seconds))
         runs["gvd_http"].append(http_capacity(work, server_pid, http_port, seconds))
+        for side in runs.values():  # a query's CPU (µs), each round's own
+            r = side[-1]
+            r.update({key.replace("_s", "_us"): 1e6 * r[key] / r["per_s"]
+                      for key in ("generator_s", "server_s") if key in r})
     out = {}
     for side, rs in runs.items():
         out[side] = {key: statistics.median(r[key] for r in rs)
@@ -449,6 +454,8 @@ def main():
     ap.add_argument("--batch", type=int, default=100_000)
     ap.add_argument("--json")
     args = ap.parse_args()
+    if args.rounds < 1 or args.seconds < 1:
+        ap.error("--rounds and --seconds are at least 1")
     work = tempfile.mkdtemp(prefix="gvd-postgis-")
     os.chmod(work, 0o755)
     server, pg = None, None
@@ -524,19 +531,19 @@ def print_table(f, batch_size):
     c = f["capacity"]
     print(f"\n| single-point FindNearest, 8 connections, the median of {len(c['postgis']['runs'])} "
           f"rounds | queries/s (each round's) | p50 | p99 | vs PostGIS, the rounds' median | "
-          f"CPU a query: the server's busiest thread; the load generator |")
+          f"CPU a query: the server's busiest threads by name; the load generator |")
     print("|---|---:|---:|---:|---:|---:|")
     for key, label in (("postgis", "PostGIS (pgbench)"), ("gvd_grpc", "gvd over gRPC (h2load)"),
                        ("gvd_http", "gvd over HTTP/JSON (wrk)")):
         r = c[key]
         each = ", ".join(f"{x['per_s']:,.0f}" for x in r["runs"])
         ratio = f"{r['vs_postgis']:.2f}x" if "vs_postgis" in r else ""
-        server = (f"{1e6 * r['server_s'] / r['per_s']:.1f} µs "
+        server = (f"{r['server_us']:.1f} µs "
                   f"({r['runs'][0]['server_thread']}, busy {r['server_s']:.0%}); "
                   if "server_s" in r else "")
         print(f"| {label} | {r['per_s']:,.0f} ({each}) | {r['p50_ms']:.3f} ms | "
               f"{r['p99_ms']:.3f} ms | {ratio} | {server}"
-              f"{1e6 * r['generator_s'] / r['per_s']:.1f} µs |")
+              f"{r['generator_us']:.1f} µs |")
 
 
 if __name__ == "__main__":
