@@ -432,8 +432,9 @@ def capacity(pg, work, server_pid, grpc_port, http_port, seconds, rounds):
         runs["gvd_http"].append(http_capacity(work, server_pid, http_port, seconds))
         for side in runs.values():  # a query's CPU (µs), each round's own
             r = side[-1]
-            r.update({key.replace("_s", "_us"): 1e6 * r[key] / r["per_s"]
-                      for key in ("generator_s", "server_s") if key in r})
+            for fraction, per_query in (("generator_s", "generator_us"), ("server_s", "server_us")):
+                if fraction in r:
+                    r[per_query] = 1e6 * r[fraction] / r["per_s"]
     out = {}
     for side, rs in runs.items():
         out[side] = {key: statistics.median(r[key] for r in rs)
